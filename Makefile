@@ -1,0 +1,39 @@
+# Two entry points for a fresh machine with Python >= 3.11 and pip (see README.md):
+#   make demo   installs into .venv and normalises the bundled seed fixture end to end
+#   make test   installs into .venv and runs lint, type checks and the test suite
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: install demo test lint bench corpus clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	rm -rf out/demo
+	$(BIN)/meshtool normalize "fixtures/head/Head 1.obj" -o out/demo --units cm
+	$(BIN)/python scripts/show_asset.py out/demo/head_1
+
+lint: $(STAMP)
+	$(BIN)/ruff check meshtool simrun tests bench scripts
+	$(BIN)/ruff format --check meshtool simrun tests bench scripts
+	$(BIN)/mypy
+
+test: $(STAMP) lint
+	$(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python bench/parse.py ../shared/corpus
+
+corpus: $(STAMP)
+	$(BIN)/python bench/corpus_check.py ../shared/corpus
+
+clean:
+	rm -rf out build dist *.egg-info .pytest_cache .mypy_cache .ruff_cache

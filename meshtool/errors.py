@@ -1,0 +1,94 @@
+"""Errors raised by meshtool.
+
+Every error meshtool raises derives from :class:`MeshtoolError`, and each subclass also derives from the
+matching built-in exception, so callers may catch either. An error carries *where* (``path`` and ``line``,
+or a byte ``offset``) and *how to fix it* (``hint``); ``str(error)`` is one line in the form
+``path:line: message (hint)``.
+"""
+
+from __future__ import annotations
+
+
+class MeshtoolError(Exception):
+    """Base class of every error meshtool raises on purpose.
+
+    Args:
+        message: What is wrong, one sentence, no location.
+        path: The file the problem is in, as the user named it (or relative to the asset folder).
+        line: 1-based line number in ``path``, when known.
+        offset: 0-based byte offset in ``path``, for binary data, when known.
+        hint: How to fix it, one short sentence.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: str | None = None,
+        line: int | None = None,
+        offset: int | None = None,
+        hint: str | None = None,
+    ) -> None:
+        self.message = message
+        self.path = path
+        self.line = line
+        self.offset = offset
+        self.hint = hint
+        super().__init__(self.one_line())
+
+    @property
+    def where(self) -> str:
+        """The location as ``path:line``, ``path@byte N`` or ``path`` (empty when unknown)."""
+        if self.path is None:
+            return ""
+        if self.line is not None:
+            return f"{self.path}:{self.line}"
+        if self.offset is not None:
+            return f"{self.path}: byte {self.offset}"
+        return self.path
+
+    def one_line(self) -> str:
+        """Render the error as a single line: where, what, and the fix."""
+        text = f"{self.where}: {self.message}" if self.where else self.message
+        if self.hint:
+            text += f" ({self.hint})"
+        return text.replace("\n", " ")
+
+    def to_dict(self) -> dict[str, object]:
+        """A JSON-ready description of the error."""
+        return {
+            "type": type(self).__name__,
+            "message": self.message,
+            "path": self.path,
+            "line": self.line,
+            "offset": self.offset,
+            "hint": self.hint,
+        }
+
+
+class ObjParseError(MeshtoolError, ValueError):
+    """An OBJ file cannot be read: not OBJ, empty, a bad number, an invalid index."""
+
+
+class MtlParseError(MeshtoolError, ValueError):
+    """An MTL file cannot be read at all (individual bad statements become findings instead)."""
+
+
+class TextureError(MeshtoolError, ValueError):
+    """An image cannot be decoded or converted to PNG."""
+
+
+class ResolveError(MeshtoolError, FileNotFoundError):
+    """A file the user named directly (not a reference inside a file) cannot be read."""
+
+
+class OutputError(MeshtoolError, OSError):
+    """The output cannot be written where it was asked for, or would overwrite something it must not."""
+
+
+class StrictModeError(MeshtoolError, ValueError):
+    """``strict`` was set and the conversion produced warnings."""
+
+
+class OptionsError(MeshtoolError, ValueError):
+    """An option value is out of range or inconsistent."""

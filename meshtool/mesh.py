@@ -1,0 +1,256 @@
+"""Triangle meshes built from parsed OBJ data: triangulated, cleaned, compacted and ordered.
+
+:func:`build_mesh` turns an :class:`~meshtool.obj.parse.ObjData` into a :class:`TriMesh`: polygons are
+triangulated, degenerate triangles dropped, unused vertices/texcoords/normals removed (order kept), and
+triangles ordered by material (first use) and then part name, so each material is one contiguous run.
+Coordinates stay in the source's units and axes; see :mod:`meshtool.units` for conversion.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from meshtool.errors import ObjParseError
+from meshtool.findings import Finding, info, warning
+from meshtool.obj.parse import ObjData
+from meshtool.obj.triangulate import triangulate_polygons
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+DEFAULT_MATERIAL = "default"
+_UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
+
+
+@dataclass(slots=True)
+class TriMesh:
+    """An indexed triangle mesh with per-triangle material and part.
+
+    Shapes: ``V`` vertices, ``T`` texcoords, ``N`` normals, ``M`` triangles.
+
+    Attributes:
+        positions: (V, 3) float64.
+        colors: (V, 3) float64 vertex colours or ``None``.
+        texcoords: (T, 2) float64.
+        normals: (N, 3) float64.
+        faces: (M, 3) vertex indices, counter-clockwise seen from the front.
+        face_uv: (M, 3) texcoord indices, rows of -1 where the triangle has none.
+        face_normal: (M, 3) normal indices, rows of -1 where the triangle has none.
+        face_material: (M,) index into ``material_names``.
+        face_part: (M,) index into ``part_names``.
+        face_lines: (M,) line of the source ``f`` statement.
+        material_names: Material names (as in the source) in order of first use.
+        part_names: Part names, made safe (``[A-Za-z0-9_.-]``) and unique.
+        source_polygons: Number of polygons read.
+        degenerate: Triangles dropped as degenerate (repeated vertex or zero area).
+    """
+
+    positions: FloatArray
+    colors: FloatArray | None
+    texcoords: FloatArray
+    normals: FloatArray
+    faces: IntArray
+    face_uv: IntArray
+    face_normal: IntArray
+    face_material: IntArray
+    face_part: IntArray
+    face_lines: IntArray
+    material_names: list[str]
+    part_names: list[str]
+    source_polygons: int
+    degenerate: int
+
+
+def safe_identifier(name: str, fallback: str) -> str:
+    """Make a name safe for MTL/OBJ/MJCF: runs of other characters become ``_``.
+
+    Idempotent: a safe name is returned unchanged.
+    """
+    cleaned = _UNSAFE.sub("_", name.strip()).strip("_")
+    return cleaned or fallback
+
+
+def unique_names(names: list[str], fallback: str) -> list[str]:
+    """Safe, pairwise distinct names (``_2``, ``_3``... appended in order on clashes)."""
+    out: list[str] = []
+    taken: set[str] = set()
+    for name in names:
+        base = safe_identifier(name, fallback)
+        candidate, n = base, 2
+        while candidate.casefold() in taken:
+            candidate, n = f"{base}_{n}", n + 1
+        taken.add(candidate.casefold())
+        out.append(candidate)
+    return out
+
+
+def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
+    """Triangulate and clean parsed OBJ data.
+
+    Args:
+        obj: Parsed OBJ.
+
+    Returns:
+        The mesh and findings (degenerate faces, dropped attributes, unused non-finite vertices).
+
+    Raises:
+        ObjParseError: When a face uses a vertex with a non-finite coordinate.
+    """
+    findings: list[Finding] = []
+    path = obj.path
+    tri = triangulate_polygons(obj.positions, obj.face_sizes, obj.corner_v)
+    faces = obj.corner_v[tri.corners]
+    uv = obj.corner_vt[tri.corners]
+    nrm = obj.corner_vn[tri.corners]
+    lines = obj.face_lines[tri.face]
+    material = obj.face_material[tri.face]
+    part = obj.face_part[tri.face]
+
+    if faces.size:
+        used = np.unique(faces)
+        finite = np.isfinite(obj.positions[used]).all(axis=1)
+        if not finite.all():
+            vertex = int(used[np.flatnonzero(~finite)[0]])
+            user = int(lines[np.flatnonzero((faces == vertex).any(axis=1))[0]])
+            raise ObjParseError(
+                f"vertex {vertex + 1} has a non-finite coordinate {obj.positions[vertex].tolist()} and is used by "
+                f"the face on line {user}",
+                path=path,
+                line=int(obj.vertex_lines[vertex]),
+                hint="fix the coordinate or delete the faces that use it",
+            )
+
+    degenerate = _degenerate(obj.positions, faces)
+    dropped = int(degenerate.sum()) + tri.lost
+    if dropped:
+        first = int(lines[np.flatnonzero(degenerate)[0]]) if degenerate.any() else None
+        findings.append(info("degenerate-faces", f"{dropped} degenerate triangle(s) dropped (zero area)", path, first))
+    keep = ~degenerate
+    faces, uv, nrm, lines, material, part = (
+        faces[keep],
+        uv[keep],
+        nrm[keep],
+        lines[keep],
+        material[keep],
+        part[keep],
+    )
+
+    partial_uv = (uv >= 0).any(axis=1) & ~(uv >= 0).all(axis=1)
+    if partial_uv.any():
+        findings.append(
+            warning(
+                "texcoords-partial",
+                f"{int(partial_uv.sum())} triangle(s) with texcoords on only some corners: dropped",
+                path,
+            )
+        )
+    uv[~(uv >= 0).all(axis=1)] = -1
+    normals = obj.normals
+    has_n = (nrm >= 0).all(axis=1)
+    if has_n.any() and not has_n.all():
+        missing = np.flatnonzero(~has_n)
+        flat = _face_normals(obj.positions, faces[missing])
+        nrm[missing] = (normals.shape[0] + np.arange(missing.size))[:, None]
+        normals = np.concatenate([normals, flat])
+        findings.append(
+            info("normals-partial", f"{missing.size} triangle(s) without normals got flat face normals", path)
+        )
+    elif not has_n.any():
+        nrm[:] = -1
+
+    if faces.size:
+        positions, colors, faces = _compact_vertices(obj, faces)
+    else:
+        finite = np.isfinite(obj.positions).all(axis=1)
+        if not finite.all():
+            findings.append(
+                warning(
+                    "non-finite-vertices",
+                    f"{int((~finite).sum())} vertices with non-finite coordinates dropped",
+                    path,
+                )
+            )
+        positions = obj.positions[finite]
+        colors = obj.colors[finite] if obj.colors is not None else None
+    texcoords, uv = _compact(obj.texcoords, uv)
+    normals, nrm = _compact(normals, nrm)
+
+    material_names, material = _first_use_order(material, obj.material_names)
+    part_names_all = unique_names(obj.part_names, "part")
+    part_order = np.argsort(np.asarray(part_names_all, dtype=object), kind="stable") if part_names_all else np.zeros(0)
+    rank = np.empty(len(part_names_all), dtype=np.int64)
+    rank[part_order.astype(np.int64)] = np.arange(len(part_names_all))
+    order = np.lexsort((rank[part] if part.size else part, material))
+    return (
+        TriMesh(
+            positions=positions,
+            colors=colors,
+            texcoords=texcoords,
+            normals=normals,
+            faces=faces[order],
+            face_uv=uv[order],
+            face_normal=nrm[order],
+            face_material=material[order],
+            face_part=part[order],
+            face_lines=lines[order],
+            material_names=material_names,
+            part_names=part_names_all,
+            source_polygons=int(obj.face_sizes.size),
+            degenerate=dropped,
+        ),
+        findings,
+    )
+
+
+def _degenerate(positions: FloatArray, faces: IntArray) -> npt.NDArray[np.bool_]:
+    if faces.size == 0:
+        return np.zeros(0, dtype=bool)
+    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    p = positions[faces]
+    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    result: npt.NDArray[np.bool_] = repeated | ~(cross != 0).any(axis=1)
+    return result
+
+
+def _face_normals(positions: FloatArray, faces: IntArray) -> FloatArray:
+    p = positions[faces]
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    result: FloatArray = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    return result
+
+
+def _compact_vertices(obj: ObjData, faces: IntArray) -> tuple[FloatArray, FloatArray | None, IntArray]:
+    used, inverse = np.unique(faces, return_inverse=True)
+    colors = obj.colors[used] if obj.colors is not None else None
+    return obj.positions[used], colors, inverse.reshape(faces.shape).astype(np.int64)
+
+
+def _compact(values: FloatArray, index: IntArray) -> tuple[FloatArray, IntArray]:
+    """Drop rows of ``values`` no index uses; remap ``index`` (-1 stays -1)."""
+    present = index >= 0
+    if not present.any():
+        return values[:0], index
+    used = np.unique(index[present])
+    remap = np.full(values.shape[0], -1, dtype=np.int64)
+    remap[used] = np.arange(used.size)
+    out = np.where(present, remap[np.maximum(index, 0)], -1)
+    return values[used], out
+
+
+def _first_use_order(material: IntArray, names: list[str]) -> tuple[list[str], IntArray]:
+    """Renumber materials by first use; faces with no ``usemtl`` (-1) get :data:`DEFAULT_MATERIAL`."""
+    if material.size == 0:
+        return [], material
+    labels = [DEFAULT_MATERIAL, *names]
+    ids = material + 1
+    _, first = np.unique(ids, return_index=True)
+    by_label: dict[str, int] = {}
+    for i in ids[np.sort(first)].tolist():
+        by_label.setdefault(labels[i], len(by_label))
+    table = np.asarray([by_label.get(label, -1) for label in labels], dtype=np.int64)
+    return list(by_label), table[ids]

@@ -1,0 +1,355 @@
+"""The normaliser: one OBJ (with its MTLs and textures) in, one clean, self-contained asset folder out.
+
+Stages: read the OBJ through the resolver -> parse -> resolve and parse MTLs -> build a clean triangle mesh
+-> convert to metres and Z-up -> resolve textures and convert them to PNG -> write ``NAME.obj``,
+``NAME.mtl``, the PNGs and ``asset.json``. :func:`normalise` does everything but the writing and returns
+the files in memory; :func:`write_asset` writes them atomically. Nothing here prints.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+import unicodedata
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from meshtool import __version__
+from meshtool.errors import MeshtoolError, ObjParseError, OptionsError, OutputError, StrictModeError
+from meshtool.findings import Finding, Severity, info, warning
+from meshtool.mesh import DEFAULT_MATERIAL, TriMesh, build_mesh, unique_names
+from meshtool.obj.mtl import Material, TextureMap, format_mtl, parse_mtl
+from meshtool.obj.parse import parse_obj
+from meshtool.obj.write import format_obj
+from meshtool.outdir import write_folder
+from meshtool.resolve import Resolution, Resolver
+from meshtool.textures import to_png
+from meshtool.units import UNIT_FACTORS, apply_scale, rotation_matrix, scale_findings, to_z_up, unit_scale
+
+_MARKER = re.compile(r"^meshtool \S+ normalized OBJ: units=m up=z\b")
+_SAFE_FILE_CHARS = re.compile(r"[^a-z0-9_.-]+")
+
+
+@dataclass(frozen=True, slots=True)
+class NormaliseOptions:
+    """Options of :func:`normalise` (the fields of ``meshtool normalize``).
+
+    Attributes:
+        units: Unit of the source coordinates; ``None`` means metres (or, for a file meshtool wrote,
+            what its header says).
+        scale: Extra uniform scale applied after the unit conversion.
+        up: Up axis of the source; ``None`` means ``y`` (the OBJ convention), or ``z`` for a file meshtool
+            wrote.
+        name: Output folder and file stem; ``None`` derives it from the source file name.
+        search_paths: Extra folders references may resolve into.
+        strict: Fail instead of writing when there are warnings.
+    """
+
+    units: str | None = None
+    scale: float = 1.0
+    up: str | None = None
+    name: str | None = None
+    search_paths: tuple[Path, ...] = ()
+    strict: bool = False
+
+    def __post_init__(self) -> None:
+        if self.units is not None and self.units not in UNIT_FACTORS:
+            raise OptionsError(f"unknown unit {self.units!r}", hint=f"use one of {', '.join(UNIT_FACTORS)}")
+        if self.up is not None and self.up not in ("y", "z"):
+            raise OptionsError(f"unknown up axis {self.up!r}", hint="use y or z")
+        if not (math.isfinite(self.scale) and self.scale > 0):
+            raise OptionsError(f"scale must be a positive finite number, got {self.scale!r}")
+        if self.name is not None and not safe_file_stem(self.name):
+            raise OptionsError(f"name {self.name!r} has no usable characters", hint="use letters, digits, _ . -")
+
+
+@dataclass(slots=True)
+class NormalisedAsset:
+    """A normalised asset in memory.
+
+    Attributes:
+        name: Folder and file stem.
+        files: Output file name to bytes (``NAME.obj``, ``NAME.mtl``, PNGs, ``asset.json``).
+        manifest: The content of ``asset.json``.
+        findings: Everything noticed, in pipeline order.
+    """
+
+    name: str
+    files: dict[str, bytes]
+    manifest: dict[str, Any]
+    findings: list[Finding] = field(default_factory=list)
+
+    @property
+    def stats(self) -> dict[str, Any]:
+        """Counts and bounding box (see ``asset.json``)."""
+        stats: dict[str, Any] = self.manifest["stats"]
+        return stats
+
+
+def safe_file_stem(text: str) -> str:
+    """A file stem made of ``[a-z0-9_.-]``: accents stripped, lower case, other runs become ``_``."""
+    ascii_text = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode("ascii").lower()
+    return _SAFE_FILE_CHARS.sub("_", ascii_text).strip("_.-")
+
+
+def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedAsset:
+    """Normalise one OBJ file and everything it references, in memory.
+
+    Args:
+        src: The OBJ file. Its folder is the asset root: references never resolve outside it except into
+            ``options.search_paths``.
+        options: See :class:`NormaliseOptions`.
+
+    Returns:
+        The output files and findings.
+
+    Raises:
+        MeshtoolError: The OBJ cannot be read or converted (the message names file and line), or
+            ``strict`` is set and there are warnings.
+    """
+    options = options or NormaliseOptions()
+    resolver = Resolver(src.parent, options.search_paths)
+    source_name = src.name
+    data = resolver.read_source(src)
+    obj = parse_obj(data, source_name)
+    findings = list(obj.findings)
+    sources: list[dict[str, str]] = [{"role": "obj", "path": source_name, "sha256": _sha256(data)}]
+    resolutions: list[Resolution] = []
+
+    normalised_before = any(_MARKER.match(c) for c in obj.header_comments[:1])
+    units = options.units or "m"
+    up = options.up or ("z" if normalised_before else "y")
+    if normalised_before and options.up is None:
+        findings.append(info("already-normalized", "file was written by meshtool: read as metres, Z-up", source_name))
+
+    library: dict[str, tuple[Material, Path]] = {}
+    for ref in obj.mtllibs:
+        res = resolver.resolve(ref.name, src.parent, "mtl", source_name, ref.line)
+        resolutions.append(res)
+        findings.extend(res.findings)
+        if res.found is None:
+            continue
+        shown = resolver.display(res.found)
+        mtl_bytes = resolver.read(res.found)
+        sources.append({"role": "mtl", "path": shown, "sha256": _sha256(mtl_bytes)})
+        mtl = parse_mtl(mtl_bytes, shown)
+        findings.extend(mtl.findings)
+        for material in mtl.materials:
+            library.setdefault(material.name, (material, res.found))
+
+    mesh, mesh_findings = build_mesh(obj)
+    findings.extend(mesh_findings)
+    if mesh.positions.shape[0] == 0:
+        raise ObjParseError(
+            "no geometry: the file defines no usable vertices", path=source_name, hint="export the mesh again"
+        )
+    if mesh.faces.shape[0] == 0:
+        findings.append(
+            warning(
+                "no-faces",
+                f"no faces: {mesh.positions.shape[0]} points kept (usable for a convex hull only)",
+                source_name,
+            )
+        )
+    mesh.positions = to_z_up(apply_scale(mesh.positions, units, options.scale), up)
+    mesh.normals = to_z_up(mesh.normals, up)
+
+    name = (options.name and safe_file_stem(options.name)) or safe_file_stem(src.stem) or "asset"
+    files: dict[str, bytes] = {}
+    used = set(mesh.material_names) & set(library)
+    unused = [m for m in library if m not in used]
+    if unused:
+        findings.append(
+            info(
+                "materials-unused",
+                f"{len(unused)} material(s) defined but not used: not written",
+                source_name,
+            )
+        )
+    out_materials, textures = _materials(mesh, library, resolver, source_name, findings, resolutions, sources, files)
+    material_file = f"{name}.mtl" if out_materials else None
+    header = f"meshtool {__version__} normalized OBJ: units=m up=z"
+    files[f"{name}.obj"] = format_obj(mesh, [m.name for m in out_materials], material_file, header).encode("utf-8")
+    if material_file:
+        files[material_file] = format_mtl(out_materials, f"meshtool {__version__} materials for {name}.obj").encode()
+
+    stats = _stats(mesh, len(out_materials), len(textures))
+    findings.extend(scale_findings(np.asarray(stats["bbox"]["extent"]), source_name, options.units is not None))
+    manifest = {
+        "format": "meshtool-asset",
+        "format_version": 1,
+        "tool": {"name": "meshtool", "version": __version__},
+        "name": name,
+        "files": {"obj": f"{name}.obj", "mtl": material_file, "textures": sorted(textures)},
+        "sources": sources,
+        "transform": {
+            "units": units,
+            "unit_scale": unit_scale(units),
+            "scale": options.scale,
+            "up": up,
+            "rotation": rotation_matrix(up),
+            "note": "x_out = rotation @ (x_src * unit_scale * scale); output is metres, Z-up, right-handed",
+        },
+        "stats": stats,
+        "materials": [{"name": m.name, "textures": {k: t.file for k, t in m.maps.items()}} for m in out_materials],
+        "resolutions": [
+            {
+                "ref": r.ref,
+                "kind": r.kind,
+                "from": f"{r.origin}:{r.line}",
+                "found": resolver.display(r.found) if r.found else None,
+                "rule": r.rule,
+            }
+            for r in resolutions
+        ],
+        "findings": [f.to_dict() for f in findings],
+    }
+    files["asset.json"] = (json.dumps(manifest, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
+    warnings = [f for f in findings if f.severity is not Severity.INFO]
+    if options.strict and warnings:
+        raise StrictModeError(
+            f"{len(warnings)} warning(s) in strict mode, first: {warnings[0].one_line()}",
+            path=source_name,
+            hint="fix the input or drop --strict",
+        )
+    return NormalisedAsset(name, files, manifest, findings)
+
+
+def write_asset(asset: NormalisedAsset, out_dir: Path, src: Path | None = None) -> Path:
+    """Write a normalised asset to ``out_dir/NAME/`` atomically.
+
+    Args:
+        asset: From :func:`normalise`.
+        out_dir: Parent folder (created when missing).
+        src: The source OBJ; writing is refused when the target folder would contain it.
+
+    Returns:
+        The asset folder.
+
+    Raises:
+        OutputError: See :func:`meshtool.outdir.write_folder`; also when the target holds the source.
+    """
+    target = (out_dir / asset.name).resolve()
+    if src is not None:
+        source_dir = src.resolve().parent
+        if target == source_dir or target in source_dir.parents:
+            raise OutputError(
+                "the output folder would contain the source files",
+                path=str(out_dir / asset.name),
+                hint="write to a folder outside the source asset",
+            )
+    return write_folder(out_dir, asset.name, asset.files)
+
+
+def normalise_to(src: Path, out_dir: Path, options: NormaliseOptions | None = None) -> tuple[Path, NormalisedAsset]:
+    """:func:`normalise` then :func:`write_asset`; returns the folder and the asset."""
+    asset = normalise(src, options)
+    return write_asset(asset, out_dir, src), asset
+
+
+def _materials(
+    mesh: TriMesh,
+    library: dict[str, tuple[Material, Path]],
+    resolver: Resolver,
+    source_name: str,
+    findings: list[Finding],
+    resolutions: list[Resolution],
+    sources: list[dict[str, str]],
+    files: dict[str, bytes],
+) -> tuple[list[Material], list[str]]:
+    """Output materials (safe names, textures converted and renamed) in first-use order."""
+    out_names = unique_names(mesh.material_names, "material")
+    converted: dict[Path, str | None] = {}
+    texture_names: set[str] = set()
+    out: list[Material] = []
+    for source_material, out_name in zip(mesh.material_names, out_names, strict=True):
+        entry = library.get(source_material)
+        if entry is None:
+            if library or source_material != DEFAULT_MATERIAL:
+                findings.append(
+                    warning(
+                        "material-undefined",
+                        f"material {source_material!r} is not defined in any MTL: grey default used",
+                        source_name,
+                    )
+                )
+            out.append(Material(out_name, 0, colors={"Kd": (0.8, 0.8, 0.8)}, illum=1))
+            continue
+        material, mtl_file = entry
+        clean = Material(out_name, material.line, dict(material.colors), dict(material.scalars), material.illum)
+        origin = resolver.display(mtl_file)
+        for key, tex in material.maps.items():
+            res = resolver.resolve(tex.file, mtl_file.parent, "texture", origin, tex.line)
+            resolutions.append(res)
+            findings.extend(res.findings)
+            if res.found is None:
+                continue
+            if res.found not in converted:
+                converted[res.found] = _convert_texture(res.found, resolver, findings, sources, files, texture_names)
+            written = converted[res.found]
+            if written is not None:
+                clean.maps[key] = TextureMap(written, dict(tex.options), tex.line)
+        out.append(clean)
+    return out, sorted(texture_names)
+
+
+def _convert_texture(
+    found: Path,
+    resolver: Resolver,
+    findings: list[Finding],
+    sources: list[dict[str, str]],
+    files: dict[str, bytes],
+    taken: set[str],
+) -> str | None:
+    shown = resolver.display(found)
+    data = resolver.read(found)
+    sources.append({"role": "texture", "path": shown, "sha256": _sha256(data)})
+    try:
+        png = to_png(data, shown)
+    except MeshtoolError as exc:
+        findings.append(warning("texture-unreadable", f"{exc.message}: map dropped", shown))
+        return None
+    stem = safe_file_stem(found.stem) or "texture"
+    out_name, n = f"{stem}.png", 2
+    while out_name in taken:
+        out_name, n = f"{stem}_{n}.png", n + 1
+    taken.add(out_name)
+    files[out_name] = png.data
+    if png.converted:
+        findings.append(
+            info(
+                "texture-converted",
+                f"{png.source_format} {png.source_mode} {png.size[0]}x{png.size[1]} converted to 8-bit {png.mode} PNG "
+                f"{out_name}",
+                shown,
+            )
+        )
+    return out_name
+
+
+def _stats(mesh: TriMesh, materials: int, textures: int) -> dict[str, Any]:
+    p = mesh.positions
+    lo = p.min(axis=0) if p.size else np.zeros(3)
+    hi = p.max(axis=0) if p.size else np.zeros(3)
+    return {
+        "vertices": int(p.shape[0]),
+        "triangles": int(mesh.faces.shape[0]),
+        "texcoords": int(mesh.texcoords.shape[0]),
+        "normals": int(mesh.normals.shape[0]),
+        "vertex_colors": mesh.colors is not None,
+        "materials": materials,
+        "textures": textures,
+        "parts": len(set(mesh.face_part.tolist())),
+        "source_polygons": mesh.source_polygons,
+        "degenerate_dropped": mesh.degenerate,
+        "bbox": {"min": (lo + 0.0).tolist(), "max": (hi + 0.0).tolist(), "extent": (hi - lo + 0.0).tolist()},
+    }
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()

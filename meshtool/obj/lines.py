@@ -1,0 +1,182 @@
+"""Line classification and vectorised number parsing for OBJ text.
+
+A block is every line of one statement kind joined together; its numbers are read in one numpy call.
+When that is not possible (inline comments, malformed numbers, MSVC ``1.#IND`` spellings), callers fall
+back to :func:`slow_numbers`, which reads line by line and names the bad line.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from meshtool.errors import ObjParseError
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+OTHER, V, VT, VN, F, SKIP = range(6)
+_COMMENT = re.compile(r"(?:^|\s)#")
+_MSVC_SPECIAL = re.compile(r"^[+-]?1\.#(INF|IND|QNAN|SNAN)\d*$", re.IGNORECASE)
+
+
+@dataclass(slots=True)
+class Lines:
+    """The decoded text as UTF-8 bytes with per-line start/end offsets and statement kinds."""
+
+    raw: bytes
+    starts: IntArray
+    ends: IntArray  # index of the terminating b"\n"
+    kinds: npt.NDArray[np.int8]
+
+    def text(self, i: int) -> str:
+        """Line ``i`` (0-based) as text, without its newline."""
+        return self.raw[int(self.starts[i]) : int(self.ends[i])].decode("utf-8")
+
+
+def classify(raw: bytes) -> Lines:
+    """Split LF-terminated text into lines and classify each by its first bytes (v, vt, vn, f, skip, other)."""
+    buf = np.frombuffer(raw, dtype=np.uint8)
+    ends = np.flatnonzero(buf == 10).astype(np.int64)
+    starts = np.empty_like(ends)
+    if ends.size:
+        starts[0] = 0
+        starts[1:] = ends[:-1] + 1
+    padded = np.concatenate([buf, np.zeros(3, dtype=np.uint8)])
+    c0, c1, c2 = padded[starts], padded[starts + 1], padded[starts + 2]
+
+    def space(c: npt.NDArray[np.uint8]) -> BoolArray:
+        result: BoolArray = (c == 32) | (c == 9) | (c == 10) | (c == 11) | (c == 12)
+        return result
+
+    kinds = np.full(ends.shape, OTHER, dtype=np.int8)
+    kinds[(c0 == 10) | (c0 == 35)] = SKIP
+    is_v = c0 == 118
+    kinds[is_v & space(c1)] = V
+    kinds[is_v & (c1 == 116) & space(c2)] = VT
+    kinds[is_v & (c1 == 110) & space(c2)] = VN
+    kinds[(c0 == 102) & space(c1)] = F
+    return Lines(raw, starts, ends, kinds)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# vectorised blocks
+
+
+def gather(lines: Lines, kind: int) -> tuple[bytes, IntArray]:
+    """All lines of one kind joined into one block (each ending in a newline), and their line numbers."""
+    idx = np.flatnonzero(lines.kinds == kind)
+    if idx.size == 0:
+        return b"", idx.astype(np.int64)
+    breaks = np.flatnonzero(np.diff(idx) != 1)
+    first = idx[np.concatenate([[0], breaks + 1])]
+    last = idx[np.concatenate([breaks, [idx.size - 1]])]
+    raw = lines.raw
+    block = b"".join(
+        raw[s:e] for s, e in zip(lines.starts[first].tolist(), (lines.ends[last] + 1).tolist(), strict=True)
+    )
+    return block, idx.astype(np.int64) + 1
+
+
+def tokens(block: bytes) -> tuple[npt.NDArray[np.uint8], IntArray, IntArray, IntArray, IntArray]:
+    """Token start offsets, the line index of each token and the token count of each line."""
+    a = np.frombuffer(block, dtype=np.uint8)
+    ws = (a == 32) | (a == 9) | (a == 10) | (a == 11) | (a == 12)
+    prev_ws = np.empty_like(ws)
+    prev_ws[0] = True
+    prev_ws[1:] = ws[:-1]
+    tstart = np.flatnonzero(~ws & prev_ws)
+    ends = np.flatnonzero(a == 10)
+    tline = np.searchsorted(ends, tstart)
+    counts = np.bincount(tline, minlength=ends.size)
+    line_starts = np.empty_like(ends)
+    line_starts[0] = 0
+    line_starts[1:] = ends[:-1] + 1
+    return a, tstart, tline, counts, line_starts
+
+
+def numbers(
+    block: bytes, keyword_len: int, dtype: type[np.generic], blank_slashes: bool = False
+) -> npt.NDArray[np.generic] | None:
+    """Every number of a block in order, or ``None`` when the block needs the line-by-line path."""
+    a = np.frombuffer(bytearray(block), dtype=np.uint8)
+    ends = np.flatnonzero(a == 10)
+    starts = np.empty_like(ends)
+    starts[0] = 0
+    starts[1:] = ends[:-1] + 1
+    for k in range(keyword_len):
+        a[starts + k] = 32
+    if blank_slashes:
+        a[a == 47] = 32
+    if (a == 35).any():  # an inline comment: the line-by-line path strips it
+        return None
+    try:
+        return np.fromstring(a.tobytes(), dtype=dtype, sep=" ")
+    except ValueError:
+        return None
+
+
+def slow_numbers(lines: Lines, line_numbers: IntArray, keyword: str, path: str) -> tuple[FloatArray, IntArray]:
+    """Read a block line by line: values and per-line counts; raises naming the line of a bad number."""
+    values: list[float] = []
+    counts = np.zeros(line_numbers.size, dtype=np.int64)
+    for k, line_no in enumerate(line_numbers.tolist()):
+        words = strip_comment(lines.text(line_no - 1)).split()[1:]
+        for word in words:
+            try:
+                values.append(parse_float(word))
+            except ValueError:
+                raise ObjParseError(
+                    f"'{keyword}' statement has a malformed number {word[:30]!r}",
+                    path=path,
+                    line=line_no,
+                    hint="fix or remove the line",
+                ) from None
+        counts[k] = len(words)
+    return np.asarray(values, dtype=np.float64), counts
+
+
+def strip_comment(line: str) -> str:
+    """Drop a trailing ``# comment`` (a ``#`` at the start of a word; ``1.#IND`` is a number)."""
+    match = _COMMENT.search(line)
+    return line[: match.start()] if match else line
+
+
+def parse_float(word: str) -> float:
+    """``float`` that also reads the MSVC spellings ``1.#IND``, ``-1.#INF``, ``1.#QNAN``."""
+    try:
+        return float(word)
+    except ValueError:
+        special = _MSVC_SPECIAL.match(word)
+        if not special:
+            raise
+        sign = -1.0 if word.startswith("-") else 1.0
+        return sign * math.inf if special.group(1).upper() == "INF" else math.nan
+
+
+def vector_block(lines: Lines, kind: int, keyword: str, path: str) -> tuple[FloatArray, IntArray, IntArray]:
+    """Values, per-line value counts and line numbers of all statements of one kind."""
+    block, line_numbers = gather(lines, kind)
+    if not block:
+        return np.zeros(0), np.zeros(0, dtype=np.int64), line_numbers
+    _, _, _, counts, _ = tokens(block)
+    counts = counts - 1
+    values = numbers(block, len(keyword), np.float64)
+    if values is None or values.size != int(counts.sum()):
+        return (*slow_numbers(lines, line_numbers, keyword, path), line_numbers)
+    return values.astype(np.float64, copy=False), counts, line_numbers
+
+
+def columns(values: FloatArray, counts: IntArray, columns: list[int]) -> FloatArray:
+    """Pick value ``columns`` of every line (a column past a line's count reads as 0)."""
+    offsets = np.cumsum(counts) - counts
+    out = np.zeros((counts.size, len(columns)), dtype=np.float64)
+    for j, c in enumerate(columns):
+        ok = counts > c
+        out[ok, j] = values[offsets[ok] + c]
+    return out

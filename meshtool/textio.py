@@ -1,0 +1,140 @@
+r"""Decoding of text-based asset files (OBJ, MTL) into normalised Python text.
+
+OBJ and MTL files arrive in whatever encoding the exporter used. This module turns raw bytes into one
+canonical form that the parsers can rely on: ``\\n`` line endings only (CRLF and lone CR converted),
+backslash line continuations joined (line numbers preserved by leaving the continued lines empty), and
+leading whitespace stripped. It never touches the file system.
+"""
+
+from __future__ import annotations
+
+import codecs
+import re
+from dataclasses import dataclass, field
+
+from meshtool.errors import MeshtoolError
+from meshtool.findings import Finding, info
+
+_LEADING_WS = re.compile(r"^[ \t\f\v]+", re.MULTILINE)
+_CONTINUATION = re.compile(r"\\\n")
+# Control characters that never occur in a text OBJ/MTL (tab, LF, CR, FF, VT are allowed).
+_BINARY_BYTES = bytes(b for b in range(32) if b not in (9, 10, 11, 12, 13))
+
+
+@dataclass(slots=True)
+class DecodedText:
+    """Text ready for a line parser.
+
+    Attributes:
+        text: The decoded text: LF line endings, continuations joined, leading whitespace removed, ending
+            with a newline unless empty.
+        encoding: ``utf-8``, ``utf-8-sig``, ``utf-16`` or ``latin-1``.
+        line_endings: ``lf``, ``crlf``, ``cr`` or ``mixed``.
+        findings: Notes about what was normalised (encoding fallback, continuations).
+    """
+
+    text: str
+    encoding: str
+    line_endings: str
+    findings: list[Finding] = field(default_factory=list)
+
+
+def decode_text(data: bytes, path: str, error: type[MeshtoolError]) -> DecodedText:
+    """Decode the bytes of a text asset file.
+
+    Order: a UTF-8 or UTF-16 byte-order mark decides; otherwise strict UTF-8; otherwise Latin-1 (every
+    byte is a character, so names survive, and a finding says so).
+
+    Args:
+        data: Raw file contents.
+        path: Name used in findings and errors.
+        error: Exception class to raise for data that is not text (binary garbage).
+
+    Returns:
+        The normalised text and notes.
+
+    Raises:
+        MeshtoolError: (of class ``error``) when the data contains NUL or other binary control bytes.
+    """
+    findings: list[Finding] = []
+    if data.startswith(codecs.BOM_UTF8):
+        encoding, text = "utf-8-sig", _decode(data[3:], "utf-8", path, error, 3)
+    elif data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        encoding, text = "utf-16", _decode(data, "utf-16", path, error, 0)
+    else:
+        _reject_binary(data, path, error)
+        try:
+            encoding, text = "utf-8", data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            encoding, text = "latin-1", data.decode("latin-1")
+            findings.append(
+                info(
+                    "encoding-latin1",
+                    f"not valid UTF-8 (first bad byte at offset {exc.start}); read as Latin-1",
+                    path,
+                )
+            )
+    if encoding != "utf-8":
+        _reject_binary(text.encode("utf-8", "surrogatepass"), path, error)
+
+    crlf = text.count("\r\n")
+    cr = text.count("\r") - crlf
+    lf = text.count("\n") - crlf
+    endings = "mixed" if sum(1 for n in (crlf, cr, lf) if n) > 1 else "crlf" if crlf else "cr" if cr else "lf"
+    if crlf or cr:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    if text and not text.endswith("\n"):
+        text += "\n"
+    if "\\" in text and _CONTINUATION.search(text):
+        text, joined = _join_continuations(text)
+        findings.append(info("line-continuation", f"joined {joined} backslash-continued line(s)", path))
+    if _LEADING_WS.search(text):
+        text = _LEADING_WS.sub("", text)
+    return DecodedText(text, encoding, endings, findings)
+
+
+def _decode(data: bytes, codec: str, path: str, error: type[MeshtoolError], skipped: int) -> str:
+    try:
+        return data.decode(codec)
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"invalid {codec.upper()} data after a {codec.upper()} byte-order mark",
+            path=path,
+            offset=exc.start + skipped,
+            hint="re-export the file as UTF-8",
+        ) from None
+
+
+def _reject_binary(data: bytes, path: str, error: type[MeshtoolError]) -> None:
+    head = data[: 1 << 16]
+    bad = [head.find(bytes([b])) for b in _BINARY_BYTES if bytes([b]) in head]
+    if bad:
+        raise error(
+            "binary data, not a text file",
+            path=path,
+            offset=min(bad),
+            hint="pass a text OBJ/MTL file; binary formats are not OBJ",
+        )
+
+
+def _join_continuations(text: str) -> tuple[str, int]:
+    """Join lines ending in a backslash with the next line, keeping every line at its number."""
+    lines = text.split("\n")
+    out: list[str] = []
+    joined = 0
+    pending: list[str] = []
+    for line in lines:
+        if line.endswith("\\"):
+            pending.append(line[:-1])
+            joined += 1
+            continue
+        if pending:
+            out.append(" ".join([*pending, line]))
+            out.extend([""] * len(pending))
+            pending = []
+        else:
+            out.append(line)
+    if pending:
+        out.append(" ".join(pending))
+        out.extend([""] * (len(pending) - 1))
+    return "\n".join(out), joined

@@ -1,0 +1,293 @@
+"""Regenerate the test fixtures in fixtures/ (deterministic; the committed files are its output).
+
+Usage: python scripts/make_fixtures.py
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+ROOT = Path(__file__).resolve().parent.parent / "fixtures"
+
+
+def gradient(size: int = 16) -> Image.Image:
+    y, x = np.mgrid[0:size, 0:size]
+    rgb = np.stack([x * 255 // (size - 1), y * 255 // (size - 1), np.full_like(x, 96)], axis=2).astype(np.uint8)
+    return Image.fromarray(rgb, "RGB")
+
+
+def write(path: Path, text: str | bytes, newline: str = "\n", encoding: str = "utf-8") -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(text, str):
+        text = text.replace("\n", newline).encode(encoding)
+    path.write_bytes(text)
+
+
+def image(path: Path, img: Image.Image, fmt: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    img.save(buf, format=fmt)
+    path.write_bytes(buf.getvalue())
+
+
+def head() -> None:
+    """3ds Max export: spaces in names, absolute Windows texture path, BMP, centimetres, Y-up, CRLF."""
+    rings, segments = 6, 8
+    rx, ry, rz = 8.0, 12.0, 10.0
+    v, vt, faces = [], [], []
+    for i in range(rings + 1):
+        theta = math.pi * i / rings
+        for j in range(segments + 1):
+            phi = 2 * math.pi * j / segments
+            v.append(
+                (
+                    rx * math.sin(theta) * math.cos(phi),
+                    ry + ry * math.cos(theta),
+                    rz * math.sin(theta) * math.sin(phi),
+                )
+            )
+            vt.append((j / segments, 1 - i / rings))
+    row = segments + 1
+    for i in range(rings):
+        for j in range(segments):
+            a, b, c, d = i * row + j + 1, i * row + j + 2, (i + 1) * row + j + 2, (i + 1) * row + j + 1
+            if i == 0:
+                faces.append((a, c, d))
+            elif i == rings - 1:
+                faces.append((a, b, d))
+            else:
+                faces.append((a, b, c, d))
+    lines = [
+        "# 3ds Max Wavefront OBJ Exporter v0.97b - (c)2007 guruware",
+        "# File Created: 21.11.2026 10:00:00",
+        "",
+        "mtllib Head 1.mtl",
+        "",
+        "#",
+        "# object Head 1",
+        "#",
+        "",
+    ]
+    lines += [f"v  {x:.4f} {y:.4f} {z:.4f}" for x, y, z in v]
+    lines += [f"# {len(v)} vertices", ""]
+    lines += [f"vt {u:.4f} {w:.4f} 0.0000" for u, w in vt]
+    lines += [f"# {len(vt)} texture coords", "", "g Head 1", "usemtl Head_Material", "s 1"]
+    lines += ["f " + " ".join(f"{k}/{k}" for k in f) + " " for f in faces]
+    lines += [f"# {len(faces)} polygons", ""]
+    write(ROOT / "head" / "Head 1.obj", "\n".join(lines), newline="\r\n")
+    mtl = """# 3ds Max Wavefront OBJ Exporter v0.97b - (c)2007 guruware
+# File Created: 21.11.2026 10:00:00
+
+newmtl Head_Material
+	Ns 10.0000
+	Ni 1.5000
+	d 1.0000
+	Tr 0.0000
+	Tf 1.0000 1.0000 1.0000
+	illum 2
+	Ka 0.5882 0.5882 0.5882
+	Kd 0.5882 0.5882 0.5882
+	Ks 0.0000 0.0000 0.0000
+	Ke 0.0000 0.0000 0.0000
+	map_Ka C:\\Users\\sama-sama\\Desktop\\Head 1\\Head 1.bmp
+	map_Kd C:\\Users\\sama-sama\\Desktop\\Head 1\\Head 1.bmp
+"""
+    write(ROOT / "head" / "Head 1.mtl", mtl, newline="\r\n")
+    image(ROOT / "head" / "Head 1.bmp", gradient(), "BMP")
+
+
+CUBE_V = """v -0.5 -0.5 -0.5
+v 0.5 -0.5 -0.5
+v 0.5 0.5 -0.5
+v -0.5 0.5 -0.5
+v -0.5 -0.5 0.5
+v 0.5 -0.5 0.5
+v 0.5 0.5 0.5
+v -0.5 0.5 0.5
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+"""
+
+
+def simple_cases() -> None:
+    # wrong case everywhere: MTL name, texture folder and file
+    write(
+        ROOT / "case_mismatch" / "model.obj",
+        "mtllib MODEL.MTL\n"
+        + CUBE_V
+        + """usemtl Wood
+f 1/1 4/4 3/3 2/2
+f 5/1 6/2 7/3 8/4
+f 1/1 2/2 6/3 5/4
+f 2/1 3/2 7/3 6/4
+f 3/1 4/2 8/3 7/4
+f 4/1 1/2 5/3 8/4
+""",
+    )
+    write(ROOT / "case_mismatch" / "model.mtl", "newmtl Wood\nKd 0.6 0.4 0.2\nmap_Kd Textures\\Wood.PNG\n")
+    image(ROOT / "case_mismatch" / "textures" / "wood.png", gradient(8), "PNG")
+
+    # three materials, JPG and TGA textures, interleaved usemtl, two objects
+    write(
+        ROOT / "multi_material" / "crate.obj",
+        "# Blender 4.2 OBJ\nmtllib crate.mtl\no Body\n"
+        + CUBE_V
+        + """usemtl painted
+f 1/1 4/4 3/3 2/2
+usemtl wood
+f 5/1 6/2 7/3 8/4
+usemtl painted
+f 1/1 2/2 6/3 5/4
+o Lid
+usemtl checker
+f 2/1 3/2 7/3 6/4
+usemtl wood
+f 3/1 4/2 8/3 7/4
+usemtl checker
+f 4/1 1/2 5/3 8/4
+""",
+    )
+    write(
+        ROOT / "multi_material" / "crate.mtl",
+        """newmtl painted
+Kd 0.8 0.1 0.1
+Ks 0.5 0.5 0.5
+Ns 96.0
+
+newmtl wood
+Kd 1 1 1
+map_Kd -s 2 2 1 wood grain.jpg
+
+newmtl checker
+Kd 1.0 1.0 1.0
+map_Kd "checker.tga" -clamp on
+
+newmtl unused
+Kd 0 1 0
+""",
+    )
+    img = gradient(16)
+    image(ROOT / "multi_material" / "wood grain.jpg", img, "JPEG")
+    check = np.kron((np.indices((4, 4)).sum(0) % 2), np.ones((4, 4))).astype(np.uint8) * 255
+    image(ROOT / "multi_material" / "checker.tga", Image.fromarray(np.stack([check] * 3, 2), "RGB"), "TGA")
+
+    # CRLF, negative indices, a concave hexagon (L shape), a concave quad (dart) and a 10-point star
+    star = []
+    for k in range(10):
+        r = 1.0 if k % 2 == 0 else 0.4
+        a = math.pi / 2 + k * math.pi / 5
+        star.append(f"v {3 + r * math.cos(a):.6f} {r * math.sin(a):.6f} 0")
+    text = "\n".join(
+        [
+            "# L-shaped hexagon, area 3",
+            "v 0 0 0",
+            "v 2 0 0",
+            "v 2 1 0",
+            "v 1 1 0",
+            "v 1 2 0",
+            "v 0 2 0",
+            "f -6 -5 -4 -3 -2 -1",
+            "# dart (concave quad, reflex corner at its 4th vertex), area 0.5",
+            "v 1 -4 0",
+            "v 0 -3 0",
+            "v -1 -4 0",
+            "v 0 -3.5 0",
+            "f -4 -3 -2 -1",
+            "# ten-point star",
+            *star,
+            "f " + " ".join(str(k) for k in range(-10, 0)),
+            "",
+        ]
+    )
+    write(ROOT / "crlf_ngon" / "shapes.obj", text, newline="\r\n")
+
+    write(
+        ROOT / "missing_texture" / "panel.obj",
+        "mtllib panel.mtl\n" + CUBE_V + "usemtl metal\nf 1/1 2/2 3/3 4/4\n",
+    )
+    write(ROOT / "missing_texture" / "panel.mtl", "newmtl metal\nKd 0.7 0.7 0.75\nmap_Kd brushed.png\n")
+
+    write(
+        ROOT / "missing_mtl" / "box.obj",
+        "mtllib gone.mtl\n" + CUBE_V + "usemtl steel\nf 1 2 3 4\nf 5 6 7 8\n",
+    )
+
+    write(
+        ROOT / "traversal" / "evil.obj",
+        "mtllib ../../../../../../etc/passwd\nmtllib evil.mtl\n" + CUBE_V + "usemtl skin\nf 1/1 2/2 3/3\n",
+    )
+    write(
+        ROOT / "traversal" / "evil.mtl",
+        "newmtl skin\nKd 0.9 0.8 0.7\nmap_Kd /etc/hostname\nmap_Ks ../../secret.png\n",
+    )
+
+    write(ROOT / "bad_index" / "bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\n")
+    write(ROOT / "nan" / "nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nv 1 1 1\nf 1 2 3\n")
+    write(ROOT / "empty" / "empty.obj", b"")
+    write(ROOT / "empty" / "comments.obj", "# only a comment\n\n   \n")
+    garbage = bytes((i * 97 + 13) % 256 for i in range(512))
+    write(ROOT / "garbage" / "garbage.obj", b"\x89PNG\r\n\x1a\n" + garbage)
+    write(
+        ROOT / "utf16" / "part.obj",
+        "# UTF-16 export\ng Größe\n" + CUBE_V + "f 1 2 3\nf 1 3 4\n",
+        encoding="utf-16",
+    )
+    write(
+        ROOT / "latin1" / "piece.obj",
+        "mtllib piece.mtl\n" + CUBE_V + "usemtl Métal\nf 1/1 2/2 3/3\n",
+        encoding="latin-1",
+    )
+    write(ROOT / "latin1" / "piece.mtl", "newmtl Métal\nKd 0.5 0.5 0.5\nmap_Kd béton.png\n", encoding="latin-1")
+    image(ROOT / "latin1" / "béton.png", gradient(4), "PNG")
+
+    write(
+        ROOT / "features" / "features.obj",
+        """# every statement the reader knows
+mtllib lib a.mtl lib b.mtl
+o Thing
+v 0 0 0 1 0 0
+v 1 0 0 0 1 0
+v 1 1 0 0 0 1
+v 0 1 0 1.0 1 1
+v 0 0 1 1.0
+vt 0 0 0
+vt 1 0
+vt 1 1
+vn 0 0 1
+s off
+g front back
+usemtl first
+f 1/1/1 2/2/1 \\
+3/3/1
+f 1//1 3//1 4//1
+l 1 2 3
+p 4
+s 1
+usemtl second
+f 1 2 5
+f 1 5 4 # inline comment
+""",
+    )
+    write(ROOT / "features" / "lib a.mtl", "newmtl first\nKd 1 0 0\n")
+    write(ROOT / "features" / "lib b.mtl", "newmtl second\nKd 0 0 1\n")
+    write(ROOT / "points" / "cloud.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n")
+
+
+def main() -> None:
+    for child in ROOT.iterdir():
+        if child.is_dir() and child.name != "golden":
+            shutil.rmtree(child)
+    head()
+    simple_cases()
+
+
+if __name__ == "__main__":
+    main()
