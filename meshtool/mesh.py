@@ -111,10 +111,10 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
     part = obj.face_part[tri.face]
 
     if faces.size:
-        used = np.unique(faces)
-        finite = np.isfinite(obj.positions[used]).all(axis=1)
-        if not finite.all():
-            vertex = int(used[np.flatnonzero(~finite)[0]])
+        bad_vertex = ~np.isfinite(obj.positions).all(axis=1)
+        bad_vertex[bad_vertex] &= _used_mask(faces, obj.positions.shape[0])[bad_vertex]
+        if bad_vertex.any():
+            vertex = int(np.flatnonzero(bad_vertex)[0])
             user = int(lines[np.flatnonzero((faces == vertex).any(axis=1))[0]])
             raise ObjParseError(
                 f"vertex {vertex + 1} has a non-finite coordinate {obj.positions[vertex].tolist()} and is used by "
@@ -184,7 +184,10 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
     part_order = np.argsort(np.asarray(part_names_all, dtype=object), kind="stable") if part_names_all else np.zeros(0)
     rank = np.empty(len(part_names_all), dtype=np.int64)
     rank[part_order.astype(np.int64)] = np.arange(len(part_names_all))
-    order = np.lexsort((rank[part] if part.size else part, material))
+    if material.size and (material.min() != material.max() or part.min() != part.max()):
+        order = np.lexsort((rank[part], material))
+    else:
+        order = np.arange(material.size)
     return (
         TriMesh(
             positions=positions,
@@ -207,12 +210,15 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
 
 
 def _degenerate(positions: FloatArray, faces: IntArray) -> npt.NDArray[np.bool_]:
+    """Triangles with a repeated vertex or exactly zero area."""
     if faces.size == 0:
         return np.zeros(0, dtype=bool)
-    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    p = positions[faces]
-    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    result: npt.NDArray[np.bool_] = repeated | ~(cross != 0).any(axis=1)
+    a, b, c = faces[:, 0], faces[:, 1], faces[:, 2]
+    result: npt.NDArray[np.bool_] = (a == b) | (b == c) | (a == c)
+    x, y, z = (np.ascontiguousarray(positions[:, k]) for k in range(3))
+    ux, uy, uz = x[b] - x[a], y[b] - y[a], z[b] - z[a]
+    vx, vy, vz = x[c] - x[a], y[c] - y[a], z[c] - z[a]
+    result |= (uy * vz == uz * vy) & (uz * vx == ux * vz) & (ux * vy == uy * vx)
     return result
 
 
@@ -224,22 +230,31 @@ def _face_normals(positions: FloatArray, faces: IntArray) -> FloatArray:
     return result
 
 
+def _used_mask(index: IntArray, size: int) -> npt.NDArray[np.bool_]:
+    used = np.zeros(size, dtype=bool)
+    used[index[index >= 0]] = True
+    return used
+
+
 def _compact_vertices(obj: ObjData, faces: IntArray) -> tuple[FloatArray, FloatArray | None, IntArray]:
-    used, inverse = np.unique(faces, return_inverse=True)
-    colors = obj.colors[used] if obj.colors is not None else None
-    return obj.positions[used], colors, inverse.reshape(faces.shape).astype(np.int64)
+    used = _used_mask(faces, obj.positions.shape[0])
+    colors = obj.colors
+    if used.all():
+        return obj.positions, colors, faces
+    remap = np.cumsum(used) - 1
+    return obj.positions[used], colors[used] if colors is not None else None, remap[faces]
 
 
 def _compact(values: FloatArray, index: IntArray) -> tuple[FloatArray, IntArray]:
-    """Drop rows of ``values`` no index uses; remap ``index`` (-1 stays -1)."""
+    """Drop rows of ``values`` no index uses; remap ``index`` (-1 stays -1); order is kept."""
     present = index >= 0
     if not present.any():
         return values[:0], index
-    used = np.unique(index[present])
-    remap = np.full(values.shape[0], -1, dtype=np.int64)
-    remap[used] = np.arange(used.size)
-    out = np.where(present, remap[np.maximum(index, 0)], -1)
-    return values[used], out
+    used = _used_mask(index, values.shape[0])
+    if used.all():
+        return values, index
+    remap = np.cumsum(used) - 1
+    return values[used], np.where(present, remap[np.maximum(index, 0)], -1)
 
 
 def _first_use_order(material: IntArray, names: list[str]) -> tuple[list[str], IntArray]:

@@ -78,10 +78,10 @@ class Resolver:
         Raises:
             ResolveError: When it does not exist, is not a file or cannot be read.
         """
+        if not path.is_file():
+            what = "is a folder, not a file" if path.is_dir() else "does not exist"
+            raise ResolveError(what, path=str(path), hint="check the path")
         try:
-            if not path.is_file():
-                what = "is a folder, not a file" if path.is_dir() else "does not exist"
-                raise ResolveError(f"{what}", path=str(path), hint="check the path")
             return path.read_bytes()
         except OSError as exc:
             raise ResolveError(f"cannot be read: {exc.strerror}", path=str(path)) from None

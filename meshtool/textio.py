@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, info
 
-_LEADING_WS = re.compile(r"^[ \t\f\v]+", re.MULTILINE)
 _CONTINUATION = re.compile(r"\\\n")
 # Control characters that never occur in a text OBJ/MTL (tab, LF, CR, FF, VT are allowed).
 _BINARY_BYTES = bytes(b for b in range(32) if b not in (9, 10, 11, 12, 13))
@@ -26,17 +25,22 @@ class DecodedText:
     """Text ready for a line parser.
 
     Attributes:
-        text: The decoded text: LF line endings, continuations joined, leading whitespace removed, ending
-            with a newline unless empty.
+        data: The normalised text encoded as UTF-8: LF line endings, continuations joined, ending with a
+            newline unless empty.
         encoding: ``utf-8``, ``utf-8-sig``, ``utf-16`` or ``latin-1``.
         line_endings: ``lf``, ``crlf``, ``cr`` or ``mixed``.
         findings: Notes about what was normalised (encoding fallback, continuations).
     """
 
-    text: str
+    data: bytes
     encoding: str
     line_endings: str
     findings: list[Finding] = field(default_factory=list)
+
+    @property
+    def text(self) -> str:
+        """The normalised text as ``str``."""
+        return self.data.decode("utf-8")
 
 
 def decode_text(data: bytes, path: str, error: type[MeshtoolError]) -> DecodedText:
@@ -57,6 +61,11 @@ def decode_text(data: bytes, path: str, error: type[MeshtoolError]) -> DecodedTe
         MeshtoolError: (of class ``error``) when the data contains NUL or other binary control bytes.
     """
     findings: list[Finding] = []
+    if data.isascii() and b"\r" not in data and b"\\\n" not in data:  # the common case: nothing to change
+        _reject_binary(data, path, error)
+        if data and not data.endswith(b"\n"):
+            data += b"\n"
+        return DecodedText(data, "utf-8", "lf", findings)
     if data.startswith(codecs.BOM_UTF8):
         encoding, text = "utf-8-sig", _decode(data[3:], "utf-8", path, error, 3)
     elif data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
@@ -77,20 +86,19 @@ def decode_text(data: bytes, path: str, error: type[MeshtoolError]) -> DecodedTe
     if encoding != "utf-8":
         _reject_binary(text.encode("utf-8", "surrogatepass"), path, error)
 
-    crlf = text.count("\r\n")
-    cr = text.count("\r") - crlf
-    lf = text.count("\n") - crlf
-    endings = "mixed" if sum(1 for n in (crlf, cr, lf) if n) > 1 else "crlf" if crlf else "cr" if cr else "lf"
-    if crlf or cr:
+    endings = "lf"
+    if "\r" in text:
+        crlf = text.count("\r\n")
+        cr = text.count("\r") - crlf
+        lf = text.count("\n") - crlf
+        endings = "mixed" if sum(1 for n in (crlf, cr, lf) if n) > 1 else "crlf" if crlf else "cr"
         text = text.replace("\r\n", "\n").replace("\r", "\n")
     if text and not text.endswith("\n"):
         text += "\n"
     if "\\" in text and _CONTINUATION.search(text):
         text, joined = _join_continuations(text)
         findings.append(info("line-continuation", f"joined {joined} backslash-continued line(s)", path))
-    if _LEADING_WS.search(text):
-        text = _LEADING_WS.sub("", text)
-    return DecodedText(text, encoding, endings, findings)
+    return DecodedText(text.encode("utf-8", "surrogatepass"), encoding, endings, findings)
 
 
 def _decode(data: bytes, codec: str, path: str, error: type[MeshtoolError], skipped: int) -> str:

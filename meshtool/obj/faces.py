@@ -39,22 +39,30 @@ def read_faces(
 
 
 def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] | None:
-    a, tstart, tline, counts, line_starts = tokens(block)
-    is_kw = tstart == line_starts[tline]
+    a, tstart, first, counts = tokens(block)
+    sizes = (counts - 1).astype(np.int64, copy=False)
+    if b"/" not in block:  # plain "f a b c ...": every token after the keyword is one vertex index
+        values = numbers(block, b"f", np.int64)
+        if values is None or values.size != int(sizes.sum()):
+            return None
+        cv = values.astype(np.int64, copy=False)
+        if (cv == 0).any():
+            return None  # an explicit index 0: the line-by-line path reports its line
+        zeros = np.zeros_like(cv)
+        return sizes, cv, zeros, zeros
+    is_kw = np.zeros(tstart.size, dtype=bool)
+    is_kw[first] = True
     slashes = np.flatnonzero(a == 47)
     n_tok = tstart.size
-    if slashes.size:
-        tok_of = np.searchsorted(tstart, slashes, side="right") - 1
-        n_slash = np.bincount(tok_of, minlength=n_tok)
-        doubled = slashes[:-1][np.diff(slashes) == 1]
-        n_double = np.bincount(np.searchsorted(tstart, doubled, side="right") - 1, minlength=n_tok)
-    else:
-        n_slash = n_double = np.zeros(n_tok, dtype=np.int64)
+    tok_of = np.searchsorted(tstart, slashes, side="right") - 1
+    n_slash = np.bincount(tok_of, minlength=n_tok)
+    doubled = slashes[:-1][np.diff(slashes) == 1]
+    n_double = np.bincount(np.searchsorted(tstart, doubled, side="right") - 1, minlength=n_tok)
     n_slash, n_double = n_slash[~is_kw], n_double[~is_kw]
     if ((n_slash > 2) | (n_double > 1) | ((n_double == 1) & (n_slash != 2))).any():
         return None
     per_corner = 1 + n_slash - n_double
-    values = numbers(block, 1, np.int64, blank_slashes=True)
+    values = numbers(block, b"f", np.int64, blank_slashes=True)
     if values is None or values.size != int(per_corner.sum()):
         return None
     offsets = np.cumsum(per_corner) - per_corner
@@ -66,7 +74,7 @@ def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] |
     cvn = np.where(has_vn, values[np.minimum(offsets + per_corner - 1, last)], 0)
     if (cv == 0).any() or (has_vt & (cvt == 0)).any() or (has_vn & (cvn == 0)).any():
         return None  # an explicit index 0: the line-by-line path reports its line
-    return (counts - 1).astype(np.int64), cv.astype(np.int64), cvt.astype(np.int64), cvn.astype(np.int64)
+    return sizes, cv.astype(np.int64, copy=False), cvt.astype(np.int64, copy=False), cvn.astype(np.int64, copy=False)
 
 
 def _slow_faces(lines: Lines, line_numbers: IntArray, path: str) -> tuple[IntArray, IntArray, IntArray, IntArray]:
@@ -115,7 +123,7 @@ def _zero_index(path: str, line: int) -> None:
 
 def _absolute(raw: IntArray, corner_lines: IntArray, element_lines: IntArray) -> tuple[IntArray, IntArray]:
     """0-based indices from raw OBJ indices, and the number of elements defined before each corner."""
-    before = np.searchsorted(element_lines, corner_lines).astype(np.int64)
+    before = np.searchsorted(element_lines, corner_lines).astype(np.int64, copy=False)
     return np.where(raw > 0, raw - 1, before + raw), before
 
 

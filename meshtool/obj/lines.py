@@ -21,6 +21,7 @@ IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
 OTHER, V, VT, VN, F, SKIP = range(6)
+_LEADING_WS = re.compile(rb"^[ \t\f\v]+", re.MULTILINE)
 _COMMENT = re.compile(r"(?:^|\s)#")
 _MSVC_SPECIAL = re.compile(r"^[+-]?1\.#(INF|IND|QNAN|SNAN)\d*$", re.IGNORECASE)
 
@@ -42,13 +43,16 @@ class Lines:
 def classify(raw: bytes) -> Lines:
     """Split LF-terminated text into lines and classify each by its first bytes (v, vt, vn, f, skip, other)."""
     buf = np.frombuffer(raw, dtype=np.uint8)
-    ends = np.flatnonzero(buf == 10).astype(np.int64)
+    ends = np.flatnonzero(buf == 10).astype(np.int64, copy=False)
     starts = np.empty_like(ends)
     if ends.size:
         starts[0] = 0
         starts[1:] = ends[:-1] + 1
     padded = np.concatenate([buf, np.zeros(3, dtype=np.uint8)])
-    c0, c1, c2 = padded[starts], padded[starts + 1], padded[starts + 2]
+    c0 = padded[starts]
+    if np.isin(c0, (32, 9, 11, 12)).any():  # indented statements: strip the indentation, keep line numbers
+        return classify(_LEADING_WS.sub(b"", raw))
+    c1, c2 = padded[starts + 1], padded[starts + 2]
 
     def space(c: npt.NDArray[np.uint8]) -> BoolArray:
         result: BoolArray = (c == 32) | (c == 9) | (c == 10) | (c == 11) | (c == 12)
@@ -72,7 +76,7 @@ def gather(lines: Lines, kind: int) -> tuple[bytes, IntArray]:
     """All lines of one kind joined into one block (each ending in a newline), and their line numbers."""
     idx = np.flatnonzero(lines.kinds == kind)
     if idx.size == 0:
-        return b"", idx.astype(np.int64)
+        return b"", idx.astype(np.int64, copy=False)
     breaks = np.flatnonzero(np.diff(idx) != 1)
     first = idx[np.concatenate([[0], breaks + 1])]
     last = idx[np.concatenate([breaks, [idx.size - 1]])]
@@ -80,43 +84,46 @@ def gather(lines: Lines, kind: int) -> tuple[bytes, IntArray]:
     block = b"".join(
         raw[s:e] for s, e in zip(lines.starts[first].tolist(), (lines.ends[last] + 1).tolist(), strict=True)
     )
-    return block, idx.astype(np.int64) + 1
+    return block, idx.astype(np.int64, copy=False) + 1
 
 
-def tokens(block: bytes) -> tuple[npt.NDArray[np.uint8], IntArray, IntArray, IntArray, IntArray]:
-    """Token start offsets, the line index of each token and the token count of each line."""
+def tokens(block: bytes) -> tuple[npt.NDArray[np.uint8], IntArray, IntArray, IntArray]:
+    """Tokens of a block whose lines each start with their keyword.
+
+    Returns:
+        The block as bytes, each token's start offset, the index of each line's first token (its keyword)
+        and each line's token count (keyword included).
+    """
     a = np.frombuffer(block, dtype=np.uint8)
-    ws = (a == 32) | (a == 9) | (a == 10) | (a == 11) | (a == 12)
-    prev_ws = np.empty_like(ws)
-    prev_ws[0] = True
-    prev_ws[1:] = ws[:-1]
-    tstart = np.flatnonzero(~ws & prev_ws)
+    if b"\t" in block or b"\v" in block or b"\f" in block:
+        ws = (a == 32) | (a == 9) | (a == 10) | (a == 11) | (a == 12)
+    else:
+        ws = (a == 32) | (a == 10)
+    starts_token = ~ws[1:] & ws[:-1]
+    tstart = np.flatnonzero(starts_token) + 1
+    if not ws[0]:
+        tstart = np.concatenate([[0], tstart])
     ends = np.flatnonzero(a == 10)
-    tline = np.searchsorted(ends, tstart)
-    counts = np.bincount(tline, minlength=ends.size)
     line_starts = np.empty_like(ends)
     line_starts[0] = 0
     line_starts[1:] = ends[:-1] + 1
-    return a, tstart, tline, counts, line_starts
+    first = np.searchsorted(tstart, line_starts)
+    counts = np.diff(np.append(first, tstart.size))
+    return a, tstart, first, counts
 
 
 def numbers(
-    block: bytes, keyword_len: int, dtype: type[np.generic], blank_slashes: bool = False
+    block: bytes, keyword: bytes, dtype: type[np.generic], blank_slashes: bool = False
 ) -> npt.NDArray[np.generic] | None:
     """Every number of a block in order, or ``None`` when the block needs the line-by-line path."""
-    a = np.frombuffer(bytearray(block), dtype=np.uint8)
-    ends = np.flatnonzero(a == 10)
-    starts = np.empty_like(ends)
-    starts[0] = 0
-    starts[1:] = ends[:-1] + 1
-    for k in range(keyword_len):
-        a[starts + k] = 32
-    if blank_slashes:
-        a[a == 47] = 32
-    if (a == 35).any():  # an inline comment: the line-by-line path strips it
+    if b"#" in block:  # an inline comment: the line-by-line path strips it
         return None
+    blank = b" " * len(keyword)
+    text = blank + block[len(keyword) :].replace(b"\n" + keyword, b"\n" + blank)
+    if blank_slashes:
+        text = text.replace(b"/", b" ")
     try:
-        return np.fromstring(a.tobytes(), dtype=dtype, sep=" ")
+        return np.fromstring(text, dtype=dtype, sep=" ")
     except ValueError:
         return None
 
@@ -164,9 +171,8 @@ def vector_block(lines: Lines, kind: int, keyword: str, path: str) -> tuple[Floa
     block, line_numbers = gather(lines, kind)
     if not block:
         return np.zeros(0), np.zeros(0, dtype=np.int64), line_numbers
-    _, _, _, counts, _ = tokens(block)
-    counts = counts - 1
-    values = numbers(block, len(keyword), np.float64)
+    counts = tokens(block)[3] - 1
+    values = numbers(block, keyword.encode(), np.float64)
     if values is None or values.size != int(counts.sum()):
         return (*slow_numbers(lines, line_numbers, keyword, path), line_numbers)
     return values.astype(np.float64, copy=False), counts, line_numbers

@@ -151,7 +151,7 @@ def parse_obj(data: bytes | str, path: str = "<obj>") -> ObjData:
     raw_bytes = data.encode("utf-8") if isinstance(data, str) else data
     decoded = decode_text(raw_bytes, path, ObjParseError)
     findings = list(decoded.findings)
-    lines = classify(decoded.text.encode("utf-8"))
+    lines = classify(decoded.data)
     state = _State()
     _read_statements(lines, state, path, findings)
     n_numeric = int(np.count_nonzero(np.isin(lines.kinds, (V, VT, VN, F))))

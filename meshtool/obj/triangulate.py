@@ -81,8 +81,10 @@ def triangulate_polygons(positions: FloatArray, face_sizes: IntArray, corner_v: 
 
     if not pieces:
         return Triangulation(np.zeros((0, 3), dtype=np.int64), np.zeros(0, dtype=np.int64), lost)
+    if len(pieces) == 1:  # one size class: already in polygon order
+        return Triangulation(pieces[0][1].astype(np.int64, copy=False), pieces[0][0], lost)
     face = np.concatenate([p[0] for p in pieces])
-    corners = np.concatenate([p[1] for p in pieces]).astype(np.int64)
+    corners = np.concatenate([p[1] for p in pieces]).astype(np.int64, copy=False)
     order = np.argsort(face, kind="stable")
     return Triangulation(corners[order], face[order], lost)
 
