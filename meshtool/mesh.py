@@ -111,8 +111,9 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
     part = obj.face_part[tri.face]
 
     if faces.size:
-        bad_vertex = ~np.isfinite(obj.positions).all(axis=1)
-        bad_vertex[bad_vertex] &= _used_mask(faces, obj.positions.shape[0])[bad_vertex]
+        bad_vertex: npt.NDArray[np.bool_] = ~np.isfinite(obj.positions).all(axis=1)
+        if bad_vertex.any():
+            bad_vertex &= _used_mask(faces, obj.positions.shape[0])
         if bad_vertex.any():
             vertex = int(np.flatnonzero(bad_vertex)[0])
             user = int(lines[np.flatnonzero((faces == vertex).any(axis=1))[0]])
