@@ -111,7 +111,7 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
     part = obj.face_part[tri.face]
 
     if faces.size:
-        bad_vertex: npt.NDArray[np.bool_] = ~np.isfinite(obj.positions).all(axis=1)
+        bad_vertex = np.logical_not(np.isfinite(obj.positions).all(axis=1))
         if bad_vertex.any():
             bad_vertex &= _used_mask(faces, obj.positions.shape[0])
         if bad_vertex.any():

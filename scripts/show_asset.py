@@ -19,9 +19,8 @@ def main(folder: Path) -> int:
     t = manifest["transform"]
     print(f"  transform: units {t['units']} (x{t['unit_scale']}), scale {t['scale']}, up {t['up']} -> metres, Z-up")
     ext = stats["bbox"]["extent"]
-    print(
-        f"  size: {ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} m, {stats['vertices']} vertices, {stats['triangles']} triangles"
-    )
+    size = f"{ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} m"
+    print(f"  size: {size}, {stats['vertices']} vertices, {stats['triangles']} triangles")
     for r in manifest["resolutions"]:
         print(f"  {r['kind']} {r['ref']!r} -> {r['found']!r} ({r['rule']})")
     for f in manifest["findings"]:
