@@ -103,12 +103,18 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
     findings: list[Finding] = []
     path = obj.path
     tri = triangulate_polygons(obj.positions, obj.face_sizes, obj.corner_v)
-    faces = obj.corner_v[tri.corners]
-    uv = obj.corner_vt[tri.corners]
-    nrm = obj.corner_vn[tri.corners]
-    lines = obj.face_lines[tri.face]
-    material = obj.face_material[tri.face]
-    part = obj.face_part[tri.face]
+    if tri.identity:  # all triangles: views instead of gathers
+        faces = obj.corner_v.reshape(-1, 3)
+        uv = obj.corner_vt.reshape(-1, 3).copy()
+        nrm = obj.corner_vn.reshape(-1, 3).copy()
+        lines, material, part = obj.face_lines, obj.face_material, obj.face_part
+    else:
+        faces = obj.corner_v[tri.corners]
+        uv = obj.corner_vt[tri.corners]
+        nrm = obj.corner_vn[tri.corners]
+        lines = obj.face_lines[tri.face]
+        material = obj.face_material[tri.face]
+        part = obj.face_part[tri.face]
 
     if faces.size:
         bad_vertex = np.logical_not(np.isfinite(obj.positions).all(axis=1))
@@ -130,15 +136,10 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
     if dropped:
         first = int(lines[np.flatnonzero(degenerate)[0]]) if degenerate.any() else None
         findings.append(info("degenerate-faces", f"{dropped} degenerate triangle(s) dropped (zero area)", path, first))
-    keep = ~degenerate
-    faces, uv, nrm, lines, material, part = (
-        faces[keep],
-        uv[keep],
-        nrm[keep],
-        lines[keep],
-        material[keep],
-        part[keep],
-    )
+    if degenerate.any():
+        keep = ~degenerate
+        faces, uv, nrm, lines = faces[keep], uv[keep], nrm[keep], lines[keep]
+        material, part = material[keep], part[keep]
 
     partial_uv = (uv >= 0).any(axis=1) & ~(uv >= 0).all(axis=1)
     if partial_uv.any():
@@ -149,7 +150,9 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
                 path,
             )
         )
-    uv[~(uv >= 0).all(axis=1)] = -1
+    has_uv = (uv >= 0).all(axis=1)
+    if not has_uv.all():
+        uv[~has_uv] = -1
     normals = obj.normals
     has_n = (nrm >= 0).all(axis=1)
     if has_n.any() and not has_n.all():

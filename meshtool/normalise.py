@@ -171,7 +171,12 @@ def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedA
                 source_name,
             )
         )
-    out_materials, textures = _materials(mesh, library, resolver, source_name, findings, resolutions, sources, files)
+    if library or obj.material_names:
+        out_materials, textures = _materials(
+            mesh, library, resolver, source_name, findings, resolutions, sources, files
+        )
+    else:  # no mtllib and no usemtl: a plain mesh, no MTL written
+        out_materials, textures = [], []
     material_file = f"{name}.mtl" if out_materials else None
     header = f"meshtool {__version__} normalized OBJ: units=m up=z"
     files[f"{name}.obj"] = format_obj(mesh, [m.name for m in out_materials], material_file, header).encode("utf-8")

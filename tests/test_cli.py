@@ -77,7 +77,7 @@ def test_json_output(run, fixtures, tmp_path):
             "error: garbage.obj: byte 6: binary data, not a text file "
             "(pass a text OBJ/MTL file; binary formats are not OBJ)",
         ),
-        ("empty/empty.obj", "error: empty.obj: empty OBJ file: no statements (export the mesh again)"),
+        ("empty/empty.obj", "error: empty.obj: empty OBJ file, no geometry: no statements (export the mesh again)"),
         ("nope/missing.obj", None),
     ],
 )

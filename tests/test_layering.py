@@ -50,3 +50,17 @@ def test_every_fixture_is_documented():
     readme = (ROOT / "fixtures" / "README.md").read_text()
     for folder in sorted(p for p in (ROOT / "fixtures").iterdir() if p.is_dir()):
         assert f"`{folder.name}/`" in readme, folder.name
+
+
+def test_every_finding_code_is_documented():
+    docs = (ROOT / "docs" / "findings.md").read_text()
+    for path in (ROOT / "meshtool").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Name)
+                and node.func.id in ("info", "warning")
+                and node.args
+                and isinstance(node.args[0], ast.Constant)
+            ):
+                assert f"`{node.args[0].value}`" in docs, (path.name, node.args[0].value)

@@ -235,3 +235,12 @@ def test_rewriting_replaces_a_meshtool_folder(fixtures, tmp_path):
 def test_bad_options(kwargs):
     with pytest.raises(OptionsError):
         NormaliseOptions(**kwargs)
+
+
+def test_plain_mesh_gets_no_mtl(fixtures):
+    asset = normalise(fixtures / "crlf_ngon" / "shapes.obj")
+    assert sorted(asset.files) == ["asset.json", "shapes.obj"]
+    assert asset.stats["materials"] == 0
+    text = asset.files["shapes.obj"].decode()
+    assert "mtllib" not in text and "usemtl" not in text
+    assert text.count("\nf ") == 14

@@ -6,7 +6,7 @@ import numpy as np
 
 from meshtool.errors import ObjParseError
 from meshtool.findings import Finding, info, warning
-from meshtool.obj.lines import F, IntArray, Lines, gather, numbers, strip_comment, tokens
+from meshtool.obj.lines import F, IntArray, Lines, gather, numbers, strip_comment, token_counts, tokens
 
 
 def read_faces(
@@ -39,9 +39,8 @@ def read_faces(
 
 
 def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] | None:
-    a, tstart, first, counts = tokens(block)
-    sizes = (counts - 1).astype(np.int64, copy=False)
     if b"/" not in block:  # plain "f a b c ...": every token after the keyword is one vertex index
+        sizes = token_counts(block) - 1
         values = numbers(block, b"f", np.int64)
         if values is None or values.size != int(sizes.sum()):
             return None
@@ -50,6 +49,8 @@ def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] |
             return None  # an explicit index 0: the line-by-line path reports its line
         zeros = np.zeros_like(cv)
         return sizes, cv, zeros, zeros
+    a, tstart, first, counts = tokens(block)
+    sizes = counts - 1
     is_kw = np.zeros(tstart.size, dtype=bool)
     is_kw[first] = True
     slashes = np.flatnonzero(a == 47)

@@ -87,6 +87,33 @@ def gather(lines: Lines, kind: int) -> tuple[bytes, IntArray]:
     return block, idx.astype(np.int64, copy=False) + 1
 
 
+def _token_starts(a: npt.NDArray[np.uint8], block: bytes) -> npt.NDArray[np.bool_]:
+    """Mask of the bytes that start a whitespace-separated token."""
+    if b"\t" in block or b"\v" in block or b"\f" in block:
+        ws = (a == 32) | (a == 9) | (a == 10) | (a == 11) | (a == 12)
+    else:
+        ws = (a == 32) | (a == 10)
+    starts = np.empty_like(ws)
+    starts[0] = not ws[0]
+    np.logical_and(~ws[1:], ws[:-1], out=starts[1:])
+    return starts
+
+
+def _line_starts(a: npt.NDArray[np.uint8]) -> IntArray:
+    ends = np.flatnonzero(a == 10)
+    line_starts = np.empty_like(ends)
+    line_starts[0] = 0
+    line_starts[1:] = ends[:-1] + 1
+    return line_starts
+
+
+def token_counts(block: bytes) -> IntArray:
+    """Number of tokens (keyword included) on each line of a block."""
+    a = np.frombuffer(block, dtype=np.uint8)
+    counts: IntArray = np.add.reduceat(_token_starts(a, block).view(np.uint8), _line_starts(a), dtype=np.int64)
+    return counts
+
+
 def tokens(block: bytes) -> tuple[npt.NDArray[np.uint8], IntArray, IntArray, IntArray]:
     """Tokens of a block whose lines each start with their keyword.
 
@@ -95,19 +122,8 @@ def tokens(block: bytes) -> tuple[npt.NDArray[np.uint8], IntArray, IntArray, Int
         and each line's token count (keyword included).
     """
     a = np.frombuffer(block, dtype=np.uint8)
-    if b"\t" in block or b"\v" in block or b"\f" in block:
-        ws = (a == 32) | (a == 9) | (a == 10) | (a == 11) | (a == 12)
-    else:
-        ws = (a == 32) | (a == 10)
-    starts_token = ~ws[1:] & ws[:-1]
-    tstart = np.flatnonzero(starts_token) + 1
-    if not ws[0]:
-        tstart = np.concatenate([[0], tstart])
-    ends = np.flatnonzero(a == 10)
-    line_starts = np.empty_like(ends)
-    line_starts[0] = 0
-    line_starts[1:] = ends[:-1] + 1
-    first = np.searchsorted(tstart, line_starts)
+    tstart = np.flatnonzero(_token_starts(a, block))
+    first = np.searchsorted(tstart, _line_starts(a))
     counts = np.diff(np.append(first, tstart.size))
     return a, tstart, first, counts
 
@@ -171,7 +187,7 @@ def vector_block(lines: Lines, kind: int, keyword: str, path: str) -> tuple[Floa
     block, line_numbers = gather(lines, kind)
     if not block:
         return np.zeros(0), np.zeros(0, dtype=np.int64), line_numbers
-    counts = tokens(block)[3] - 1
+    counts = token_counts(block) - 1
     values = numbers(block, keyword.encode(), np.float64)
     if values is None or values.size != int(counts.sum()):
         return (*slow_numbers(lines, line_numbers, keyword, path), line_numbers)

@@ -165,7 +165,7 @@ def parse_obj(data: bytes | str, path: str = "<obj>") -> ObjData:
                 line=first + 1,
                 hint="pass a Wavefront OBJ text file",
             )
-        raise ObjParseError("empty OBJ file: no statements", path=path, hint="export the mesh again")
+        raise ObjParseError("empty OBJ file, no geometry: no statements", path=path, hint="export the mesh again")
 
     positions, colors, vertex_lines = _read_vertices(lines, path, findings)
     texcoords, _ = _read_vectors(lines, VT, "vt", 1, 3, path)

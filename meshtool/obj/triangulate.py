@@ -27,11 +27,13 @@ class Triangulation:
         face: (M,) index of the polygon each triangle came from.
         lost: Triangles that ear clipping could not produce (zero-area or self-overlapping polygons give
             fewer than ``n - 2``); these are counted as degenerate by callers.
+        identity: True when every polygon was already a triangle (``corners`` is ``arange(C).reshape(-1, 3)``).
     """
 
     corners: IntArray
     face: IntArray
     lost: int
+    identity: bool = False
 
 
 def triangulate_polygons(positions: FloatArray, face_sizes: IntArray, corner_v: IntArray) -> Triangulation:
@@ -82,7 +84,8 @@ def triangulate_polygons(positions: FloatArray, face_sizes: IntArray, corner_v: 
     if not pieces:
         return Triangulation(np.zeros((0, 3), dtype=np.int64), np.zeros(0, dtype=np.int64), lost)
     if len(pieces) == 1:  # one size class: already in polygon order
-        return Triangulation(pieces[0][1].astype(np.int64, copy=False), pieces[0][0], lost)
+        identity = bool(tri.size == face_sizes.size)
+        return Triangulation(pieces[0][1].astype(np.int64, copy=False), pieces[0][0], lost, identity)
     face = np.concatenate([p[0] for p in pieces])
     corners = np.concatenate([p[1] for p in pieces]).astype(np.int64, copy=False)
     order = np.argsort(face, kind="stable")
