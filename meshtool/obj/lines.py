@@ -93,7 +93,7 @@ def _token_starts(a: npt.NDArray[np.uint8], block: bytes) -> npt.NDArray[np.bool
         ws = (a == 32) | (a == 9) | (a == 10) | (a == 11) | (a == 12)
     else:
         ws = (a == 32) | (a == 10)
-    starts = np.empty_like(ws)
+    starts: npt.NDArray[np.bool_] = np.empty_like(ws)
     starts[0] = not ws[0]
     np.logical_and(~ws[1:], ws[:-1], out=starts[1:])
     return starts
