@@ -181,6 +181,15 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
         positions = obj.positions[finite]
         colors = obj.colors[finite] if obj.colors is not None else None
     texcoords, uv = _compact(obj.texcoords, uv)
+    with_uv = uv[:, 0] >= 0
+    if with_uv.any() and not with_uv.all():
+        # MuJoCo's OBJ reader discards all texture coordinates when some faces have none: give those a
+        # texcoord at (0, 0) so the textured faces keep theirs.
+        uv[~with_uv] = texcoords.shape[0]
+        texcoords = np.concatenate([texcoords, np.zeros((1, 2))])
+        findings.append(
+            info("texcoords-filled", f"{int((~with_uv).sum())} triangle(s) without texcoords mapped to (0, 0)", path)
+        )
     normals, nrm = _compact(normals, nrm)
 
     material_names, material = _first_use_order(material, obj.material_names)

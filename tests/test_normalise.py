@@ -244,3 +244,13 @@ def test_plain_mesh_gets_no_mtl(fixtures):
     text = asset.files["shapes.obj"].decode()
     assert "mtllib" not in text and "usemtl" not in text
     assert text.count("\nf ") == 14
+
+
+def test_mixed_texcoords_are_filled_so_mujoco_keeps_them(tmp_path):
+    src = tmp_path / "mixed.obj"
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0.5 0.5\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\nf 2 4 3\n")
+    asset = normalise(src, NormaliseOptions(up="z"))
+    out = parse_obj(asset.files["mixed.obj"])
+    np.testing.assert_array_equal(out.texcoords, [[0.5, 0.5], [1, 0], [0, 1], [0, 0]])
+    assert out.corner_vt.tolist() == [0, 1, 2, 3, 3, 3]
+    assert "texcoords-filled" in codes(asset)
