@@ -48,7 +48,15 @@ def mujoco_compiles(folder: Path, files: dict[str, bytes]) -> str:
 def check(corpus: Path, keep: Path | None) -> tuple[list[dict[str, object]], dict[str, int]]:
     manifest = json.loads((corpus / "manifest.json").read_text())
     rows: list[dict[str, object]] = []
-    totals = {"ok": 0, "ok-with-findings": 0, "rejected": 0, "crash": 0, "count-mismatch": 0, "mujoco-ok": 0}
+    totals = {
+        "ok": 0,
+        "ok-with-findings": 0,
+        "rejected": 0,
+        "crash": 0,
+        "count-mismatch": 0,
+        "mujoco-ok": 0,
+        "idempotent": 0,
+    }
     out_root = keep or Path(tempfile.mkdtemp(prefix="corpus-"))
     for asset in manifest["assets"]:
         src = corpus / asset["obj"]
@@ -73,6 +81,9 @@ def check(corpus: Path, keep: Path | None) -> tuple[list[dict[str, object]], dic
                 detail=", ".join(codes + [f"({c})" for c in notes]),
             )
             row["mujoco"] = mujoco_compiles(folder, result.files)
+            again = normalise(folder / f"{result.name}.obj", NormaliseOptions(name=result.name))
+            row["idempotent"] = all(again.files.get(n) == data for n, data in result.files.items() if n != "asset.json")
+            totals["idempotent"] += bool(row["idempotent"])
             totals["mujoco-ok"] += row["mujoco"] == "ok"
             all_codes = {f.code for f in result.findings}
             if expected is not None and triangles != expected and not (all_codes & EXPLAINS_COUNT):
@@ -94,20 +105,22 @@ def render(rows: list[dict[str, object]], totals: dict[str, int], corpus: Path) 
         "refused with the one-line reason shown. Triangles are compared with the manifest's",
         "`triangles_after_triangulation`; a difference is only accepted when a finding explains it. *MuJoCo",
         f"compiles*: the written OBJ and PNGs loaded by MuJoCo {mujoco.__version__} as a visual mesh geom.",
+        "*idempotent*: normalising the output again gives byte-identical OBJ, MTL and PNG files.",
         "",
         "| totals | assets |",
         "|---|---|",
         *[f"| {k} | {v} |" for k, v in totals.items()],
         f"| all | {len(rows)} |",
         "",
-        "| asset | status | triangles (manifest) | MuJoCo compiles | seconds | findings / reason |",
-        "|---|---|---|---|---|---|",
+        "| asset | status | triangles (manifest) | MuJoCo compiles | idempotent | seconds | findings / reason |",
+        "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         tri = f"{r.get('triangles', '-')} ({r['expected']})" + (" MISMATCH" if r.get("mismatch") else "")
         detail = str(r.get("detail", "")).replace("|", "\\|")
         compiled = str(r.get("mujoco", "-")).replace("|", "\\|")
-        lines.append(f"| {r['id']} | {r['status']} | {tri} | {compiled} | {r['seconds']} | {detail} |")
+        same = {True: "yes", False: "NO"}.get(r.get("idempotent"), "-")  # type: ignore[arg-type]
+        lines.append(f"| {r['id']} | {r['status']} | {tri} | {compiled} | {same} | {r['seconds']} | {detail} |")
     return "\n".join(lines) + "\n"
 
 
@@ -120,7 +133,8 @@ def main() -> int:
     rows, totals = check(args.corpus, args.keep)
     args.out.write_text(render(rows, totals, args.corpus))
     print(" ".join(f"{k}={v}" for k, v in totals.items()))
-    return 1 if totals["crash"] or totals["count-mismatch"] else 0
+    converted = totals["ok"] + totals["ok-with-findings"]
+    return 1 if totals["crash"] or totals["count-mismatch"] or totals["idempotent"] != converted else 0
 
 
 if __name__ == "__main__":
