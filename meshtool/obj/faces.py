@@ -124,7 +124,12 @@ def _zero_index(path: str, line: int) -> None:
 
 def _absolute(raw: IntArray, corner_lines: IntArray, element_lines: IntArray) -> tuple[IntArray, IntArray]:
     """0-based indices from raw OBJ indices, and the number of elements defined before each corner."""
-    before = np.searchsorted(element_lines, corner_lines).astype(np.int64, copy=False)
+    if element_lines.size == 0 or element_lines[-1] < corner_lines[0]:  # all defined before the first face
+        before = np.full(raw.shape, element_lines.size, dtype=np.int64)
+    else:
+        before = np.searchsorted(element_lines, corner_lines).astype(np.int64, copy=False)
+    if (raw > 0).all():
+        return raw - 1, before
     return np.where(raw > 0, raw - 1, before + raw), before
 
 
