@@ -13,7 +13,7 @@ import json
 import math
 import re
 import unicodedata
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -74,15 +74,22 @@ class NormalisedAsset:
 
     Attributes:
         name: Folder and file stem.
-        files: Output file name to bytes (``NAME.obj``, ``NAME.mtl``, PNGs, ``asset.json``).
+        files: Output file name to bytes (PNGs; :func:`normalise` adds ``NAME.obj``, ``NAME.mtl``,
+            ``asset.json``).
         manifest: The content of ``asset.json``.
         findings: Everything noticed, in pipeline order.
+        mesh: The triangle mesh in metres, Z-up, triangles ordered by material.
+        materials: Output materials in the order of ``mesh.material_names``, textures renamed.
+        textures: PNG file name to bytes.
     """
 
     name: str
     files: dict[str, bytes]
     manifest: dict[str, Any]
-    findings: list[Finding] = field(default_factory=list)
+    findings: list[Finding]
+    mesh: TriMesh
+    materials: list[Material]
+    textures: dict[str, bytes]
 
     @property
     def stats(self) -> dict[str, Any]:
@@ -99,6 +106,43 @@ def safe_file_stem(text: str) -> str:
 
 def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedAsset:
     """Normalise one OBJ file and everything it references, in memory.
+
+    :func:`prepare`, then the OBJ, MTL and ``asset.json`` files are added to ``files``.
+
+    Args:
+        src: The OBJ file (see :func:`prepare`).
+        options: See :class:`NormaliseOptions`.
+
+    Returns:
+        The output files and findings.
+
+    Raises:
+        MeshtoolError: See :func:`prepare`.
+    """
+    asset = prepare(src, options)
+    name = asset.name
+    material_file = f"{name}.mtl" if asset.materials else None
+    header = f"meshtool {__version__} normalized OBJ: units=m up=z"
+    obj_text = format_obj(asset.mesh, [m.name for m in asset.materials], material_file, header)
+    asset.files[f"{name}.obj"] = obj_text.encode("utf-8")
+    if material_file:
+        mtl_text = format_mtl(asset.materials, f"meshtool {__version__} materials for {name}.obj")
+        asset.files[material_file] = mtl_text.encode("utf-8")
+    manifest = {
+        **{k: v for k, v in asset.manifest.items() if k != "findings"},
+        "files": {"obj": f"{name}.obj", "mtl": material_file, "textures": sorted(asset.textures)},
+        "findings": asset.manifest["findings"],
+    }
+    asset.files["asset.json"] = (json.dumps(manifest, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
+    asset.manifest = manifest
+    return asset
+
+
+def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAsset:
+    """Read, repair and convert one OBJ and everything it references, in memory, without formatting it.
+
+    The result holds the triangle mesh (metres, Z-up), the output materials, the PNG textures (also in
+    ``files``) and the manifest; :func:`normalise` and the ``.mbin`` packer format it.
 
     Args:
         src: The OBJ file. Its folder is the asset root: references never resolve outside it except into
@@ -177,12 +221,6 @@ def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedA
         )
     else:  # no mtllib and no usemtl: a plain mesh, no MTL written
         out_materials, textures = [], []
-    material_file = f"{name}.mtl" if out_materials else None
-    header = f"meshtool {__version__} normalized OBJ: units=m up=z"
-    files[f"{name}.obj"] = format_obj(mesh, [m.name for m in out_materials], material_file, header).encode("utf-8")
-    if material_file:
-        files[material_file] = format_mtl(out_materials, f"meshtool {__version__} materials for {name}.obj").encode()
-
     stats = _stats(mesh, len(out_materials), len(textures))
     findings.extend(scale_findings(np.asarray(stats["bbox"]["extent"]), source_name, options.units is not None))
     manifest = {
@@ -190,7 +228,6 @@ def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedA
         "format_version": 1,
         "tool": {"name": "meshtool", "version": __version__},
         "name": name,
-        "files": {"obj": f"{name}.obj", "mtl": material_file, "textures": sorted(textures)},
         "sources": sources,
         "transform": {
             "units": units,
@@ -214,7 +251,6 @@ def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedA
         ],
         "findings": [f.to_dict() for f in findings],
     }
-    files["asset.json"] = (json.dumps(manifest, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
     warnings = [f for f in findings if f.severity is not Severity.INFO]
     if options.strict and warnings:
         raise StrictModeError(
@@ -222,7 +258,8 @@ def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedA
             path=source_name,
             hint="fix the input or drop --strict",
         )
-    return NormalisedAsset(name, files, manifest, findings)
+    textures_out = {n: files[n] for n in textures}
+    return NormalisedAsset(name, files, manifest, findings, mesh, out_materials, textures_out)
 
 
 def write_asset(asset: NormalisedAsset, out_dir: Path, src: Path | None = None) -> Path:
