@@ -92,3 +92,7 @@ class StrictModeError(MeshtoolError, ValueError):
 
 class OptionsError(MeshtoolError, ValueError):
     """An option value is out of range or inconsistent."""
+
+
+class PackFormatError(MeshtoolError, ValueError):
+    """An ``.mbin`` file is truncated, corrupted, of an unknown major version, or hostile."""

@@ -1,0 +1,401 @@
+"""``.mbin`` reader: memory-mapped, validated, zero-copy (see docs/mbin-spec.md).
+
+Every offset, length and count is checked against the file size before it is used, with Python integers
+(no overflow), so a truncated, corrupted or hostile file raises :class:`PackFormatError` naming the section
+and byte offset; nothing is allocated beyond the file's own size.
+"""
+
+from __future__ import annotations
+
+import json
+import mmap
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from meshtool.errors import PackFormatError
+from meshtool.packfile import format as fmt
+from meshtool.packfile.encode import dequantize_box, oct_decode
+
+
+@dataclass(slots=True)
+class Section:
+    """One entry of the section table, as read.
+
+    Attributes:
+        kind: Four-character tag, e.g. ``"POS "``.
+        dtype: Element type name (``bytes``, ``u8``, ``u16``, ``u32``, ``i16``, ``f32``).
+        shape: Array shape (rows, columns) or (bytes,) for blobs.
+        offset: Byte offset in the file.
+        length: Byte length.
+        crc: Stored CRC-32.
+        encoding: Encoding code (0 plain, 1 u16 box, 2 octahedral).
+        index: Index among sections of the same kind (textures).
+        crc_ok: Result of the checksum check, ``None`` when not verified.
+    """
+
+    kind: str
+    dtype: str
+    shape: tuple[int, ...]
+    offset: int
+    length: int
+    crc: int
+    encoding: int
+    index: int
+    crc_ok: bool | None = None
+
+
+@dataclass(slots=True)
+class PackedMesh:
+    """A loaded ``.mbin``. Arrays are read-only views into the memory map unless stated.
+
+    Attributes:
+        positions: (V, 3) float32 metres (decoded copy in quantised files; see ``raw``).
+        indices: (M, 3) u16 or u32 triangle vertex indices.
+        normals: (V, 3) float32 or ``None`` (decoded copy in quantised files).
+        uvs: (V, 2) float32 or ``None`` (decoded copy in quantised files).
+        colors: (V, 4) u8 RGBA or ``None``.
+        submeshes: (S, 4) u32 rows (first triangle, triangle count, material, part).
+        materials: Material dicts (name, colors, scalars, illum, maps with texture index).
+        textures: PNG bytes per texture (memoryviews into the map), in ``meta["textures"]`` order.
+        hulls: (vertices (n, 3) float32, faces (k, 3) u32) per collision hull.
+        meta: The metadata object.
+        version: (major, minor).
+        quantized: Whether positions/normals/uvs are quantised.
+        sections: The section table.
+        raw: The stored arrays by section kind, as views.
+    """
+
+    positions: npt.NDArray[np.float32]
+    indices: npt.NDArray[np.unsignedinteger[Any]]
+    normals: npt.NDArray[np.float32] | None
+    uvs: npt.NDArray[np.float32] | None
+    colors: npt.NDArray[np.uint8] | None
+    submeshes: npt.NDArray[np.uint32]
+    materials: list[dict[str, Any]]
+    textures: list[memoryview]
+    hulls: list[tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32]]]
+    meta: dict[str, Any]
+    version: tuple[int, int]
+    quantized: bool
+    sections: list[Section]
+    raw: dict[str, npt.NDArray[Any]] = field(default_factory=dict)
+    _map: mmap.mmap | None = None
+
+    def close(self) -> None:
+        """Release the memory map (arrays must not be used afterwards)."""
+        if self._map is not None:
+            self.raw.clear()
+            try:
+                self._map.close()
+            except BufferError:  # views still exported: the map closes when they go
+                pass
+            self._map = None
+
+    def __enter__(self) -> PackedMesh:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def load(path: str | Path, verify: bool = True) -> PackedMesh:
+    """Memory-map and validate an ``.mbin`` file.
+
+    Args:
+        path: The file.
+        verify: Also check every section's CRC-32 and that indices and submeshes stay in range (reads the
+            whole file once); without it only the header, the table and the bounds are checked.
+
+    Returns:
+        The mesh, arrays viewing the map.
+
+    Raises:
+        PackFormatError: Anything wrong with the file, with the section and byte offset.
+        ResolveError: The file cannot be opened.
+    """
+    name = str(path)
+    try:
+        with open(path, "rb") as handle:
+            size = handle.seek(0, 2)
+            if size == 0:
+                raise PackFormatError("empty file, not an .mbin", path=name, offset=0)
+            mapped = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
+    except OSError as exc:
+        from meshtool.errors import ResolveError
+
+        raise ResolveError(f"cannot be read: {exc.strerror}", path=name) from None
+    try:
+        return parse(mapped, name, verify, keep=mapped)
+    except PackFormatError:
+        mapped.close()
+        raise
+
+
+def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mmap | None = None) -> PackedMesh:
+    """Validate and view an ``.mbin`` held in memory (bytes, memoryview or mmap).
+
+    Args:
+        buffer: The whole file.
+        name: For error messages.
+        verify: See :func:`load`.
+        keep: A memory map to keep open for the views' lifetime.
+
+    Returns:
+        The mesh.
+
+    Raises:
+        PackFormatError: See :func:`load`.
+    """
+    view = memoryview(buffer)
+    size = len(view)
+    if size < fmt.HEADER_SIZE:
+        raise PackFormatError(f"truncated: {size} bytes, the header alone is 64", path=name, offset=size)
+    header = np.frombuffer(view, dtype=fmt.HEADER, count=1)[0]
+    if bytes(view[:8]) != fmt.MAGIC:
+        hint = "damaged by a text-mode transfer (line endings changed)" if view[:1] == b"\x89" else "not an .mbin"
+        raise PackFormatError(f"bad magic number: {hint}", path=name, offset=0)
+    major, minor = int(header["major"]), int(header["minor"])
+    if major != fmt.MAJOR:
+        raise PackFormatError(
+            f"unsupported format version {major}.{minor}: this reader reads {fmt.MAJOR}.x",
+            path=name,
+            offset=8,
+            hint="upgrade meshtool or re-pack the asset",
+        )
+    stated = int(header["file_length"])
+    if stated != size:
+        raise PackFormatError(
+            f"truncated or padded: header says {stated} bytes, the file has {size}", path=name, offset=24
+        )
+    count = int(header["section_count"])
+    table_offset = int(header["table_offset"])
+    table_end = table_offset + count * fmt.ENTRY_SIZE
+    if table_offset != fmt.HEADER_SIZE or count == 0 or table_end > size:
+        raise PackFormatError(
+            f"section table ({count} entries at {table_offset}) does not fit the file", path=name, offset=16
+        )
+    table = np.frombuffer(view, dtype=fmt.ENTRY, count=count, offset=table_offset)
+    crc = zlib.crc32(bytes(view[:32]) + bytes(view[table_offset:table_end]))
+    if crc != int(header["table_crc"]):
+        raise PackFormatError("header or section table checksum mismatch", path=name, offset=32)
+    if any(bytes(view[36:64])):
+        raise PackFormatError("reserved header bytes are not zero", path=name, offset=36)
+
+    sections = [_entry(e, k, name, size, table_end, table_offset) for k, e in enumerate(table)]
+    _check_layout(sections, name)
+    if verify:
+        for s in sections:
+            s.crc_ok = zlib.crc32(view[s.offset : s.offset + s.length]) == s.crc
+            if not s.crc_ok:
+                raise PackFormatError(f"section {s.kind!r} checksum mismatch", path=name, offset=s.offset)
+    return _build(view, sections, name, verify, bool(int(header["flags"]) & fmt.FLAG_QUANTIZED), (major, minor), keep)
+
+
+def _entry(e: Any, k: int, name: str, size: int, table_end: int, table_offset: int) -> Section:
+    at = table_offset + k * fmt.ENTRY_SIZE
+    kind_bytes = bytes(e["kind"]).ljust(4)
+    try:
+        kind = kind_bytes.decode("ascii")
+    except UnicodeDecodeError:
+        raise PackFormatError(f"section {k} has a non-ASCII kind", path=name, offset=at) from None
+    code, ndim = int(e["dtype"]), int(e["ndim"])
+    if code not in fmt.DTYPES or ndim not in (1, 2):
+        raise PackFormatError(f"section {kind!r} has dtype code {code}, ndim {ndim}", path=name, offset=at + 4)
+    rows, cols = (int(x) for x in e["shape"])
+    offset, length = int(e["offset"]), int(e["length"])
+    itemsize = fmt.DTYPES[code].itemsize
+    elements = rows * (cols if ndim == 2 else 1)
+    if (ndim == 1 and cols != 0) or elements * itemsize != length:
+        raise PackFormatError(
+            f"section {kind!r}: shape ({rows}, {cols}) does not match {length} bytes", path=name, offset=at + 8
+        )
+    if offset % fmt.ALIGN or offset < table_end or offset + length > size:
+        raise PackFormatError(
+            f"section {kind!r}: {length} bytes at {offset} are outside the data area", path=name, offset=at + 24
+        )
+    if any(bytes(e["reserved"])):
+        raise PackFormatError(f"section {kind!r}: reserved bytes are not zero", path=name, offset=at + 48)
+    dtype = next(n for n, c in fmt.CODES.items() if c == code)
+    shape = (rows, cols) if ndim == 2 else (rows,)
+    return Section(kind, dtype, shape, offset, length, int(e["crc"]), int(e["encoding"]), int(e["index"]))
+
+
+def _check_layout(sections: list[Section], name: str) -> None:
+    ordered = sorted(sections, key=lambda s: s.offset)
+    for a, b in zip(ordered, ordered[1:], strict=False):
+        if a.offset + a.length > b.offset:
+            raise PackFormatError(f"sections {a.kind!r} and {b.kind!r} overlap", path=name, offset=b.offset)
+    kinds = [s.kind.encode() for s in sections]
+    for kind in fmt.REQUIRED + fmt.OPTIONAL[:3]:
+        n = kinds.count(kind)
+        if n > 1 or (n == 0 and kind in fmt.REQUIRED):
+            raise PackFormatError(f"section {kind.decode()!r} appears {n} times", path=name, offset=fmt.HEADER_SIZE)
+    tex = sorted(s.index for s in sections if s.kind.encode() == fmt.KIND_TEXTURE)
+    if tex != list(range(len(tex))):
+        raise PackFormatError(
+            f"texture sections are numbered {tex}, expected 0..{len(tex) - 1}", path=name, offset=fmt.HEADER_SIZE
+        )
+
+
+_EXPECT: dict[bytes, tuple[tuple[str, int, int], ...]] = {
+    # kind: allowed (dtype, columns, encoding)
+    fmt.KIND_POSITIONS: (("f32", 3, fmt.ENC_PLAIN), ("u16", 3, fmt.ENC_UNORM16_BOX)),
+    fmt.KIND_NORMALS: (("f32", 3, fmt.ENC_PLAIN), ("i16", 2, fmt.ENC_OCT_SNORM16)),
+    fmt.KIND_UVS: (("f32", 2, fmt.ENC_PLAIN), ("u16", 2, fmt.ENC_UNORM16_BOX)),
+    fmt.KIND_COLORS: (("u8", 4, fmt.ENC_PLAIN),),
+    fmt.KIND_INDICES: (("u16", 3, fmt.ENC_PLAIN), ("u32", 3, fmt.ENC_PLAIN)),
+    fmt.KIND_SUBMESHES: (("u32", 4, fmt.ENC_PLAIN),),
+    fmt.KIND_HULL_TABLE: (("u32", 4, fmt.ENC_PLAIN),),
+    fmt.KIND_HULL_VERTICES: (("f32", 3, fmt.ENC_PLAIN),),
+    fmt.KIND_HULL_FACES: (("u32", 3, fmt.ENC_PLAIN),),
+    fmt.KIND_META: (("bytes", 0, fmt.ENC_PLAIN),),
+    fmt.KIND_MATERIALS: (("bytes", 0, fmt.ENC_PLAIN),),
+    fmt.KIND_TEXTURE: (("bytes", 0, fmt.ENC_PLAIN),),
+}
+
+
+def _build(
+    view: memoryview,
+    sections: list[Section],
+    name: str,
+    verify: bool,
+    quantized: bool,
+    version: tuple[int, int],
+    keep: mmap.mmap | None,
+) -> PackedMesh:
+    by_kind: dict[bytes, Section] = {}
+    textures: list[memoryview] = [memoryview(b"")] * sum(s.kind == "TEX " for s in sections)
+    raw: dict[str, npt.NDArray[Any]] = {}
+    for s in sections:
+        kind = s.kind.encode()
+        if kind not in _EXPECT:
+            continue  # a section kind from a newer minor version: skipped
+        cols = s.shape[1] if len(s.shape) == 2 else 0
+        if (s.dtype, cols, s.encoding) not in _EXPECT[kind]:
+            raise PackFormatError(
+                f"section {s.kind!r} has type {s.dtype} x {cols}, encoding {s.encoding}", path=name, offset=s.offset
+            )
+        if kind == fmt.KIND_TEXTURE:
+            textures[s.index] = view[s.offset : s.offset + s.length].toreadonly()
+            continue
+        by_kind[kind] = s
+        if s.dtype != "bytes":
+            arr = np.frombuffer(view, dtype=fmt.DTYPES[fmt.CODES[s.dtype]], count=s.shape[0] * cols, offset=s.offset)
+            raw[s.kind] = arr.reshape(s.shape)
+    meta = _json(view, by_kind[fmt.KIND_META], name, dict)
+    materials = _json(view, by_kind[fmt.KIND_MATERIALS], name, list)
+    n = raw["POS "].shape[0]
+    for kind in ("NRM ", "UV  ", "COL "):
+        if kind in raw and raw[kind].shape[0] != n:
+            raise PackFormatError(
+                f"section {kind!r} has {raw[kind].shape[0]} rows for {n} vertices",
+                path=name,
+                offset=by_kind[kind.encode()].offset,
+            )
+    indices = raw["IDX "]
+    submeshes = raw["SUBM"]
+    if verify:
+        _check_ranges(indices, submeshes, n, len(materials), by_kind, name)
+    quant = meta.get("quantization") or {}
+    try:
+        positions = _decode(raw["POS "], by_kind[fmt.KIND_POSITIONS].encoding, quant.get("positions"))
+        normals = _decode(raw["NRM "], by_kind[fmt.KIND_NORMALS].encoding, None) if "NRM " in raw else None
+        uvs = _decode(raw["UV  "], by_kind[fmt.KIND_UVS].encoding, quant.get("uvs")) if "UV  " in raw else None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise PackFormatError(
+            f"quantisation parameters missing or malformed in META ({exc})",
+            path=name,
+            offset=by_kind[fmt.KIND_META].offset,
+        ) from None
+    hulls = _hulls(raw, by_kind, name)
+    return PackedMesh(
+        positions=positions,
+        indices=indices,
+        normals=normals,
+        uvs=uvs,
+        colors=raw.get("COL "),
+        submeshes=submeshes,
+        materials=materials,
+        textures=textures,
+        hulls=hulls,
+        meta=meta,
+        version=version,
+        quantized=quantized,
+        sections=sections,
+        raw=raw,
+        _map=keep,
+    )
+
+
+def _json(view: memoryview, s: Section, name: str, kind: type) -> Any:
+    try:
+        value = json.loads(bytes(view[s.offset : s.offset + s.length]).decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise PackFormatError(f"section {s.kind!r} is not UTF-8 JSON ({exc})", path=name, offset=s.offset) from None
+    if not isinstance(value, kind):
+        raise PackFormatError(f"section {s.kind!r} is not a JSON {kind.__name__}", path=name, offset=s.offset)
+    return value
+
+
+def _decode(arr: npt.NDArray[Any], encoding: int, params: dict[str, Any] | None) -> npt.NDArray[np.float32]:
+    if encoding == fmt.ENC_PLAIN:
+        result: npt.NDArray[np.float32] = arr
+        return result
+    if encoding == fmt.ENC_OCT_SNORM16:
+        return oct_decode(arr)
+    if params is None:
+        raise KeyError("lo/hi")
+    lo, hi = [float(x) for x in params["lo"]], [float(x) for x in params["hi"]]
+    if len(lo) != arr.shape[1] or len(hi) != arr.shape[1]:
+        raise ValueError("lo/hi length")
+    return dequantize_box(arr, lo, hi)
+
+
+def _check_ranges(
+    indices: npt.NDArray[Any],
+    submeshes: npt.NDArray[Any],
+    n: int,
+    n_materials: int,
+    by_kind: dict[bytes, Section],
+    name: str,
+) -> None:
+    if indices.size and int(indices.max()) >= n:
+        raise PackFormatError(
+            f"an index is {int(indices.max())} but there are {n} vertices",
+            path=name,
+            offset=by_kind[fmt.KIND_INDICES].offset,
+        )
+    m = indices.shape[0]
+    if submeshes.size:
+        first = submeshes[:, 0].astype(np.int64)
+        end = first + submeshes[:, 1].astype(np.int64)
+        if (end > m).any() or (first[1:] != end[:-1]).any() or first[0] != 0 or end[-1] != m:
+            raise PackFormatError(
+                "submeshes do not tile the triangles", path=name, offset=by_kind[fmt.KIND_SUBMESHES].offset
+            )
+        if n_materials and int(submeshes[:, 2].max()) >= n_materials:
+            raise PackFormatError(
+                "a submesh names a material that does not exist", path=name, offset=by_kind[fmt.KIND_SUBMESHES].offset
+            )
+    elif m:
+        raise PackFormatError("triangles without a submesh table", path=name, offset=by_kind[fmt.KIND_SUBMESHES].offset)
+
+
+def _hulls(
+    raw: dict[str, npt.NDArray[Any]], by_kind: dict[bytes, Section], name: str
+) -> list[tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32]]]:
+    table, verts, faces = raw["HULT"], raw["HULV"], raw["HULF"]
+    hulls = []
+    for row in table.astype(np.int64):
+        v0, nv, f0, nf = (int(x) for x in row)
+        if v0 + nv > verts.shape[0] or f0 + nf > faces.shape[0]:
+            raise PackFormatError(
+                "a hull points past the hull arrays", path=name, offset=by_kind[fmt.KIND_HULL_TABLE].offset
+            )
+        hulls.append((verts[v0 : v0 + nv], faces[f0 : f0 + nf]))
+    return hulls

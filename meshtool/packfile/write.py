@@ -1,0 +1,193 @@
+"""``.mbin`` writer: a prepared asset to bytes, deterministically (see docs/mbin-spec.md)."""
+
+from __future__ import annotations
+
+import json
+import zlib
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import trimesh
+
+from meshtool import __version__
+from meshtool.normalise import NormalisedAsset
+from meshtool.obj.mtl import Material
+from meshtool.packfile import format as fmt
+from meshtool.packfile.encode import max_angle_deg, oct_decode, oct_encode, quantize_box, render_mesh
+
+
+@dataclass(slots=True)
+class _Section:
+    kind: bytes
+    code: int
+    shape: tuple[int, int]
+    ndim: int
+    data: bytes
+    encoding: int = fmt.ENC_PLAIN
+    index: int = 0
+
+
+def _array(kind: bytes, array: npt.NDArray[Any], code: str, encoding: int = fmt.ENC_PLAIN) -> _Section:
+    a = np.ascontiguousarray(array, dtype=fmt.DTYPES[fmt.CODES[code]])
+    shape = (a.shape[0], a.shape[1] if a.ndim == 2 else 0)
+    return _Section(kind, fmt.CODES[code], shape, a.ndim, a.tobytes(), encoding)
+
+
+def _blob(kind: bytes, data: bytes, index: int = 0) -> _Section:
+    return _Section(kind, 0, (len(data), 0), 1, data, fmt.ENC_PLAIN, index)
+
+
+def canonical_json(value: Any) -> bytes:
+    """JSON with sorted keys and no spaces: the same value always gives the same bytes."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+
+
+def pack(asset: NormalisedAsset, quantize: bool = False, options: dict[str, Any] | None = None) -> bytes:
+    """Pack a prepared asset (see :func:`meshtool.normalise.prepare`) into ``.mbin`` bytes.
+
+    Args:
+        asset: The asset; its mesh is in metres, Z-up.
+        quantize: Store positions and uvs as u16 in their bounding boxes and normals octahedral.
+        options: The options that produced the asset, recorded in the metadata (for staleness checks).
+
+    Returns:
+        The file contents; identical inputs give identical bytes.
+    """
+    rm = render_mesh(asset.mesh)
+    sections: list[_Section] = []
+    quant: dict[str, Any] = {}
+    if quantize:
+        codes, lo, hi, err = quantize_box(rm.positions)
+        sections.append(_array(fmt.KIND_POSITIONS, codes, "u16", fmt.ENC_UNORM16_BOX))
+        quant["positions"] = {"lo": lo, "hi": hi, "max_abs_error_m": err}
+    else:
+        sections.append(_array(fmt.KIND_POSITIONS, rm.positions, "f32"))
+    if rm.normals is not None:
+        if quantize:
+            oct_codes = oct_encode(rm.normals)
+            sections.append(_array(fmt.KIND_NORMALS, oct_codes, "i16", fmt.ENC_OCT_SNORM16))
+            quant["normals"] = {"max_angle_error_deg": max_angle_deg(rm.normals, oct_decode(oct_codes))}
+        else:
+            sections.append(_array(fmt.KIND_NORMALS, rm.normals, "f32"))
+    if rm.uvs is not None:
+        if quantize:
+            codes, lo, hi, err = quantize_box(rm.uvs)
+            sections.append(_array(fmt.KIND_UVS, codes, "u16", fmt.ENC_UNORM16_BOX))
+            quant["uvs"] = {"lo": lo, "hi": hi, "max_abs_error": err}
+        else:
+            sections.append(_array(fmt.KIND_UVS, rm.uvs, "f32"))
+    if rm.colors is not None:
+        sections.append(_array(fmt.KIND_COLORS, _rgba8(rm.colors), "u8"))
+    n = rm.positions.shape[0]
+    sections.append(_array(fmt.KIND_INDICES, rm.indices, "u16" if n < 65536 else "u32"))
+    sections.append(_array(fmt.KIND_SUBMESHES, _submeshes(asset), "u32"))
+    sections.append(_array(fmt.KIND_HULL_TABLE, np.zeros((0, 4)), "u32"))
+    sections.append(_array(fmt.KIND_HULL_VERTICES, np.zeros((0, 3)), "f32"))
+    sections.append(_array(fmt.KIND_HULL_FACES, np.zeros((0, 3)), "u32"))
+    texture_names = sorted(asset.textures)
+    sections.extend(_blob(fmt.KIND_TEXTURE, asset.textures[t], k) for k, t in enumerate(texture_names))
+    sections.append(_blob(fmt.KIND_MATERIALS, canonical_json(_materials(asset.materials, texture_names))))
+    meta = {
+        **{k: v for k, v in asset.manifest.items() if k not in ("files", "format", "format_version", "tool")},
+        "format": "mbin",
+        "tool": {"name": "meshtool", "version": __version__},
+        "options": options or {},
+        "quantization": quant or None,
+        "textures": texture_names,
+        "parts": asset.mesh.part_names,
+        "render": {"vertices": int(n), "triangles": int(rm.indices.shape[0])},
+        "mass_properties": _mass_properties(rm.positions, rm.indices),
+    }
+    sections.append(_blob(fmt.KIND_META, canonical_json(meta)))
+    return _assemble(sections, fmt.FLAG_QUANTIZED if quantize else 0)
+
+
+def _assemble(sections: list[_Section], flags: int) -> bytes:
+    table = np.zeros(len(sections), dtype=fmt.ENTRY)
+    offset = fmt.align(fmt.HEADER_SIZE + fmt.ENTRY_SIZE * len(sections))
+    chunks: list[bytes] = []
+    position = offset
+    for k, s in enumerate(sections):
+        table[k]["kind"] = s.kind
+        table[k]["dtype"] = s.code
+        table[k]["ndim"] = s.ndim
+        table[k]["index"] = s.index
+        table[k]["shape"] = s.shape
+        table[k]["offset"] = position
+        table[k]["length"] = len(s.data)
+        table[k]["crc"] = zlib.crc32(s.data)
+        table[k]["encoding"] = s.encoding
+        padded = fmt.align(len(s.data))
+        chunks.append(s.data + b"\0" * (padded - len(s.data)))
+        position += padded
+    header = np.zeros(1, dtype=fmt.HEADER)
+    header["magic"] = fmt.MAGIC
+    header["major"], header["minor"] = fmt.MAJOR, fmt.MINOR
+    header["flags"] = flags
+    header["section_count"] = len(sections)
+    header["table_offset"] = fmt.HEADER_SIZE
+    header["file_length"] = position
+    head = header.tobytes()
+    table_bytes = table.tobytes()
+    header["table_crc"] = zlib.crc32(head[:32] + table_bytes)
+    gap = b"\0" * (offset - fmt.HEADER_SIZE - len(table_bytes))
+    return header.tobytes() + table_bytes + gap + b"".join(chunks)
+
+
+def _rgba8(colors: npt.NDArray[np.float64]) -> npt.NDArray[np.uint8]:
+    c = np.clip(np.rint(np.clip(colors, 0.0, 1.0) * 255), 0, 255).astype(np.uint8)
+    return np.concatenate([c, np.full((c.shape[0], 1), 255, dtype=np.uint8)], axis=1)
+
+
+def _submeshes(asset: NormalisedAsset) -> npt.NDArray[np.uint32]:
+    """Rows (first triangle, triangle count, material, part) for each run of equal material and part."""
+    mesh = asset.mesh
+    m = mesh.faces.shape[0]
+    if m == 0:
+        return np.zeros((0, 4), dtype=np.uint32)
+    material = mesh.face_material if asset.materials else np.zeros(m, dtype=np.int64)
+    change = np.flatnonzero((np.diff(material) != 0) | (np.diff(mesh.face_part) != 0)) + 1
+    first = np.concatenate([[0], change])
+    count = np.diff(np.append(first, m))
+    rows = np.stack([first, count, material[first], mesh.face_part[first]], axis=1)
+    return rows.astype(np.uint32)
+
+
+def _materials(materials: list[Material], textures: list[str]) -> list[dict[str, Any]]:
+    out = []
+    for m in materials:
+        out.append(
+            {
+                "name": m.name,
+                "colors": {k: list(v) for k, v in m.colors.items()},
+                "scalars": dict(m.scalars),
+                "illum": m.illum,
+                "maps": {
+                    k: {
+                        "texture": textures.index(t.file),
+                        "file": t.file,
+                        "options": {o: list(a) for o, a in t.options.items()},
+                    }
+                    for k, t in m.maps.items()
+                },
+            }
+        )
+    return out
+
+
+def _mass_properties(positions: npt.NDArray[np.float64], indices: npt.NDArray[np.int64]) -> dict[str, Any]:
+    """Bounding box, area, and (for unit density, kg/m^3) volume, centre of mass and inertia, via trimesh."""
+    if indices.shape[0] == 0:
+        return {"area_m2": 0.0, "watertight": False}
+    mesh = trimesh.Trimesh(vertices=positions, faces=indices, process=False, validate=False)
+    props = mesh.mass_properties
+    return {
+        "area_m2": float(mesh.area),
+        "watertight": bool(mesh.is_watertight),
+        "volume_m3": float(props["volume"]),
+        "center_of_mass_m": [float(x) for x in props["center_mass"]],
+        "inertia_unit_density_kg_m2": [[float(x) for x in row] for row in props["inertia"]],
+        "note": "volume, centre of mass and inertia are only meaningful when watertight",
+    }
