@@ -11,18 +11,24 @@ the outcome to output and an exit code:
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import click
 
 from meshtool import __version__
-from meshtool.errors import MeshtoolError
-from meshtool.findings import Severity
-from meshtool.normalise import NormaliseOptions, normalise_to
+from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
+from meshtool.errors import MeshtoolError, OptionsError
+from meshtool.findings import Finding, Severity
+from meshtool.normalise import NormaliseOptions, normalise_to, safe_file_stem
+from meshtool.outdir import write_file, write_folder
+from meshtool.packfile import load
+from meshtool.packfile.export import describe, to_glb, to_msh, unpack_files
 from meshtool.units import UNIT_FACTORS
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
@@ -32,6 +38,37 @@ EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 @click.version_option(__version__, prog_name="meshtool")
 def main() -> None:
     """Make OBJ/MTL assets simulation-ready."""
+
+
+def normalise_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """The normaliser's options, shared by ``meshtool normalize`` and ``obj2bin``."""
+    decorators = [
+        click.option(
+            "--units",
+            type=click.Choice(list(UNIT_FACTORS)),
+            default=None,
+            help="Unit the source was modelled in (default m).",
+        ),
+        click.option("--scale", type=float, default=1.0, show_default=True, help="Extra uniform scale after --units."),
+        click.option(
+            "--up",
+            type=click.Choice(["y", "z"]),
+            default=None,
+            help="Up axis of the source: y (OBJ convention, rotated to Z-up; default) or z (kept).",
+        ),
+        click.option(
+            "--search-path",
+            "search_paths",
+            multiple=True,
+            type=click.Path(path_type=Path, file_okay=False),
+            help="Extra folder where MTL and texture references may resolve (repeatable).",
+        ),
+        click.option("--strict", is_flag=True, help="Fail (exit 1) instead of writing when there are warnings."),
+        click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of text."),
+    ]
+    for decorator in reversed(decorators):
+        func = decorator(func)
+    return func
 
 
 @main.command("normalize")
@@ -44,81 +81,224 @@ def main() -> None:
     type=click.Path(path_type=Path, file_okay=False),
     help="Folder to write NAME/ into (created when missing).",
 )
-@click.option(
-    "--units",
-    type=click.Choice(list(UNIT_FACTORS)),
-    default=None,
-    help="Unit the source was modelled in (default m).",
-)
-@click.option("--scale", type=float, default=1.0, show_default=True, help="Extra uniform scale after --units.")
-@click.option(
-    "--up",
-    type=click.Choice(["y", "z"]),
-    default=None,
-    help="Up axis of the source: y (OBJ convention, rotated to Z-up; default) or z (kept).",
-)
 @click.option("--name", default=None, help="Output folder and file stem (default: the source stem made safe).")
-@click.option(
-    "--search-path",
-    "search_paths",
-    multiple=True,
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Extra folder where MTL and texture references may resolve (repeatable).",
-)
-@click.option("--strict", is_flag=True, help="Fail (exit 1) instead of writing when there are warnings.")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of text.")
+@normalise_options
 def normalize(
     src: Path,
     out_dir: Path,
+    name: str | None,
     units: str | None,
     scale: float,
     up: str | None,
-    name: str | None,
     search_paths: tuple[Path, ...],
     strict: bool,
     as_json: bool,
 ) -> None:
     """Normalise SRC (an OBJ file) into OUTPUT/NAME/: metres, Z-up, PNG textures, safe names."""
-    try:
+    with _guard(as_json):
         options = NormaliseOptions(units=units, scale=scale, up=up, name=name, search_paths=search_paths, strict=strict)
         folder, asset = normalise_to(src, out_dir, options)
-    except MeshtoolError as exc:
-        _fail(exc, as_json)
-    except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
-        if os.environ.get("MESHTOOL_DEBUG"):
-            raise
-        click.echo(
-            f"internal error: {type(exc).__name__}: {exc} (please report; MESHTOOL_DEBUG=1 shows more)",
-            err=True,
-        )
-        sys.exit(EXIT_INTERNAL)
     if as_json:
-        report: dict[str, Any] = {
-            "status": "ok",
-            "output": str(folder),
-            "findings": [f.to_dict() for f in asset.findings],
-            "stats": asset.stats,
-        }
-        click.echo(json.dumps(report))
+        click.echo(json.dumps(_report("ok", folder, asset.findings, asset.stats)))
         return
     stats = asset.stats
+    click.echo(f"wrote {folder}: {_summary(stats)}")
+    _echo_findings(asset.findings)
+
+
+@click.command("obj2bin", context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="obj2bin")
+@click.argument("src", type=click.Path(path_type=Path, exists=True))
+@click.option(
+    "-o",
+    "--output",
+    "out",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="OUT.mbin for a file (default ./STEM.mbin); the output folder for a folder (required).",
+)
+@click.option("--quantize", is_flag=True, help="u16 positions/uvs in their bounding box, octahedral normals.")
+@click.option(
+    "-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes for a folder."
+)
+@normalise_options
+def obj2bin(
+    src: Path,
+    out: Path | None,
+    quantize: bool,
+    jobs: int,
+    units: str | None,
+    scale: float,
+    up: str | None,
+    search_paths: tuple[Path, ...],
+    strict: bool,
+    as_json: bool,
+) -> None:
+    """Convert SRC (an OBJ file, or a folder of them) to .mbin: normalised, packed, checksummed."""
+    with _guard(as_json):
+        options = ConvertOptions(
+            NormaliseOptions(units=units, scale=scale, up=up, search_paths=search_paths, strict=strict), quantize
+        )
+        if src.is_dir():
+            if out is None:
+                raise OptionsError("a folder needs -o OUTDIR")
+            _convert_folder(src, out, options, jobs, as_json)
+            return
+        target = out or Path(f"{safe_file_stem(src.stem) or 'asset'}.mbin")
+        result = convert(src, target, options)
+    if as_json:
+        click.echo(json.dumps(_report("ok", result.output, result.findings, result.stats)))
+        return
+    click.echo(f"wrote {result.output}: {_summary(result.stats)}, {result.stats['bytes']} bytes")
+    _echo_findings(result.findings)
+
+
+def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as_json: bool) -> None:
+    results: list[ConvertResult] = []
+    total = len(tree_jobs(src, out))
+    stream = convert_tree(src, out, options, jobs)
+    if sys.stdout.isatty() and not as_json:
+        with click.progressbar(stream, length=total, label="converting") as bar:
+            results.extend(bar)
+    else:
+        for k, result in enumerate(stream, start=1):
+            results.append(result)
+            if not as_json:
+                detail = result.error if result.error else str(result.output)
+                click.echo(f"[{k}/{total}] {result.status}: {result.source} -> {detail}")
+    results.sort(key=lambda r: str(r.source))
+    counts = {s: sum(r.status == s for r in results) for s in ("written", "unchanged", "failed")}
+    if as_json:
+        click.echo(
+            json.dumps(
+                {
+                    "status": "error" if counts["failed"] else "ok",
+                    "counts": counts,
+                    "assets": [
+                        {
+                            "source": str(r.source),
+                            "output": str(r.output),
+                            "status": r.status,
+                            "error": r.error,
+                            "findings": [f.to_dict() for f in r.findings],
+                            "stats": r.stats,
+                        }
+                        for r in results
+                    ],
+                }
+            )
+        )
+    else:
+        for r in results:
+            if r.status == "failed":
+                click.echo(f"error: {r.error}", err=True)
+        click.echo(f"{counts['written']} written, {counts['unchanged']} unchanged, {counts['failed']} failed")
+    if counts["failed"]:
+        sys.exit(EXIT_INPUT)
+
+
+@main.command("info")
+@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def info(file: Path, as_json: bool) -> None:
+    """Describe an .mbin file: counts, sections, sizes, checksums and metadata."""
+    with _guard(as_json), load(file, verify=True) as packed:
+        summary = describe(packed)
+    if as_json:
+        click.echo(json.dumps(summary))
+        return
     click.echo(
-        f"wrote {folder}: {stats['vertices']} vertices, {stats['triangles']} triangles, "
+        f"{file}: mbin {summary['version']}{' quantized' if summary['quantized'] else ''}, "
+        f"{summary['vertices']} vertices, {summary['triangles']} triangles ({summary['index_type']}), "
+        f"{summary['submeshes']} submesh(es), {len(summary['materials'])} material(s), "
+        f"{len(summary['textures'])} texture(s), {summary['hulls']} hull(s)"
+    )
+    for s in summary["sections"]:
+        shape = "x".join(str(d) for d in s["shape"])
+        click.echo(
+            f"  {s['kind']:<5}{s['index']:>3} {s['dtype']:>5} {shape:>12} at {s['offset']:>10} "
+            f"{s['bytes']:>10} bytes  crc {s['crc32']} {s['checksum']}"
+        )
+    meta = summary["meta"]
+    t = meta.get("transform", {})
+    click.echo(
+        f"  source units {t.get('units')} (x{t.get('unit_scale')}), scale {t.get('scale')}, up {t.get('up')}; "
+        f"tool {meta.get('tool', {}).get('version')}"
+    )
+
+
+@main.command("unpack")
+@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder to write NAME/ into.",
+)
+def unpack(file: Path, out_dir: Path) -> None:
+    """Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."""
+    with _guard(False), load(file, verify=True) as packed:
+        name = safe_file_stem(file.stem) or "asset"
+        files = unpack_files(packed, name)
+        files["asset.json"] = (json.dumps(packed.meta, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
+        folder = write_folder(out_dir, name, files)
+    click.echo(f"wrote {folder}: {', '.join(sorted(files))}")
+
+
+@main.command("export")
+@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--glb", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write glTF binary.")
+@click.option("--msh", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write MuJoCo MSH.")
+def export(file: Path, glb: Path | None, msh: Path | None) -> None:
+    """Export an .mbin as GLB and/or MuJoCo's legacy MSH."""
+    if glb is None and msh is None:
+        raise click.UsageError("give --glb and/or --msh")
+    with _guard(False), load(file, verify=True) as packed:
+        for path, data in ((glb, to_glb(packed) if glb else b""), (msh, to_msh(packed) if msh else b"")):
+            if path is not None:
+                write_file(path, data)
+                click.echo(f"wrote {path} ({len(data)} bytes)")
+
+
+def _summary(stats: dict[str, Any]) -> str:
+    return (
+        f"{stats['vertices']} vertices, {stats['triangles']} triangles, "
         f"{stats['materials']} material(s), {stats['textures']} texture(s), "
         f"extent {' x '.join(f'{e:.4g}' for e in stats['bbox']['extent'])} m"
     )
-    for finding in asset.findings:
+
+
+def _report(status: str, output: Path, findings: list[Finding], stats: dict[str, Any]) -> dict[str, Any]:
+    return {"status": status, "output": str(output), "findings": [f.to_dict() for f in findings], "stats": stats}
+
+
+def _echo_findings(findings: list[Finding]) -> None:
+    for finding in findings:
         if finding.severity is not Severity.INFO or os.environ.get("MESHTOOL_VERBOSE"):
             click.echo(finding.one_line(), err=True)
 
 
-def _fail(exc: MeshtoolError, as_json: bool) -> None:
-    click.echo(f"error: {exc.one_line()}", err=True)
-    if as_json:
+@contextlib.contextmanager
+def _guard(as_json: bool) -> Iterator[None]:
+    """Map library errors to exit 1 (one ``error:`` line) and bugs to exit 3."""
+    try:
+        yield
+    except MeshtoolError as exc:
+        click.echo(f"error: {exc.one_line()}", err=True)
+        if as_json:
+            click.echo(
+                json.dumps({"status": "error", "output": None, "error": exc.to_dict(), "findings": [], "stats": None})
+            )
+        sys.exit(EXIT_INPUT)
+    except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
+        if os.environ.get("MESHTOOL_DEBUG"):
+            raise
         click.echo(
-            json.dumps({"status": "error", "output": None, "error": exc.to_dict(), "findings": [], "stats": None})
+            f"internal error: {type(exc).__name__}: {exc} (please report; MESHTOOL_DEBUG=1 shows more)", err=True
         )
-    sys.exit(EXIT_INPUT)
+        sys.exit(EXIT_INTERNAL)
 
 
 if __name__ == "__main__":  # pragma: no cover

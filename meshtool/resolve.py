@@ -19,6 +19,8 @@ recorded as a :class:`Resolution`.
 
 from __future__ import annotations
 
+import hashlib
+import mmap
 import os
 import re
 from collections.abc import Sequence
@@ -231,3 +233,31 @@ class Resolver:
             except OSError:
                 self._listing[folder] = []
         return self._listing[folder]
+
+
+def file_sha256(path: Path) -> str | None:
+    """SHA-256 hex digest of a file the user pointed at (or that a manifest names), ``None`` if unreadable."""
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+    except OSError:
+        return None
+
+
+def find_files(root: Path, suffix: str) -> list[Path]:
+    """Files under ``root`` (recursively) whose suffix matches ``suffix`` ignoring case, sorted."""
+    return sorted(p for p in root.rglob("*") if p.is_file() and p.suffix.lower() == suffix.lower())
+
+
+def map_readonly(path: Path) -> mmap.mmap | None:
+    """Memory-map a file the user named, read-only; ``None`` for an empty file.
+
+    Raises:
+        ResolveError: It cannot be opened.
+    """
+    try:
+        with open(path, "rb") as handle:
+            if handle.seek(0, 2) == 0:
+                return None
+            return mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
+    except OSError as exc:
+        raise ResolveError(f"cannot be read: {exc.strerror}", path=str(path)) from None

@@ -102,7 +102,8 @@ def oct_encode(normals: FloatArray) -> npt.NDArray[np.int16]:
     sy = np.where(y >= 0, 1.0, -1.0)
     fx = np.where(z < 0, (1 - np.abs(y)) * sx, x)
     fy = np.where(z < 0, (1 - np.abs(x)) * sy, y)
-    return np.rint(np.clip(np.stack([fx, fy], axis=1), -1, 1) * I16_MAX).astype(np.int16)
+    codes: npt.NDArray[np.int16] = np.rint(np.clip(np.stack([fx, fy], axis=1), -1, 1) * I16_MAX).astype(np.int16)
+    return codes
 
 
 def oct_decode(codes: npt.NDArray[np.int16]) -> npt.NDArray[np.float32]:

@@ -7,6 +7,8 @@ and byte offset; nothing is allocated beyond the file's own size.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import json
 import mmap
 import zlib
@@ -20,6 +22,7 @@ import numpy.typing as npt
 from meshtool.errors import PackFormatError
 from meshtool.packfile import format as fmt
 from meshtool.packfile.encode import dequantize_box, oct_decode
+from meshtool.resolve import map_readonly
 
 
 @dataclass(slots=True)
@@ -90,10 +93,8 @@ class PackedMesh:
         """Release the memory map (arrays must not be used afterwards)."""
         if self._map is not None:
             self.raw.clear()
-            try:
+            with contextlib.suppress(BufferError):  # views still exported: the map closes when they go
                 self._map.close()
-            except BufferError:  # views still exported: the map closes when they go
-                pass
             self._map = None
 
     def __enter__(self) -> PackedMesh:
@@ -119,16 +120,9 @@ def load(path: str | Path, verify: bool = True) -> PackedMesh:
         ResolveError: The file cannot be opened.
     """
     name = str(path)
-    try:
-        with open(path, "rb") as handle:
-            size = handle.seek(0, 2)
-            if size == 0:
-                raise PackFormatError("empty file, not an .mbin", path=name, offset=0)
-            mapped = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
-    except OSError as exc:
-        from meshtool.errors import ResolveError
-
-        raise ResolveError(f"cannot be read: {exc.strerror}", path=name) from None
+    mapped = map_readonly(Path(path))
+    if mapped is None:
+        raise PackFormatError("empty file, not an .mbin", path=name, offset=0)
     try:
         return parse(mapped, name, verify, keep=mapped)
     except PackFormatError:
@@ -157,7 +151,9 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
         raise PackFormatError(f"truncated: {size} bytes, the header alone is 64", path=name, offset=size)
     header = np.frombuffer(view, dtype=fmt.HEADER, count=1)[0]
     if bytes(view[:8]) != fmt.MAGIC:
-        hint = "damaged by a text-mode transfer (line endings changed)" if view[:1] == b"\x89" else "not an .mbin"
+        hint = (
+            "damaged by a text-mode transfer (line endings changed)" if bytes(view[:1]) == b"\x89" else "not an .mbin"
+        )
         raise PackFormatError(f"bad magic number: {hint}", path=name, offset=0)
     major, minor = int(header["major"]), int(header["minor"])
     if major != fmt.MAJOR:
@@ -227,7 +223,7 @@ def _entry(e: Any, k: int, name: str, size: int, table_end: int, table_offset: i
 
 def _check_layout(sections: list[Section], name: str) -> None:
     ordered = sorted(sections, key=lambda s: s.offset)
-    for a, b in zip(ordered, ordered[1:], strict=False):
+    for a, b in itertools.pairwise(ordered):
         if a.offset + a.length > b.offset:
             raise PackFormatError(f"sections {a.kind!r} and {b.kind!r} overlap", path=name, offset=b.offset)
     kinds = [s.kind.encode() for s in sections]
@@ -290,12 +286,12 @@ def _build(
     meta = _json(view, by_kind[fmt.KIND_META], name, dict)
     materials = _json(view, by_kind[fmt.KIND_MATERIALS], name, list)
     n = raw["POS "].shape[0]
-    for kind in ("NRM ", "UV  ", "COL "):
-        if kind in raw and raw[kind].shape[0] != n:
+    for tag in ("NRM ", "UV  ", "COL "):
+        if tag in raw and raw[tag].shape[0] != n:
             raise PackFormatError(
-                f"section {kind!r} has {raw[kind].shape[0]} rows for {n} vertices",
+                f"section {tag!r} has {raw[tag].shape[0]} rows for {n} vertices",
                 path=name,
-                offset=by_kind[kind.encode()].offset,
+                offset=by_kind[tag.encode()].offset,
             )
     indices = raw["IDX "]
     submeshes = raw["SUBM"]

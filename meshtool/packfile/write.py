@@ -40,8 +40,9 @@ def _blob(kind: bytes, data: bytes, index: int = 0) -> _Section:
 
 
 def canonical_json(value: Any) -> bytes:
-    """JSON with sorted keys and no spaces: the same value always gives the same bytes."""
-    return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+    """JSON with sorted keys and no spaces: the same value always gives the same bytes (NaN is refused)."""
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    return text.encode("utf-8")
 
 
 def pack(asset: NormalisedAsset, quantize: bool = False, options: dict[str, Any] | None = None) -> bytes:
@@ -182,12 +183,20 @@ def _mass_properties(positions: npt.NDArray[np.float64], indices: npt.NDArray[np
     if indices.shape[0] == 0:
         return {"area_m2": 0.0, "watertight": False}
     mesh = trimesh.Trimesh(vertices=positions, faces=indices, process=False, validate=False)
-    props = mesh.mass_properties
+    with np.errstate(divide="ignore", invalid="ignore"):
+        props = mesh.mass_properties
+    volume = float(props["volume"])
+    com = [_finite(x) for x in props["center_mass"]]
     return {
         "area_m2": float(mesh.area),
         "watertight": bool(mesh.is_watertight),
-        "volume_m3": float(props["volume"]),
-        "center_of_mass_m": [float(x) for x in props["center_mass"]],
-        "inertia_unit_density_kg_m2": [[float(x) for x in row] for row in props["inertia"]],
-        "note": "volume, centre of mass and inertia are only meaningful when watertight",
+        "volume_m3": volume,
+        "center_of_mass_m": com if all(c is not None for c in com) else None,
+        "inertia_unit_density_kg_m2": [[_finite(x) for x in row] for row in props["inertia"]],
+        "note": "volume, centre of mass and inertia are only meaningful when watertight (null: zero volume)",
     }
+
+
+def _finite(x: Any) -> float | None:
+    value = float(x)
+    return value if np.isfinite(value) else None

@@ -1,0 +1,154 @@
+"""OBJ to ``.mbin`` conversion: one file, or a folder tree in parallel, skipping unchanged assets."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from meshtool.errors import MeshtoolError, OutputError, PackFormatError
+from meshtool.findings import Finding
+from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
+from meshtool.outdir import write_file
+from meshtool.packfile import load, pack
+from meshtool.resolve import file_sha256, find_files
+
+
+@dataclass(frozen=True, slots=True)
+class ConvertOptions:
+    """Options of ``obj2bin``.
+
+    Attributes:
+        normalise: The normaliser's options (units, scale, up axis, search paths, strict).
+        quantize: Write the quantised encoding.
+    """
+
+    normalise: NormaliseOptions = field(default_factory=NormaliseOptions)
+    quantize: bool = False
+
+    def fingerprint(self) -> dict[str, Any]:
+        """The options as recorded in the file's metadata (paths as strings)."""
+        n = asdict(self.normalise)
+        n["search_paths"] = [str(p) for p in self.normalise.search_paths]
+        n.pop("name", None)
+        return {"normalise": n, "quantize": self.quantize}
+
+
+@dataclass(slots=True)
+class ConvertResult:
+    """Outcome of one conversion.
+
+    Attributes:
+        source: The OBJ.
+        output: The ``.mbin`` written (or found up to date).
+        status: ``written``, ``unchanged`` or ``failed``.
+        findings: The normaliser's findings (empty when unchanged).
+        stats: Counts and sizes (empty when unchanged).
+        error: The one-line error when failed.
+    """
+
+    source: Path
+    output: Path
+    status: str
+    findings: list[Finding] = field(default_factory=list)
+    stats: dict[str, Any] = field(default_factory=dict)
+    error: str | None = None
+
+
+def convert(src: Path, out: Path, options: ConvertOptions | None = None) -> ConvertResult:
+    """Normalise ``src`` and write it as ``out`` (.mbin) atomically.
+
+    Raises:
+        MeshtoolError: The input cannot be converted, or the output cannot be written.
+    """
+    options = options or ConvertOptions()
+    asset = prepare(src, options.normalise)
+    data = pack(asset, options.quantize, options.fingerprint())
+    write_file(out, data)
+    stats = dict(asset.stats)
+    stats["bytes"] = len(data)
+    return ConvertResult(src, out, "written", asset.findings, stats)
+
+
+def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
+    """Whether ``out`` was made from the current ``src`` (and the MTLs/textures it used) with ``options``.
+
+    Compares the options and every source file's SHA-256 recorded in the file's metadata.
+    """
+    if file_sha256(out) is None:
+        return False
+    try:
+        packed = load(out, verify=False)
+    except (PackFormatError, MeshtoolError):
+        return False
+    try:
+        meta = packed.meta
+        if meta.get("options") != options.fingerprint():
+            return False
+        roots = [src.parent, *options.normalise.search_paths]
+        for source in meta.get("sources", []):
+            path = _source_path(str(source["path"]), roots)
+            if path is None or file_sha256(path) != source["sha256"]:
+                return False
+        return bool(meta.get("sources"))
+    finally:
+        packed.close()
+
+
+def _source_path(shown: str, roots: list[Path]) -> Path | None:
+    if shown.startswith("<search-path "):
+        number, _, rel = shown[len("<search-path ") :].partition(">/")
+        k = int(number) if number.isdigit() else -1
+        return roots[k] / rel if 0 < k < len(roots) else None
+    return roots[0] / shown
+
+
+def tree_jobs(src_dir: Path, out_dir: Path) -> list[tuple[Path, Path]]:
+    """Every ``*.obj`` under ``src_dir`` (sorted) with its ``.mbin`` path under ``out_dir``, same layout."""
+    jobs = []
+    for src in find_files(src_dir, ".obj"):
+        rel = src.relative_to(src_dir)
+        folder = out_dir.joinpath(*(safe_file_stem(p) or "_" for p in rel.parts[:-1]))
+        jobs.append((src, folder / f"{safe_file_stem(src.stem) or 'asset'}.mbin"))
+    return jobs
+
+
+def _run(src: Path, out: Path, options: ConvertOptions) -> ConvertResult:
+    if is_unchanged(src, out, options):
+        return ConvertResult(src, out, "unchanged")
+    try:
+        return convert(src, out, options)
+    except MeshtoolError as exc:
+        return ConvertResult(src, out, "failed", error=f"{src}: {exc.one_line()}")
+
+
+def convert_tree(
+    src_dir: Path, out_dir: Path, options: ConvertOptions | None = None, jobs: int = 1
+) -> Iterator[ConvertResult]:
+    """Convert every OBJ under ``src_dir``; yields results as they finish.
+
+    Args:
+        src_dir: Folder searched recursively for ``*.obj``.
+        out_dir: Output root; the folder layout is kept (names made safe).
+        options: Conversion options (``normalise.name`` is ignored).
+        jobs: Worker processes (1 converts in this process).
+
+    Yields:
+        One result per OBJ, unchanged ones included.
+    """
+    options = options or ConvertOptions()
+    work = tree_jobs(src_dir, out_dir)
+    outputs = [o for _, o in work]
+    if len(set(outputs)) != len(outputs):
+        clash = next(o for o in outputs if outputs.count(o) > 1)
+        raise OutputError("two sources map to the same output", path=str(clash), hint="rename one of them")
+    if jobs <= 1:
+        for src, out in work:
+            yield _run(src, out, options)
+        return
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        futures = [pool.submit(_run, src, out, options) for src, out in work]
+        for future in as_completed(futures):
+            yield future.result()

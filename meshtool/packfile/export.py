@@ -1,0 +1,162 @@
+"""From ``.mbin`` to other forms: OBJ/MTL/PNG (unpack), glTF binary (GLB), MuJoCo's legacy MSH, a summary."""
+
+from __future__ import annotations
+
+import io
+import struct
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import trimesh
+from PIL import Image
+
+from meshtool import __version__
+from meshtool.obj.mtl import Material, TextureMap, format_mtl
+from meshtool.packfile.read import PackedMesh
+
+
+def _floats(values: npt.NDArray[np.float32]) -> list[str]:
+    """Shortest text that reads back to the same float32 for every value."""
+    return [np.format_float_positional(v, unique=True, trim="-") if v != 0 else "0" for v in values.reshape(-1)]
+
+
+def unpack_files(packed: PackedMesh, name: str) -> dict[str, bytes]:
+    """The mesh as ``NAME.obj`` (+ ``NAME.mtl`` and PNGs), one index per corner (``f a/a/a``).
+
+    Reading the OBJ back (metres, Z-up) and packing it again gives the same positions, normals, uvs and
+    indices as the source file, bit for bit, in lossless mode.
+    """
+    files: dict[str, bytes] = {}
+    textures = list(packed.meta.get("textures", []))
+    for k, data in enumerate(packed.textures):
+        files[textures[k]] = bytes(data)
+    materials = [_material(m) for m in packed.materials]
+    mtl_file = f"{name}.mtl" if materials else None
+    lines = [f"# meshtool {__version__} normalized OBJ: units=m up=z"]
+    if mtl_file:
+        lines.append(f"mtllib {mtl_file}")
+    p = _floats(np.asarray(packed.positions, dtype=np.float32))
+    lines += [f"v {p[i]} {p[i + 1]} {p[i + 2]}" for i in range(0, len(p), 3)]
+    if packed.uvs is not None:
+        t = _floats(np.asarray(packed.uvs, dtype=np.float32))
+        lines += [f"vt {t[i]} {t[i + 1]}" for i in range(0, len(t), 2)]
+    if packed.normals is not None:
+        n = _floats(np.asarray(packed.normals, dtype=np.float32))
+        lines += [f"vn {n[i]} {n[i + 1]} {n[i + 2]}" for i in range(0, len(n), 3)]
+    idx = np.asarray(packed.indices, dtype=np.int64) + 1
+    if packed.uvs is not None and packed.normals is not None:
+        corner = "{0}/{0}/{0}"
+    elif packed.uvs is not None:
+        corner = "{0}/{0}"
+    elif packed.normals is not None:
+        corner = "{0}//{0}"
+    else:
+        corner = "{0}"
+    parts = list(packed.meta.get("parts", []))
+    show_parts = len({int(r[3]) for r in packed.submeshes}) > 1 or any(
+        parts[int(r[3])] != "default" for r in packed.submeshes
+    )
+    current_material = current_part = -1
+    for first, count, material, part in np.asarray(packed.submeshes, dtype=np.int64).tolist():
+        if mtl_file and material != current_material:
+            lines.append(f"usemtl {materials[material].name}")
+            current_material, current_part = material, -1
+        if show_parts and part != current_part:
+            lines.append(f"g {parts[part]}")
+            current_part = part
+        for a, b, c in idx[first : first + count].tolist():
+            lines.append(f"f {corner.format(a)} {corner.format(b)} {corner.format(c)}")
+    files[f"{name}.obj"] = ("\n".join(lines) + "\n").encode("utf-8")
+    if mtl_file:
+        files[mtl_file] = format_mtl(materials, f"meshtool {__version__} materials for {name}.obj").encode("utf-8")
+    return files
+
+
+def _material(m: dict[str, Any]) -> Material:
+    colors = {k: (float(v[0]), float(v[1]), float(v[2])) for k, v in m.get("colors", {}).items()}
+    maps = {
+        k: TextureMap(str(v["file"]), {o: tuple(str(a) for a in args) for o, args in v.get("options", {}).items()}, 0)
+        for k, v in m.get("maps", {}).items()
+    }
+    scalars = {k: float(v) for k, v in m.get("scalars", {}).items()}
+    return Material(str(m["name"]), 0, colors, scalars, m.get("illum"), maps)
+
+
+def to_msh(packed: PackedMesh) -> bytes:
+    """MuJoCo's legacy binary mesh (``.msh``).
+
+    Layout: int32 counts (vertices, normals, texcoords, faces), then float32 positions, normals, texcoords
+    and int32 faces, all little-endian. Materials and textures are not part of the format.
+    """
+    v = np.ascontiguousarray(packed.positions, dtype="<f4")
+    n = np.ascontiguousarray(packed.normals, dtype="<f4") if packed.normals is not None else np.zeros((0, 3), "<f4")
+    t = np.ascontiguousarray(packed.uvs, dtype="<f4") if packed.uvs is not None else np.zeros((0, 2), "<f4")
+    f = np.ascontiguousarray(packed.indices, dtype="<i4")
+    head = struct.pack("<4i", v.shape[0], n.shape[0], t.shape[0], f.shape[0])
+    return head + v.tobytes() + n.tobytes() + t.tobytes() + f.tobytes()
+
+
+def to_glb(packed: PackedMesh) -> bytes:
+    """A glTF binary scene with one primitive per submesh, materials and textures, via trimesh."""
+    scene = trimesh.Scene()
+    positions = np.asarray(packed.positions, dtype=np.float64)
+    indices = np.asarray(packed.indices, dtype=np.int64)
+    images: dict[int, Image.Image] = {}
+    for k, (first, count, material, _) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
+        faces = indices[first : first + count]
+        used, inverse = np.unique(faces, return_inverse=True)
+        mesh = trimesh.Trimesh(vertices=positions[used], faces=inverse.reshape(-1, 3), process=False)
+        spec = packed.materials[material] if packed.materials else {}
+        kd = spec.get("colors", {}).get("Kd", [0.8, 0.8, 0.8])
+        base = [*(float(c) for c in kd), float(spec.get("scalars", {}).get("d", 1.0))]
+        texture = spec.get("maps", {}).get("map_Kd")
+        image = None
+        if texture is not None and packed.uvs is not None:
+            index = int(texture["texture"])
+            if index not in images:
+                images[index] = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
+            image = images[index]
+        pbr = trimesh.visual.material.PBRMaterial(  # type: ignore[no-untyped-call]
+            name=spec.get("name", f"material_{material}"),
+            baseColorFactor=base,
+            baseColorTexture=image,
+            metallicFactor=0.0,
+            roughnessFactor=1.0,
+        )
+        uv = np.asarray(packed.uvs, dtype=np.float64)[used] if packed.uvs is not None else None
+        mesh.visual = trimesh.visual.TextureVisuals(uv=uv, material=pbr)  # type: ignore[no-untyped-call]
+        if packed.normals is not None:
+            mesh.vertex_normals = np.asarray(packed.normals, dtype=np.float64)[used]  # type: ignore[method-assign]
+        scene.add_geometry(mesh, geom_name=f"submesh_{k}")
+    data: bytes = scene.export(file_type="glb")  # type: ignore[no-untyped-call]
+    return data
+
+
+def describe(packed: PackedMesh) -> dict[str, Any]:
+    """Counts, sections (with checksum status), sizes and the metadata of a loaded file."""
+    return {
+        "version": f"{packed.version[0]}.{packed.version[1]}",
+        "quantized": packed.quantized,
+        "vertices": int(packed.positions.shape[0]),
+        "triangles": int(packed.indices.shape[0]),
+        "index_type": str(packed.indices.dtype),
+        "submeshes": int(packed.submeshes.shape[0]),
+        "materials": [m.get("name") for m in packed.materials],
+        "textures": list(packed.meta.get("textures", [])),
+        "hulls": len(packed.hulls),
+        "sections": [
+            {
+                "kind": s.kind.strip(),
+                "index": s.index,
+                "dtype": s.dtype,
+                "shape": list(s.shape),
+                "offset": s.offset,
+                "bytes": s.length,
+                "crc32": f"{s.crc:08x}",
+                "checksum": {True: "ok", False: "BAD", None: "not checked"}[s.crc_ok],
+            }
+            for s in packed.sections
+        ],
+        "meta": packed.meta,
+    }
