@@ -200,8 +200,8 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
                 source_name,
             )
         )
-    mesh.positions = to_z_up(apply_scale(mesh.positions, units, options.scale), up)
-    mesh.normals = to_z_up(mesh.normals, up)
+    mesh.positions = to_z_up(apply_scale(mesh.positions, units, options.scale), up) + 0.0  # no -0.0
+    mesh.normals = to_z_up(mesh.normals, up) + 0.0
 
     name = (options.name and safe_file_stem(options.name)) or safe_file_stem(src.stem) or "asset"
     files: dict[str, bytes] = {}

@@ -81,6 +81,7 @@ def write_file(out: Path, data: bytes) -> None:
                 handle.write(data)
                 handle.flush()
                 os.fsync(handle.fileno())
+            os.chmod(tmp, 0o644)
             os.replace(tmp, out)
         except BaseException:
             os.unlink(tmp)

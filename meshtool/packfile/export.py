@@ -37,7 +37,11 @@ def unpack_files(packed: PackedMesh, name: str) -> dict[str, bytes]:
     if mtl_file:
         lines.append(f"mtllib {mtl_file}")
     p = _floats(np.asarray(packed.positions, dtype=np.float32))
-    lines += [f"v {p[i]} {p[i + 1]} {p[i + 2]}" for i in range(0, len(p), 3)]
+    if packed.colors is not None:
+        c = [repr(v / 255) if v not in (0, 255) else str(v // 255) for v in packed.colors[:, :3].reshape(-1).tolist()]
+        lines += [f"v {p[i]} {p[i + 1]} {p[i + 2]} {c[i]} {c[i + 1]} {c[i + 2]}" for i in range(0, len(p), 3)]
+    else:
+        lines += [f"v {p[i]} {p[i + 1]} {p[i + 2]}" for i in range(0, len(p), 3)]
     if packed.uvs is not None:
         t = _floats(np.asarray(packed.uvs, dtype=np.float32))
         lines += [f"vt {t[i]} {t[i + 1]}" for i in range(0, len(t), 2)]

@@ -126,7 +126,8 @@ def load(path: str | Path, verify: bool = True) -> PackedMesh:
     try:
         return parse(mapped, name, verify, keep=mapped)
     except PackFormatError:
-        mapped.close()
+        with contextlib.suppress(BufferError):  # views made before the error still point into the map
+            mapped.close()
         raise
 
 

@@ -1,0 +1,273 @@
+import zlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from meshtool.errors import PackFormatError
+from meshtool.mesh import TriMesh
+from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
+from meshtool.obj.mtl import Material, TextureMap
+from meshtool.packfile import format as fmt
+from meshtool.packfile import pack, parse
+from meshtool.packfile.encode import oct_decode, oct_encode
+
+coord = st.floats(-100, 100, allow_nan=False, width=32)
+
+
+def make_asset(positions, faces, uvs=None, normals=None, colors=None, materials=1, textures=0, parts=1):
+    m = faces.shape[0]
+    face_material = np.sort(np.arange(m) % materials) if m else np.zeros(0, dtype=np.int64)
+    face_part = (np.arange(m) % parts) if m else np.zeros(0, dtype=np.int64)
+    order = np.lexsort((face_part, face_material))
+    names = [f"tex{k}.png" for k in range(textures)]
+    mats = [
+        Material(
+            f"m{k}",
+            0,
+            {"Kd": (0.1 * k, 0.5, 1.0)},
+            {"Ns": 10.0},
+            2,
+            {"map_Kd": TextureMap(names[k % textures], {"-s": ("2.0",)}, 0)} if textures else {},
+        )
+        for k in range(materials)
+    ]
+    mesh = TriMesh(
+        positions=positions,
+        colors=colors,
+        texcoords=uvs if uvs is not None else np.zeros((0, 2)),
+        normals=normals if normals is not None else np.zeros((0, 3)),
+        faces=faces[order],
+        face_uv=faces[order] if uvs is not None else np.full((m, 3), -1),
+        face_normal=faces[order] if normals is not None else np.full((m, 3), -1),
+        face_material=face_material[order],
+        face_part=face_part[order],
+        face_lines=np.zeros(m, dtype=np.int64),
+        material_names=[m.name for m in mats],
+        part_names=[f"p{k}" for k in range(parts)],
+        source_polygons=m,
+        degenerate=0,
+    )
+    png = {n: b"\x89PNG fake " + n.encode() for n in names}
+    manifest = {"name": "t", "sources": [], "stats": {}, "findings": []}
+    return NormalisedAsset("t", dict(png), manifest, [], mesh, mats, png)
+
+
+@st.composite
+def assets(draw):
+    n = draw(st.integers(3, 40))
+    positions = draw(arrays(np.float64, (n, 3), elements=coord))
+    m = draw(st.integers(1, 30))
+    faces = draw(arrays(np.int64, (m, 3), elements=st.integers(0, n - 1)))
+    uvs = draw(st.one_of(st.none(), arrays(np.float64, (n, 2), elements=st.floats(-2, 2, width=32))))
+    normals = None
+    if draw(st.booleans()):
+        raw = draw(arrays(np.float64, (n, 3), elements=st.floats(-1, 1, width=32)))
+        raw[np.linalg.norm(raw, axis=1) < 1e-3] = [0, 0, 1]
+        normals = raw / np.linalg.norm(raw, axis=1, keepdims=True)
+    colors = draw(st.one_of(st.none(), arrays(np.float64, (n, 3), elements=st.floats(0, 1))))
+    materials = draw(st.integers(1, 4))
+    textures = draw(st.integers(0, 3))
+    parts = draw(st.integers(1, 3))
+    return make_asset(positions, faces, uvs, normals, colors, materials, textures, parts)
+
+
+def corners(mesh_positions, indices):
+    return np.asarray(mesh_positions)[np.asarray(indices, dtype=np.int64)]
+
+
+@settings(max_examples=120, deadline=None)
+@given(assets())
+def test_lossless_round_trip(asset):
+    data = pack(asset)
+    assert pack(asset) == data  # deterministic
+    p = parse(data)
+    src = asset.mesh
+    # every triangle corner keeps its position, uv, normal and colour exactly (as float32 / u8)
+    np.testing.assert_array_equal(corners(p.positions, p.indices), src.positions[src.faces].astype(np.float32))
+    if src.texcoords.size:
+        np.testing.assert_array_equal(corners(p.uvs, p.indices), src.texcoords[src.face_uv].astype(np.float32))
+    else:
+        assert p.uvs is None
+    if src.normals.size:
+        np.testing.assert_array_equal(corners(p.normals, p.indices), src.normals[src.face_normal].astype(np.float32))
+    else:
+        assert p.normals is None
+    if src.colors is not None:
+        expected = np.rint(src.colors[src.faces] * 255).astype(np.uint8)
+        np.testing.assert_array_equal(corners(p.colors, p.indices)[..., :3], expected)
+    assert p.indices.dtype == np.uint16
+    # submeshes tile the triangles, one run per (material, part)
+    sub = p.submeshes.astype(np.int64)
+    assert sub[0, 0] == 0 and (sub[1:, 0] == (sub[:-1, 0] + sub[:-1, 1])).all() and sub[:, 1].sum() == len(p.indices)
+    for first, count, material, part in sub.tolist():
+        assert (src.face_material[first : first + count] == material).all()
+        assert (src.face_part[first : first + count] == part).all()
+    assert [bytes(t) for t in p.textures] == [asset.textures[n] for n in sorted(asset.textures)]
+    assert [m["name"] for m in p.materials] == [m.name for m in asset.materials]
+    assert p.hulls == []
+    for s in p.sections:
+        assert s.offset % 64 == 0 and s.crc_ok
+
+
+@settings(max_examples=120, deadline=None)
+@given(assets())
+def test_quantized_round_trip_within_stated_bounds(asset):
+    p = parse(pack(asset, quantize=True))
+    src = asset.mesh
+    q = p.meta["quantization"]
+    err = np.abs(corners(p.positions, p.indices).astype(np.float64) - src.positions[src.faces]).max(axis=(0, 1))
+    np.testing.assert_array_less(err, np.asarray(q["positions"]["max_abs_error_m"]) + 1e-12)
+    span = np.ptp(src.positions, axis=0)
+    np.testing.assert_array_less(err, span / 65535 * 0.5 + np.abs(src.positions).max() * 1e-6 + 1e-9)
+    if src.texcoords.size:
+        uv_err = np.abs(corners(p.uvs, p.indices) - src.texcoords[src.face_uv]).max(axis=(0, 1))
+        np.testing.assert_array_less(uv_err, np.asarray(q["uvs"]["max_abs_error"]) + 1e-12)
+    if src.normals.size:
+        dots = (corners(p.normals, p.indices) * src.normals[src.face_normal]).sum(axis=2)
+        angle = np.degrees(np.arccos(np.clip(dots, -1, 1))).max()
+        assert angle <= q["normals"]["max_angle_error_deg"] + 1e-4
+        assert angle < 0.02
+
+
+def test_u32_indices_when_there_are_many_vertices():
+    n = 70000
+    positions = np.stack([np.arange(n), np.arange(n) % 7, np.arange(n) % 13], axis=1).astype(np.float64)
+    faces = np.stack([np.arange(n - 2), np.arange(1, n - 1), np.arange(2, n)], axis=1)
+    p = parse(pack(make_asset(positions, faces)))
+    assert p.indices.dtype == np.uint32
+    np.testing.assert_array_equal(p.indices, faces)
+
+
+def test_oct_normals_are_accurate():
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(5000, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    back = oct_decode(oct_encode(v))
+    assert np.degrees(np.arccos(np.clip((v * back).sum(axis=1), -1, 1))).max() < 0.02
+
+
+def test_arrays_are_read_only_views(tmp_path):
+    from meshtool.packfile import load
+
+    data = pack(
+        prepare(
+            __import__("pathlib").Path(__file__).parent.parent / "fixtures/head/Head 1.obj",
+            NormaliseOptions(units="cm"),
+        )
+    )
+    path = tmp_path / "h.mbin"
+    path.write_bytes(data)
+    with load(path) as p:
+        assert not p.positions.flags.writeable and not p.indices.flags.writeable
+        assert p.positions.base is not None  # a view of the map, not a copy
+        with pytest.raises(ValueError):
+            p.positions[0, 0] = 1.0
+
+
+# ------------------------------------------------------------------------------------------------ corruption
+
+
+@pytest.fixture(scope="module")
+def golden_bytes():
+    from pathlib import Path
+
+    return (Path(__file__).parent.parent / "fixtures" / "golden" / "head.mbin").read_bytes()
+
+
+def table_end(data):
+    count = int(np.frombuffer(data, dtype=fmt.HEADER, count=1)[0]["section_count"])
+    return fmt.HEADER_SIZE + count * fmt.ENTRY_SIZE
+
+
+def test_every_header_and_table_byte_flip_is_caught(golden_bytes):
+    for k in range(table_end(golden_bytes)):
+        damaged = bytearray(golden_bytes)
+        damaged[k] ^= 0x41
+        with pytest.raises(PackFormatError):
+            parse(bytes(damaged), verify=False)
+
+
+def test_truncation_at_every_section_boundary_is_caught(golden_bytes):
+    p = parse(golden_bytes)
+    cuts = (
+        {0, 7, 63, table_end(golden_bytes)} | {s.offset for s in p.sections} | {s.offset + s.length for s in p.sections}
+    )
+    for cut in sorted(c for c in cuts if c < len(golden_bytes)):
+        with pytest.raises(PackFormatError) as info:
+            parse(golden_bytes[:cut])
+        assert info.value.offset is not None
+
+
+def test_data_corruption_is_caught_by_checksums(golden_bytes):
+    p = parse(golden_bytes)
+    for s in p.sections:
+        if s.length:
+            damaged = bytearray(golden_bytes)
+            damaged[s.offset + s.length // 2] ^= 0xFF
+            with pytest.raises(PackFormatError, match=f"section '{s.kind}' checksum mismatch") as info:
+                parse(bytes(damaged))
+            assert info.value.offset == s.offset
+
+
+def rewrite(data, edit):
+    """Apply edit(header, table) and fix the table checksum, as a hostile writer would."""
+    buf = bytearray(data)
+    header = np.frombuffer(buf, dtype=fmt.HEADER, count=1).copy()
+    count = int(header[0]["section_count"])
+    table = np.frombuffer(buf, dtype=fmt.ENTRY, count=count, offset=64).copy()
+    edit(header, table)
+    raw_table = table.tobytes()
+    head = header.tobytes()
+    header[0]["table_crc"] = zlib.crc32(head[:32] + raw_table)
+    buf[:64] = header.tobytes()
+    buf[64 : 64 + len(raw_table)] = raw_table
+    return bytes(buf)
+
+
+@pytest.mark.parametrize(
+    ("edit", "words"),
+    [
+        (lambda h, t: h[0].__setitem__("major", 2), "unsupported format version 2.0"),
+        (lambda h, t: t[0].__setitem__("shape", (2**62, 3)), "does not match"),
+        (lambda h, t: t[0].__setitem__("length", 2**63), "does not match"),
+        (lambda h, t: t[1].__setitem__("offset", t[0]["offset"]), "overlap"),
+        (lambda h, t: t[0].__setitem__("offset", 2**60), "outside the data area"),
+        (lambda h, t: t[0].__setitem__("offset", t[0]["offset"] + 4), "outside the data area"),
+        (lambda h, t: t[0].__setitem__("dtype", 9), "dtype code 9"),
+        (lambda h, t: t[2].__setitem__("kind", b"POS "), "appears 2 times"),
+    ],
+)
+def test_hostile_tables(golden_bytes, edit, words):
+    with pytest.raises(PackFormatError, match=words):
+        parse(rewrite(golden_bytes, edit))
+
+
+def test_huge_section_count_is_refused_before_reading(golden_bytes):
+    buf = bytearray(golden_bytes)
+    buf[16:20] = (2**32 - 1).to_bytes(4, "little")
+    with pytest.raises(PackFormatError, match="does not fit"):
+        parse(bytes(buf))
+
+
+def test_out_of_range_index_with_valid_checksums(golden_bytes):
+    p = parse(golden_bytes)
+    idx = next(s for s in p.sections if s.kind == "IDX ")
+    buf = bytearray(golden_bytes)
+    buf[idx.offset : idx.offset + 2] = (60000).to_bytes(2, "little")
+    fixed = rewrite(
+        bytes(buf),
+        lambda h, t: t[next(k for k, e in enumerate(t) if e["kind"] == b"IDX ")].__setitem__(
+            "crc", zlib.crc32(bytes(buf[idx.offset : idx.offset + idx.length]))
+        ),
+    )
+    with pytest.raises(PackFormatError, match="an index is 60000 but there are 61 vertices"):
+        parse(fixed)
+    assert parse(fixed, verify=False).indices[0, 0] == 60000  # without verify only bounds are checked
+
+
+def test_text_mode_damage_is_named(golden_bytes):
+    with pytest.raises(PackFormatError, match="text-mode transfer"):
+        parse(golden_bytes.replace(b"\r\n", b"\n", 1))
