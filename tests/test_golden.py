@@ -12,8 +12,10 @@ from meshtool.packfile import load
 GOLDEN = Path(__file__).resolve().parent.parent / "fixtures" / "golden"
 
 
-def test_head():
-    with load(GOLDEN / "head.mbin") as p:
+@pytest.mark.parametrize("name", ["head.mbin", "head_plain_meta.mbin"])
+def test_head(name):
+    """The same head, with deflated JSON sections and (the first 1.0 files) plain ones."""
+    with load(GOLDEN / name) as p:
         assert p.version == (1, 0) and not p.quantized
         assert p.positions.shape == (61, 3) and p.positions.dtype == np.float32
         assert p.indices.shape == (80, 3) and p.indices.dtype == np.uint16
@@ -39,6 +41,9 @@ def test_head():
 def test_crate_quantized():
     with load(GOLDEN / "crate_quantized.mbin") as p:
         assert p.quantized and p.raw["POS "].dtype == np.uint16 and p.raw["UV  "].dtype == np.uint16
+        idx = next(s for s in p.sections if s.kind == "IDX ")
+        assert idx.encoding == 3 and idx.length < 12 * 3 * 2  # deflated
+        assert p.indices.shape == (12, 3) and int(p.indices.max()) == 19
         assert p.positions.shape == (20, 3)
         assert {tuple(r) for r in p.positions.tolist()} == {
             (x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)
@@ -59,9 +64,10 @@ def test_features():
 
 
 PINNED = {
-    "crate_quantized.mbin": "4e5ac94f5fef1d141eb4096d3349fcb517780b8d69647339465e39afe05a1124",
-    "features.mbin": "3c645a440e793f166c38384170e430d1a971c011a7e7078e7d1ed051d7bda876",
-    "head.mbin": "3fed7b85cac363419c0dee35e02980c026809bf9db8d6b1246762e93abda7ff3",
+    "crate_quantized.mbin": "d2e0a9e9848d7108729fc0ebfc2161ec69fcb2d3cb2e51215ca948f1bd29023f",
+    "features.mbin": "0c5a5990c9dc0a5d3d2360351c2a47a12ccedfa8e3416cb964f5512adc31fe42",
+    "head.mbin": "5f3b8ab5f7f7f33121b354ee15290d77c37b51e2f3a5768d6ae9e55c50b286ef",
+    "head_plain_meta.mbin": "3fed7b85cac363419c0dee35e02980c026809bf9db8d6b1246762e93abda7ff3",
 }
 
 

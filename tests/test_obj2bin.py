@@ -72,7 +72,7 @@ def test_info_on_a_damaged_file(fixtures, tmp_path):
     bad.write_bytes(bytes(data))
     result = run(main, "info", bad)
     assert result.exit_code == 1
-    assert result.stderr == f"error: {bad}: byte 3008: section 'META' checksum mismatch\n"
+    assert result.stderr == f"error: {bad}: byte 2880: section 'META' checksum mismatch\n"
 
 
 def test_unpack_round_trips_geometry_exactly(fixtures, tmp_path):

@@ -55,6 +55,9 @@ CODES = {"bytes": 0, "u8": 1, "u16": 2, "u32": 3, "i16": 4, "f32": 5}
 ENC_PLAIN = 0  # values as stored
 ENC_UNORM16_BOX = 1  # u16 q -> lo + q * (hi - lo) / 65535, lo/hi in META "quantization"
 ENC_OCT_SNORM16 = 2  # i16 (x, y) octahedral unit vector, q / 32767
+ENC_DEFLATE = 3  # the data is a zlib stream of the plain little-endian array (or byte string)
+#: A deflated section may not claim more than this many times its stored length (hostile-size guard).
+MAX_INFLATE_RATIO = 64
 
 KIND_META = b"META"
 KIND_POSITIONS = b"POS "

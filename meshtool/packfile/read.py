@@ -207,7 +207,12 @@ def _entry(e: Any, k: int, name: str, size: int, table_end: int, table_offset: i
     offset, length = int(e["offset"]), int(e["length"])
     itemsize = fmt.DTYPES[code].itemsize
     elements = rows * (cols if ndim == 2 else 1)
-    if (ndim == 1 and cols != 0) or elements * itemsize != length:
+    encoding = int(e["encoding"])
+    if encoding == fmt.ENC_DEFLATE:
+        expected_ok = elements * itemsize <= fmt.MAX_INFLATE_RATIO * length + 1024
+    else:
+        expected_ok = elements * itemsize == length
+    if (ndim == 1 and cols != 0) or not expected_ok:
         raise PackFormatError(
             f"section {kind!r}: shape ({rows}, {cols}) does not match {length} bytes", path=name, offset=at + 8
         )
@@ -219,7 +224,7 @@ def _entry(e: Any, k: int, name: str, size: int, table_end: int, table_offset: i
         raise PackFormatError(f"section {kind!r}: reserved bytes are not zero", path=name, offset=at + 48)
     dtype = next(n for n, c in fmt.CODES.items() if c == code)
     shape = (rows, cols) if ndim == 2 else (rows,)
-    return Section(kind, dtype, shape, offset, length, int(e["crc"]), int(e["encoding"]), int(e["index"]))
+    return Section(kind, dtype, shape, offset, length, int(e["crc"]), encoding, int(e["index"]))
 
 
 def _check_layout(sections: list[Section], name: str) -> None:
@@ -245,13 +250,18 @@ _EXPECT: dict[bytes, tuple[tuple[str, int, int], ...]] = {
     fmt.KIND_NORMALS: (("f32", 3, fmt.ENC_PLAIN), ("i16", 2, fmt.ENC_OCT_SNORM16)),
     fmt.KIND_UVS: (("f32", 2, fmt.ENC_PLAIN), ("u16", 2, fmt.ENC_UNORM16_BOX)),
     fmt.KIND_COLORS: (("u8", 4, fmt.ENC_PLAIN),),
-    fmt.KIND_INDICES: (("u16", 3, fmt.ENC_PLAIN), ("u32", 3, fmt.ENC_PLAIN)),
+    fmt.KIND_INDICES: (
+        ("u16", 3, fmt.ENC_PLAIN),
+        ("u32", 3, fmt.ENC_PLAIN),
+        ("u16", 3, fmt.ENC_DEFLATE),
+        ("u32", 3, fmt.ENC_DEFLATE),
+    ),
     fmt.KIND_SUBMESHES: (("u32", 4, fmt.ENC_PLAIN),),
     fmt.KIND_HULL_TABLE: (("u32", 4, fmt.ENC_PLAIN),),
     fmt.KIND_HULL_VERTICES: (("f32", 3, fmt.ENC_PLAIN),),
     fmt.KIND_HULL_FACES: (("u32", 3, fmt.ENC_PLAIN),),
-    fmt.KIND_META: (("bytes", 0, fmt.ENC_PLAIN),),
-    fmt.KIND_MATERIALS: (("bytes", 0, fmt.ENC_PLAIN),),
+    fmt.KIND_META: (("bytes", 0, fmt.ENC_PLAIN), ("bytes", 0, fmt.ENC_DEFLATE)),
+    fmt.KIND_MATERIALS: (("bytes", 0, fmt.ENC_PLAIN), ("bytes", 0, fmt.ENC_DEFLATE)),
     fmt.KIND_TEXTURE: (("bytes", 0, fmt.ENC_PLAIN),),
 }
 
@@ -282,7 +292,10 @@ def _build(
             continue
         by_kind[kind] = s
         if s.dtype != "bytes":
-            arr = np.frombuffer(view, dtype=fmt.DTYPES[fmt.CODES[s.dtype]], count=s.shape[0] * cols, offset=s.offset)
+            dtype = fmt.DTYPES[fmt.CODES[s.dtype]]
+            source: Any = _inflate(view, s, name) if s.encoding == fmt.ENC_DEFLATE else view
+            offset = 0 if s.encoding == fmt.ENC_DEFLATE else s.offset
+            arr = np.frombuffer(source, dtype=dtype, count=s.shape[0] * cols, offset=offset)
             raw[s.kind] = arr.reshape(s.shape)
     meta = _json(view, by_kind[fmt.KIND_META], name, dict)
     materials = _json(view, by_kind[fmt.KIND_MATERIALS], name, list)
@@ -329,9 +342,30 @@ def _build(
     )
 
 
-def _json(view: memoryview, s: Section, name: str, kind: type) -> Any:
+def _inflate(view: memoryview, s: Section, name: str) -> bytes:
+    """Decompress a deflated section to exactly the size its shape states (never more)."""
+    expected = s.shape[0] * (s.shape[1] if len(s.shape) == 2 else 1) * fmt.DTYPES[fmt.CODES[s.dtype]].itemsize
+    inflater = zlib.decompressobj()
     try:
-        value = json.loads(bytes(view[s.offset : s.offset + s.length]).decode("utf-8"))
+        data = inflater.decompress(view[s.offset : s.offset + s.length], expected)
+        complete = inflater.eof and not inflater.unconsumed_tail
+    except zlib.error as exc:
+        raise PackFormatError(
+            f"section {s.kind!r} is not a valid deflate stream ({exc})", path=name, offset=s.offset
+        ) from None
+    if len(data) != expected or not complete:
+        raise PackFormatError(
+            f"section {s.kind!r} inflates to a size other than its shape states ({expected} bytes)",
+            path=name,
+            offset=s.offset,
+        )
+    return data
+
+
+def _json(view: memoryview, s: Section, name: str, kind: type) -> Any:
+    data = _inflate(view, s, name) if s.encoding == fmt.ENC_DEFLATE else bytes(view[s.offset : s.offset + s.length])
+    try:
+        value = json.loads(data.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise PackFormatError(f"section {s.kind!r} is not UTF-8 JSON ({exc})", path=name, offset=s.offset) from None
     if not isinstance(value, kind):

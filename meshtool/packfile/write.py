@@ -39,6 +39,13 @@ def _blob(kind: bytes, data: bytes, index: int = 0) -> _Section:
     return _Section(kind, 0, (len(data), 0), 1, data, fmt.ENC_PLAIN, index)
 
 
+def _deflated(section: _Section) -> _Section:
+    """The same section stored as a zlib stream (level 6; zlib output is deterministic)."""
+    section.data = zlib.compress(section.data, 6)
+    section.encoding = fmt.ENC_DEFLATE
+    return section
+
+
 def canonical_json(value: Any) -> bytes:
     """JSON with sorted keys and no spaces: the same value always gives the same bytes (NaN is refused)."""
     text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
@@ -82,14 +89,15 @@ def pack(asset: NormalisedAsset, quantize: bool = False, options: dict[str, Any]
     if rm.colors is not None:
         sections.append(_array(fmt.KIND_COLORS, _rgba8(rm.colors), "u8"))
     n = rm.positions.shape[0]
-    sections.append(_array(fmt.KIND_INDICES, rm.indices, "u16" if n < 65536 else "u32"))
+    indices = _array(fmt.KIND_INDICES, rm.indices, "u16" if n < 65536 else "u32")
+    sections.append(_deflated(indices) if quantize else indices)
     sections.append(_array(fmt.KIND_SUBMESHES, _submeshes(asset), "u32"))
     sections.append(_array(fmt.KIND_HULL_TABLE, np.zeros((0, 4)), "u32"))
     sections.append(_array(fmt.KIND_HULL_VERTICES, np.zeros((0, 3)), "f32"))
     sections.append(_array(fmt.KIND_HULL_FACES, np.zeros((0, 3)), "u32"))
     texture_names = sorted(asset.textures)
     sections.extend(_blob(fmt.KIND_TEXTURE, asset.textures[t], k) for k, t in enumerate(texture_names))
-    sections.append(_blob(fmt.KIND_MATERIALS, canonical_json(_materials(asset.materials, texture_names))))
+    sections.append(_deflated(_blob(fmt.KIND_MATERIALS, canonical_json(_materials(asset.materials, texture_names)))))
     meta = {
         **{k: v for k, v in asset.manifest.items() if k not in ("files", "format", "format_version", "tool")},
         "format": "mbin",
@@ -101,7 +109,7 @@ def pack(asset: NormalisedAsset, quantize: bool = False, options: dict[str, Any]
         "render": {"vertices": int(n), "triangles": int(rm.indices.shape[0])},
         "mass_properties": _mass_properties(rm.positions, rm.indices),
     }
-    sections.append(_blob(fmt.KIND_META, canonical_json(meta)))
+    sections.append(_deflated(_blob(fmt.KIND_META, canonical_json(meta))))
     return _assemble(sections, fmt.FLAG_QUANTIZED if quantize else 0)
 
 
