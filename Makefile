@@ -1,5 +1,5 @@
 # Two entry points for a fresh machine with Python >= 3.11 and pip (see README.md):
-#   make demo   installs into .venv and normalises the bundled seed fixture end to end
+#   make demo   installs into .venv, normalises the bundled seed fixture and packs it as .mbin
 #   make test   installs into .venv and runs lint, type checks and the test suite
 PYTHON ?= python3
 VENV   ?= .venv
@@ -20,6 +20,8 @@ demo: $(STAMP)
 	rm -rf out/demo
 	$(BIN)/meshtool normalize "fixtures/head/Head 1.obj" -o out/demo --units cm
 	$(BIN)/python scripts/show_asset.py out/demo/head_1
+	$(BIN)/obj2bin "fixtures/head/Head 1.obj" --units cm -o out/demo/head_1.mbin
+	$(BIN)/meshtool info out/demo/head_1.mbin
 
 lint: $(STAMP)
 	$(BIN)/ruff check meshtool simrun tests bench scripts
@@ -31,6 +33,7 @@ test: $(STAMP) lint
 
 bench: $(STAMP)
 	$(BIN)/python bench/parse.py ../shared/corpus
+	$(BIN)/python bench/load.py ../shared/corpus
 
 corpus: $(STAMP)
 	$(BIN)/python bench/corpus_check.py ../shared/corpus

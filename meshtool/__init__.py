@@ -1,7 +1,8 @@
 """meshtool: make real-world OBJ/MTL exports simulation-ready.
 
 The public API: :func:`normalise` / :func:`normalise_to` (one OBJ to a clean asset folder),
-:func:`parse_obj` and :func:`parse_mtl` (plain readers), :class:`Finding` and the errors in
+:func:`parse_obj` and :func:`parse_mtl` (plain readers), :func:`pack` and :func:`load` (the ``.mbin``
+format), :class:`Finding` and the errors in
 :mod:`meshtool.errors`. meshtool never imports simrun or mujoco.
 """
 
@@ -18,10 +19,13 @@ __all__ = [
     "MeshtoolError",
     "NormaliseOptions",
     "NormalisedAsset",
+    "PackedMesh",
     "Severity",
     "__version__",
+    "load",
     "normalise",
     "normalise_to",
+    "pack",
     "parse_mtl",
     "parse_obj",
     "write_asset",

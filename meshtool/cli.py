@@ -217,7 +217,7 @@ def info(file: Path, as_json: bool) -> None:
         shape = "x".join(str(d) for d in s["shape"])
         click.echo(
             f"  {s['kind']:<5}{s['index']:>3} {s['dtype']:>5} {shape:>12} at {s['offset']:>10} "
-            f"{s['bytes']:>10} bytes  crc {s['crc32']} {s['checksum']}"
+            f"{s['bytes']:>10} bytes {s['encoding']:>11}  crc {s['crc32']} {s['checksum']}"
         )
     meta = summary["meta"]
     t = meta.get("transform", {})

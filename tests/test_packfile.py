@@ -271,3 +271,11 @@ def test_out_of_range_index_with_valid_checksums(golden_bytes):
 def test_text_mode_damage_is_named(golden_bytes):
     with pytest.raises(PackFormatError, match="text-mode transfer"):
         parse(golden_bytes.replace(b"\r\n", b"\n", 1))
+
+
+def test_deflated_sections_cannot_claim_or_produce_more_than_stated(golden_bytes):
+    meta_k = next(k for k, s in enumerate(parse(golden_bytes).sections) if s.kind == "META")
+    with pytest.raises(PackFormatError, match="does not match"):
+        parse(rewrite(golden_bytes, lambda h, t: t[meta_k].__setitem__("shape", (2**40, 0))))
+    with pytest.raises(PackFormatError, match="inflates to a size other than its shape states"):
+        parse(rewrite(golden_bytes, lambda h, t: t[meta_k].__setitem__("shape", (int(t[meta_k]["shape"][0]) - 1, 0))))

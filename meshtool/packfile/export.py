@@ -157,6 +157,9 @@ def describe(packed: PackedMesh) -> dict[str, Any]:
                 "shape": list(s.shape),
                 "offset": s.offset,
                 "bytes": s.length,
+                "encoding": ("plain", "u16-box", "oct-snorm16", "deflate")[s.encoding]
+                if s.encoding < 4
+                else s.encoding,
                 "crc32": f"{s.crc:08x}",
                 "checksum": {True: "ok", False: "BAD", None: "not checked"}[s.crc_ok],
             }

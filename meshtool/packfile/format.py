@@ -38,6 +38,18 @@ ENTRY = np.dtype(
         ("reserved", "V16"),
     ]
 )
+ENTRY_FIELDS: tuple[str, ...] = (
+    "kind",
+    "dtype",
+    "ndim",
+    "index",
+    "shape",
+    "offset",
+    "length",
+    "crc",
+    "encoding",
+    "reserved",
+)
 assert len(MAGIC) == 8 and HEADER.itemsize == HEADER_SIZE and ENTRY.itemsize == ENTRY_SIZE
 
 #: dtype code -> numpy dtype (little-endian). Code 0 is an opaque byte string (JSON, PNG).

@@ -183,7 +183,10 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
     if any(bytes(view[36:64])):
         raise PackFormatError("reserved header bytes are not zero", path=name, offset=36)
 
-    sections = [_entry(e, k, name, size, table_end, table_offset) for k, e in enumerate(table)]
+    fields = fmt.ENTRY_FIELDS
+    columns = {f: table[f].tolist() for f in fields}
+    rows = [{f: columns[f][k] for f in fields} for k in range(count)]
+    sections = [_entry(e, k, name, size, table_end, table_offset) for k, e in enumerate(rows)]
     _check_layout(sections, name)
     if verify:
         for s in sections:
@@ -193,7 +196,7 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
     return _build(view, sections, name, verify, bool(int(header["flags"]) & fmt.FLAG_QUANTIZED), (major, minor), keep)
 
 
-def _entry(e: Any, k: int, name: str, size: int, table_end: int, table_offset: int) -> Section:
+def _entry(e: dict[str, Any], k: int, name: str, size: int, table_end: int, table_offset: int) -> Section:
     at = table_offset + k * fmt.ENTRY_SIZE
     kind_bytes = bytes(e["kind"]).ljust(4)
     try:
