@@ -13,6 +13,7 @@ from meshtool.findings import Finding, Severity
 from meshtool.normalise import NormalisedAsset, NormaliseOptions, normalise, normalise_to, write_asset
 from meshtool.obj.mtl import parse_mtl
 from meshtool.obj.parse import parse_obj
+from meshtool.packfile import PackedMesh, load, pack
 
 __all__ = [
     "Finding",
