@@ -141,30 +141,11 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
         faces, uv, nrm, lines = faces[keep], uv[keep], nrm[keep], lines[keep]
         material, part = material[keep], part[keep]
 
-    partial_uv = (uv >= 0).any(axis=1) & ~(uv >= 0).all(axis=1)
-    if partial_uv.any():
-        findings.append(
-            warning(
-                "texcoords-partial",
-                f"{int(partial_uv.sum())} triangle(s) with texcoords on only some corners: dropped",
-                path,
-            )
-        )
-    has_uv = (uv >= 0).all(axis=1)
-    if not has_uv.all():
-        uv[~has_uv] = -1
+    if obj.texcoords.shape[0]:
+        uv = _whole_triangles(uv, path, findings)
     normals = obj.normals
-    has_n = (nrm >= 0).all(axis=1)
-    if has_n.any() and not has_n.all():
-        missing = np.flatnonzero(~has_n)
-        flat = _face_normals(obj.positions, faces[missing])
-        nrm[missing] = (normals.shape[0] + np.arange(missing.size))[:, None]
-        normals = np.concatenate([normals, flat])
-        findings.append(
-            info("normals-partial", f"{missing.size} triangle(s) without normals got flat face normals", path)
-        )
-    elif not has_n.any():
-        nrm[:] = -1
+    if normals.shape[0]:
+        normals, nrm = _fill_normals(obj.positions, faces, normals, nrm, path, findings)
 
     if faces.size:
         positions, colors, faces = _compact_vertices(obj, faces)
@@ -220,6 +201,40 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
         ),
         findings,
     )
+
+
+def _whole_triangles(uv: IntArray, path: str, findings: list[Finding]) -> IntArray:
+    """Texcoord indices per triangle, all three or none (-1)."""
+    present = uv >= 0
+    has_uv = present.all(axis=1)
+    partial = present.any(axis=1) & ~has_uv
+    if partial.any():
+        findings.append(
+            warning(
+                "texcoords-partial",
+                f"{int(partial.sum())} triangle(s) with texcoords on only some corners: dropped",
+                path,
+            )
+        )
+    if not has_uv.all():
+        uv[~has_uv] = -1
+    return uv
+
+
+def _fill_normals(
+    positions: FloatArray, faces: IntArray, normals: FloatArray, nrm: IntArray, path: str, findings: list[Finding]
+) -> tuple[FloatArray, IntArray]:
+    """Give triangles without (complete) normals their flat face normal when others have normals."""
+    has_n = (nrm >= 0).all(axis=1)
+    if has_n.all():
+        return normals, nrm
+    if not has_n.any():
+        nrm[:] = -1
+        return normals, nrm
+    missing = np.flatnonzero(~has_n)
+    nrm[missing] = (normals.shape[0] + np.arange(missing.size))[:, None]
+    findings.append(info("normals-partial", f"{missing.size} triangle(s) without normals got flat face normals", path))
+    return np.concatenate([normals, _face_normals(positions, faces[missing])]), nrm
 
 
 def _degenerate(positions: FloatArray, faces: IntArray) -> npt.NDArray[np.bool_]:

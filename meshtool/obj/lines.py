@@ -11,6 +11,7 @@ import math
 import re
 from dataclasses import dataclass
 
+import fastnumbers
 import numpy as np
 import numpy.typing as npt
 
@@ -139,8 +140,13 @@ def numbers(
     if blank_slashes:
         text = text.replace(b"/", b" ")
     try:
+        if dtype is np.float64:  # fast_float via fastnumbers: about twice numpy's text parser
+            values: npt.NDArray[np.generic] = fastnumbers.try_array(
+                text.split(), dtype=np.float64, on_fail=fastnumbers.RAISE
+            )
+            return values
         return np.fromstring(text, dtype=dtype, sep=" ")
-    except ValueError:
+    except (ValueError, TypeError):
         return None
 
 
