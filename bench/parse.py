@@ -79,7 +79,8 @@ def table(rows: list[tuple[str, dict[str, float | int]]], repeat: int) -> str:
         "",
         "*parse* = `parse_obj` (arrays, polygons); *mesh* = parse + ear-clipping triangulation + cleaning "
         "(`build_mesh`), the like-for-like peer of `trimesh.load`. Ratios are trimesh time / meshtool time "
-        "(higher is better for meshtool). numpy/fastnumbers text-to-number conversion is about half of meshtool's time.",
+        "(higher is better for meshtool). Text-to-number conversion (fastnumbers, numpy) is about half of "
+        "meshtool's time.",
         "",
         "| mesh | MB | triangles | meshtool parse s | meshtool mesh s | trimesh.load s | trimesh process=False s "
         "| parse vs trimesh.load | mesh vs trimesh.load | mesh vs process=False |",
