@@ -279,3 +279,31 @@ def test_deflated_sections_cannot_claim_or_produce_more_than_stated(golden_bytes
         parse(rewrite(golden_bytes, lambda h, t: t[meta_k].__setitem__("shape", (2**40, 0))))
     with pytest.raises(PackFormatError, match="inflates to a size other than its shape states"):
         parse(rewrite(golden_bytes, lambda h, t: t[meta_k].__setitem__("shape", (int(t[meta_k]["shape"][0]) - 1, 0))))
+
+
+@pytest.mark.parametrize("golden", ["head.mbin", "crate_quantized.mbin", "features.mbin"])
+@pytest.mark.parametrize("verify", [True, False])
+def test_random_damage_never_escapes_as_another_error(golden, verify):
+    from pathlib import Path
+
+    data = (Path(__file__).parent.parent / "fixtures" / "golden" / golden).read_bytes()
+    rng = np.random.default_rng(11)
+    for _ in range(400):
+        damaged = bytearray(data)
+        for pos in rng.integers(0, len(data), size=rng.integers(1, 4)):
+            damaged[pos] = rng.integers(0, 256)
+        try:
+            p = parse(bytes(damaged), verify=verify)
+        except PackFormatError:
+            continue
+        # what still parses is usable: shapes agree and (when verified) indices are in range
+        assert p.positions.shape[1] == 3 and p.indices.shape[1] == 3
+        if verify:
+            assert int(p.indices.max(initial=0)) < p.positions.shape[0]
+
+
+def test_meshtool_load_is_the_public_entry_point():
+    import meshtool
+    from meshtool.packfile import load
+
+    assert meshtool.load is load and meshtool.pack is pack

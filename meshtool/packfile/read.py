@@ -369,7 +369,7 @@ def _json(view: memoryview, s: Section, name: str, kind: type) -> Any:
     data = _inflate(view, s, name) if s.encoding == fmt.ENC_DEFLATE else bytes(view[s.offset : s.offset + s.length])
     try:
         value = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise PackFormatError(f"section {s.kind!r} is not UTF-8 JSON ({exc})", path=name, offset=s.offset) from None
     if not isinstance(value, kind):
         raise PackFormatError(f"section {s.kind!r} is not a JSON {kind.__name__}", path=name, offset=s.offset)
