@@ -42,6 +42,13 @@ def test_vertex_w_and_colours_do_not_shift_data():
     assert {"vertex-w-ignored", "vertex-colors-partial"} <= codes(obj)
 
 
+def test_non_finite_colours_become_white():
+    obj = parse_obj(b"v 0 0 0 nan 0 0\nv 1 0 0 0.5 0.5 0.5\nv 0 1 0 inf 1 1\nf 1 2 3\n", "c.obj")
+    np.testing.assert_array_equal(obj.colors, [[1, 1, 1], [0.5, 0.5, 0.5], [1, 1, 1]])
+    (f,) = [f for f in obj.findings if f.code == "vertex-colors-invalid"]
+    assert f.line == 1 and f.message.startswith("2 vertex colour(s)")
+
+
 def test_groups_objects_materials_and_mtllibs(fixtures):
     obj = parse_obj((fixtures / "features" / "features.obj").read_bytes(), "features.obj")
     assert [m.name for m in obj.mtllibs] == ["lib a.mtl", "lib b.mtl"]

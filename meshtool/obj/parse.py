@@ -369,6 +369,17 @@ def _read_vertices(lines: Lines, path: str, findings: list[Finding]) -> tuple[Fl
                     int(line_numbers[missing[0]]),
                 )
             )
+    if colors is not None and not np.isfinite(colors).all():
+        bad = np.flatnonzero(~np.isfinite(colors).all(axis=1))
+        colors[bad] = 1.0
+        findings.append(
+            warning(
+                "vertex-colors-invalid",
+                f"{bad.size} vertex colour(s) are not finite numbers: white used",
+                path,
+                int(line_numbers[bad[0]]),
+            )
+        )
     return positions, colors, line_numbers
 
 
