@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import argparse
 import re
+import sys
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 
@@ -14,3 +18,32 @@ def write_section(out: Path, section: str, begin: str, end: str) -> None:
     else:
         text = text.rstrip("\n") + "\n\n" + section + "\n"
     out.write_text(text)
+
+
+def arguments(doc: str | None, repeat: int) -> argparse.Namespace:
+    """The benchmark scripts' command line: CORPUS [--repeat N] [--out FILE]."""
+    parser = argparse.ArgumentParser(description=doc)
+    parser.add_argument("corpus", type=Path)
+    parser.add_argument("--repeat", type=int, default=repeat)
+    parser.add_argument("--out", type=Path, default=Path("docs/benchmarks.md"))
+    return parser.parse_args()
+
+
+def corpus_meshes(corpus: Path, meshes: list[tuple[str, str]]) -> Iterator[tuple[str, Path]]:
+    """(name, path) of each listed corpus mesh that exists; missing ones are reported on stderr."""
+    for name, rel in meshes:
+        path = corpus / rel
+        if path.exists():
+            yield name, path
+        else:
+            print(f"skip {name}: {path} not found", file=sys.stderr)
+
+
+def best(fn: Callable[[], object], repeat: int) -> float:
+    """The fastest of ``repeat`` wall-clock runs of ``fn``, seconds."""
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)

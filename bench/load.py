@@ -16,18 +16,15 @@ The table is written into docs/benchmarks.md between ``<!-- load:begin -->`` and
 
 from __future__ import annotations
 
-import argparse
 import platform
 import sys
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import trimesh
-from _report import write_section
+from _report import arguments, best, corpus_meshes, write_section
 
 import meshtool
 from meshtool import normalise
@@ -41,15 +38,6 @@ MESHES = [
     ("bunny subdivided (1.11M tri)", "derived/stanford-bunny-subdiv2/stanford-bunny-subdiv2.obj"),
 ]
 BEGIN, END = "<!-- load:begin -->", "<!-- load:end -->"
-
-
-def best(fn: Callable[[], object], repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def read_msh(path: Path) -> tuple[np.ndarray, ...]:
@@ -194,17 +182,9 @@ def table(rows: list[tuple[str, dict[str, float]]], repeat: int) -> str:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("corpus", type=Path)
-    parser.add_argument("--repeat", type=int, default=5)
-    parser.add_argument("--out", type=Path, default=Path("docs/benchmarks.md"))
-    args = parser.parse_args()
+    args = arguments(__doc__, 5)
     rows = []
-    for name, rel in MESHES:
-        src = args.corpus / rel
-        if not src.exists():
-            print(f"skip {name}: {src} not found", file=sys.stderr)
-            continue
+    for name, src in corpus_meshes(args.corpus, MESHES):
         with tempfile.TemporaryDirectory() as tmp:
             r = measure(src, Path(tmp), args.repeat)
         rows.append((name, r))

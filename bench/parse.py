@@ -13,16 +13,13 @@ and writes the table, with trimesh / meshtool ratios, into docs/benchmarks.md be
 
 from __future__ import annotations
 
-import argparse
 import platform
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import trimesh
-from _report import write_section
+from _report import arguments, best, corpus_meshes, write_section
 
 import meshtool
 from meshtool.mesh import build_mesh
@@ -36,15 +33,6 @@ MESHES = [
     ("fuze, uv + normals (small)", "src/mikedh__trimesh/models/fuze.obj"),
 ]
 BEGIN, END = "<!-- parse:begin -->", "<!-- parse:end -->"
-
-
-def best(fn: Callable[[], object], repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def measure(path: Path, repeat: int) -> dict[str, float | int]:
@@ -102,17 +90,9 @@ def table(rows: list[tuple[str, dict[str, float | int]]], repeat: int) -> str:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("corpus", type=Path)
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--out", type=Path, default=Path("docs/benchmarks.md"))
-    args = parser.parse_args()
+    args = arguments(__doc__, 3)
     rows = []
-    for name, rel in MESHES:
-        path = args.corpus / rel
-        if not path.exists():
-            print(f"skip {name}: {path} not found", file=sys.stderr)
-            continue
+    for name, path in corpus_meshes(args.corpus, MESHES):
         r = measure(path, args.repeat)
         rows.append((name, r))
         print(f"{name}: mesh {r['mesh']:.3f}s trimesh {r['trimesh']:.3f}s ({r['trimesh'] / r['mesh']:.1f}x)")
