@@ -144,7 +144,8 @@ def obj2bin(
                 raise OptionsError("a folder needs -o OUTDIR")
             _convert_folder(src, out, options, jobs, as_json)
             return
-        target = out or Path(f"{safe_file_stem(src.stem) or 'asset'}.mbin")
+        default_name = f"{safe_file_stem(src.stem) or 'asset'}.mbin"
+        target = out / default_name if out is not None and out.is_dir() else out or Path(default_name)
         result = convert(src, target, options)
     if as_json:
         click.echo(json.dumps(_report("ok", result.output, result.findings, result.stats)))

@@ -40,6 +40,9 @@ def test_obj2bin_errors_and_default_output(fixtures, tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
     assert run(obj2bin, fixtures / HEAD, "--units", "cm").exit_code == 0
     assert (tmp_path / "head_1.mbin").is_file()
+    (tmp_path / "into").mkdir()
+    assert run(obj2bin, fixtures / HEAD, "--units", "cm", "-o", tmp_path / "into").exit_code == 0
+    assert (tmp_path / "into" / "head_1.mbin").is_file()
     assert run(obj2bin, fixtures / HEAD, "--units", "furlong").exit_code == 2
 
 
