@@ -8,8 +8,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from meshtool.errors import MeshtoolError, OutputError, PackFormatError
+from meshtool.errors import MeshtoolError, OutputError, PackFormatError, StrictModeError
 from meshtool.findings import Finding
+from meshtool.hulls import HullOptions, compute_hulls, quality
 from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
 from meshtool.outdir import write_file
 from meshtool.packfile import load, pack
@@ -23,17 +24,19 @@ class ConvertOptions:
     Attributes:
         normalise: The normaliser's options (units, scale, up axis, search paths, strict).
         quantize: Write the quantised encoding.
+        hulls: How collision hulls are made (default: one convex hull).
     """
 
     normalise: NormaliseOptions = field(default_factory=NormaliseOptions)
     quantize: bool = False
+    hulls: HullOptions = field(default_factory=HullOptions)
 
     def fingerprint(self) -> dict[str, Any]:
         """The options as recorded in the file's metadata (paths as strings)."""
         n = asdict(self.normalise)
         n["search_paths"] = [str(p) for p in self.normalise.search_paths]
         n.pop("name", None)
-        return {"normalise": n, "quantize": self.quantize}
+        return {"normalise": n, "quantize": self.quantize, "hulls": self.hulls.fingerprint()}
 
 
 @dataclass(slots=True)
@@ -65,11 +68,19 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None) -> Conv
     """
     options = options or ConvertOptions()
     asset = prepare(src, options.normalise)
-    data = pack(asset, options.quantize, options.fingerprint())
+    hull_set = compute_hulls(asset.mesh, options.hulls, src.name)
+    report = quality(asset.mesh, hull_set.hulls) if hull_set.hulls else None
+    findings = [*asset.findings, *hull_set.findings]
+    if options.normalise.strict and any(f.severity.value == "warning" for f in hull_set.findings):
+        first = next(f for f in hull_set.findings if f.severity.value == "warning")
+        raise StrictModeError(f"hull warning in strict mode: {first.one_line()}", path=src.name)
+    data = pack(asset, options.quantize, options.fingerprint(), hull_set.hulls, report)
     write_file(out, data)
     stats = dict(asset.stats)
     stats["bytes"] = len(data)
-    return ConvertResult(src, out, "written", asset.findings, stats)
+    stats["hulls"] = report or {"hulls": 0}
+    stats["hull_cache_hits"] = hull_set.cache_hits
+    return ConvertResult(src, out, "written", findings, stats)
 
 
 def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:

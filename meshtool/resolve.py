@@ -261,3 +261,11 @@ def map_readonly(path: Path) -> mmap.mmap | None:
             return mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
     except OSError as exc:
         raise ResolveError(f"cannot be read: {exc.strerror}", path=str(path)) from None
+
+
+def read_cache(path: Path) -> bytes | None:
+    """Bytes of a cache or scratch file meshtool wrote itself, ``None`` when it is missing or unreadable."""
+    try:
+        return path.read_bytes() if path.is_file() else None
+    except OSError:
+        return None

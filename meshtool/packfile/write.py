@@ -12,6 +12,7 @@ import numpy.typing as npt
 import trimesh
 
 from meshtool import __version__
+from meshtool.hulls import Hull
 from meshtool.normalise import NormalisedAsset
 from meshtool.obj.mtl import Material
 from meshtool.packfile import format as fmt
@@ -52,13 +53,21 @@ def canonical_json(value: Any) -> bytes:
     return text.encode("utf-8")
 
 
-def pack(asset: NormalisedAsset, quantize: bool = False, options: dict[str, Any] | None = None) -> bytes:
+def pack(
+    asset: NormalisedAsset,
+    quantize: bool = False,
+    options: dict[str, Any] | None = None,
+    hulls: list[Hull] | None = None,
+    hull_quality: dict[str, Any] | None = None,
+) -> bytes:
     """Pack a prepared asset (see :func:`meshtool.normalise.prepare`) into ``.mbin`` bytes.
 
     Args:
         asset: The asset; its mesh is in metres, Z-up.
         quantize: Store positions and uvs as u16 in their bounding boxes and normals octahedral.
         options: The options that produced the asset, recorded in the metadata (for staleness checks).
+        hulls: Collision hulls (see :mod:`meshtool.hulls`), stored in the hull sections.
+        hull_quality: The hulls' quality report, recorded in the metadata.
 
     Returns:
         The file contents; identical inputs give identical bytes.
@@ -92,9 +101,10 @@ def pack(asset: NormalisedAsset, quantize: bool = False, options: dict[str, Any]
     indices = _array(fmt.KIND_INDICES, rm.indices, "u16" if n < 65536 else "u32")
     sections.append(_deflated(indices) if quantize else indices)
     sections.append(_array(fmt.KIND_SUBMESHES, _submeshes(asset), "u32"))
-    sections.append(_array(fmt.KIND_HULL_TABLE, np.zeros((0, 4)), "u32"))
-    sections.append(_array(fmt.KIND_HULL_VERTICES, np.zeros((0, 3)), "f32"))
-    sections.append(_array(fmt.KIND_HULL_FACES, np.zeros((0, 3)), "u32"))
+    table, hull_vertices, hull_faces = _hull_arrays(hulls or [])
+    sections.append(_array(fmt.KIND_HULL_TABLE, table, "u32"))
+    sections.append(_array(fmt.KIND_HULL_VERTICES, hull_vertices, "f32"))
+    sections.append(_array(fmt.KIND_HULL_FACES, hull_faces, "u32"))
     texture_names = sorted(asset.textures)
     sections.extend(_blob(fmt.KIND_TEXTURE, asset.textures[t], k) for k, t in enumerate(texture_names))
     sections.append(_deflated(_blob(fmt.KIND_MATERIALS, canonical_json(_materials(asset.materials, texture_names)))))
@@ -108,6 +118,8 @@ def pack(asset: NormalisedAsset, quantize: bool = False, options: dict[str, Any]
         "parts": asset.mesh.part_names,
         "render": {"vertices": int(n), "triangles": int(rm.indices.shape[0])},
         "mass_properties": _mass_properties(rm.positions, rm.indices),
+        "hull_parts": [h.part for h in hulls or []],
+        "hull_quality": hull_quality,
     }
     sections.append(_deflated(_blob(fmt.KIND_META, canonical_json(meta))))
     return _assemble(sections, fmt.FLAG_QUANTIZED if quantize else 0)
@@ -143,6 +155,16 @@ def _assemble(sections: list[_Section], flags: int) -> bytes:
     header["table_crc"] = zlib.crc32(head[:32] + table_bytes)
     gap = b"\0" * (offset - fmt.HEADER_SIZE - len(table_bytes))
     return header.tobytes() + table_bytes + gap + b"".join(chunks)
+
+
+def _hull_arrays(hulls: list[Hull]) -> tuple[npt.NDArray[np.uint32], npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+    """The hull table (first vertex, vertex count, first face, face count) and the concatenated arrays."""
+    if not hulls:
+        return np.zeros((0, 4), dtype=np.uint32), np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    nv = np.array([len(h.vertices) for h in hulls])
+    nf = np.array([len(h.faces) for h in hulls])
+    table = np.stack([np.cumsum(nv) - nv, nv, np.cumsum(nf) - nf, nf], axis=1).astype(np.uint32)
+    return table, np.concatenate([h.vertices for h in hulls]), np.concatenate([h.faces for h in hulls])
 
 
 def _rgba8(colors: npt.NDArray[np.float64]) -> npt.NDArray[np.uint8]:

@@ -1,0 +1,130 @@
+"""Convex decomposition with CoACD, made safe: validated input, manifold repair, a subprocess, a cache.
+
+CoACD can kill its process on bad input and prints to C stdout, so it runs in a child Python process
+(:mod:`meshtool.coacd_worker`) with a timeout and its output silenced; a crash or hang becomes a message
+for that part. Results are cached under a key made of the mesh arrays, the options and the versions of
+meshtool and CoACD, so a second run over unchanged assets reads the cache.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import subprocess
+import sys
+import tempfile
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from meshtool import __version__
+from meshtool.outdir import write_file
+from meshtool.resolve import read_cache
+
+if TYPE_CHECKING:
+    from meshtool.hulls import HullOptions
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+def _coacd_version() -> str:
+    try:
+        return version("coacd")
+    except PackageNotFoundError:
+        return "missing"
+
+
+def cache_key(points: FloatArray, faces: IntArray, options: HullOptions) -> str:
+    """SHA-256 over the arrays, the result-relevant options and the tool versions."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(points, dtype="<f8").tobytes())
+    h.update(np.ascontiguousarray(faces, dtype="<i8").tobytes())
+    h.update(json.dumps([options.fingerprint(), __version__, _coacd_version()], sort_keys=True).encode())
+    return h.hexdigest()
+
+
+def is_manifold(points: FloatArray, faces: IntArray) -> bool:
+    """Whether the triangles form a closed 2-manifold (manifold3d's check, after merging duplicate vertices)."""
+    import manifold3d
+
+    mesh = manifold3d.Mesh(vert_properties=np.asarray(points, dtype=np.float32), tri_verts=np.asarray(faces, np.uint32))
+    mesh.merge()
+    return bool(manifold3d.Manifold(mesh).status() == manifold3d.Error.NoError)
+
+
+def decompose(points: FloatArray, faces: IntArray, options: HullOptions) -> tuple[list[FloatArray], bool, str | None]:
+    """Decompose one part into convex pieces.
+
+    Args:
+        points: (n, 3) vertices, metres.
+        faces: (k, 3) triangles.
+        options: Budgets, threshold, seed, timeout and cache folder.
+
+    Returns:
+        The pieces' points, whether they came from the cache, and a problem description (then no pieces).
+    """
+    if not np.isfinite(points).all() or points.shape[0] < 4 or faces.shape[0] < 4:
+        return [], False, "mesh is empty, too small or not finite"
+    key = cache_key(points, faces, options)
+    cached = _read(options.cache_dir, key)
+    if cached is not None:
+        return cached, True, None
+    mode = "off" if is_manifold(points, faces) else "auto"
+    with tempfile.TemporaryDirectory(prefix="meshtool-coacd-") as tmp:
+        job, out = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
+        params = {
+            "threshold": options.threshold,
+            "max_convex_hull": options.max_hulls,
+            "preprocess_mode": mode,
+            "seed": options.seed,
+            "max_ch_vertex": max(options.max_hull_vertices, 4),
+        }
+        buffer = io.BytesIO()
+        np.savez(buffer, points=points, faces=faces, params=np.frombuffer(json.dumps(params).encode(), np.uint8))
+        write_file(job, buffer.getvalue())
+        try:
+            proc = subprocess.run(
+                [sys.executable, "-m", "meshtool.coacd_worker", str(job), str(out)],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                timeout=options.timeout_s,
+                check=False,
+            )
+        except subprocess.TimeoutExpired:
+            return [], False, f"CoACD did not finish within {options.timeout_s:.0f} s"
+        if proc.returncode != 0:
+            last = (proc.stderr.decode("utf-8", "replace").strip().splitlines() or [f"exit {proc.returncode}"])[-1]
+            return [], False, f"CoACD failed ({last[:160]})"
+        pieces = _load(read_cache(out))
+    if not pieces:
+        return [], False, "CoACD returned no hulls"
+    _write(options.cache_dir, key, pieces)
+    return pieces, False, None
+
+
+def _load(data: bytes | None) -> list[FloatArray]:
+    if data is None:
+        return []
+    with np.load(io.BytesIO(data)) as archive:
+        return [np.asarray(archive[f"hull_{k}"], dtype=np.float64) for k in range(len(archive.files))]
+
+
+def _read(cache_dir: Path | None, key: str) -> list[FloatArray] | None:
+    if cache_dir is None:
+        return None
+    data = read_cache(cache_dir / key[:2] / f"{key}.npz")
+    return _load(data) if data is not None else None
+
+
+def _write(cache_dir: Path | None, key: str, pieces: list[FloatArray]) -> None:
+    if cache_dir is None:
+        return
+    buffer = io.BytesIO()
+    np.savez(buffer, **{f"hull_{k}": p for k, p in enumerate(pieces)})  # type: ignore[arg-type]
+    write_file(cache_dir / key[:2] / f"{key}.npz", buffer.getvalue())

@@ -1,0 +1,261 @@
+"""Collision geometry: convex hulls of a mesh, of each part, or of a CoACD decomposition, within budgets.
+
+Every hull returned is a closed convex triangle mesh (qhull through trimesh/scipy) with at most
+``max_hull_vertices`` vertices and a thickness of at least ``min_thickness`` metres along every direction,
+so MuJoCo never meets a flat or degenerate hull. Decomposition runs CoACD in a subprocess (see
+:mod:`meshtool.decompose`), cached and deterministic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import trimesh
+
+from meshtool.errors import OptionsError
+from meshtool.findings import Finding, info, warning
+from meshtool.mesh import TriMesh
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+MODES = ("none", "convex", "decompose", "objects")
+#: Preset budgets: (max hulls, max vertices per hull).
+PRESETS: dict[str, tuple[int, int]] = {"mujoco": (32, 64), "mjx": (8, 32), "physx-gpu": (16, 64)}
+
+
+@dataclass(frozen=True, slots=True)
+class HullOptions:
+    """How collision geometry is made (the ``--hulls`` family of options).
+
+    Attributes:
+        mode: ``none``, ``convex`` (one hull), ``decompose`` (CoACD per part) or ``objects`` (a hull per part).
+        max_hulls: Most hulls per part in ``decompose`` mode.
+        max_hull_vertices: Most vertices per hull; larger hulls are re-hulled from a farthest-point subset.
+        min_thickness: Smallest hull thickness, metres; thinner hulls are thickened (capped at 5 % of the
+            part's largest extent so tiny parts stay tiny).
+        merge_parts: Decompose the whole mesh at once instead of part by part.
+        threshold: CoACD concavity threshold (0.01..1; smaller gives more, tighter hulls).
+        seed: CoACD random seed (fixed for determinism).
+        timeout_s: Limit for one CoACD run, seconds.
+        cache_dir: Decomposition cache folder; ``None`` disables the cache.
+    """
+
+    mode: str = "convex"
+    max_hulls: int = 32
+    max_hull_vertices: int = 64
+    min_thickness: float = 0.001
+    merge_parts: bool = False
+    threshold: float = 0.05
+    seed: int = 0
+    timeout_s: float = 300.0
+    cache_dir: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise OptionsError(f"unknown hull mode {self.mode!r}", hint=f"use one of {', '.join(MODES)}")
+        if self.max_hulls < 1 or self.max_hull_vertices < 4:
+            raise OptionsError("--max-hulls must be >= 1 and --max-hull-vertices >= 4")
+        if not (self.min_thickness > 0 and 0 < self.threshold <= 1 and self.timeout_s > 0):
+            raise OptionsError("min thickness, threshold (0..1] and timeout must be positive")
+
+    @classmethod
+    def preset(cls, name: str, **overrides: object) -> HullOptions:
+        """Options with a preset's budgets (``mujoco``, ``mjx``, ``physx-gpu``), then ``overrides``."""
+        if name not in PRESETS:
+            raise OptionsError(f"unknown preset {name!r}", hint=f"use one of {', '.join(PRESETS)}")
+        hulls, vertices = PRESETS[name]
+        return replace(cls(max_hulls=hulls, max_hull_vertices=vertices), **overrides)  # type: ignore[arg-type]
+
+    def fingerprint(self) -> dict[str, object]:
+        """The options that change results (the cache folder does not)."""
+        return {
+            "mode": self.mode,
+            "max_hulls": self.max_hulls,
+            "max_hull_vertices": self.max_hull_vertices,
+            "min_thickness": self.min_thickness,
+            "merge_parts": self.merge_parts,
+            "threshold": self.threshold,
+            "seed": self.seed,
+        }
+
+
+@dataclass(slots=True)
+class Hull:
+    """One convex collision hull.
+
+    Attributes:
+        vertices: (n, 3) metres.
+        faces: (k, 3) counter-clockwise seen from outside.
+        part: Index of the mesh part it covers.
+    """
+
+    vertices: FloatArray
+    faces: IntArray
+    part: int
+
+
+@dataclass(slots=True)
+class HullSet:
+    """The hulls of one asset and what was noticed making them."""
+
+    hulls: list[Hull] = field(default_factory=list)
+    findings: list[Finding] = field(default_factory=list)
+    cache_hits: int = 0
+
+
+def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, IntArray, list[str]]:
+    """A valid convex hull of ``points`` within the options' vertex budget and minimum thickness.
+
+    Returns:
+        Vertices, faces and notes (``thickened``, ``reduced``) about what was changed.
+    """
+    pts = np.unique(np.asarray(points, dtype=np.float64), axis=0)
+    notes: list[str] = []
+    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
+    thickness = min(options.min_thickness, 0.05 * extent) if extent > 0 else options.min_thickness
+    thickness = max(thickness, 1e-6)
+    pts, thickened = _thicken(pts, thickness)
+    if thickened:
+        notes.append("thickened")
+    hull = trimesh.convex.convex_hull(pts)
+    if len(hull.vertices) > options.max_hull_vertices:
+        subset = _farthest_points(np.asarray(hull.vertices), options.max_hull_vertices)
+        hull = trimesh.convex.convex_hull(subset)
+        notes.append("reduced")
+    return np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64), notes
+
+
+def _thicken(pts: FloatArray, thickness: float) -> tuple[FloatArray, bool]:
+    """Give a flat, straight or point-like set at least ``thickness`` along its thin principal directions."""
+    if len(pts) == 0:
+        return pts, False
+    centre = pts.mean(axis=0)
+    if len(pts) >= 3:
+        _, _singular, axes = np.linalg.svd(pts - centre, full_matrices=True)
+        spans = np.ptp((pts - centre) @ axes.T, axis=0)
+    else:
+        axes = np.eye(3)
+        spans = np.ptp(pts - centre, axis=0) if len(pts) > 1 else np.zeros(3)
+    thin = [k for k in range(3) if spans[k] < thickness]
+    if not thin and len(pts) >= 4:
+        return pts, False
+    if not thin:
+        thin = [2]
+    out = pts
+    for k in thin:
+        offset = axes[k] * (thickness / 2)
+        out = np.concatenate([out + offset, out - offset])
+    return out, True
+
+
+def _farthest_points(points: FloatArray, count: int) -> FloatArray:
+    """``count`` points chosen greedily farthest from those already chosen (deterministic start)."""
+    chosen = [int(np.lexsort(points.T[::-1])[0])]
+    distance = np.linalg.norm(points - points[chosen[0]], axis=1)
+    for _ in range(count - 1):
+        nxt = int(np.argmax(distance))
+        chosen.append(nxt)
+        distance = np.minimum(distance, np.linalg.norm(points - points[nxt], axis=1))
+    return points[sorted(chosen)]
+
+
+def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> HullSet:
+    """Collision hulls of a mesh (metres, Z-up) according to ``options``.
+
+    Args:
+        mesh: The normalised mesh.
+        options: See :class:`HullOptions`.
+        name: For findings.
+
+    Returns:
+        The hulls (empty for mode ``none``) and findings. A failed decomposition of one part falls back to
+        that part's convex hull with a warning.
+    """
+    result = HullSet()
+    if options.mode == "none" or mesh.positions.shape[0] == 0:
+        return result
+    groups = _groups(mesh, options)
+    for part, points, faces in groups:
+        if options.mode == "decompose" and faces.shape[0] >= 4:
+            from meshtool.decompose import decompose
+
+            pieces, hit, problem = decompose(points, faces, options)
+            result.cache_hits += int(hit)
+            if problem:
+                result.findings.append(warning("decompose-failed", f"{problem}: convex hull used instead", name))
+                pieces = [points]
+        else:
+            pieces = [points if faces.shape[0] == 0 else points[np.unique(faces)]]
+        for piece in pieces:
+            vertices, hull_faces, notes = convex_hull(piece, options)
+            result.hulls.append(Hull(vertices, hull_faces, part))
+            for note in notes:
+                result.findings.append(info(f"hull-{note}", _NOTE[note].format(part=mesh.part_names[part]), name))
+    if options.mode == "decompose":
+        result.findings.append(
+            info(
+                "hulls-made",
+                f"{len(result.hulls)} hull(s) from {len(groups)} part(s) ({result.cache_hits} cached)",
+                name,
+            )
+        )
+    return result
+
+
+_NOTE = {
+    "thickened": "a hull of part {part} was flat or thin and was thickened to the minimum thickness",
+    "reduced": "a hull of part {part} had too many vertices and was re-hulled within the vertex budget",
+}
+
+
+def _groups(mesh: TriMesh, options: HullOptions) -> list[tuple[int, FloatArray, IntArray]]:
+    """(part, points, faces local to points) per group the mode hulls separately."""
+    if options.mode == "convex" or options.merge_parts or mesh.faces.shape[0] == 0:
+        return [(0, mesh.positions, mesh.faces)]
+    out = []
+    for part in sorted(set(mesh.face_part.tolist())):
+        faces = mesh.faces[mesh.face_part == part]
+        used, inverse = np.unique(faces, return_inverse=True)
+        out.append((part, mesh.positions[used], inverse.reshape(-1, 3).astype(np.int64)))
+    return out
+
+
+def quality(mesh: TriMesh, hulls: list[Hull], samples: int = 2000, seed: int = 0) -> dict[str, object]:
+    """Hull count, vertices per hull, hull volume / mesh volume and the sampled surface-to-hull distance.
+
+    The distance is one-sided: points sampled on the mesh surface, distance to the nearest hull (0 inside),
+    in metres (maximum and mean).
+    """
+    report: dict[str, object] = {"hulls": len(hulls), "vertices_per_hull": [len(h.vertices) for h in hulls]}
+    if not hulls or mesh.faces.shape[0] == 0:
+        return report
+    surface = trimesh.Trimesh(mesh.positions, mesh.faces, process=False)
+    volume = float(abs(surface.volume)) if surface.is_watertight else None
+    hull_volume = float(sum(trimesh.Trimesh(h.vertices, h.faces, process=False).volume for h in hulls))
+    points, _ = trimesh.sample.sample_surface(surface, samples, seed=seed)
+    distance = np.full(len(points), np.inf)
+    for h in hulls:
+        distance = np.minimum(distance, _outside_distance(points, h))
+    report.update(
+        hull_volume_m3=hull_volume,
+        mesh_volume_m3=volume,
+        volume_ratio=(hull_volume / volume) if volume else None,
+        surface_to_hulls_max_m=float(distance.max()),
+        surface_to_hulls_mean_m=float(distance.mean()),
+    )
+    return report
+
+
+def _outside_distance(points: FloatArray, hull: Hull) -> FloatArray:
+    """Lower bound of the distance from points to a convex hull: the largest face-plane excess (0 inside)."""
+    tri = hull.vertices[hull.faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    offsets = (normals * tri[:, 0]).sum(axis=1)
+    excess = points @ normals.T - offsets
+    result: FloatArray = np.maximum(excess.max(axis=1), 0.0)
+    return result
