@@ -20,11 +20,13 @@ from pathlib import Path
 from typing import Any
 
 import click
+import platformdirs
 
 from meshtool import __version__
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, Severity
+from meshtool.hulls import MODES, PRESETS, HullOptions
 from meshtool.normalise import NormaliseOptions, normalise_to, safe_file_stem
 from meshtool.outdir import write_file, write_folder
 from meshtool.packfile import load
@@ -69,6 +71,79 @@ def normalise_options(func: Callable[..., Any]) -> Callable[..., Any]:
     for decorator in reversed(decorators):
         func = decorator(func)
     return func
+
+
+def hull_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Collision-hull options of ``obj2bin``."""
+    decorators = [
+        click.option(
+            "--hulls",
+            "hull_mode",
+            type=click.Choice(list(MODES)),
+            default="convex",
+            show_default=True,
+            help="none; convex (one hull); decompose (CoACD per part); objects (one hull per o/g part).",
+        ),
+        click.option(
+            "--preset",
+            type=click.Choice(list(PRESETS)),
+            default=None,
+            help="Budgets for an engine: mujoco (32 hulls x 64 vertices), mjx (8 x 32), physx-gpu (16 x 64).",
+        ),
+        click.option("--max-hulls", type=click.IntRange(1, 4096), default=None, help="Most hulls per part."),
+        click.option(
+            "--max-hull-vertices",
+            type=click.IntRange(4, 100000),
+            default=None,
+            help="Most vertices per hull (default 64).",
+        ),
+        click.option(
+            "--min-thickness",
+            type=float,
+            default=0.001,
+            show_default=True,
+            help="Smallest hull thickness in metres (capped at 5 % of the part's size).",
+        ),
+        click.option("--merge-parts", is_flag=True, help="Decompose the whole mesh at once, not part by part."),
+        click.option("--threshold", type=float, default=0.05, show_default=True, help="CoACD concavity threshold."),
+        click.option(
+            "--timeout",
+            "timeout_s",
+            type=float,
+            default=300.0,
+            show_default=True,
+            help="Seconds one CoACD run may take.",
+        ),
+        click.option(
+            "--cache-dir",
+            type=click.Path(path_type=Path, file_okay=False),
+            default=None,
+            help="Decomposition cache (default: the user cache folder).",
+        ),
+        click.option("--no-cache", is_flag=True, help="Do not read or write the decomposition cache."),
+    ]
+    for decorator in reversed(decorators):
+        func = decorator(func)
+    return func
+
+
+def _hull_options(kw: dict[str, Any]) -> HullOptions:
+    """Build :class:`HullOptions` from the click keywords (removing them from ``kw``)."""
+    preset, max_hulls, max_vertices = kw.pop("preset"), kw.pop("max_hulls"), kw.pop("max_hull_vertices")
+    cache_dir, no_cache = kw.pop("cache_dir"), kw.pop("no_cache")
+    values: dict[str, Any] = {
+        "mode": kw.pop("hull_mode"),
+        "min_thickness": kw.pop("min_thickness"),
+        "merge_parts": kw.pop("merge_parts"),
+        "threshold": kw.pop("threshold"),
+        "timeout_s": kw.pop("timeout_s"),
+        "cache_dir": None if no_cache else (cache_dir or Path(platformdirs.user_cache_dir("meshtool")) / "hulls"),
+    }
+    if max_hulls is not None:
+        values["max_hulls"] = max_hulls
+    if max_vertices is not None:
+        values["max_hull_vertices"] = max_vertices
+    return HullOptions.preset(preset, **values) if preset else HullOptions(**values)
 
 
 @main.command("normalize")
@@ -122,6 +197,7 @@ def normalize(
     "-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes for a folder."
 )
 @normalise_options
+@hull_options
 def obj2bin(
     src: Path,
     out: Path | None,
@@ -133,11 +209,14 @@ def obj2bin(
     search_paths: tuple[Path, ...],
     strict: bool,
     as_json: bool,
+    **hull_kw: Any,
 ) -> None:
-    """Convert SRC (an OBJ file, or a folder of them) to .mbin: normalised, packed, checksummed."""
+    """Convert SRC (an OBJ file, or a folder of them) to .mbin: normalised, collision hulls, packed."""
     with _guard(as_json):
         options = ConvertOptions(
-            NormaliseOptions(units=units, scale=scale, up=up, search_paths=search_paths, strict=strict), quantize
+            NormaliseOptions(units=units, scale=scale, up=up, search_paths=search_paths, strict=strict),
+            quantize,
+            _hull_options(hull_kw),
         )
         if src.is_dir():
             if out is None:
