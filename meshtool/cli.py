@@ -27,10 +27,13 @@ from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tre
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, Severity
 from meshtool.hulls import MODES, PRESETS, HullOptions
+from meshtool.mesh import safe_identifier
+from meshtool.mjcf import MjcfOptions, build_mjcf
 from meshtool.normalise import NormaliseOptions, normalise_to, safe_file_stem
 from meshtool.outdir import write_file, write_folder
 from meshtool.packfile import load
 from meshtool.packfile.export import describe, to_glb, to_msh, unpack_files
+from meshtool.resolve import find_files
 from meshtool.units import UNIT_FACTORS
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
@@ -340,6 +343,34 @@ def export(file: Path, glb: Path | None, msh: Path | None) -> None:
             if path is not None:
                 write_file(path, data)
                 click.echo(f"wrote {path} ({len(data)} bytes)")
+
+
+@main.command("mjcf")
+@click.argument("src", type=click.Path(path_type=Path, exists=True))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder to write NAME/ (NAME.xml, meshes, textures) into, per asset.",
+)
+@click.option("--free-joint", is_flag=True, help="Give each body a free joint.")
+@click.option("--density", type=float, default=1000.0, show_default=True, help="Collision density, kg/m^3.")
+@click.option("--mass", type=float, default=None, help="Total body mass in kg (overrides --density).")
+def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float | None) -> None:
+    """Write a MuJoCo model for SRC (an .mbin, or a folder searched for .mbin files)."""
+    with _guard(False):
+        options = MjcfOptions(free_joint=free_joint, density=density, mass=mass)
+        sources = find_files(src, ".mbin") if src.is_dir() else [src]
+        if not sources:
+            raise OptionsError(f"no .mbin files under {src}")
+        for path in sources:
+            name = safe_file_stem(path.stem) or "asset"
+            with load(path) as packed:
+                files = build_mjcf(packed, name, options)
+            folder = write_folder(out_dir, name, {**files, "asset.json": json.dumps({"source": str(path)}).encode()})
+            click.echo(f"wrote {folder / (safe_identifier(name, 'asset') + '.xml')}")
 
 
 def _summary(stats: dict[str, Any]) -> str:
