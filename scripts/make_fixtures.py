@@ -281,12 +281,29 @@ f 1 5 4 # inline comment
     write(ROOT / "points" / "cloud.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n")
 
 
+def bowl() -> None:
+    """A hemispherical bowl (metres, Z-up, opening up): concave, so one convex hull fills its cavity."""
+    import manifold3d
+
+    outer = manifold3d.Manifold.sphere(0.1, 24)
+    inner = manifold3d.Manifold.sphere(0.09, 24)
+    cut = manifold3d.Manifold.cube([0.3, 0.3, 0.15]).translate([-0.15, -0.15, 0.0])
+    mesh = ((outer - inner) - cut).to_mesh()
+    v = np.asarray(mesh.vert_properties)[:, :3].astype(np.float64)
+    f = np.asarray(mesh.tri_verts)
+    lines = ["# bowl: outer radius 0.1 m, wall 0.01 m, metres, Z-up"]
+    lines += [f"v {a:.6f} {b:.6f} {c:.6f}" for a, b, c in v.tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in f.tolist()]
+    write(ROOT / "bowl" / "bowl.obj", "\n".join(lines) + "\n")
+
+
 def main() -> None:
     for child in ROOT.iterdir():
         if child.is_dir() and child.name != "golden":
             shutil.rmtree(child)
     head()
     simple_cases()
+    bowl()
 
 
 if __name__ == "__main__":
