@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test lint bench corpus clean
+.PHONY: install demo test lint bench bench-hulls corpus clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,14 @@ test: $(STAMP) lint
 bench: $(STAMP)
 	$(BIN)/python bench/parse.py ../shared/corpus
 	$(BIN)/python bench/load.py ../shared/corpus
+
+PEERS := .bench-peers
+$(PEERS)/bin/obj2mjcf:
+	$(PYTHON) -m venv $(PEERS)
+	$(PEERS)/bin/python -m pip install --quiet obj2mjcf
+
+bench-hulls: $(STAMP) $(PEERS)/bin/obj2mjcf
+	$(BIN)/python bench/hulls.py ../shared/corpus --obj2mjcf=$(PEERS)/bin/obj2mjcf
 
 corpus: $(STAMP)
 	$(BIN)/python bench/corpus_check.py ../shared/corpus

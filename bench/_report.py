@@ -26,6 +26,7 @@ def arguments(doc: str | None, repeat: int) -> argparse.Namespace:
     parser.add_argument("corpus", type=Path)
     parser.add_argument("--repeat", type=int, default=repeat)
     parser.add_argument("--out", type=Path, default=Path("docs/benchmarks.md"))
+    parser.add_argument("--obj2mjcf", default=None, help="path of the obj2mjcf executable (bench/hulls.py)")
     return parser.parse_args()
 
 

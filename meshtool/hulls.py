@@ -34,7 +34,7 @@ class HullOptions:
     Attributes:
         mode: ``none``, ``convex`` (one hull), ``decompose`` (CoACD per part) or ``objects`` (a hull per part).
         max_hulls: Most hulls per part in ``decompose`` mode.
-        max_hull_vertices: Most vertices per hull; larger hulls are re-hulled from a farthest-point subset.
+        max_hull_vertices: Most vertices per hull; larger hulls are re-hulled from the points qhull adds first.
         min_thickness: Smallest hull thickness, metres; thinner hulls are thickened (capped at 5 % of the
             part's largest extent so tiny parts stay tiny).
         merge_parts: Decompose the whole mesh at once instead of part by part.
@@ -123,8 +123,7 @@ def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, I
         notes.append("thickened")
     hull = trimesh.convex.convex_hull(pts)
     if len(hull.vertices) > options.max_hull_vertices:
-        subset = _farthest_points(np.asarray(hull.vertices), options.max_hull_vertices)
-        hull = trimesh.convex.convex_hull(subset)
+        hull = trimesh.convex.convex_hull(_qhull_subset(np.asarray(hull.vertices), options.max_hull_vertices))
         notes.append("reduced")
     return np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64), notes
 
@@ -152,15 +151,20 @@ def _thicken(pts: FloatArray, thickness: float) -> tuple[FloatArray, bool]:
     return out, True
 
 
-def _farthest_points(points: FloatArray, count: int) -> FloatArray:
-    """``count`` points chosen greedily farthest from those already chosen (deterministic start)."""
-    chosen = [int(np.lexsort(points.T[::-1])[0])]
-    distance = np.linalg.norm(points - points[chosen[0]], axis=1)
-    for _ in range(count - 1):
-        nxt = int(np.argmax(distance))
-        chosen.append(nxt)
-        distance = np.minimum(distance, np.linalg.norm(points - points[nxt], axis=1))
-    return points[sorted(chosen)]
+def _qhull_subset(points: FloatArray, budget: int) -> FloatArray:
+    """At most ``budget`` of ``points`` whose hull approximates theirs.
+
+    qhull is stopped after adding ``budget - 4`` points (option ``TA``); it adds the point farthest outside
+    the current hull first, the same approach as MuJoCo's ``maxhullvert``.
+    """
+    from scipy.spatial import ConvexHull
+
+    for added in range(budget - 4, -1, -1):
+        hull = ConvexHull(points, qhull_options=f"Qt TA{added}")
+        if len(hull.vertices) <= budget:
+            break
+    subset: FloatArray = points[np.sort(hull.vertices)]
+    return subset
 
 
 def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> HullSet:
