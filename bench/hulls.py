@@ -67,7 +67,8 @@ def peer(src: Path, work: Path, obj2mjcf: str, units: str | None) -> tuple[float
         )
     )
     if proc.returncode != 0:
-        return seconds, {"hulls": f"failed: {proc.stderr.strip().splitlines()[-1:]}"}
+        last = (proc.stderr.strip().splitlines() or ["?"])[-1]
+        return seconds, {"hulls": "fails (" + last.split(":")[0][:40] + ": " + last.split("/")[-1][:60] + ")"}
     pieces = sorted((folder / src.stem).glob(f"{src.stem}_collision_*.obj"))
     asset = prepare(src, NormaliseOptions(units=units, up="z" if "fixtures" in str(src) else None))
     scale = asset.manifest["transform"]["unit_scale"]

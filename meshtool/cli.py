@@ -26,10 +26,10 @@ from meshtool import __version__
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, Severity
-from meshtool.hulls import MODES, PRESETS, HullOptions
+from meshtool.hulls import MODES, PRESETS, HullOptions, compute_hulls, quality
 from meshtool.mesh import safe_identifier
 from meshtool.mjcf import MjcfOptions, build_mjcf
-from meshtool.normalise import NormaliseOptions, normalise_to, safe_file_stem
+from meshtool.normalise import NormaliseOptions, normalise_to, prepare, safe_file_stem
 from meshtool.outdir import write_file, write_folder
 from meshtool.packfile import load
 from meshtool.packfile.export import describe, to_glb, to_msh, unpack_files
@@ -280,6 +280,45 @@ def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as
         sys.exit(EXIT_INPUT)
 
 
+@main.command("hulls")
+@click.argument("src", type=click.Path(path_type=Path, dir_okay=False))
+@normalise_options
+@hull_options
+def hulls(
+    src: Path,
+    units: str | None,
+    scale: float,
+    up: str | None,
+    search_paths: tuple[Path, ...],
+    strict: bool,
+    as_json: bool,
+    **hull_kw: Any,
+) -> None:
+    """Compute the collision hulls of SRC (an OBJ) and report their quality; writes nothing."""
+    with _guard(as_json):
+        options = _hull_options(hull_kw)
+        asset = prepare(src, NormaliseOptions(units=units, scale=scale, up=up, search_paths=search_paths))
+        result = compute_hulls(asset.mesh, options, src.name)
+        report = quality(asset.mesh, result.hulls)
+        report["cache_hits"] = result.cache_hits
+        if strict and any(f.severity is not Severity.INFO for f in result.findings):
+            raise OptionsError("hull warnings in strict mode", hint="see the findings")
+    if as_json:
+        click.echo(json.dumps({"status": "ok", "hulls": report, "findings": [f.to_dict() for f in result.findings]}))
+        return
+    click.echo(f"{src}: {_hull_summary(report)}")
+    _echo_findings(result.findings)
+
+
+def _hull_summary(report: dict[str, Any]) -> str:
+    text = f"{report['hulls']} hull(s), vertices {report.get('vertices_per_hull')}"
+    if report.get("volume_ratio") is not None:
+        text += f", hull/mesh volume {report['volume_ratio']:.2f}"
+    if report.get("surface_to_hulls_max_m") is not None:
+        text += f", surface gap max {report['surface_to_hulls_max_m'] * 1000:.2f} mm"
+    return text
+
+
 @main.command("info")
 @click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
@@ -303,6 +342,8 @@ def info(file: Path, as_json: bool) -> None:
             f"{s['bytes']:>10} bytes {s['encoding']:>11}  crc {s['crc32']} {s['checksum']}"
         )
     meta = summary["meta"]
+    if meta.get("hull_quality"):
+        click.echo(f"  hulls: {_hull_summary(meta['hull_quality'])}")
     t = meta.get("transform", {})
     click.echo(
         f"  source units {t.get('units')} (x{t.get('unit_scale')}), scale {t.get('scale')}, up {t.get('up')}; "

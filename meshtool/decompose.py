@@ -48,13 +48,25 @@ def cache_key(points: FloatArray, faces: IntArray, options: HullOptions) -> str:
     return h.hexdigest()
 
 
-def is_manifold(points: FloatArray, faces: IntArray) -> bool:
-    """Whether the triangles form a closed 2-manifold (manifold3d's check, after merging duplicate vertices)."""
+def repair(points: FloatArray, faces: IntArray) -> tuple[FloatArray, IntArray, bool]:
+    """Merge duplicate vertices with manifold3d and tell whether the result is a closed 2-manifold.
+
+    Returns:
+        The (possibly merged) points and faces, and whether they form a manifold.
+    """
     import manifold3d
 
     mesh = manifold3d.Mesh(vert_properties=np.asarray(points, dtype=np.float32), tri_verts=np.asarray(faces, np.uint32))
-    mesh.merge()
-    return bool(manifold3d.Manifold(mesh).status() == manifold3d.Error.NoError)
+    merged = mesh.merge()
+    ok = bool(manifold3d.Manifold(mesh).status() == manifold3d.Error.NoError)
+    if not (ok and merged):
+        return points, faces, ok
+    out = manifold3d.Manifold(mesh).to_mesh()
+    return (
+        np.asarray(out.vert_properties, dtype=np.float64)[:, :3],
+        np.asarray(out.tri_verts, dtype=np.int64),
+        True,
+    )
 
 
 def decompose(points: FloatArray, faces: IntArray, options: HullOptions) -> tuple[list[FloatArray], bool, str | None]:
@@ -74,7 +86,8 @@ def decompose(points: FloatArray, faces: IntArray, options: HullOptions) -> tupl
     cached = _read(options.cache_dir, key)
     if cached is not None:
         return cached, True, None
-    mode = "off" if is_manifold(points, faces) else "auto"
+    points, faces, manifold = repair(points, faces)
+    mode = "off" if manifold else "auto"  # CoACD's remeshing only where the mesh needs it
     with tempfile.TemporaryDirectory(prefix="meshtool-coacd-") as tmp:
         job, out = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
         params = {

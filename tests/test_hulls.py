@@ -189,3 +189,25 @@ def test_hulls_are_stored_and_reported(fixtures, tmp_path):
         ((vertices, faces),) = p.hulls
         assert_convex(np.asarray(vertices, np.float64), np.asarray(faces, np.int64), tol=1e-6)
         assert p.meta["hull_quality"]["hulls"] == 1
+
+
+def test_repair_merges_a_split_but_closed_mesh():
+    from meshtool.decompose import repair
+
+    box = __import__("trimesh").creation.box()
+    split_points = box.vertices[box.faces].reshape(-1, 3)  # every triangle with its own three vertices
+    split_faces = np.arange(len(split_points)).reshape(-1, 3)
+    points, faces, manifold = repair(split_points, split_faces)
+    assert manifold and len(points) == 8 and len(faces) == 12
+    _, open_faces, manifold = repair(box.vertices, box.faces[:-1])
+    assert not manifold and len(open_faces) == 11
+
+
+def test_hulls_command_and_info(fixtures, tmp_path):
+    runner = CliRunner()
+    result = runner.invoke(main, ["hulls", str(fixtures / BOWL), "--up", "z", "--json"])
+    report = json.loads(result.stdout)["hulls"]
+    assert report["hulls"] == 1 and report["vertices_per_hull"] == [64]
+    out = tmp_path / "b.mbin"
+    runner.invoke(obj2bin, [str(fixtures / BOWL), "--up", "z", "-o", str(out), "--hulls", "objects"])
+    assert "  hulls: 1 hull(s), vertices [64], hull/mesh volume" in runner.invoke(main, ["info", str(out)]).stdout
