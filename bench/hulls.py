@@ -13,6 +13,7 @@ Both tools run CoACD with their default threshold (0.05).
 from __future__ import annotations
 
 import platform
+import re
 import shutil
 import subprocess
 import sys
@@ -67,8 +68,8 @@ def peer(src: Path, work: Path, obj2mjcf: str, units: str | None) -> tuple[float
         )
     )
     if proc.returncode != 0:
-        last = (proc.stderr.strip().splitlines() or ["?"])[-1]
-        return seconds, {"hulls": "fails (" + last.split(":")[0][:40] + ": " + last.split("/")[-1][:60] + ")"}
+        last = re.sub(r"/\S*/", "", (proc.stderr.strip().splitlines() or ["?"])[-1])
+        return seconds, {"hulls": f"fails ({last[:90]})"}
     pieces = sorted((folder / src.stem).glob(f"{src.stem}_collision_*.obj"))
     asset = prepare(src, NormaliseOptions(units=units, up="z" if "fixtures" in str(src) else None))
     scale = asset.manifest["transform"]["unit_scale"]
