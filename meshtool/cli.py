@@ -406,6 +406,10 @@ def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float
         sources = find_files(src, ".mbin") if src.is_dir() else [src]
         if not sources:
             raise OptionsError(f"no .mbin files under {src}")
+        stems = [safe_file_stem(p.stem) or "asset" for p in sources]
+        clash = next((p for p, n in zip(sources, stems, strict=True) if stems.count(n) > 1), None)
+        if clash is not None:
+            raise OptionsError(f"two .mbin files would both become {safe_file_stem(clash.stem)!r}", hint="rename one")
         for path in sources:
             name = safe_file_stem(path.stem) or "asset"
             with load(path) as packed:
