@@ -1,0 +1,153 @@
+"""Assets of a world, loaded once and added to the spec from memory (no temporary files).
+
+``.mbin`` meshes become MjSpec meshes from their arrays (``uservert``/``userface``/``usernormal``/
+``usertexcoord``), their PNG textures become MjSpec textures from decoded pixels, and their materials
+MjSpec materials. One asset used by many entities is read and added once.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+import trimesh
+from PIL import Image
+
+import meshtool
+from meshtool.packfile import PackedMesh
+from simrun.errors import EntityError
+
+
+@dataclass(slots=True)
+class MeshAsset:
+    """Names of what one ``.mbin`` added to the spec, and the volumes of its hulls (m^3, unscaled)."""
+
+    name: str
+    visual: list[tuple[str, str | None]]  # (mesh name, material name) per submesh
+    hulls: list[str]
+    hull_volumes: list[float]
+    whole: str  # the whole visual mesh in one piece, for collision="convex"
+
+
+@dataclass(slots=True)
+class AssetLibrary:
+    """Per-build registry of assets added to one spec; the decoded files are kept across builds."""
+
+    spec: mujoco.MjSpec
+    files: dict[Path, PackedMesh] = field(default_factory=dict)
+    images: dict[Path, tuple[int, int, int, bytes]] = field(default_factory=dict)
+    added_meshes: dict[tuple[Path, float], MeshAsset] = field(default_factory=dict)
+    added_textures: dict[Path, str] = field(default_factory=dict)
+
+    def packed(self, path: Path) -> PackedMesh:
+        """The loaded ``.mbin`` (read once)."""
+        key = path.resolve()
+        if key not in self.files:
+            try:
+                self.files[key] = meshtool.load(key)
+            except meshtool.MeshtoolError as exc:
+                raise EntityError(f"cannot load mesh asset: {exc}") from None
+        return self.files[key]
+
+    def mesh(self, path: Path, scale: float) -> MeshAsset:
+        """Add an ``.mbin``'s meshes, textures and materials (once per file and scale)."""
+        key = (path.resolve(), scale)
+        if key in self.added_meshes:
+            return self.added_meshes[key]
+        p = self.packed(path)
+        base = f"{path.stem}@{scale:g}" if scale != 1.0 else path.stem
+        while any(a.name == base for a in self.added_meshes.values()):
+            base += "_"
+        textures = []
+        for k, data in enumerate(p.textures):
+            textures.append(self._texture(f"{base}/tex{k}", _decode(bytes(data))))
+        materials = []
+        for k, m in enumerate(p.materials):
+            name = f"{base}/mat{k}"
+            kd = m.get("colors", {}).get("Kd", [0.8, 0.8, 0.8])
+            alpha = float(m.get("scalars", {}).get("d", 1.0))
+            mat = self.spec.add_material(name=name, rgba=[*(float(c) for c in kd[:3]), alpha])
+            tex = m.get("maps", {}).get("map_Kd")
+            if tex is not None and p.uvs is not None:
+                mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = textures[int(tex["texture"])]
+                mat.rgba = [1.0, 1.0, 1.0, alpha]
+            materials.append(name)
+        positions = np.asarray(p.positions, dtype=np.float64)
+        indices = np.asarray(p.indices, dtype=np.int64)
+        visual = []
+        for k, (first, count, material, _) in enumerate(np.asarray(p.submeshes, dtype=np.int64).tolist()):
+            faces = indices[first : first + count]
+            used, inverse = np.unique(faces, return_inverse=True)
+            mesh = self.spec.add_mesh(name=f"{base}/visual{k}")
+            mesh.uservert = positions[used].ravel().tolist()
+            mesh.userface = inverse.astype(np.int32).ravel().tolist()
+            if p.normals is not None:
+                mesh.usernormal = np.asarray(p.normals, np.float64)[used].ravel().tolist()
+            if p.uvs is not None:
+                uv = np.asarray(p.uvs, np.float64)[used].copy()
+                uv[:, 1] = 1.0 - uv[:, 1]  # OBJ/.mbin v = 0 at the image bottom; MuJoCo's texcoords at the top
+                mesh.usertexcoord = uv.ravel().tolist()
+            mesh.scale = [scale] * 3
+            mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+            visual.append((mesh.name, materials[material] if materials else None))
+        whole = self.spec.add_mesh(name=f"{base}/whole")
+        whole.uservert = positions.ravel().tolist()
+        whole.userface = indices.astype(np.int32).ravel().tolist()
+        whole.scale = [scale] * 3
+        whole.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
+        hulls, volumes = [], []
+        for k, (v, f) in enumerate(p.hulls):
+            hull = self.spec.add_mesh(name=f"{base}/hull{k}")
+            hull.uservert = np.asarray(v, np.float64).ravel().tolist()
+            hull.userface = np.asarray(f, np.int32).ravel().tolist()
+            hull.scale = [scale] * 3
+            hull.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
+            hulls.append(hull.name)
+            volumes.append(float(trimesh.Trimesh(np.asarray(v), np.asarray(f), process=False).volume) * scale**3)
+        asset = MeshAsset(base, visual, hulls, volumes, whole.name)
+        self.added_meshes[key] = asset
+        return asset
+
+    def texture_material(self, file: str, base_dir: Path) -> str:
+        """A material showing the PNG ``file`` (relative to ``base_dir``), added once."""
+        path = (base_dir / file).resolve()
+        if path not in self.added_textures:
+            if path not in self.images:
+                try:
+                    self.images[path] = _decode(path.read_bytes())
+                except OSError as exc:
+                    raise EntityError(f"texture {file!r} cannot be read: {exc.strerror}") from None
+            name = f"texture:{path.stem}"
+            tex = self._texture(name, self.images[path])
+            mat = self.spec.add_material(name=f"{name}/material")
+            mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex
+            self.added_textures[path] = mat.name
+        return self.added_textures[path]
+
+    def _texture(self, name: str, image: tuple[int, int, int, bytes], kind: Any = None) -> str:
+        width, height, channels, pixels = image
+        self.spec.add_texture(
+            name=name,
+            type=kind if kind is not None else mujoco.mjtTexture.mjTEXTURE_2D,
+            width=width,
+            height=height,
+            nchannel=channels,
+            data=np.frombuffer(pixels, dtype=np.uint8),
+        )
+        return name
+
+
+def _decode(png: bytes) -> tuple[int, int, int, bytes]:
+    """(width, height, channels, pixel bytes) of an image, RGB or RGBA, rows top to bottom."""
+    try:
+        image = Image.open(io.BytesIO(png))
+        image.load()
+    except (OSError, ValueError) as exc:
+        raise EntityError(f"texture is not a readable image ({exc})") from None
+    mode = "RGBA" if image.mode in ("RGBA", "LA", "PA") or "transparency" in image.info else "RGB"
+    converted = image.convert(mode)
+    return converted.width, converted.height, len(mode), converted.tobytes()

@@ -1,0 +1,68 @@
+"""MeshEntity: a packed ``.mbin`` asset in the world, visual and collision geometry from memory."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import mujoco
+
+from simrun.entity import BuildContext, Entity, Material, check_positive
+from simrun.errors import EntityError
+
+COLLISION = ("hulls", "convex", "none")
+
+
+@dataclass(kw_only=True)
+class MeshEntity(Entity):
+    """A mesh asset.
+
+    Attributes:
+        asset: Path of the ``.mbin`` (relative to the scene/world folder).
+        scale: Uniform scale.
+        collision: ``hulls`` (the stored collision hulls; the default), ``convex`` (MuJoCo's hull of the whole
+            mesh) or ``none`` (visual only).
+        mass: Total mass in kg, split over the collision geoms by volume; else ``density``.
+        density: kg/m^3.
+        material: Contact material of the collision geoms.
+    """
+
+    TYPE: ClassVar[str] = "MeshEntity"
+
+    asset: str
+    scale: float = 1.0
+    collision: str = "hulls"
+    mass: float | None = None
+    density: float = 1000.0
+    material: Material | None = None
+
+    def build(self, body: Any, ctx: BuildContext) -> None:
+        """Visual geoms per submesh (group 2, massless) and collision geoms (group 3)."""
+        check_positive(self, scale=self.scale, mass=self.mass, density=self.density)
+        if self.collision not in COLLISION:
+            raise EntityError(f"MeshEntity {self.name!r}: collision must be one of {', '.join(COLLISION)}")
+        asset = ctx.assets.mesh(ctx.base_dir / Path(self.asset), self.scale)
+        for k, (mesh, material) in enumerate(asset.visual):
+            geom = body.add_geom(name=ctx.name(f"visual{k}"), type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh)
+            geom.group, geom.contype, geom.conaffinity, geom.density = 2, 0, 0, 0.0
+            if material:
+                geom.material = material
+        if self.collision == "none":
+            return
+        if self.collision == "hulls" and not asset.hulls:
+            raise EntityError(
+                f"MeshEntity {self.name!r}: {self.asset} has no collision hulls "
+                "(convert it with obj2bin --hulls convex|decompose, or use collision='convex')"
+            )
+        meshes = asset.hulls if self.collision == "hulls" else [asset.whole]
+        volumes = asset.hull_volumes if self.collision == "hulls" else [1.0]
+        for k, mesh in enumerate(meshes):
+            geom = body.add_geom(name=ctx.name(f"collision{k}"), type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh)
+            geom.group = 3
+            if self.mass is not None:
+                geom.mass = self.mass * volumes[k] / sum(volumes)
+            else:
+                geom.density = self.density
+            if self.material is not None:
+                self.material.apply(geom)

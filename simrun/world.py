@@ -1,0 +1,266 @@
+"""The World: one MjSpec built from named entities, compiled lazily, stepped and reset.
+
+Entities are kept in insertion order; the spec is rebuilt from them whenever they change, so removing an
+entity is exact and the same entities always give the same model. Names: a top-level entity ``box`` owns
+the body ``box`` and elements ``box/...``; a child ``wheel`` of ``robot`` is ``robot/wheel``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from simrun.assets import AssetLibrary
+from simrun.entity import BuildContext, Entity
+from simrun.environment import Camera
+from simrun.errors import CompileError, EntityError
+
+INTEGRATORS = {
+    "euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "rk4": mujoco.mjtIntegrator.mjINT_RK4,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+}
+_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
+
+
+@dataclass(frozen=True, slots=True)
+class WorldOptions:
+    """Physics options.
+
+    Attributes:
+        timestep: Seconds per step.
+        gravity: m/s^2.
+        integrator: ``euler``, ``rk4``, ``implicit`` or ``implicitfast``.
+    """
+
+    timestep: float = 0.002
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    integrator: str = "implicitfast"
+
+    def __post_init__(self) -> None:
+        if not self.timestep > 0:
+            raise EntityError(f"timestep must be positive, got {self.timestep}")
+        if self.integrator not in INTEGRATORS:
+            raise EntityError(f"integrator must be one of {', '.join(INTEGRATORS)}")
+        if len(self.gravity) != 3:
+            raise EntityError("gravity needs 3 numbers")
+
+
+class World:
+    """A simulation world of named entities.
+
+    Args:
+        options: Physics options.
+        base_dir: Folder that relative asset and texture paths are resolved against.
+    """
+
+    def __init__(self, options: WorldOptions | None = None, base_dir: Path | str = ".") -> None:
+        self.options = options or WorldOptions()
+        self.base_dir = Path(base_dir)
+        self._entities: dict[str, Entity] = {}
+        self._spec: mujoco.MjSpec | None = None
+        self._model: mujoco.MjModel | None = None
+        self._data: mujoco.MjData | None = None
+        self._assets = AssetLibrary(mujoco.MjSpec())
+        self._hooked: list[Entity] = []
+        self.services: list[dict[str, Any]] = []
+
+    # -- entities ------------------------------------------------------------------------------------------
+
+    def insert(self, entity: Entity) -> Entity:
+        """Add an entity (and later its children, which name it as ``parent``).
+
+        Raises:
+            EntityError: Bad or duplicate name, unknown parent, or a kinematic child.
+        """
+        if not _NAME.match(entity.name):
+            raise EntityError(f"entity name {entity.name!r} must match [A-Za-z0-9_.-]+ (no '/')")
+        full = self.full_name(entity)
+        if full in self._entities:
+            raise EntityError(f"an entity named {full!r} already exists; names must be unique")
+        if entity.parent is not None and entity.parent not in self._entities:
+            raise EntityError(f"{full!r}: parent {entity.parent!r} does not exist; insert the parent first")
+        if entity.parent is not None and not self._entities[entity.parent].HAS_BODY:
+            raise EntityError(
+                f"{full!r}: parent {entity.parent!r} is a {self._entities[entity.parent].TYPE}, not a body"
+            )
+        if entity.kinematic and entity.parent is not None:
+            raise EntityError(
+                f"{full!r} is kinematic but has a parent: a kinematic (mocap) body is moved by set_pose and is "
+                "fixed to the world, so as a child it would pin its parent in place (the trap of a kinematic arm "
+                "base holding a robot to the floor). Make it a top-level entity, or drive the child with joints "
+                "and actuators instead"
+            )
+        if entity.kinematic and entity.free:
+            raise EntityError(f"{full!r}: an entity is either kinematic or free, not both")
+        if entity.free and entity.parent is not None:
+            raise EntityError(f"{full!r}: only top-level entities can have a free joint")
+        self._entities[full] = entity
+        self._invalidate()
+        return entity
+
+    def remove(self, name: str) -> None:
+        """Remove an entity and its descendants.
+
+        Raises:
+            EntityError: No entity has that name.
+        """
+        if name not in self._entities:
+            raise EntityError(f"no entity named {name!r}")
+        doomed = [n for n in self._entities if n == name or n.startswith(name + "/")]
+        for n in doomed:
+            del self._entities[n]
+        self._invalidate()
+
+    def full_name(self, entity: Entity) -> str:
+        """``parent/name`` for children, ``name`` for top-level entities."""
+        return f"{entity.parent}/{entity.name}" if entity.parent else entity.name
+
+    def entity(self, name: str) -> Entity:
+        """The entity with this full name."""
+        try:
+            return self._entities[name]
+        except KeyError:
+            raise EntityError(f"no entity named {name!r}") from None
+
+    def __iter__(self) -> Iterator[tuple[str, Entity]]:
+        return iter(self._entities.items())
+
+    def __len__(self) -> int:
+        return len(self._entities)
+
+    # -- building and simulation ---------------------------------------------------------------------------
+
+    def _invalidate(self) -> None:
+        self._spec = self._model = self._data = None
+
+    def build_spec(self) -> mujoco.MjSpec:
+        """A fresh spec with every entity built into it (assets added once, from memory)."""
+        spec = mujoco.MjSpec()
+        spec.modelname = "world"
+        spec.option.timestep = self.options.timestep
+        spec.option.gravity = list(self.options.gravity)
+        spec.option.integrator = INTEGRATORS[self.options.integrator]
+        spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
+        assets = AssetLibrary(spec, files=self._assets.files, images=self._assets.images)
+        bodies: dict[str, Any] = {}
+        for full, entity in self._entities.items():
+            parent = bodies[entity.parent] if entity.parent else spec.worldbody
+            ctx = BuildContext(spec, full, assets, self.base_dir)
+            if not entity.HAS_BODY:
+                entity.build(None, ctx)
+                continue
+            pose = entity.body_pose()
+            body = parent.add_body(name=full, pos=list(pose.position), quat=list(pose.orientation))
+            body.mocap = entity.kinematic
+            if entity.free:
+                body.add_freejoint(name=f"{full}/free")
+            entity.build(body, ctx)
+            bodies[full] = body
+        main = [full for full, e in self._entities.items() if isinstance(e, Camera) and e.main]
+        if len(main) > 1:
+            raise EntityError(f"more than one main camera: {', '.join(main)}")
+        return spec
+
+    def compile(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
+        """Build and compile (done lazily by :attr:`model` and :attr:`data`).
+
+        Raises:
+            CompileError: MuJoCo refused the model (its message included).
+        """
+        spec = self.build_spec()
+        try:
+            model = spec.compile()
+        except ValueError as exc:
+            raise CompileError(f"MuJoCo cannot compile the world: {exc}") from None
+        self._spec, self._model, self._data = spec, model, mujoco.MjData(model)
+        self._hooked = [e for e in self._entities.values() if type(e).before_step is not Entity.before_step]
+        mujoco.mj_forward(model, self._data)
+        return model, self._data
+
+    @property
+    def spec(self) -> mujoco.MjSpec:
+        """The compiled spec."""
+        if self._spec is None:
+            self.compile()
+        assert self._spec is not None
+        return self._spec
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        """The compiled model."""
+        if self._model is None:
+            self.compile()
+        assert self._model is not None
+        return self._model
+
+    @property
+    def data(self) -> mujoco.MjData:
+        """The simulation state."""
+        if self._data is None:
+            self.compile()
+        assert self._data is not None
+        return self._data
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` physics steps, calling every entity's ``before_step`` hook before each."""
+        model, data = self.model, self.data
+        for _ in range(n):
+            for entity in self._hooked:
+                entity.before_step(model, data)
+            mujoco.mj_step(model, data)
+
+    def run(self, seconds: float) -> None:
+        """Step until ``seconds`` of simulated time have passed."""
+        self.step(round(seconds / self.options.timestep))
+
+    def reset(self) -> None:
+        """Back to the initial state (time 0, initial poses)."""
+        mujoco.mj_resetData(self.model, self.data)
+        mujoco.mj_forward(self.model, self.data)
+
+    def warnings(self) -> dict[str, int]:
+        """MuJoCo warnings raised so far, by name."""
+        return {mujoco.mjtWarning(k).name: int(w.number) for k, w in enumerate(self.data.warning) if w.number}
+
+    # -- named access --------------------------------------------------------------------------------------
+
+    def body(self, name: str) -> Any:
+        """MjData view of an entity's body (``xpos``, ``xquat``, ``cvel``...)."""
+        try:
+            return self.data.body(name)
+        except KeyError:
+            raise EntityError(f"no body named {name!r}") from None
+
+    def geom(self, name: str) -> Any:
+        """MjData view of a geom, e.g. ``box/geom``."""
+        try:
+            return self.data.geom(name)
+        except KeyError:
+            raise EntityError(f"no geom named {name!r}") from None
+
+    def joint(self, name: str) -> Any:
+        """MjData view of a joint, e.g. ``box/free``."""
+        try:
+            return self.data.joint(name)
+        except KeyError:
+            raise EntityError(f"no joint named {name!r}") from None
+
+    def set_pose(self, name: str, position: Any, orientation: Any = (1.0, 0.0, 0.0, 0.0)) -> None:
+        """Move a kinematic entity (its mocap body) to a world pose.
+
+        Raises:
+            EntityError: The entity is not kinematic.
+        """
+        if not self.entity(name).kinematic:
+            raise EntityError(f"{name!r} is not kinematic; only kinematic entities are moved by set_pose")
+        mocap = int(self.model.body(name).mocapid[0])
+        self.data.mocap_pos[mocap] = np.asarray(position, dtype=float)
+        self.data.mocap_quat[mocap] = np.asarray(orientation, dtype=float)
