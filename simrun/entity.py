@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import mujoco
+import numpy as np
 
 from simrun.errors import EntityError
 from simrun.pose import Pose
@@ -26,7 +27,7 @@ class Material:
     """Contact material, MSRS style, mapped to MuJoCo (see docs/conventions.md).
 
     Attributes:
-        restitution: Bounce, 0 (none) to 0.9: a ball dropped from h rises to about restitution^2 * h.
+        restitution: Bounce, 0 (none) to 0.65: a ball dropped from h rises to about restitution^2 * h.
         dynamic_friction: Sliding friction coefficient (MuJoCo ``friction[0]``).
         static_friction: Recorded for completeness; MuJoCo has one sliding coefficient, the dynamic one.
     """
@@ -36,8 +37,11 @@ class Material:
     static_friction: float = 1.0
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.restitution <= 0.9:
-            raise EntityError(f"restitution must be in [0, 0.9], got {self.restitution}")
+        if not 0.0 <= self.restitution <= MAX_RESTITUTION:
+            raise EntityError(
+                f"restitution must be in [0, {MAX_RESTITUTION}] (MuJoCo's soft contacts are unstable beyond), "
+                f"got {self.restitution}"
+            )
         if self.dynamic_friction < 0 or self.static_friction < 0:
             raise EntityError("friction coefficients must be >= 0")
 
@@ -45,23 +49,38 @@ class Material:
         """Set a geom's ``friction`` and ``solref`` from this material."""
         geom.friction = [self.dynamic_friction, 0.005, 0.0001]
         geom.solref = list(restitution_solref(self.restitution))
+        geom.priority = 1  # this geom's contact parameters win over a default partner's
 
 
-#: Contact time constant (s) used for bouncy materials; MuJoCo needs it >= 2 timesteps.
-BOUNCE_TIMECONST = 0.01
+#: Measured mapping from MuJoCo's contact damping ratio (solref[1], time constant 0.02 s) to the coefficient of
+#: restitution of a ball dropped on a plane (timestep 0.002 s, implicitfast; 0.001 s differs by < 0.01).
+#: Regenerate with ``python scripts/calibrate_restitution.py``; the table is in docs/conventions.md.
+RESTITUTION_TABLE: tuple[tuple[float, float], ...] = (
+    (0.15, 0.678),
+    (0.2, 0.595),
+    (0.25, 0.518),
+    (0.3, 0.453),
+    (0.4, 0.353),
+    (0.5, 0.277),
+    (0.6, 0.215),
+    (0.7, 0.162),
+    (0.8, 0.112),
+    (0.9, 0.055),
+    (1.0, 0.0),
+)
+MAX_RESTITUTION = 0.65
+CONTACT_TIMECONST = 0.02
 
 
 def restitution_solref(restitution: float) -> tuple[float, float]:
-    """MuJoCo ``solref`` (time constant, damping ratio) for a coefficient of restitution.
+    """MuJoCo ``solref`` (time constant, damping ratio) giving a coefficient of restitution.
 
-    A contact acts as a damped spring; for damping ratio z the velocity after a bounce is
-    ``exp(-z * pi / sqrt(1 - z^2))`` times the velocity before, so ``z = -ln e / sqrt(pi^2 + ln^2 e)``.
-    ``e = 0`` gives MuJoCo's default (0.02 s, critically damped).
+    Interpolates :data:`RESTITUTION_TABLE` (measured; MuJoCo's soft contacts do not follow the ideal
+    spring-damper formula). 0 gives MuJoCo's default (0.02 s, critically damped).
     """
-    if restitution <= 0:
-        return (0.02, 1.0)
-    log_e = math.log(restitution)
-    return (BOUNCE_TIMECONST, -log_e / math.sqrt(math.pi**2 + log_e**2))
+    zetas = [z for z, _ in RESTITUTION_TABLE][::-1]
+    es = [e for _, e in RESTITUTION_TABLE][::-1]
+    return (CONTACT_TIMECONST, float(np.interp(restitution, es, zetas)))
 
 
 @dataclass(slots=True)
