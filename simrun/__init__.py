@@ -21,6 +21,7 @@ from simrun.environment import Camera, Ground, HeightField, Light, Sky
 from simrun.errors import CompileError, EntityError, SceneError, SimrunError
 from simrun.mesh_entity import MeshEntity
 from simrun.pose import Pose
+from simrun.scene import load_scene, save_scene, scene_text
 from simrun.shapes import Box, Capsule, Cylinder, Sphere
 from simrun.world import World, WorldOptions
 
@@ -45,4 +46,7 @@ __all__ = [
     "World",
     "WorldOptions",
     "__version__",
+    "load_scene",
+    "save_scene",
+    "scene_text",
 ]

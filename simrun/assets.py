@@ -39,9 +39,11 @@ class AssetLibrary:
 
     spec: mujoco.MjSpec
     files: dict[Path, PackedMesh] = field(default_factory=dict)
-    images: dict[Path, tuple[int, int, int, bytes]] = field(default_factory=dict)
+    images: dict[Path, bytes] = field(default_factory=dict)
     added_meshes: dict[tuple[Path, float], MeshAsset] = field(default_factory=dict)
     added_textures: dict[Path, str] = field(default_factory=dict)
+    #: In-memory files (MuJoCo's virtual file system) handed to the spec: PNG textures by file name.
+    vfs: dict[str, bytes] = field(default_factory=dict)
 
     def packed(self, path: Path) -> PackedMesh:
         """The loaded ``.mbin`` (read once)."""
@@ -64,7 +66,7 @@ class AssetLibrary:
             base += "_"
         textures = []
         for k, data in enumerate(p.textures):
-            textures.append(self._texture(f"{base}/tex{k}", _decode(bytes(data))))
+            textures.append(self.add_texture(f"{base}/tex{k}", bytes(data)))
         materials = []
         for k, m in enumerate(p.materials):
             name = f"{base}/mat{k}"
@@ -116,28 +118,29 @@ class AssetLibrary:
         """A material showing the PNG ``file`` (relative to ``base_dir``), added once."""
         path = (base_dir / file).resolve()
         if path not in self.added_textures:
-            if path not in self.images:
-                try:
-                    self.images[path] = _decode(path.read_bytes())
-                except OSError as exc:
-                    raise EntityError(f"texture {file!r} cannot be read: {exc.strerror}") from None
             name = f"texture:{path.stem}"
-            tex = self._texture(name, self.images[path])
+            tex = self.add_texture(name, self.read_image(path, file))
             mat = self.spec.add_material(name=f"{name}/material")
             mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex
             self.added_textures[path] = mat.name
         return self.added_textures[path]
 
-    def _texture(self, name: str, image: tuple[int, int, int, bytes], kind: Any = None) -> str:
-        width, height, channels, pixels = image
-        self.spec.add_texture(
-            name=name,
-            type=kind if kind is not None else mujoco.mjtTexture.mjTEXTURE_2D,
-            width=width,
-            height=height,
-            nchannel=channels,
-            data=np.frombuffer(pixels, dtype=np.uint8),
-        )
+    def read_image(self, path: Path, shown: str) -> bytes:
+        """The bytes of a PNG file, read once and checked to decode."""
+        if path not in self.images:
+            try:
+                data = path.read_bytes()
+            except OSError as exc:
+                raise EntityError(f"texture {shown!r} cannot be read: {exc.strerror}") from None
+            _decode(data)
+            self.images[path] = data
+        return self.images[path]
+
+    def add_texture(self, name: str, png: bytes, kind: Any = None) -> str:
+        """A texture from PNG bytes held in the spec's virtual file system (no file is written)."""
+        file = f"{len(self.vfs)}_{''.join(c if c.isalnum() else '_' for c in name)}.png"
+        self.vfs[file] = png
+        self.spec.add_texture(name=name, type=kind if kind is not None else mujoco.mjtTexture.mjTEXTURE_2D, file=file)
         return name
 
 

@@ -92,12 +92,14 @@ class BuildContext:
         full_name: The entity's full name (prefix for everything it adds).
         assets: Shared asset loading (``.mbin`` meshes, PNG textures), each added to the spec once.
         base_dir: Folder relative file names are resolved against.
+        asset_paths: The world's named assets (name to ``.mbin`` path relative to ``base_dir``).
     """
 
     spec: mujoco.MjSpec
     full_name: str
     assets: AssetLibrary
     base_dir: Path
+    asset_paths: dict[str, str] = field(default_factory=dict)
 
     def name(self, local: str) -> str:
         """``FULLNAME/local``."""

@@ -106,15 +106,8 @@ class Sky(Entity):
         """A skybox texture."""
         kind = mujoco.mjtTexture.mjTEXTURE_SKYBOX
         if self.texture:
-            data = Image.open(io.BytesIO((ctx.base_dir / self.texture).read_bytes())).convert("RGB")
-            ctx.spec.add_texture(
-                name=ctx.full_name,
-                type=kind,
-                width=data.width,
-                height=data.height,
-                nchannel=3,
-                data=np.frombuffer(data.tobytes(), dtype=np.uint8),
-            )
+            png = ctx.assets.read_image((ctx.base_dir / self.texture).resolve(), self.texture)
+            ctx.assets.add_texture(ctx.full_name, png, kind)
         else:
             ctx.spec.add_texture(
                 name=ctx.full_name,

@@ -19,7 +19,7 @@ class MeshEntity(Entity):
     """A mesh asset.
 
     Attributes:
-        asset: Path of the ``.mbin`` (relative to the scene/world folder).
+        asset: A name from the world's ``assets`` table, or a path of an ``.mbin`` (relative to the world folder).
         scale: Uniform scale.
         collision: ``hulls`` (the stored collision hulls; the default), ``convex`` (MuJoCo's hull of the whole
             mesh) or ``none`` (visual only).
@@ -42,7 +42,7 @@ class MeshEntity(Entity):
         check_positive(self, scale=self.scale, mass=self.mass, density=self.density)
         if self.collision not in COLLISION:
             raise EntityError(f"MeshEntity {self.name!r}: collision must be one of {', '.join(COLLISION)}")
-        asset = ctx.assets.mesh(ctx.base_dir / Path(self.asset), self.scale)
+        asset = ctx.assets.mesh(ctx.base_dir / Path(ctx.asset_paths.get(self.asset, self.asset)), self.scale)
         for k, (mesh, material) in enumerate(asset.visual):
             geom = body.add_geom(name=ctx.name(f"visual{k}"), type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh)
             geom.group, geom.contype, geom.conaffinity, geom.density = 2, 0, 0, 0.0

@@ -71,6 +71,8 @@ class World:
         self._assets = AssetLibrary(mujoco.MjSpec())
         self._hooked: list[Entity] = []
         self.services: list[dict[str, Any]] = []
+        #: Asset names (used by ``MeshEntity.asset``) to ``.mbin`` paths relative to ``base_dir``.
+        self.assets: dict[str, str] = {}
 
     # -- entities ------------------------------------------------------------------------------------------
 
@@ -153,7 +155,7 @@ class World:
         bodies: dict[str, Any] = {}
         for full, entity in self._entities.items():
             parent = bodies[entity.parent] if entity.parent else spec.worldbody
-            ctx = BuildContext(spec, full, assets, self.base_dir)
+            ctx = BuildContext(spec, full, assets, self.base_dir, self.assets)
             if not entity.HAS_BODY:
                 entity.build(None, ctx)
                 continue
@@ -164,6 +166,7 @@ class World:
                 body.add_freejoint(name=f"{full}/free")
             entity.build(body, ctx)
             bodies[full] = body
+        spec.assets = dict(assets.vfs)
         main = [full for full, e in self._entities.items() if isinstance(e, Camera) and e.main]
         if len(main) > 1:
             raise EntityError(f"more than one main camera: {', '.join(main)}")
