@@ -297,13 +297,102 @@ def bowl() -> None:
     write(ROOT / "bowl" / "bowl.obj", "\n".join(lines) + "\n")
 
 
+def scenes() -> None:
+    """The seed's basic environment and a head on a table (uses the packed seed head)."""
+    from meshtool.convert import ConvertOptions, convert
+    from meshtool.normalise import NormaliseOptions
+
+    folder = ROOT / "scenes"
+    folder.mkdir(parents=True, exist_ok=True)
+    h, w = 64, 128
+    y, x = np.mgrid[0:h, 0:w]
+    land = ((np.sin(x / 9.0) + np.cos(y / 7.0)) > 0.6).astype(np.uint8)
+    rgb = np.stack([40 + 60 * land, 90 + 90 * land, 200 - 150 * land], axis=2).astype(np.uint8)
+    image(folder / "globe.png", Image.fromarray(rgb, "RGB"), "PNG")
+    convert(ROOT / "head" / "Head 1.obj", folder / "head.mbin", ConvertOptions(NormaliseOptions(units="cm")))
+    write(folder / "basic.toml", """# The seed's basic environment: sky, ground, a 0.2 m box of 100 kg, a textured globe of 10 kg.
+[world]
+timestep = 0.002
+
+[[entities]]
+type = "Sky"
+name = "sky"
+
+[[entities]]
+type = "Ground"
+name = "ground"
+
+[[entities]]
+type = "Light"
+name = "sun"
+pose = { position = [0.0, 0.0, 4.0] }
+direction = [0.3, 0.2, -1.0]
+
+[[entities]]
+type = "Box"
+name = "box"
+free = true
+mass = 100.0
+dimensions = [0.2, 0.2, 0.2]
+color = [0.8, 0.3, 0.2, 1.0]
+pose = { position = [0.0, 0.0, 0.1] }
+
+[[entities]]
+type = "Sphere"
+name = "globe"
+free = true
+mass = 10.0
+radius = 0.15
+texture = "globe.png"
+pose = { position = [0.6, 0.0, 0.5] }
+
+[[entities]]
+type = "Camera"
+name = "view"
+main = true
+eye = [2.0, -2.0, 1.2]
+target = [0.0, 0.0, 0.2]
+""")
+    write(folder / "head_on_table.toml", """# The packed seed head (collision: its convex hull) dropped onto a table.
+[world]
+timestep = 0.002
+
+[assets]
+head = "head.mbin"
+
+[[entities]]
+type = "Sky"
+name = "sky"
+
+[[entities]]
+type = "Ground"
+name = "ground"
+
+[[entities]]
+type = "Box"
+name = "table"
+dimensions = [1.0, 0.6, 0.05]
+color = [0.55, 0.4, 0.25, 1.0]
+pose = { position = [0.0, 0.0, 0.725] }
+
+[[entities]]
+type = "MeshEntity"
+name = "head"
+asset = "head"
+free = true
+mass = 2.0
+pose = { position = [0.0, 0.0, 0.9] }
+""")
+
+
 def main() -> None:
     for child in ROOT.iterdir():
-        if child.is_dir() and child.name != "golden":
+        if child.is_dir() and child.name != "golden":  # goldens are written once, never regenerated here
             shutil.rmtree(child)
     head()
     simple_cases()
     bowl()
+    scenes()
 
 
 if __name__ == "__main__":
