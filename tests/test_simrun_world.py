@@ -205,11 +205,14 @@ def test_scene_errors_name_file_and_key(tmp_path, old, new, message):
     assert str(info.value).startswith(f"{path}: {message}")
 
 
+SERVICE = '[[entities]]\ntype = "Box"\nname = "b"\n[[services]]\ntype = "DriveService"\nentity = "robot"\n'
+
+
 def test_scene_structure_errors(tmp_path):
     cases = {
         "[wrold]\ntimestep = 1\n": "wrold: unknown key",
         '[[entities]]\ntype = "Teapot"\nname = "t"\n': "entities[0].type: unknown entity type 'Teapot'",
-        '[[entities]]\ntype = "Box"\nname = "b"\n[[services]]\ntype = "DriveService"\nentity = "robot"\n': "services[0].entity: no entity named 'robot'",
+        SERVICE: "services[0].entity: no entity named 'robot'",
         "[world]\ntimestep = -1\n": "world.timestep: expected a positive number",
         "not toml at all [": "not valid TOML",
     }
