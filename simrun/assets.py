@@ -30,7 +30,7 @@ class MeshAsset:
     visual: list[tuple[str, str | None]]  # (mesh name, material name) per submesh
     hulls: list[str]
     hull_volumes: list[float]
-    whole: str  # the whole visual mesh in one piece, for collision="convex"
+    whole: str  # name for the whole mesh in one piece (added by :meth:`AssetLibrary.whole` when needed)
 
 
 @dataclass(slots=True)
@@ -42,6 +42,7 @@ class AssetLibrary:
     images: dict[Path, bytes] = field(default_factory=dict)
     added_meshes: dict[tuple[Path, float], MeshAsset] = field(default_factory=dict)
     added_textures: dict[Path, str] = field(default_factory=dict)
+    added_whole: set[str] = field(default_factory=set)
     #: In-memory files (MuJoCo's virtual file system) handed to the spec: PNG textures by file name.
     vfs: dict[str, bytes] = field(default_factory=dict)
 
@@ -85,34 +86,43 @@ class AssetLibrary:
             faces = indices[first : first + count]
             used, inverse = np.unique(faces, return_inverse=True)
             mesh = self.spec.add_mesh(name=f"{base}/visual{k}")
-            mesh.uservert = positions[used].ravel().tolist()
-            mesh.userface = inverse.astype(np.int32).ravel().tolist()
+            mesh.uservert = positions[used].ravel()
+            mesh.userface = inverse.astype(np.int32).ravel()
             if p.normals is not None:
-                mesh.usernormal = np.asarray(p.normals, np.float64)[used].ravel().tolist()
+                mesh.usernormal = np.asarray(p.normals, np.float64)[used].ravel()
             if p.uvs is not None:
                 uv = np.asarray(p.uvs, np.float64)[used].copy()
                 uv[:, 1] = 1.0 - uv[:, 1]  # OBJ/.mbin v = 0 at the image bottom; MuJoCo's texcoords at the top
-                mesh.usertexcoord = uv.ravel().tolist()
+                mesh.usertexcoord = uv.ravel()
             mesh.scale = [scale] * 3
             mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
             visual.append((mesh.name, materials[material] if materials else None))
-        whole = self.spec.add_mesh(name=f"{base}/whole")
-        whole.uservert = positions.ravel().tolist()
-        whole.userface = indices.astype(np.int32).ravel().tolist()
-        whole.scale = [scale] * 3
-        whole.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
         hulls, volumes = [], []
         for k, (v, f) in enumerate(p.hulls):
             hull = self.spec.add_mesh(name=f"{base}/hull{k}")
-            hull.uservert = np.asarray(v, np.float64).ravel().tolist()
-            hull.userface = np.asarray(f, np.int32).ravel().tolist()
+            hull.uservert = np.asarray(v, np.float64).ravel()
+            hull.userface = np.asarray(f, np.int32).ravel()
             hull.scale = [scale] * 3
             hull.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
             hulls.append(hull.name)
-            volumes.append(float(trimesh.Trimesh(np.asarray(v), np.asarray(f), process=False).volume) * scale**3)
-        asset = MeshAsset(base, visual, hulls, volumes, whole.name)
+            triangles = np.asarray(v, np.float64)[np.asarray(f, np.int64)]
+            volumes.append(float(trimesh.triangles.mass_properties(triangles)["volume"]) * scale**3)
+        asset = MeshAsset(base, visual, hulls, volumes, f"{base}/whole")
         self.added_meshes[key] = asset
         return asset
+
+    def whole(self, path: Path, scale: float) -> str:
+        """The whole mesh of an added ``.mbin`` as one MjSpec mesh (for ``collision="convex"``), added once."""
+        asset = self.mesh(path, scale)
+        if asset.whole not in self.added_whole:
+            p = self.packed(path)
+            whole = self.spec.add_mesh(name=asset.whole)
+            whole.uservert = np.asarray(p.positions, dtype=np.float64).ravel()
+            whole.userface = np.asarray(p.indices, dtype=np.int32).ravel()
+            whole.scale = [scale] * 3
+            whole.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
+            self.added_whole.add(asset.whole)
+        return asset.whole
 
     def texture_material(self, file: str, base_dir: Path) -> str:
         """A material showing the PNG ``file`` (relative to ``base_dir``), added once."""

@@ -55,7 +55,8 @@ class MeshEntity(Entity):
                 f"MeshEntity {self.name!r}: {self.asset} has no collision hulls "
                 "(convert it with obj2bin --hulls convex|decompose, or use collision='convex')"
             )
-        meshes = asset.hulls if self.collision == "hulls" else [asset.whole]
+        path = ctx.base_dir / Path(ctx.asset_paths.get(self.asset, self.asset))
+        meshes = asset.hulls if self.collision == "hulls" else [ctx.assets.whole(path, self.scale)]
         volumes = asset.hull_volumes if self.collision == "hulls" else [1.0]
         for k, mesh in enumerate(meshes):
             geom = body.add_geom(name=ctx.name(f"collision{k}"), type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh)

@@ -128,7 +128,7 @@ def test_mesh_entity_settles_on_its_hulls_and_assets_are_added_once():
         world.step()
         lowest = min(lowest, *(world.body(f"head{k}").xpos[2] for k in range(3)))
     model = world.model
-    assert model.nmesh == 3  # one visual, one whole, one hull: shared by the three entities
+    assert model.nmesh == 2  # one visual mesh and one hull, shared by the three entities
     assert model.ntex == 2  # the head's texture (once) and the ground's checker
     for k in range(3):
         body = world.body(f"head{k}")
