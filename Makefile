@@ -34,6 +34,7 @@ test: $(STAMP) lint
 bench: $(STAMP)
 	$(BIN)/python bench/parse.py ../shared/corpus
 	$(BIN)/python bench/load.py ../shared/corpus
+	$(BIN)/python bench/world.py ../shared/corpus
 
 PEERS := .bench-peers
 $(PEERS)/bin/obj2mjcf:

@@ -183,6 +183,9 @@ class World:
             model = spec.compile()
         except ValueError as exc:
             raise CompileError(f"MuJoCo cannot compile the world: {exc}") from None
+        main = [full for full, e in self._entities.items() if isinstance(e, Camera) and e.main]
+        if main:
+            model.vis.global_.cameraid = model.camera(main[0]).id  # the main view renders from this camera
         self._spec, self._model, self._data = spec, model, mujoco.MjData(model)
         self._hooked = [e for e in self._entities.values() if type(e).before_step is not Entity.before_step]
         mujoco.mj_forward(model, self._data)

@@ -13,6 +13,7 @@ from simrun import (
     Camera,
     EntityError,
     Ground,
+    HeightField,
     Light,
     Material,
     MeshEntity,
@@ -253,3 +254,26 @@ def test_check_fails_on_a_broken_scene(tmp_path):
     result = CliRunner().invoke(main, ["check", str(path)])
     assert result.exit_code == 1
     assert result.stderr.startswith("error: ") and "missing.mbin" in result.stderr
+
+
+def test_height_field_camera_and_lights():
+    world = World(base_dir=SCENES)
+    bumps = [[0.0, 0.5, 1.0], [0.5, 1.0, 0.5], [1.0, 0.5, 0.0]]
+    world.insert(HeightField(name="terrain", heights=bumps, size=(1.0, 1.0, 0.2, 0.05)))
+    world.insert(Light(name="spot", kind="spot", pose=Pose((0, 0, 2))))
+    world.insert(Camera(name="view", eye=(2.0, 0.0, 1.0), target=(0.0, 0.0, 0.0), main=True, fovy=60.0))
+    world.insert(Sphere(name="ball", radius=0.05, pose=Pose((0.9, 0.9, 0.6)), free=True))
+    world.run(1.0)
+    model = world.model
+    assert (model.nhfield, model.hfield_nrow[0], model.hfield_ncol[0]) == (1, 3, 3)
+    np.testing.assert_allclose(model.hfield_data, np.array(bumps).ravel())
+    assert model.vis.global_.cameraid == model.camera("view").id and model.cam_fovy[0] == 60.0
+    # the camera looks at the target: its -Z axis points from the eye to the origin
+    forward = -world.data.cam_xmat[0].reshape(3, 3)[:, 2]
+    np.testing.assert_allclose(forward, -np.array([2.0, 0, 1.0]) / np.sqrt(5), atol=1e-9)
+    assert model.light_type[0] == mujoco.mjtLightType.mjLIGHT_SPOT
+    assert world.body("ball").xpos[2] < 0.6  # it fell onto the terrain
+    with pytest.raises(EntityError, match="exactly one of heights and image"):
+        bad = World()
+        bad.insert(HeightField(name="t"))
+        bad.compile()
