@@ -1,11 +1,11 @@
-"""Atomic file output for simrun (temporary file in the same folder, then a rename)."""
+"""Atomic file output for simrun, through meshtool's writer (temporary file, then a rename)."""
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
+from meshtool.errors import OutputError
+from meshtool.outdir import write_file
 from simrun.errors import SimrunError
 
 
@@ -16,18 +16,9 @@ def write_bytes(path: Path, data: bytes) -> None:
         SimrunError: The folder cannot be written.
     """
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as handle:
-                handle.write(data)
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, path)
-        except BaseException:
-            os.unlink(tmp)
-            raise
-    except OSError as exc:
-        raise SimrunError(f"{path}: cannot write: {exc.strerror}") from None
+        write_file(path, data)
+    except OutputError as exc:
+        raise SimrunError(exc.one_line()) from None
 
 
 def write_text(path: Path, text: str) -> None:

@@ -83,11 +83,9 @@ class Sphere(Shape):
 
 
 @dataclass(kw_only=True)
-class Capsule(Shape):
-    """A capsule along its local Z: ``radius`` and cylinder ``length`` (without the caps), metres."""
+class _Rod(Shape):
+    """A round shape along its local Z: ``radius`` and ``length`` (without caps), metres."""
 
-    TYPE: ClassVar[str] = "Capsule"
-    GEOM: ClassVar[int] = mujoco.mjtGeom.mjGEOM_CAPSULE
     radius: float = 0.05
     length: float = 0.1
 
@@ -98,15 +96,16 @@ class Capsule(Shape):
 
 
 @dataclass(kw_only=True)
-class Cylinder(Shape):
+class Capsule(_Rod):
+    """A capsule along its local Z: ``radius`` and cylinder ``length`` (without the caps), metres."""
+
+    TYPE: ClassVar[str] = "Capsule"
+    GEOM: ClassVar[int] = mujoco.mjtGeom.mjGEOM_CAPSULE
+
+
+@dataclass(kw_only=True)
+class Cylinder(_Rod):
     """A cylinder along its local Z: ``radius`` and ``length``, metres."""
 
     TYPE: ClassVar[str] = "Cylinder"
     GEOM: ClassVar[int] = mujoco.mjtGeom.mjGEOM_CYLINDER
-    radius: float = 0.05
-    length: float = 0.1
-
-    def size(self) -> list[float]:
-        """Radius and half length."""
-        check_positive(self, radius=self.radius, length=self.length)
-        return [self.radius, self.length / 2, 0.0]
