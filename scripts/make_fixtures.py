@@ -310,7 +310,9 @@ def scenes() -> None:
     rgb = np.stack([40 + 60 * land, 90 + 90 * land, 200 - 150 * land], axis=2).astype(np.uint8)
     image(folder / "globe.png", Image.fromarray(rgb, "RGB"), "PNG")
     convert(ROOT / "head" / "Head 1.obj", folder / "head.mbin", ConvertOptions(NormaliseOptions(units="cm")))
-    write(folder / "basic.toml", """# The seed's basic environment: sky, ground, a 0.2 m box of 100 kg, a textured globe of 10 kg.
+    write(
+        folder / "basic.toml",
+        """# The seed's basic environment: sky, ground, a 0.2 m box (100 kg), a globe (10 kg).
 [world]
 timestep = 0.002
 
@@ -352,8 +354,11 @@ name = "view"
 main = true
 eye = [2.0, -2.0, 1.2]
 target = [0.0, 0.0, 0.2]
-""")
-    write(folder / "head_on_table.toml", """# The packed seed head (collision: its convex hull) dropped onto a table.
+""",
+    )
+    write(
+        folder / "head_on_table.toml",
+        """# The packed seed head (collision: its convex hull) dropped onto a table.
 [world]
 timestep = 0.002
 
@@ -382,7 +387,8 @@ asset = "head"
 free = true
 mass = 2.0
 pose = { position = [0.0, 0.0, 0.9] }
-""")
+""",
+    )
 
 
 def main() -> None:
