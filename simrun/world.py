@@ -71,6 +71,8 @@ class World:
         self._assets = AssetLibrary(mujoco.MjSpec())
         self._hooked: list[Entity] = []
         self.services: list[dict[str, Any]] = []
+        #: Runtime controllers (services, sensors): ``before_step(model, data)`` / ``after_step(model, data)``.
+        self.controllers: list[Any] = []
         #: Asset names (used by ``MeshEntity.asset``) to ``.mbin`` paths relative to ``base_dir``.
         self.assets: dict[str, str] = {}
 
@@ -218,19 +220,33 @@ class World:
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps, calling every entity's ``before_step`` hook before each."""
         model, data = self.model, self.data
+        controllers = self.controllers
         for _ in range(n):
             for entity in self._hooked:
                 entity.before_step(model, data)
+            for controller in controllers:
+                controller.before_step(model, data)
             mujoco.mj_step(model, data)
+            for controller in controllers:
+                controller.after_step(model, data)
 
     def run(self, seconds: float) -> None:
         """Step until ``seconds`` of simulated time have passed."""
         self.step(round(seconds / self.options.timestep))
 
+    def run_until(self, done: Any, timeout: float) -> bool:
+        """Step until ``done()`` is true or ``timeout`` simulated seconds pass; returns ``done()``."""
+        end = self.data.time + timeout
+        while not done() and self.data.time < end:
+            self.step()
+        return bool(done())
+
     def reset(self) -> None:
-        """Back to the initial state (time 0, initial poses)."""
+        """Back to the initial state (time 0, initial poses); controllers are reset too."""
         mujoco.mj_resetData(self.model, self.data)
         mujoco.mj_forward(self.model, self.data)
+        for controller in self.controllers:
+            controller.reset(self.model, self.data)
 
     def warnings(self) -> dict[str, int]:
         """MuJoCo warnings raised so far, by name."""

@@ -1,0 +1,263 @@
+"""Sensors bound to entities, evaluated at their own rate on the simulation clock, with seeded noise.
+
+Each sensor is a world controller: after a physics step, when its next sample time has come, it computes a
+reading (a plain dataclass with the simulation time) from model and data. Noise comes from a
+``numpy.random.Generator`` seeded per sensor, so runs are deterministic.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from simrun.errors import EntityError
+from simrun.world import World
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class Sensor(abc.ABC):
+    """Base: sampling at ``rate`` Hz (0: every step) on the simulation clock.
+
+    Args:
+        world: The world.
+        entity: Full name of the entity whose body carries the sensor.
+        rate: Samples per simulated second; 0 samples after every step.
+        noise: Standard deviation of additive Gaussian noise (sensor units).
+        seed: Seed of the noise generator.
+    """
+
+    def __init__(self, world: World, entity: str, rate: float = 0.0, noise: float = 0.0, seed: int = 0) -> None:
+        world.entity(entity)
+        if rate < 0 or noise < 0:
+            raise EntityError("sensor rate and noise must be >= 0")
+        self.world, self.entity, self.rate, self.noise, self.seed = world, entity, rate, noise, seed
+        self.rng = np.random.default_rng(seed)
+        self.reading: Any = None
+        self.samples = 0
+        self._next = 0.0
+        world.controllers.append(self)
+
+    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Sensors act after the step."""
+
+    def after_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Sample when due."""
+        if self.rate and data.time + 1e-12 < self._next:
+            return
+        self.reading = self.sample(model, data)
+        self.samples += 1
+        if self.rate:
+            self._next += 1.0 / self.rate
+            while self._next <= data.time:
+                self._next += 1.0 / self.rate
+
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Back to time 0: no reading, the noise generator restarted."""
+        self.reading, self.samples, self._next = None, 0, 0.0
+        self.rng = np.random.default_rng(self.seed)
+
+    @abc.abstractmethod
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> Any:
+        """One reading (each sensor defines it)."""
+
+    def _noisy(self, values: FloatArray) -> FloatArray:
+        if self.noise == 0:
+            return values
+        noisy: FloatArray = values + self.rng.normal(0.0, self.noise, values.shape)
+        return noisy
+
+
+@dataclass(frozen=True, slots=True)
+class LaserScan:
+    """A planar scan.
+
+    Attributes:
+        time: Simulation time, s.
+        angles: (n,) ray angles in the sensor frame, radians (0 ahead, counter-clockwise).
+        ranges: (n,) distances, metres; ``max_range`` where nothing was hit.
+        points: (n, 3) world positions of the hits (NaN for misses), when requested.
+    """
+
+    time: float
+    angles: FloatArray
+    ranges: FloatArray
+    points: FloatArray | None
+
+
+class LaserRangeFinder(Sensor):
+    """A planar laser range finder, rays cast with ``mj_multiRay`` outside the physics step.
+
+    Args:
+        world: The world.
+        entity: Robot entity; the robot's own body is excluded from hits.
+        height: Mounting height above the body origin, metres (MSRS: 0.3 m above the base).
+        fov_deg: Field of view, degrees, centred ahead.
+        rays: Number of rays.
+        max_range: Metres.
+        rate: Hz.
+        noise: Range noise standard deviation, metres.
+        points: Also return hit points.
+        seed: Noise seed.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        entity: str,
+        height: float = 0.3,
+        fov_deg: float = 180.0,
+        rays: int = 181,
+        max_range: float = 8.0,
+        rate: float = 10.0,
+        noise: float = 0.0,
+        points: bool = False,
+        seed: int = 0,
+    ) -> None:
+        super().__init__(world, entity, rate, noise, seed)
+        if rays < 1 or max_range <= 0 or not 0 < fov_deg <= 360:
+            raise EntityError("laser: rays >= 1, max_range > 0, 0 < fov <= 360")
+        self.height, self.max_range, self.points = height, max_range, points
+        span = math.radians(fov_deg)
+        if fov_deg == 360:
+            self.angles = np.linspace(-math.pi, math.pi, rays, endpoint=False)
+        else:
+            self.angles = np.linspace(-span / 2, span / 2, rays)
+        self._local = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros(rays)], axis=1)
+        self._geomid = np.zeros(rays, dtype=np.int32)
+        self._dist = np.zeros(rays)
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> LaserScan:
+        """Cast all rays from the mounting point in the body's heading plane."""
+        body = data.body(self.entity)
+        rotation = body.xmat.reshape(3, 3)
+        origin = body.xpos + rotation @ np.array([0.0, 0.0, self.height])
+        directions = (self._local @ rotation.T).ravel()
+        mujoco.mj_multiRay(model, data, origin, directions, None, 1, model.body(self.entity).id, self._geomid,
+                           self._dist, None, len(self.angles), self.max_range)
+        ranges = np.where(self._geomid >= 0, self._dist, self.max_range)
+        ranges = np.clip(self._noisy(ranges), 0.0, self.max_range)
+        hits = None
+        if self.points:
+            hits = origin + directions.reshape(-1, 3) * ranges[:, None]
+            hits[self._geomid < 0] = np.nan
+        return LaserScan(float(data.time), self.angles, ranges, hits)
+
+
+@dataclass(frozen=True, slots=True)
+class BumperReading:
+    """Contact of the robot's chassis with anything not part of the robot."""
+
+    time: float
+    pressed: bool
+    touching: tuple[str, ...]
+
+
+class Bumper(Sensor):
+    """Reports contact between a geom of the entity (default its ``chassis``) and other bodies."""
+
+    def __init__(self, world: World, entity: str, geom: str = "chassis", rate: float = 0.0) -> None:
+        super().__init__(world, entity, rate)
+        self.geom = f"{entity}/{geom}"
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> BumperReading:
+        """Names of the geoms touching the bumper geom (excluding the robot's own)."""
+        gid = model.geom(self.geom).id
+        prefix = self.entity + "/"
+        touching = []
+        for i in range(data.ncon):
+            c = data.contact[i]
+            if gid in (c.geom1, c.geom2):
+                other = model.geom(c.geom2 if c.geom1 == gid else c.geom1).name
+                if not other.startswith(prefix):
+                    touching.append(other)
+        return BumperReading(float(data.time), bool(touching), tuple(sorted(set(touching))))
+
+
+@dataclass(frozen=True, slots=True)
+class EncoderReading:
+    """Wheel angles (radians) and angular velocities (rad/s)."""
+
+    time: float
+    angles: tuple[float, ...]
+    velocities: tuple[float, ...]
+
+
+class Encoders(Sensor):
+    """Joint encoders of named joints of an entity (default the two drive wheels)."""
+
+    def __init__(self, world: World, entity: str, joints: tuple[str, ...] = ("left_wheel", "right_wheel"),
+                 rate: float = 50.0, noise: float = 0.0, seed: int = 0) -> None:
+        super().__init__(world, entity, rate, noise, seed)
+        self.joints = tuple(f"{entity}/{j}" for j in joints)
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> EncoderReading:
+        """Angles and velocities of the joints."""
+        angles = np.array([data.joint(j).qpos[0] for j in self.joints])
+        velocities = np.array([data.joint(j).qvel[0] for j in self.joints])
+        return EncoderReading(float(data.time), tuple(self._noisy(angles).tolist()), tuple(velocities.tolist()))
+
+
+@dataclass(frozen=True, slots=True)
+class GPSReading:
+    """Position in metres (world frame), and latitude/longitude when an origin was given."""
+
+    time: float
+    position: tuple[float, float, float]
+    latitude: float | None
+    longitude: float | None
+
+
+class GPS(Sensor):
+    """Body position with noise; optional geodetic coordinates around ``origin`` (lat, lon degrees, +X east)."""
+
+    EARTH_RADIUS = 6_378_137.0
+
+    def __init__(self, world: World, entity: str, rate: float = 1.0, noise: float = 0.0, seed: int = 0,
+                 origin: tuple[float, float] | None = None) -> None:
+        super().__init__(world, entity, rate, noise, seed)
+        self.origin = origin
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> GPSReading:
+        """Noisy position (and latitude/longitude)."""
+        p = self._noisy(np.array(data.body(self.entity).xpos, dtype=np.float64))
+        lat = lon = None
+        if self.origin is not None:
+            lat0, lon0 = self.origin
+            lat = lat0 + math.degrees(p[1] / self.EARTH_RADIUS)
+            lon = lon0 + math.degrees(p[0] / (self.EARTH_RADIUS * math.cos(math.radians(lat0))))
+        return GPSReading(float(data.time), (float(p[0]), float(p[1]), float(p[2])), lat, lon)
+
+
+@dataclass(frozen=True, slots=True)
+class IMUReading:
+    """Body-frame angular velocity (rad/s), linear acceleration (m/s^2, with gravity) and orientation (w, x, y, z)."""
+
+    time: float
+    gyro: tuple[float, float, float]
+    accelerometer: tuple[float, float, float]
+    orientation: tuple[float, float, float, float]
+
+
+class IMU(Sensor):
+    """Gyro, accelerometer and orientation of an entity's body."""
+
+    def __init__(self, world: World, entity: str, rate: float = 100.0, noise: float = 0.0, seed: int = 0) -> None:
+        super().__init__(world, entity, rate, noise, seed)
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> IMUReading:
+        """Readings from the body's spatial velocity and acceleration (mj_rnePostConstraint)."""
+        mujoco.mj_rnePostConstraint(model, data)
+        body = data.body(self.entity)
+        rotation = body.xmat.reshape(3, 3)
+        gyro = self._noisy(rotation.T @ body.cvel[:3])
+        accel = self._noisy(rotation.T @ body.cacc[3:])  # at the subtree centre of mass; at rest it reads +g up
+        q = body.xquat
+        return IMUReading(float(data.time), tuple(gyro.tolist()), tuple(accel.tolist()),  # type: ignore[arg-type]
+                          (float(q[0]), float(q[1]), float(q[2]), float(q[3])))
