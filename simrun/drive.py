@@ -61,33 +61,61 @@ class DifferentialDrive(Entity):
     def build(self, body: Any, ctx: BuildContext) -> None:
         """Chassis, wheels with hinge joints and motors, caster."""
         length, width, height = self.chassis_dimensions
-        check_positive(self, mass=self.mass, length=length, width=width, height=height, wheel_radius=self.wheel_radius,
-                       wheel_width=self.wheel_width, caster_radius=self.caster_radius,
-                       motor_torque_scaling=self.motor_torque_scaling, wheel_mass=self.wheel_mass)
+        check_positive(
+            self,
+            mass=self.mass,
+            length=length,
+            width=width,
+            height=height,
+            wheel_radius=self.wheel_radius,
+            wheel_width=self.wheel_width,
+            caster_radius=self.caster_radius,
+            motor_torque_scaling=self.motor_torque_scaling,
+            wheel_mass=self.wheel_mass,
+        )
         if abs(self.axle_offset) >= length / 2:
             raise EntityError(f"{self.TYPE} {self.name!r}: axle_offset must lie within the chassis length")
         bottom = self.chassis_clearance
-        body.add_geom(name=ctx.name("chassis"), type=mujoco.mjtGeom.mjGEOM_BOX, size=[length / 2, width / 2, height / 2],
-                      pos=[0.0, 0.0, bottom + height / 2], mass=self.mass, rgba=list(self.color))
+        body.add_geom(
+            name=ctx.name("chassis"),
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[length / 2, width / 2, height / 2],
+            pos=[0.0, 0.0, bottom + height / 2],
+            mass=self.mass,
+            rgba=list(self.color),
+        )
         caster_x = -math.copysign(length / 2 - self.caster_radius, self.axle_offset or 1.0)
-        caster = body.add_geom(name=ctx.name("caster"), type=mujoco.mjtGeom.mjGEOM_SPHERE,
-                               size=[self.caster_radius, 0, 0], pos=[caster_x, 0.0, self.caster_radius],
-                               mass=0.001, rgba=[0.3, 0.3, 0.3, 1.0])
+        caster = body.add_geom(
+            name=ctx.name("caster"),
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=[self.caster_radius, 0, 0],
+            pos=[caster_x, 0.0, self.caster_radius],
+            mass=0.001,
+            rgba=[0.3, 0.3, 0.3, 1.0],
+        )
         # frictionless: carries weight, never steers. MuJoCo takes the larger condim of a contact pair unless one
         # geom has priority, so the caster gets priority over the ground.
         caster.condim, caster.priority, caster.friction = 1, 2, [0.0, 0.0, 0.0]
         body.add_site(name=ctx.name("centre"), pos=[0.0, 0.0, bottom + height / 2])
         for side, sign in (("left", 1.0), ("right", -1.0)):
-            wheel = body.add_body(name=ctx.name(f"{side}_wheel"), pos=[self.axle_offset, sign * self.track / 2,
-                                                                       self.wheel_radius])
-            wheel.add_joint(name=ctx.name(f"{side}_wheel"), type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0],
-                            damping=0.0001)
-            tyre = wheel.add_geom(name=ctx.name(f"{side}_tyre"), type=mujoco.mjtGeom.mjGEOM_CYLINDER,
-                                  size=[self.wheel_radius, self.wheel_width / 2, 0], quat=_QUAT_Y_AXIS,
-                                  mass=self.wheel_mass, rgba=[0.1, 0.1, 0.1, 1.0])
+            wheel = body.add_body(
+                name=ctx.name(f"{side}_wheel"), pos=[self.axle_offset, sign * self.track / 2, self.wheel_radius]
+            )
+            wheel.add_joint(
+                name=ctx.name(f"{side}_wheel"), type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0], damping=0.0001
+            )
+            tyre = wheel.add_geom(
+                name=ctx.name(f"{side}_tyre"),
+                type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                size=[self.wheel_radius, self.wheel_width / 2, 0],
+                quat=_QUAT_Y_AXIS,
+                mass=self.wheel_mass,
+                rgba=[0.1, 0.1, 0.1, 1.0],
+            )
             tyre.friction = [self.wheel_friction, 0.005, 0.0001]
-            motor = ctx.spec.add_actuator(name=ctx.name(f"{side}_motor"), target=ctx.name(f"{side}_wheel"),
-                                          trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            motor = ctx.spec.add_actuator(
+                name=ctx.name(f"{side}_motor"), target=ctx.name(f"{side}_wheel"), trntype=mujoco.mjtTrn.mjTRN_JOINT
+            )
             motor.gear[0] = self.motor_torque_scaling
             motor.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
             motor.ctrlrange = [-1.0, 1.0]

@@ -129,12 +129,18 @@ class DriveService:
         self._require_enabled()
         left, right = self.encoders()
         self._mode = "rotate"
-        self._goal = {"start": (right - left) / 2, "arc": math.radians(degrees) * self.separation / 2,
-                      "speed": self._top_speed(power) * 0.5}
+        self._goal = {
+            "start": (right - left) / 2,
+            "arc": math.radians(degrees) * self.separation / 2,
+            "speed": self._top_speed(power) * 0.5,
+        }
 
     def cmd_vel(self, linear: float, angular: float) -> None:
-        """ROS-style velocity command (m/s, rad/s), limited in value and acceleration; expires after
-        ``limits.command_timeout`` seconds without a new command."""
+        """ROS-style velocity command (m/s, rad/s).
+
+        Limited in value and acceleration by ``limits``; it expires after ``limits.command_timeout`` seconds
+        without a new command.
+        """
         self._require_enabled()
         self._mode, self._cmd, self._cmd_time = "cmd_vel", (float(linear), float(angular)), self._time()
 
@@ -198,8 +204,12 @@ class DriveService:
         heading = o.theta + dtheta / 2
         dt = model.opt.timestep
         self._odom = Odometry(
-            float(data.time), o.x + ds * math.cos(heading), o.y + ds * math.sin(heading), o.theta + dtheta,
-            ds / dt, dtheta / dt,
+            float(data.time),
+            o.x + ds * math.cos(heading),
+            o.y + ds * math.sin(heading),
+            o.theta + dtheta,
+            ds / dt,
+            dtheta / dt,
         )
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:

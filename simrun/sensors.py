@@ -44,7 +44,7 @@ class Sensor(abc.ABC):
         self._next = 0.0
         world.controllers.append(self)
 
-    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:  # noqa: B027 - intentionally empty
         """Sensors act after the step."""
 
     def after_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -139,8 +139,20 @@ class LaserRangeFinder(Sensor):
         rotation = body.xmat.reshape(3, 3)
         origin = body.xpos + rotation @ np.array([0.0, 0.0, self.height])
         directions = (self._local @ rotation.T).ravel()
-        mujoco.mj_multiRay(model, data, origin, directions, None, 1, model.body(self.entity).id, self._geomid,
-                           self._dist, None, len(self.angles), self.max_range)
+        mujoco.mj_multiRay(
+            model,
+            data,
+            origin,
+            directions,
+            None,
+            1,
+            model.body(self.entity).id,
+            self._geomid,
+            self._dist,
+            None,
+            len(self.angles),
+            self.max_range,
+        )
         ranges = np.where(self._geomid >= 0, self._dist, self.max_range)
         ranges = np.clip(self._noisy(ranges), 0.0, self.max_range)
         hits = None
@@ -192,8 +204,15 @@ class EncoderReading:
 class Encoders(Sensor):
     """Joint encoders of named joints of an entity (default the two drive wheels)."""
 
-    def __init__(self, world: World, entity: str, joints: tuple[str, ...] = ("left_wheel", "right_wheel"),
-                 rate: float = 50.0, noise: float = 0.0, seed: int = 0) -> None:
+    def __init__(
+        self,
+        world: World,
+        entity: str,
+        joints: tuple[str, ...] = ("left_wheel", "right_wheel"),
+        rate: float = 50.0,
+        noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
         super().__init__(world, entity, rate, noise, seed)
         self.joints = tuple(f"{entity}/{j}" for j in joints)
 
@@ -219,8 +238,15 @@ class GPS(Sensor):
 
     EARTH_RADIUS = 6_378_137.0
 
-    def __init__(self, world: World, entity: str, rate: float = 1.0, noise: float = 0.0, seed: int = 0,
-                 origin: tuple[float, float] | None = None) -> None:
+    def __init__(
+        self,
+        world: World,
+        entity: str,
+        rate: float = 1.0,
+        noise: float = 0.0,
+        seed: int = 0,
+        origin: tuple[float, float] | None = None,
+    ) -> None:
         super().__init__(world, entity, rate, noise, seed)
         self.origin = origin
 
@@ -259,5 +285,9 @@ class IMU(Sensor):
         gyro = self._noisy(rotation.T @ body.cvel[:3])
         accel = self._noisy(rotation.T @ body.cacc[3:])  # at the subtree centre of mass; at rest it reads +g up
         q = body.xquat
-        return IMUReading(float(data.time), tuple(gyro.tolist()), tuple(accel.tolist()),  # type: ignore[arg-type]
-                          (float(q[0]), float(q[1]), float(q[2]), float(q[3])))
+        return IMUReading(
+            float(data.time),
+            tuple(gyro.tolist()),
+            tuple(accel.tolist()),
+            (float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+        )
