@@ -391,6 +391,42 @@ pose = { position = [0.0, 0.0, 0.9] }
     )
 
 
+BOEBOT_SCENE = """# The seed's Boe-Bot scene: sky, ground, a Boe-Bot at (1, 1) with a drive service, a 0.2 m box.
+[world]
+timestep = 0.002
+
+[[entities]]
+type = "Sky"
+name = "sky"
+
+[[entities]]
+type = "Ground"
+name = "ground"
+
+[[entities]]
+type = "BoeBot"
+name = "boebot"
+pose = { position = [1.0, 1.0, 0.001] }
+
+[[entities]]
+type = "Box"
+name = "box"
+mass = 5.0
+free = true
+dimensions = [0.2, 0.2, 0.2]
+pose = { position = [1.6, 1.0, 0.1] }
+
+[[services]]
+type = "DriveService"
+entity = "boebot"
+"""
+
+
+def robot_scenes() -> None:
+    """Scenes with robots (the drive stack)."""
+    write(ROOT / "scenes" / "boebot.toml", BOEBOT_SCENE)
+
+
 def main() -> None:
     for child in ROOT.iterdir():
         if child.is_dir() and child.name != "golden":  # goldens are written once, never regenerated here
@@ -399,6 +435,7 @@ def main() -> None:
     simple_cases()
     bowl()
     scenes()
+    robot_scenes()
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ from typing import Any
 
 import tomli_w
 
+from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
 from simrun.entity import Entity, Material
 from simrun.environment import Camera, Ground, HeightField, Light, Sky
 from simrun.errors import EntityError, SceneError
@@ -27,7 +28,24 @@ from simrun.shapes import Box, Capsule, Cylinder, Sphere
 from simrun.world import World, WorldOptions
 
 ENTITY_TYPES: dict[str, type[Entity]] = {
-    cls.TYPE: cls for cls in (Box, Sphere, Capsule, Cylinder, MeshEntity, Ground, HeightField, Sky, Light, Camera)
+    cls.TYPE: cls
+    for cls in (
+        Box,
+        Sphere,
+        Capsule,
+        Cylinder,
+        MeshEntity,
+        Ground,
+        HeightField,
+        Sky,
+        Light,
+        Camera,
+        DifferentialDrive,
+        BoeBot,
+        Pioneer3DX,
+        IRobotCreate,
+        LegoNxtTribot,
+    )
 }
 _TOP = ("world", "assets", "entities", "services")
 _BASE = ("type", "name", "parent", "pose", "free", "kinematic")

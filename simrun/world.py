@@ -73,6 +73,7 @@ class World:
         self.services: list[dict[str, Any]] = []
         #: Runtime controllers (services, sensors): ``before_step(model, data)`` / ``after_step(model, data)``.
         self.controllers: list[Any] = []
+        self._bound: dict[tuple[str, str], Any] = {}
         #: Asset names (used by ``MeshEntity.asset``) to ``.mbin`` paths relative to ``base_dir``.
         self.assets: dict[str, str] = {}
 
@@ -233,6 +234,24 @@ class World:
     def run(self, seconds: float) -> None:
         """Step until ``seconds`` of simulated time have passed."""
         self.step(round(seconds / self.options.timestep))
+
+    def service(self, kind: str, entity: str) -> Any:
+        """The service of type ``kind`` bound to ``entity`` (``[[services]]`` of a scene), created on first use.
+
+        Raises:
+            EntityError: No such binding, or an unknown service type.
+        """
+        if not any(s.get("type") == kind and s.get("entity") == entity for s in self.services):
+            raise EntityError(f"no {kind} is bound to {entity!r}; add it under [[services]] or create it in code")
+        key = (kind, entity)
+        if key not in self._bound:
+            from simrun.drive_service import DriveService
+
+            factories: dict[str, Any] = {"DriveService": DriveService}
+            if kind not in factories:
+                raise EntityError(f"unknown service type {kind!r} (known: {', '.join(factories)})")
+            self._bound[key] = factories[kind](self, entity)
+        return self._bound[key]
 
     def run_until(self, done: Any, timeout: float) -> bool:
         """Step until ``done()`` is true or ``timeout`` simulated seconds pass; returns ``done()``."""
