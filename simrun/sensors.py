@@ -23,7 +23,7 @@ FloatArray = npt.NDArray[np.float64]
 
 
 class Sensor(abc.ABC):
-    """Base: sampling at ``rate`` Hz (0: every step) on the simulation clock.
+    """Base: sampling at ``rate`` Hz (0: every step) on the simulation clock, the first sample at once.
 
     Args:
         world: The world.
@@ -41,26 +41,18 @@ class Sensor(abc.ABC):
         self.rng = np.random.default_rng(seed)
         self.reading: Any = None
         self.samples = 0
-        self._next = 0.0
+        self.period = 1.0 / rate if rate else 0.0
+        self.next_time = world.time
         world.controllers.append(self)
 
-    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:  # noqa: B027 - intentionally empty
-        """Sensors act after the step."""
-
-    def after_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """Sample when due."""
-        if self.rate and data.time + 1e-12 < self._next:
-            return
+    def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Take a sample (the world calls this when the sensor is due)."""
         self.reading = self.sample(model, data)
         self.samples += 1
-        if self.rate:
-            self._next += 1.0 / self.rate
-            while self._next <= data.time:
-                self._next += 1.0 / self.rate
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Back to time 0: no reading, the noise generator restarted."""
-        self.reading, self.samples, self._next = None, 0, 0.0
+        self.reading, self.samples = None, 0
         self.rng = np.random.default_rng(self.seed)
 
     @abc.abstractmethod
@@ -174,7 +166,7 @@ class BumperReading:
 class Bumper(Sensor):
     """Reports contact between a geom of the entity (default its ``chassis``) and other bodies."""
 
-    def __init__(self, world: World, entity: str, geom: str = "chassis", rate: float = 0.0) -> None:
+    def __init__(self, world: World, entity: str, geom: str = "chassis", rate: float = 50.0) -> None:
         super().__init__(world, entity, rate)
         self.geom = f"{entity}/{geom}"
 

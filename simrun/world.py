@@ -7,6 +7,7 @@ the body ``box`` and elements ``box/...``; a child ``wheel`` of ``robot`` is ``r
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -71,7 +72,7 @@ class World:
         self._assets = AssetLibrary(mujoco.MjSpec())
         self._hooked: list[Entity] = []
         self.services: list[dict[str, Any]] = []
-        #: Runtime controllers (services, sensors): ``before_step(model, data)`` / ``after_step(model, data)``.
+        #: Runtime controllers (services, sensors): ``tick(model, data)`` every ``period`` s from ``next_time``.
         self.controllers: list[Any] = []
         self._bound: dict[tuple[str, str], Any] = {}
         #: Asset names (used by ``MeshEntity.asset``) to ``.mbin`` paths relative to ``base_dir``.
@@ -195,6 +196,11 @@ class World:
         return model, self._data
 
     @property
+    def time(self) -> float:
+        """Simulation time, seconds (0 before the first compile)."""
+        return float(self._data.time) if self._data is not None else 0.0
+
+    @property
     def spec(self) -> mujoco.MjSpec:
         """The compiled spec."""
         if self._spec is None:
@@ -219,17 +225,34 @@ class World:
         return self._data
 
     def step(self, n: int = 1) -> None:
-        """Advance ``n`` physics steps, calling every entity's ``before_step`` hook before each."""
+        """Advance ``n`` physics steps.
+
+        Entity ``before_step`` hooks run before every step. Controllers (services, sensors) run when due on
+        the simulation clock (``tick`` every ``period`` seconds; controls hold between ticks); between
+        ticks the steps run inside MuJoCo (``mj_step`` with ``nstep``), so a controller at 100 Hz costs one
+        Python call per 10 ms of simulated time, not one per step.
+        """
         model, data = self.model, self.data
+        dt = model.opt.timestep
         controllers = self.controllers
-        for _ in range(n):
-            for entity in self._hooked:
-                entity.before_step(model, data)
+        remaining = n
+        while remaining > 0:
+            upcoming = math.inf
             for controller in controllers:
-                controller.before_step(model, data)
-            mujoco.mj_step(model, data)
-            for controller in controllers:
-                controller.after_step(model, data)
+                if data.time + 0.5 * dt >= controller.next_time:
+                    controller.tick(model, data)
+                    period = controller.period or dt
+                    while controller.next_time <= data.time + 0.5 * dt:
+                        controller.next_time += period
+                upcoming = min(upcoming, controller.next_time)
+            if self._hooked:
+                for entity in self._hooked:
+                    entity.before_step(model, data)
+                count = 1
+            else:
+                count = min(remaining, max(1, round((upcoming - data.time) / dt))) if upcoming < math.inf else remaining
+            mujoco.mj_step(model, data, count)
+            remaining -= count
 
     def run(self, seconds: float) -> None:
         """Step until ``seconds`` of simulated time have passed."""
@@ -266,6 +289,7 @@ class World:
         mujoco.mj_forward(self.model, self.data)
         for controller in self.controllers:
             controller.reset(self.model, self.data)
+            controller.next_time = 0.0
 
     def warnings(self) -> dict[str, int]:
         """MuJoCo warnings raised so far, by name."""
