@@ -124,29 +124,22 @@ class LaserRangeFinder(Sensor):
         self._local = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros(rays)], axis=1)
         self._geomid = np.zeros(rays, dtype=np.int32)
         self._dist = np.zeros(rays)
+        self._body, self._model_id = -1, 0
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> LaserScan:
         """Cast all rays from the mounting point in the body's heading plane."""
-        body = data.body(self.entity)
-        rotation = body.xmat.reshape(3, 3)
-        origin = body.xpos + rotation @ np.array([0.0, 0.0, self.height])
+        if self._model_id != id(model):
+            self._body, self._model_id = model.body(self.entity).id, id(model)
+        rotation = data.xmat[self._body].reshape(3, 3)
+        origin = data.xpos[self._body] + rotation[:, 2] * self.height
         directions = (self._local @ rotation.T).ravel()
+        rays = len(self.angles)
         mujoco.mj_multiRay(
-            model,
-            data,
-            origin,
-            directions,
-            None,
-            1,
-            model.body(self.entity).id,
-            self._geomid,
-            self._dist,
-            None,
-            len(self.angles),
-            self.max_range,
+            model, data, origin, directions, None, 1, self._body, self._geomid, self._dist, None, rays, self.max_range
         )
         ranges = np.where(self._geomid >= 0, self._dist, self.max_range)
-        ranges = np.clip(self._noisy(ranges), 0.0, self.max_range)
+        if self.noise:
+            ranges = np.clip(self._noisy(ranges), 0.0, self.max_range)
         hits = None
         if self.points:
             hits = origin + directions.reshape(-1, 3) * ranges[:, None]
