@@ -35,6 +35,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/parse.py ../shared/corpus
 	$(BIN)/python bench/load.py ../shared/corpus
 	$(BIN)/python bench/world.py ../shared/corpus
+	$(BIN)/python bench/drive.py .
 
 PEERS := .bench-peers
 $(PEERS)/bin/obj2mjcf:
