@@ -29,7 +29,8 @@ lint: $(STAMP)
 	$(BIN)/mypy
 
 test: $(STAMP) lint
-	$(BIN)/python -m pytest -q
+	bash scripts/install_gl.sh
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q
 
 bench: $(STAMP)
 	$(BIN)/python bench/parse.py ../shared/corpus

@@ -1,0 +1,254 @@
+"""Range cones (IR, sonar) and cameras (webcam, stereo) as sensors.
+
+Cameras render offscreen with ``mujoco.Renderer``; headless machines need ``MUJOCO_GL=egl`` (Mesa's
+libEGL) or ``osmesa`` set before mujoco is imported (``scripts/install_gl.sh`` installs the Debian
+packages). A camera that cannot get an OpenGL context raises :class:`~simrun.errors.SimrunError`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from simrun.entity import BuildContext, Entity, check_positive
+from simrun.errors import EntityError, SimrunError
+from simrun.sensors import Sensor
+from simrun.world import World
+
+
+@dataclass(frozen=True, slots=True)
+class RangeReading:
+    """Distance to the nearest object in the cone, metres (``max_range`` when nothing is seen)."""
+
+    time: float
+    distance: float
+    value: float
+
+
+class RangeCone(Sensor):
+    """A cone of rays (IR distance sensor, sonar) returning the nearest hit, through a response curve.
+
+    Args:
+        world: The world.
+        entity: Entity carrying the sensor; its body is excluded from hits.
+        offset: Mounting point in the body frame, metres.
+        direction: Viewing direction in the body frame.
+        cone_deg: Full cone angle, degrees (0: a single ray).
+        rays: Rays across the cone (per axis).
+        min_range: Shorter distances read as ``min_range``.
+        max_range: Nothing within it reads ``max_range``.
+        response: (distance, value) pairs; ``value`` is interpolated from the distance (default: the
+            distance itself).
+        rate: Hz.
+        noise: Distance noise, metres.
+        seed: Noise seed.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        entity: str,
+        offset: tuple[float, float, float] = (0.0, 0.0, 0.05),
+        direction: tuple[float, float, float] = (1.0, 0.0, 0.0),
+        cone_deg: float = 0.0,
+        rays: int = 1,
+        min_range: float = 0.0,
+        max_range: float = 1.0,
+        response: tuple[tuple[float, float], ...] | None = None,
+        rate: float = 20.0,
+        noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        super().__init__(world, entity, rate, noise, seed)
+        if max_range <= min_range or rays < 1 or cone_deg < 0:
+            raise EntityError("range cone: 0 <= min_range < max_range, rays >= 1, cone >= 0")
+        self.offset = np.asarray(offset, dtype=float)
+        self.min_range, self.max_range, self.response = min_range, max_range, response
+        forward = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+        helper = np.array([0.0, 0.0, 1.0]) if abs(forward[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        side = np.cross(helper, forward)
+        side /= np.linalg.norm(side)
+        up = np.cross(forward, side)
+        half = math.radians(cone_deg) / 2
+        offsets = np.linspace(-half, half, rays) if rays > 1 else np.zeros(1)
+        dirs = [
+            forward * math.cos(math.hypot(a, b))
+            + (side * a + up * b) * (math.sin(math.hypot(a, b)) / (math.hypot(a, b) or 1.0))
+            for a in offsets
+            for b in offsets
+        ]
+        self._local = np.asarray(dirs)
+        self._geomid = np.zeros(len(dirs), dtype=np.int32)
+        self._dist = np.zeros(len(dirs))
+        self._body, self._model_id = -1, 0
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> RangeReading:
+        """Nearest hit in the cone."""
+        if self._model_id != id(model):
+            self._body, self._model_id = model.body(self.entity).id, id(model)
+        rotation = data.xmat[self._body].reshape(3, 3)
+        origin = data.xpos[self._body] + rotation @ self.offset
+        directions = (self._local @ rotation.T).ravel()
+        mujoco.mj_multiRay(
+            model,
+            data,
+            origin,
+            directions,
+            None,
+            1,
+            self._body,
+            self._geomid,
+            self._dist,
+            None,
+            len(self._local),
+            self.max_range,
+        )
+        hit = self._dist[self._geomid >= 0]
+        distance = float(hit.min()) if hit.size else self.max_range
+        distance = float(
+            np.clip(distance + (self.rng.normal(0, self.noise) if self.noise else 0.0), self.min_range, self.max_range)
+        )
+        value = distance
+        if self.response:
+            xs, ys = zip(*self.response, strict=True)
+            value = float(np.interp(distance, xs, ys))
+        return RangeReading(float(data.time), distance, value)
+
+
+class IRDistance(RangeCone):
+    """A Sharp-style IR distance sensor: a narrow beam, 0.1 to 0.8 m."""
+
+    def __init__(self, world: World, entity: str, **kwargs: Any) -> None:
+        kwargs.setdefault("cone_deg", 2.0)
+        kwargs.setdefault("rays", 3)
+        kwargs.setdefault("min_range", 0.1)
+        kwargs.setdefault("max_range", 0.8)
+        super().__init__(world, entity, **kwargs)
+
+
+class Sonar(RangeCone):
+    """An ultrasonic range finder: a 30 degree cone, 0.02 to 4 m."""
+
+    def __init__(self, world: World, entity: str, **kwargs: Any) -> None:
+        kwargs.setdefault("cone_deg", 30.0)
+        kwargs.setdefault("rays", 7)
+        kwargs.setdefault("min_range", 0.02)
+        kwargs.setdefault("max_range", 4.0)
+        super().__init__(world, entity, **kwargs)
+
+
+@dataclass(kw_only=True)
+class StereoRig(Entity):
+    """Two cameras ``NAME/left`` and ``NAME/right`` a ``baseline`` apart along Y, looking along +X."""
+
+    TYPE: ClassVar[str] = "StereoRig"
+    baseline: float = 0.12
+    fovy: float = 60.0
+    resolution: tuple[int, int] = (320, 240)
+
+    def build(self, body: Any, ctx: BuildContext) -> None:
+        """Two cameras; MuJoCo cameras look along their -Z, so each is turned to look along the body's +X."""
+        check_positive(self, baseline=self.baseline, fovy=self.fovy)
+        look_x = [0.5, 0.5, -0.5, -0.5]  # camera -Z -> body +X, camera +Y -> body +Z
+        for side, sign in (("left", 1.0), ("right", -1.0)):
+            body.add_camera(
+                name=ctx.name(side),
+                pos=[0.0, sign * self.baseline / 2, 0.0],
+                quat=look_x,
+                fovy=self.fovy,
+                resolution=list(self.resolution),
+            )
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """One rendered image: RGB (H, W, 3) u8 and, when asked, depth (H, W) metres."""
+
+    time: float
+    rgb: npt.NDArray[np.uint8]
+    depth: npt.NDArray[np.float32] | None
+
+
+class _Eye:
+    """An offscreen renderer for one camera (created on first use, recreated when the model changes)."""
+
+    def __init__(self, camera: str, width: int, height: int, depth: bool) -> None:
+        self.camera, self.width, self.height, self.depth = camera, width, height, depth
+        self._renderer: Any = None
+        self._model_id = 0
+
+    def render(self, model: mujoco.MjModel, data: mujoco.MjData) -> Frame:
+        if self._renderer is None or self._model_id != id(model):
+            try:
+                self._renderer = mujoco.Renderer(model, self.height, self.width)
+            except Exception as exc:  # any GL failure: say how to get a context
+                raise SimrunError(
+                    f"no OpenGL context for camera {self.camera!r} ({exc}); on a headless machine install Mesa "
+                    "(scripts/install_gl.sh) and set MUJOCO_GL=egl or osmesa before importing mujoco"
+                ) from None
+            self._model_id = id(model)
+        renderer = self._renderer
+        renderer.update_scene(data, camera=self.camera)
+        rgb = renderer.render().copy()
+        depth = None
+        if self.depth:
+            renderer.enable_depth_rendering()
+            renderer.update_scene(data, camera=self.camera)
+            depth = renderer.render().copy()
+            renderer.disable_depth_rendering()
+        return Frame(float(data.time), rgb, depth)
+
+
+class Webcam(Sensor):
+    """Offscreen RGB (and optional depth) from a named MuJoCo camera.
+
+    Args:
+        world: The world.
+        camera: Camera name (a ``Camera`` entity's full name, or ``RIG/left``).
+        width: Pixels.
+        height: Pixels.
+        depth: Also render depth.
+        rate: Hz (0: every step).
+    """
+
+    def __init__(
+        self, world: World, camera: str, width: int = 320, height: int = 240, depth: bool = False, rate: float = 15.0
+    ) -> None:
+        entity = camera if camera in dict(world) else camera.rsplit("/", 1)[0]
+        super().__init__(world, entity, rate)
+        self.eye = _Eye(camera, width, height, depth)
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> Frame:
+        """Render the camera's view."""
+        return self.eye.render(model, data)
+
+
+@dataclass(frozen=True, slots=True)
+class StereoFrame:
+    """Left and right frames taken at the same simulation time."""
+
+    time: float
+    left: Frame
+    right: Frame
+
+
+class StereoCamera(Sensor):
+    """Both cameras of a :class:`StereoRig`, rendered together."""
+
+    def __init__(self, world: World, rig: str, depth: bool = False, rate: float = 15.0) -> None:
+        entity = world.entity(rig)
+        if not isinstance(entity, StereoRig):
+            raise EntityError(f"{rig!r} is not a StereoRig")
+        super().__init__(world, rig, rate)
+        width, height = entity.resolution
+        self.left = _Eye(f"{rig}/left", width, height, depth)
+        self.right = _Eye(f"{rig}/right", width, height, depth)
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> StereoFrame:
+        """Render both eyes."""
+        return StereoFrame(float(data.time), self.left.render(model, data), self.right.render(model, data))
