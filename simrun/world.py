@@ -151,6 +151,7 @@ class World:
         """A fresh spec with every entity built into it (assets added once, from memory)."""
         spec = mujoco.MjSpec()
         spec.modelname = "world"
+        spec.compiler.degree = False  # angles in radians (joint ranges), as everywhere in simrun
         spec.option.timestep = self.options.timestep
         spec.option.gravity = list(self.options.gravity)
         spec.option.integrator = INTEGRATORS[self.options.integrator]
