@@ -425,6 +425,75 @@ entity = "boebot"
 def robot_scenes() -> None:
     """Scenes with robots (the drive stack)."""
     write(ROOT / "scenes" / "boebot.toml", BOEBOT_SCENE)
+    walls = ""
+    for name, pos, dims in (
+        ("north", (0, 2, 0.25), (4, 0.1, 0.5)),
+        ("south", (0, -2, 0.25), (4, 0.1, 0.5)),
+        ("east", (2, 0, 0.25), (0.1, 4, 0.5)),
+        ("west", (-2, 0, 0.25), (0.1, 4, 0.5)),
+    ):
+        walls += (
+            f'\n[[entities]]\ntype = "Box"\nname = "wall_{name}"\ndimensions = [{dims[0]:.1f}, {dims[1]:.1f}, '
+            f"{dims[2]:.1f}]\npose = {{ position = [{pos[0]:.1f}, {pos[1]:.1f}, {pos[2]:.2f}] }}\n"
+        )
+    write(
+        ROOT / "scenes" / "pioneer_room.toml",
+        f"""# A Pioneer 3-DX with a 360-ray laser in a 4 x 4 m walled room.
+[world]
+timestep = 0.002
+
+[[entities]]
+type = "Ground"
+name = "ground"
+{walls}
+[[entities]]
+type = "Pioneer3DX"
+name = "p3dx"
+pose = {{ position = [0.5, 0.0, 0.001] }}
+
+[[services]]
+type = "DriveService"
+entity = "p3dx"
+
+[[sensors]]
+type = "LaserRangeFinder"
+name = "laser"
+entity = "p3dx"
+fov_deg = 360.0
+rays = 360
+rate = 10.0
+""",
+    )
+    write(
+        ROOT / "scenes" / "arm_on_base.toml",
+        """# A Lynx L6-style arm mounted on a Pioneer 3-DX (the seed's Corobot + Lynx arm case).
+[world]
+timestep = 0.002
+
+[[entities]]
+type = "Ground"
+name = "ground"
+
+[[entities]]
+type = "Pioneer3DX"
+name = "base"
+pose = { position = [0.0, 0.0, 0.001] }
+
+[[entities]]
+type = "LynxL6"
+name = "arm"
+parent = "base"
+pose = { position = [0.1, 0.0, 0.22] }
+
+[[services]]
+type = "DriveService"
+entity = "base"
+
+[[services]]
+type = "ArmService"
+entity = "base/arm"
+""",
+    )
 
 
 def main() -> None:

@@ -17,6 +17,7 @@ from typing import Any
 
 import tomli_w
 
+from simrun.arm import KukaLBR3, LynxL6
 from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
 from simrun.entity import Entity, Material
 from simrun.environment import Camera, Ground, HeightField, Light, Sky
@@ -45,9 +46,11 @@ ENTITY_TYPES: dict[str, type[Entity]] = {
         Pioneer3DX,
         IRobotCreate,
         LegoNxtTribot,
+        KukaLBR3,
+        LynxL6,
     )
 }
-_TOP = ("world", "assets", "entities", "services")
+_TOP = ("world", "assets", "entities", "services", "sensors")
 _BASE = ("type", "name", "parent", "pose", "free", "kinematic")
 
 
@@ -98,6 +101,14 @@ def load_scene(path: str | Path) -> World:
         if service["entity"] not in dict(world):
             raise SceneError(f"no entity named {service['entity']!r}", name, f"{key}.entity")
         world.services.append(dict(service))
+    sensors = doc.get("sensors", [])
+    if not isinstance(sensors, list):
+        raise SceneError("expected an array of tables ([[sensors]])", name, "sensors")
+    for k, spec in enumerate(sensors):
+        try:
+            world.add_sensor(dict(spec) if isinstance(spec, dict) else spec)
+        except (EntityError, TypeError, ValueError) as exc:
+            raise SceneError(str(exc), name, f"sensors[{k}]") from None
     return world
 
 
@@ -136,6 +147,8 @@ def scene_text(world: World) -> str:
         doc["entities"] = entities
     if world.services:
         doc["services"] = [dict(s) for s in world.services]
+    if world.sensor_specs:
+        doc["sensors"] = [dict(s) for s in world.sensor_specs]
     return tomli_w.dumps(doc)
 
 

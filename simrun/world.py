@@ -75,6 +75,9 @@ class World:
         #: Runtime controllers (services, sensors): ``tick(model, data)`` every ``period`` s from ``next_time``.
         self.controllers: list[Any] = []
         self._bound: dict[tuple[str, str], Any] = {}
+        #: Sensors created from ``[[sensors]]`` specs (or :meth:`add_sensor`), by name.
+        self.sensors: dict[str, Any] = {}
+        self.sensor_specs: list[dict[str, Any]] = []
         #: Asset names (used by ``MeshEntity.asset``) to ``.mbin`` paths relative to ``base_dir``.
         self.assets: dict[str, str] = {}
 
@@ -269,13 +272,53 @@ class World:
             raise EntityError(f"no {kind} is bound to {entity!r}; add it under [[services]] or create it in code")
         key = (kind, entity)
         if key not in self._bound:
+            from simrun.arm import ArmService
             from simrun.drive_service import DriveService
 
-            factories: dict[str, Any] = {"DriveService": DriveService}
+            factories: dict[str, Any] = {"DriveService": DriveService, "ArmService": ArmService}
             if kind not in factories:
                 raise EntityError(f"unknown service type {kind!r} (known: {', '.join(factories)})")
             self._bound[key] = factories[kind](self, entity)
         return self._bound[key]
+
+    def add_sensor(self, spec: dict[str, Any]) -> Any:
+        """Create a sensor from a spec ``{type, name, entity, ...parameters}`` (a ``[[sensors]]`` table).
+
+        Raises:
+            EntityError: Unknown type, missing or duplicate name, unknown entity or parameter.
+        """
+        from simrun.cameras import IRDistance, Sonar, Webcam
+        from simrun.sensors import GPS, IMU, Bumper, Encoders, LaserRangeFinder
+
+        kinds: dict[str, Any] = {
+            "LaserRangeFinder": LaserRangeFinder,
+            "Bumper": Bumper,
+            "Encoders": Encoders,
+            "GPS": GPS,
+            "IMU": IMU,
+            "IRDistance": IRDistance,
+            "Sonar": Sonar,
+            "Webcam": Webcam,
+        }
+        params = dict(spec)
+        kind, name = params.pop("type", None), params.pop("name", None)
+        if kind not in kinds:
+            raise EntityError(f"unknown sensor type {kind!r} (known: {', '.join(kinds)})")
+        if not isinstance(name, str) or name in self.sensors:
+            raise EntityError(f"a sensor needs a unique 'name', got {name!r}")
+        target = params.pop("camera" if kind == "Webcam" else "entity", None)
+        if not isinstance(target, str):
+            raise EntityError(f"sensor {name!r} needs an {'camera' if kind == 'Webcam' else 'entity'} string")
+        for key, value in params.items():
+            if isinstance(value, list):
+                params[key] = tuple(value)
+        try:
+            sensor = kinds[kind](self, target, **params)
+        except TypeError as exc:
+            raise EntityError(f"sensor {name!r}: {exc}") from None
+        self.sensors[name] = sensor
+        self.sensor_specs.append(dict(spec))
+        return sensor
 
     def run_until(self, done: Any, timeout: float) -> bool:
         """Step until ``done()`` is true or ``timeout`` simulated seconds pass; returns ``done()``."""

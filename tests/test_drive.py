@@ -182,3 +182,55 @@ def test_boebot_scene_drives_a_square_from_the_scene_file():
     assert np.linalg.norm(world.body("boebot").xpos[:2] - start) < 0.05  # back where it started
     with pytest.raises(EntityError, match="no DriveService is bound"):
         world.service("DriveService", "ground")
+
+
+@pytest.mark.parametrize("scene", ["boebot.toml", "pioneer_room.toml", "arm_on_base.toml"])
+def test_robot_scenes_check_and_round_trip(scene, tmp_path):
+    from click.testing import CliRunner
+
+    from simrun import save_scene, scene_text
+    from simrun.cli import main
+
+    result = CliRunner().invoke(main, ["check", str(SCENES / scene)])
+    assert result.exit_code == 0, result.output
+    world = load_scene(SCENES / scene)
+    saved = tmp_path / scene
+    save_scene(world, saved)
+    assert scene_text(load_scene(saved)) == saved.read_text()
+
+
+def test_pioneer_room_scene_laser_from_the_file():
+    world = load_scene(SCENES / "pioneer_room.toml")
+    laser = world.sensors["laser"]
+    world.run(0.25)
+    scan = laser.reading
+    for angle, distance in {0: 1.45, 90: 1.95, 180: 2.45}.items():
+        k = int(np.argmin(np.abs(np.degrees(scan.angles) - angle)))
+        assert scan.ranges[k] == pytest.approx(distance, abs=0.005)
+
+
+def test_arm_on_base_scene_drives_and_moves():
+    world = load_scene(SCENES / "arm_on_base.toml")
+    drive = world.service("DriveService", "base")
+    arm = world.service("ArmService", "base/arm")
+    world.run(0.3)
+    start = world.body("base").xpos.copy()
+    drive.drive_distance(0.3, power=0.5)
+    arm.move_to([0.4, 0.2, 0.5, -0.3, 0.1, 0.01], duration=1.5)
+    assert world.run_until(lambda: not drive.busy and not arm.busy, timeout=20)
+    world.run(0.5)
+    assert np.linalg.norm(world.body("base").xpos - start) == pytest.approx(0.3, abs=0.02)
+    np.testing.assert_allclose(arm.joint_states().positions, [0.4, 0.2, 0.5, -0.3, 0.1, 0.01], atol=0.01)
+
+
+def test_sensor_specs_are_checked(tmp_path):
+    from simrun import SceneError
+
+    path = tmp_path / "s.toml"
+    base = (SCENES / "pioneer_room.toml").read_text()
+    path.write_text(base.replace('type = "LaserRangeFinder"', 'type = "Lidar"'))
+    with pytest.raises(SceneError, match=r"sensors\[0\]: unknown sensor type 'Lidar'"):
+        load_scene(path)
+    path.write_text(base.replace("rays = 360", "rays = 360\nbeams = 3"))
+    with pytest.raises(SceneError, match=r"sensors\[0\]: sensor 'laser': .*beams"):
+        load_scene(path)
