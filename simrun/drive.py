@@ -36,6 +36,9 @@ class DifferentialDrive(Entity):
         motor_torque_scaling: Wheel torque in N m at power 1 (MSRS ``MotorTorqueScaling``).
         wheel_friction: Sliding friction of the tyres.
         color: RGBA of the chassis.
+        visual_mesh: Optional ``.mbin`` (an asset name or path) drawn on the chassis, massless and without
+            contacts (group 2); the chassis box stays the collision shape.
+        visual_offset: Position of the visual mesh on the body, metres.
     """
 
     TYPE: ClassVar[str] = "DifferentialDrive"
@@ -52,6 +55,8 @@ class DifferentialDrive(Entity):
     motor_torque_scaling: float = 0.04
     wheel_friction: float = 1.2
     color: tuple[float, float, float, float] = (0.2, 0.4, 0.8, 1.0)
+    visual_mesh: str | None = None
+    visual_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
     def track(self) -> float:
@@ -97,6 +102,18 @@ class DifferentialDrive(Entity):
         # geom has priority, so the caster gets priority over the ground.
         caster.condim, caster.priority, caster.friction = 1, 2, [0.0, 0.0, 0.0]
         body.add_site(name=ctx.name("centre"), pos=[0.0, 0.0, bottom + height / 2])
+        if self.visual_mesh:
+            path = ctx.base_dir / ctx.asset_paths.get(self.visual_mesh, self.visual_mesh)
+            for k, (mesh, material) in enumerate(ctx.assets.mesh(path, 1.0).visual):
+                geom = body.add_geom(
+                    name=ctx.name(f"visual{k}"),
+                    type=mujoco.mjtGeom.mjGEOM_MESH,
+                    meshname=mesh,
+                    pos=list(self.visual_offset),
+                )
+                geom.group, geom.contype, geom.conaffinity, geom.density = 2, 0, 0, 0.0
+                if material:
+                    geom.material = material
         for side, sign in (("left", 1.0), ("right", -1.0)):
             wheel = body.add_body(
                 name=ctx.name(f"{side}_wheel"), pos=[self.axle_offset, sign * self.track / 2, self.wheel_radius]

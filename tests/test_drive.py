@@ -234,3 +234,17 @@ def test_sensor_specs_are_checked(tmp_path):
     path.write_text(base.replace("rays = 360", "rays = 360\nbeams = 3"))
     with pytest.raises(SceneError, match=r"sensors\[0\]: sensor 'laser': .*beams"):
         load_scene(path)
+
+
+def test_robot_with_a_visual_mesh_keeps_its_mass_and_drives():
+    world = World(base_dir=SCENES)
+    world.insert(Ground(name="ground"))
+    world.insert(BoeBot(name="bot", visual_mesh="head.mbin", visual_offset=(0.0, 0.0, 0.105), pose=Pose((0, 0, 0.001))))
+    drive = DriveService(world, "bot")
+    model = world.model
+    visual = model.geom("bot/visual0")
+    assert (visual.group[0], visual.contype[0], visual.conaffinity[0]) == (2, 0, 0)
+    assert model.body_subtreemass[model.body("bot").id] == pytest.approx(0.454 + 0.02 + 0.001)
+    world.run(0.3)
+    drive.drive_distance(0.3, power=0.5)
+    assert world.run_until(lambda: not drive.busy, timeout=20)
