@@ -1,5 +1,6 @@
 # Two entry points for a fresh machine with Python >= 3.11 and pip (see README.md):
-#   make demo   installs into .venv, normalises the bundled seed fixture and packs it as .mbin
+#   make demo   installs into .venv, normalises and packs the seed head, drives the Boe-Bot around the box
+#               and writes demo-out/demo.gif
 #   make test   installs into .venv and runs lint, type checks and the test suite
 PYTHON ?= python3
 VENV   ?= .venv
@@ -17,11 +18,15 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 demo: $(STAMP)
-	rm -rf out/demo
+	bash scripts/install_gl.sh
+	rm -rf out/demo demo-out
 	$(BIN)/meshtool normalize "fixtures/head/Head 1.obj" -o out/demo --units cm
 	$(BIN)/python scripts/show_asset.py out/demo/head_1
 	$(BIN)/obj2bin "fixtures/head/Head 1.obj" --units cm -o out/demo/head_1.mbin
 	$(BIN)/meshtool info out/demo/head_1.mbin
+	$(BIN)/simrun check fixtures/scenes/boebot.toml
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/simrun play fixtures/scenes/boebot.toml --duration 32 \
+		--commands fixtures/scenes/square.commands.toml --video demo-out/demo.gif --size 320x240 --fps 5
 
 lint: $(STAMP)
 	$(BIN)/ruff check meshtool simrun tests bench scripts

@@ -422,9 +422,23 @@ entity = "boebot"
 """
 
 
+def square_commands() -> str:
+    """Timed DriveService calls that take the Boe-Bot of boebot.toml around the box."""
+    lines = ["# Drive the Boe-Bot of boebot.toml around the box: a right turn, then legs of 0.9 m and left turns.\n"]
+    t = 0.2
+    sequence = [("rotate_degrees", [-90.0, 0.5])]
+    for _ in range(4):
+        sequence += [("drive_distance", [0.9, 0.6]), ("rotate_degrees", [90.0, 0.5])]
+    for call, args in sequence:
+        lines.append(f'[[commands]]\nt = {t:.1f}\nentity = "boebot"\ncall = "{call}"\nargs = {args}\n\n')
+        t += 5.0 if call == "drive_distance" else 3.0
+    return "".join(lines).rstrip() + "\n"
+
+
 def robot_scenes() -> None:
     """Scenes with robots (the drive stack)."""
     write(ROOT / "scenes" / "boebot.toml", BOEBOT_SCENE)
+    write(ROOT / "scenes" / "square.commands.toml", square_commands())
     walls = ""
     for name, pos, dims in (
         ("north", (0, 2, 0.25), (4, 0.1, 0.5)),

@@ -3,18 +3,24 @@
 from __future__ import annotations
 
 import contextlib
+import io
+import json
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import click
 import numpy as np
+from PIL import Image
 
 from simrun import __version__
 from simrun.archive import save_mjz
 from simrun.doctor import check_environment
 from simrun.errors import SimrunError
-from simrun.outfile import write_text
+from simrun.outfile import write_bytes, write_text
+from simrun.play import encode_gif, encode_mp4, load_commands, play
+from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
@@ -78,6 +84,136 @@ def export(scene: Path, mjcf: Path | None, mjz: Path | None) -> None:
         if mjz is not None:
             save_mjz(world, mjz)
             click.echo(f"wrote {mjz}")
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected WxH, got {text!r}") from None
+    if not (16 <= width <= 4096 and 16 <= height <= 4096):
+        raise click.BadParameter("width and height must be 16..4096")
+    return width, height
+
+
+@main.command("play")
+@click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--duration", type=float, default=5.0, show_default=True, help="Simulated seconds.")
+@click.option(
+    "--commands",
+    "commands_file",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="TOML file of timed service calls ([[commands]] t, service, entity, call, args).",
+)
+@click.option("--video", type=click.Path(path_type=Path, dir_okay=False), default=None, help="OUT.gif or OUT.mp4.")
+@click.option(
+    "--frames",
+    "frames_dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    default=None,
+    help="Write every frame as PNG into this folder.",
+)
+@click.option(
+    "--render-mode",
+    type=click.Choice(list(MODES)),
+    default=None,
+    help="visual | wireframe | physics | combined | none (default: visual with --video/--frames, else none).",
+)
+@click.option("--camera", default=None, help="Camera name (default: the main view, else a free camera).")
+@click.option("--size", default="320x240", show_default=True, help="Frame size WxH.")
+@click.option("--fps", type=float, default=15.0, show_default=True, help="Frames per simulated second.")
+@click.option("--realtime", is_flag=True, help="Do not run faster than the wall clock.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
+def play_command(
+    scene: Path,
+    duration: float,
+    commands_file: Path | None,
+    video: Path | None,
+    frames_dir: Path | None,
+    render_mode: str | None,
+    camera: str | None,
+    size: str,
+    fps: float,
+    realtime: bool,
+    as_json: bool,
+) -> None:
+    """Run SCENE headless: timed commands, optional video or frames, and a summary."""
+    width, height = _size(size)
+    with _guard():
+        world = load_scene(scene)
+        commands = load_commands(commands_file) if commands_file else []
+        mode = render_mode or ("visual" if video or frames_dir else "none")
+        frames: list[Any] = []
+        sink = None
+        if mode != "none":
+            world.compile()
+            renderer = FrameRenderer(world.model, width, height, mode, camera, world.data)
+            sink = lambda data: frames.append(renderer.render(data))  # noqa: E731
+        elif video or frames_dir:
+            raise SimrunError("render mode 'none' cannot write video or frames")
+        bar = None
+        if sys.stdout.isatty() and not as_json:
+            bar = click.progressbar(length=int(duration * 1000), label="simulating")
+            bar.__enter__()
+        done = [0]
+
+        def progress(t: float) -> None:
+            if bar is not None:
+                now = int(min(t, duration) * 1000)
+                bar.update(now - done[0])
+                done[0] = now
+
+        result = play(world, duration, commands, sink, fps, realtime, progress)
+        if bar is not None:
+            bar.__exit__(None, None, None)
+        if video is not None:
+            if video.suffix.lower() == ".gif":
+                write_bytes(video, encode_gif(frames, fps))
+            elif video.suffix.lower() == ".mp4":
+                encode_mp4(frames, fps, video)
+            else:
+                raise SimrunError(f"{video}: video must end in .gif or .mp4")
+        if frames_dir is not None:
+            for k, frame in enumerate(frames):
+                buffer = io.BytesIO()
+                Image.fromarray(frame).save(buffer, format="PNG")
+                write_bytes(frames_dir / f"frame_{k:05d}.png", buffer.getvalue())
+    summary = result.to_dict()
+    if as_json:
+        click.echo(json.dumps(summary))
+        return
+    click.echo(
+        f"{scene}: {summary['simulated_s']:g} s simulated in {summary['wall_s']:.2f} s "
+        f"({summary['steps_per_s']:.0f} steps/s, {summary['realtime_factor']:.1f}x real time), "
+        f"{summary['frames']} frame(s)"
+    )
+    for name, metres in summary["distances_m"].items():
+        click.echo(f"  {name}: drove {metres:.3f} m")
+    for name, count in summary["sensor_samples"].items():
+        click.echo(f"  sensor {name}: {count} sample(s)")
+
+
+@main.command("snapshot")
+@click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), required=True, help="OUT.png")
+@click.option(
+    "--render-mode", type=click.Choice([m for m in MODES if m != "none"]), default="visual", show_default=True
+)
+@click.option("--camera", default=None, help="Camera name (default: the main view, else a free camera).")
+@click.option("--size", default="640x480", show_default=True, help="Image size WxH.")
+@click.option("--at", "at_time", type=float, default=0.0, show_default=True, help="Simulated time to show.")
+def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, size: str, at_time: float) -> None:
+    """Render one picture of SCENE (after stepping to --at seconds)."""
+    width, height = _size(size)
+    with _guard():
+        world = load_scene(scene)
+        world.run(at_time)
+        renderer = FrameRenderer(world.model, width, height, render_mode, camera, world.data)
+        buffer = io.BytesIO()
+        Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")
+        write_bytes(output, buffer.getvalue())
+    click.echo(f"wrote {output} ({width}x{height}, {render_mode})")
 
 
 @contextlib.contextmanager

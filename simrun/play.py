@@ -1,0 +1,205 @@
+"""Headless playback: run a world with timed service commands, render video or frames, summarise.
+
+``simrun play`` uses :func:`play`; commands come from a TOML file of ``[[commands]]`` tables.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image
+
+from simrun.errors import SceneError, SimrunError
+from simrun.world import World
+
+
+@dataclass(frozen=True, slots=True)
+class Command:
+    """A service call at a simulated time, e.g. ``DriveService`` of ``boebot``: ``drive_distance(1.0, 0.5)``."""
+
+    t: float
+    service: str
+    entity: str
+    call: str
+    args: tuple[Any, ...] = ()
+
+    def apply(self, world: World) -> None:
+        """Call it on the bound service."""
+        target = world.service(self.service, self.entity)
+        method = getattr(target, self.call, None)
+        if method is None or self.call.startswith("_"):
+            raise SimrunError(f"{self.service} has no command {self.call!r}")
+        method(*self.args)
+
+
+def load_commands(path: Path) -> list[Command]:
+    """Read a commands file: ``[[commands]]`` tables with ``t``, ``service``, ``entity``, ``call``, ``args``.
+
+    Raises:
+        SceneError: Bad TOML or fields, naming the file and the key path.
+    """
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise SceneError(f"cannot be read: {exc.strerror}", str(path)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"not valid TOML: {exc}", str(path)) from None
+    commands = []
+    for k, table in enumerate(doc.get("commands", [])):
+        key = f"commands[{k}]"
+        try:
+            commands.append(
+                Command(
+                    float(table["t"]),
+                    str(table.get("service", "DriveService")),
+                    str(table["entity"]),
+                    str(table["call"]),
+                    tuple(table.get("args", [])),
+                )
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise SceneError(f"needs t, entity, call (and args): {exc}", str(path), key) from None
+    return sorted(commands, key=lambda c: c.t)
+
+
+@dataclass
+class PlayResult:
+    """What a run did (the ``--json`` summary)."""
+
+    simulated_s: float
+    wall_s: float
+    steps: int
+    frames: int
+    distances: dict[str, float] = field(default_factory=dict)
+    sensor_samples: dict[str, int] = field(default_factory=dict)
+    warnings: dict[str, int] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary with steps/s and the real-time factor."""
+        return {
+            "simulated_s": self.simulated_s,
+            "wall_s": self.wall_s,
+            "steps": self.steps,
+            "steps_per_s": self.steps / self.wall_s if self.wall_s > 0 else math.inf,
+            "realtime_factor": self.simulated_s / self.wall_s if self.wall_s > 0 else math.inf,
+            "frames": self.frames,
+            "distances_m": self.distances,
+            "sensor_samples": self.sensor_samples,
+            "warnings": self.warnings,
+        }
+
+
+def play(
+    world: World,
+    duration: float,
+    commands: list[Command] | None = None,
+    frame_sink: Any = None,
+    fps: float = 15.0,
+    realtime: bool = False,
+    progress: Any = None,
+) -> PlayResult:
+    """Run ``world`` for ``duration`` simulated seconds.
+
+    Args:
+        world: The world (compiled on demand).
+        duration: Seconds of simulated time.
+        commands: Timed service calls, applied when their time comes.
+        frame_sink: Called as ``frame_sink(data)`` ``fps`` times per simulated second (rendering).
+        fps: Frame rate of ``frame_sink``.
+        realtime: Sleep so simulated time does not run ahead of the wall clock.
+        progress: Called with the simulated time after each chunk (a progress bar).
+
+    Returns:
+        The summary.
+    """
+    model, data = world.model, world.data
+    pending = list(commands or [])
+    robots = {name: np.array(world.body(name).xpos) for name, e in world if e.TYPE in _ROBOT_TYPES}
+    travelled = dict.fromkeys(robots, 0.0)
+    start_wall = time.perf_counter()
+    start_steps = 0
+    end = data.time + duration
+    frame_period = 1.0 / fps if frame_sink else math.inf
+    next_frame = data.time
+    frames = 0
+    dt = model.opt.timestep
+    while data.time < end - 0.5 * dt:
+        while pending and pending[0].t <= data.time + 0.5 * dt:
+            pending.pop(0).apply(world)
+        if frame_sink and data.time + 0.5 * dt >= next_frame:
+            frame_sink(data)
+            frames += 1
+            next_frame += frame_period
+        chunk_end = min(end, next_frame, pending[0].t if pending else end, data.time + 0.1)
+        steps = max(1, round((chunk_end - data.time) / dt))
+        world.step(steps)
+        start_steps += steps
+        for name, previous in robots.items():
+            now = np.array(world.body(name).xpos)
+            travelled[name] += float(np.linalg.norm(now[:2] - previous[:2]))
+            robots[name] = now
+        if realtime:
+            ahead = (data.time - (end - duration)) - (time.perf_counter() - start_wall)
+            if ahead > 0:
+                time.sleep(ahead)
+        if progress is not None:
+            progress(data.time)
+    wall = time.perf_counter() - start_wall
+    samples = {name: int(sensor.samples) for name, sensor in world.sensors.items()}
+    return PlayResult(float(duration), wall, start_steps, frames, travelled, samples, world.warnings())
+
+
+_ROBOT_TYPES = {"DifferentialDrive", "BoeBot", "Pioneer3DX", "IRobotCreate", "LegoNxtTribot"}
+
+
+def encode_gif(frames: list[np.ndarray], fps: float) -> bytes:
+    """Frames as an animated GIF (Pillow), looping forever."""
+    if not frames:
+        raise SimrunError("no frames to encode")
+    images = [Image.fromarray(f) for f in frames]
+    buffer = io.BytesIO()
+    images[0].save(
+        buffer,
+        format="GIF",
+        save_all=True,
+        append_images=images[1:],
+        duration=round(1000 / fps),
+        loop=0,
+        optimize=False,
+    )
+    return buffer.getvalue()
+
+
+def encode_mp4(frames: list[np.ndarray], fps: float, path: Path) -> None:
+    """Frames as an H.264 MP4 through imageio-ffmpeg, written to a temporary file and renamed."""
+    import imageio_ffmpeg
+
+    if not frames:
+        raise SimrunError("no frames to encode")
+    height, width = frames[0].shape[:2]
+    tmp = path.with_name(f".{path.name}.tmp.mp4")
+    try:
+        writer = imageio_ffmpeg.write_frames(
+            str(tmp),
+            (width, height),
+            fps=fps,
+            codec="libx264",
+            pix_fmt_out="yuv420p",
+            macro_block_size=2,
+            ffmpeg_log_level="error",
+        )
+        writer.send(None)
+        for frame in frames:
+            writer.send(np.ascontiguousarray(frame))
+        writer.close()
+        tmp.replace(path)
+    except (OSError, RuntimeError) as exc:
+        tmp.unlink(missing_ok=True)
+        raise SimrunError(f"cannot write {path}: {exc}") from None

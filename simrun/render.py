@@ -1,0 +1,119 @@
+"""Offscreen rendering in MSRS's five modes, with settings fast enough for CPU (Mesa) rendering.
+
+| mode | what is drawn |
+|---|---|
+| ``visual`` | visual geoms (groups 0-2), textures, shadows off for speed |
+| ``wireframe`` | the same as wireframe |
+| ``physics`` | collision geoms (groups 0, 1, 3), contact points and contact forces |
+| ``combined`` | both, visual geoms transparent |
+| ``none`` | nothing: no GL context is created |
+
+Headless machines need ``MUJOCO_GL=egl`` (Mesa) or ``osmesa`` in the environment before mujoco is imported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from simrun.errors import SimrunError
+
+MODES = ("visual", "wireframe", "physics", "combined", "none")
+
+
+def scene_option(mode: str) -> mujoco.MjvOption:
+    """The MuJoCo visualisation options of a render mode."""
+    if mode not in MODES:
+        raise SimrunError(f"unknown render mode {mode!r} (use one of {', '.join(MODES)})")
+    option = mujoco.MjvOption()
+    groups = {"visual": (0, 1, 2), "wireframe": (0, 1, 2), "physics": (0, 1, 3), "combined": (0, 1, 2, 3)}
+    option.geomgroup[:] = [1 if g in groups.get(mode, ()) else 0 for g in range(6)]
+    if mode in ("physics", "combined"):
+        option.flags[mujoco.mjtVisFlag.mjVIS_CONTACTPOINT] = True
+        option.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = True
+    if mode == "combined":
+        option.flags[mujoco.mjtVisFlag.mjVIS_TRANSPARENT] = True
+    return option
+
+
+@dataclass
+class Camera:
+    """A free camera looking at ``lookat`` (used when the scene names no camera)."""
+
+    lookat: tuple[float, float, float] = (0.0, 0.0, 0.2)
+    distance: float = 3.0
+    azimuth: float = 135.0
+    elevation: float = -25.0
+
+
+class FrameRenderer:
+    """Renders frames of a model in one mode from a named camera, the main view, or a free camera.
+
+    Args:
+        model: The compiled model.
+        width: Pixels.
+        height: Pixels.
+        mode: One of :data:`MODES` (``none`` cannot render).
+        camera: A camera name; ``None`` uses the model's main view (``vis.global.cameraid``) or a free camera.
+        data: With a free camera, frame the bodies' current positions.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        width: int = 320,
+        height: int = 240,
+        mode: str = "visual",
+        camera: str | None = None,
+        data: mujoco.MjData | None = None,
+    ) -> None:
+        if mode == "none":
+            raise SimrunError("render mode 'none' draws nothing")
+        self.model, self.mode, self.option = model, mode, scene_option(mode)
+        model.vis.quality.offsamples = 0  # no multisampling: CPU rendering stays fast
+        model.vis.quality.shadowsize = 1024
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+        model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+        try:
+            self.renderer = mujoco.Renderer(model, height, width)
+        except Exception as exc:  # any GL failure: say how to get a context
+            raise SimrunError(
+                f"no OpenGL context ({exc}); install Mesa (scripts/install_gl.sh) and set MUJOCO_GL=egl or osmesa"
+            ) from None
+        if mode == "wireframe":
+            self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_WIREFRAME] = True
+        if mode in ("physics", "combined"):
+            model.vis.scale.contactwidth, model.vis.scale.contactheight = 0.05, 0.01
+            model.vis.scale.forcewidth, model.vis.map.force = 0.02, 0.05
+        self.camera: Any
+        if camera is not None:
+            self.camera = camera
+        elif model.vis.global_.cameraid >= 0:
+            self.camera = int(model.vis.global_.cameraid)
+        else:
+            free = mujoco.MjvCamera()
+            view = Camera()
+            if data is not None and model.nbody > 1:
+                points = np.asarray(data.xpos[1:])
+                centre = points.mean(axis=0)
+                spread = float(np.linalg.norm(points - centre, axis=1).max())
+                view = Camera((float(centre[0]), float(centre[1]), float(centre[2])), max(1.0, 2.5 * spread))
+            free.lookat[:], free.distance = view.lookat, view.distance
+            free.azimuth, free.elevation = view.azimuth, view.elevation
+            self.camera = free
+
+    def render(self, data: mujoco.MjData) -> npt.NDArray[np.uint8]:
+        """One RGB frame (H, W, 3)."""
+        self.renderer.update_scene(data, camera=self.camera, scene_option=self.option)
+        if self.mode == "wireframe":
+            self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_WIREFRAME] = True
+        frame: npt.NDArray[np.uint8] = self.renderer.render().copy()
+        return frame
+
+    def close(self) -> None:
+        """Release the GL context."""
+        self.renderer.close()
