@@ -271,6 +271,22 @@ class ArmService:
         """After ``World.reset``: no move in progress."""
         self._move = None
 
+    def snapshot(self) -> dict[str, Any]:
+        """The move in progress, as JSON-ready values (for checkpoints)."""
+        move = None
+        if self._move is not None:
+            t0, duration, start, goal = self._move
+            move = [t0, duration, [float(v) for v in start], [float(v) for v in goal]]
+        return {"move": move, "next_time": self.next_time}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Inverse of :meth:`snapshot`."""
+        move = state["move"]
+        self._move = (
+            None if move is None else (float(move[0]), float(move[1]), np.asarray(move[2]), np.asarray(move[3]))
+        )
+        self.next_time = float(state["next_time"])
+
     def _check(self, values: Any) -> None:
         if len(values) != len(self.joints):
             raise EntityError(f"{self.name!r} has {len(self.joints)} joints, got {len(values)} values")

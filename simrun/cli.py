@@ -22,6 +22,7 @@ from simrun.outfile import write_bytes, write_text
 from simrun.play import encode_gif, encode_mp4, load_commands, play
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
+from simrun.simlog import Recorder, Simlog, check_scene, replay_states, resimulate
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
 
@@ -124,6 +125,12 @@ def _size(text: str) -> tuple[int, int]:
 @click.option("--size", default="320x240", show_default=True, help="Frame size WxH.")
 @click.option("--fps", type=float, default=15.0, show_default=True, help="Frames per simulated second.")
 @click.option("--realtime", is_flag=True, help="Do not run faster than the wall clock.")
+@click.option(
+    "--record",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="Record a .simlog (frames every 20 ms, checkpoints every second).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
 def play_command(
     scene: Path,
@@ -136,6 +143,7 @@ def play_command(
     size: str,
     fps: float,
     realtime: bool,
+    record: Path | None,
     as_json: bool,
 ) -> None:
     """Run SCENE headless: timed commands, optional video or frames, and a summary."""
@@ -164,7 +172,14 @@ def play_command(
                 bar.update(now - done[0])
                 done[0] = now
 
-        result = play(world, duration, commands, sink, fps, realtime, progress)
+        for command in commands:  # services exist from the start (and before a recorder, which must come last)
+            world.service(command.service, command.entity)
+        recorder = Recorder(world, record, scene, commands) if record is not None else None
+        try:
+            result = play(world, duration, commands, sink, fps, realtime, progress)
+        finally:
+            if recorder is not None:
+                recorder.close()
         if bar is not None:
             bar.__exit__(None, None, None)
         if video is not None:
@@ -192,6 +207,68 @@ def play_command(
         click.echo(f"  {name}: drove {metres:.3f} m")
     for name, count in summary["sensor_samples"].items():
         click.echo(f"  sensor {name}: {count} sample(s)")
+
+
+@main.command("replay")
+@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--video", type=click.Path(path_type=Path, dir_okay=False), required=True, help="OUT.gif or OUT.mp4.")
+@click.option(
+    "--render-mode", type=click.Choice([m for m in MODES if m != "none"]), default="visual", show_default=True
+)
+@click.option("--camera", default=None, help="Camera name.")
+@click.option("--size", default="320x240", show_default=True, help="Frame size WxH.")
+@click.option("--fps", type=float, default=15.0, show_default=True, help="Frames per simulated second.")
+def replay(log: Path, video: Path, render_mode: str, camera: str | None, size: str, fps: float) -> None:
+    """Replay a .simlog kinematically (the recorded poses, no physics) into a video."""
+    width, height = _size(size)
+    with _guard():
+        recording = Simlog(log)
+        scene = Path(recording.header["scene"])
+        check_scene(recording, scene)
+        world = load_scene(scene)
+        renderer = FrameRenderer(world.model, width, height, render_mode, camera, world.data)
+        frames, next_frame = [], 0.0
+        for t in replay_states(world, recording):
+            if t + 1e-9 >= next_frame:
+                frames.append(renderer.render(world.data))
+                next_frame += 1.0 / fps
+        recording.close()
+        if video.suffix.lower() == ".gif":
+            write_bytes(video, encode_gif(frames, fps))
+        else:
+            encode_mp4(frames, fps, video)
+    click.echo(f"wrote {video}: {len(frames)} frame(s) replayed from {log}")
+
+
+@main.command("resim")
+@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "--from",
+    "start",
+    type=float,
+    default=0.0,
+    show_default=True,
+    help="Re-simulate from the last checkpoint at or before this time, seconds.",
+)
+def resim(log: Path, start: float) -> None:
+    """Re-simulate a .simlog from a checkpoint and check it matches the recording bit for bit."""
+    with _guard():
+        recording = Simlog(log)
+        scene = Path(recording.header["scene"])
+        check_scene(recording, scene)
+        world = load_scene(scene)
+        _bind_recorded_services(world, recording)
+        compared, mismatch = resimulate(world, recording, start)
+        recording.close()
+        if mismatch is not None:
+            raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
+    click.echo(f"{log}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
+
+
+def _bind_recorded_services(world: Any, recording: Any) -> None:
+    """Create the services the recorded commands used, in the order the recording's run created them."""
+    for command in recording.commands():
+        world.service(command.service, command.entity)
 
 
 @main.command("snapshot")

@@ -229,6 +229,40 @@ class DriveService:
         self._last = np.zeros(2)
         self._odom = Odometry(float(data.time), 0.0, 0.0, 0.0, 0.0, 0.0)
 
+    # -- recording ------------------------------------------------------------------------------------------
+
+    def snapshot(self) -> dict[str, Any]:
+        """Everything that shapes future controls, as JSON-ready values (for checkpoints)."""
+        o = self._odom
+        return {
+            "enabled": self.enabled,
+            "mode": self._mode,
+            "power": list(self._power),
+            "speed": list(self._speed),
+            "goal": dict(self._goal),
+            "cmd": list(self._cmd),
+            "cmd_time": self._cmd_time,
+            "vel": list(self._vel),
+            "wheel_targets": list(self._wheel_targets),
+            "integral": list(self._integral),
+            "encoder_zero": [float(v) for v in self._encoder_zero],
+            "last": [float(v) for v in self._last],
+            "odom": [o.time, o.x, o.y, o.theta, o.linear, o.angular],
+            "next_time": self.next_time,
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Inverse of :meth:`snapshot`."""
+        self.enabled, self._mode = bool(state["enabled"]), str(state["mode"])
+        self._power, self._speed = (state["power"][0], state["power"][1]), (state["speed"][0], state["speed"][1])
+        self._goal, self._cmd = dict(state["goal"]), (state["cmd"][0], state["cmd"][1])
+        self._cmd_time, self._vel = float(state["cmd_time"]), (state["vel"][0], state["vel"][1])
+        self._wheel_targets = (state["wheel_targets"][0], state["wheel_targets"][1])
+        self._integral = [float(v) for v in state["integral"]]
+        self._encoder_zero, self._last = np.asarray(state["encoder_zero"]), np.asarray(state["last"])
+        self._odom = Odometry(*(float(v) for v in state["odom"]))
+        self.next_time = float(state["next_time"])
+
     # -- internals -----------------------------------------------------------------------------------------
 
     def _targets(self, model: mujoco.MjModel, data: mujoco.MjData) -> tuple[float, float]:

@@ -50,6 +50,15 @@ class Sensor(abc.ABC):
         self.reading = self.sample(model, data)
         self.samples += 1
 
+    def snapshot(self) -> dict[str, Any]:
+        """Sampling clock and noise generator state (for checkpoints)."""
+        return {"next_time": self.next_time, "samples": self.samples, "rng": self.rng.bit_generator.state}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Inverse of :meth:`snapshot` (the last reading is not kept)."""
+        self.next_time, self.samples = float(state["next_time"]), int(state["samples"])
+        self.rng.bit_generator.state = state["rng"]
+
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Back to time 0: no reading, the noise generator restarted."""
         self.reading, self.samples = None, 0
