@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -23,6 +24,7 @@ from simrun.play import encode_gif, encode_mp4, load_commands, play
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
 from simrun.simlog import Recorder, Simlog, check_scene, replay_states, resimulate
+from simrun.teleop import run_viewer
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
 
@@ -269,6 +271,21 @@ def _bind_recorded_services(world: Any, recording: Any) -> None:
     """Create the services the recorded commands used, in the order the recording's run created them."""
     for command in recording.commands():
         world.service(command.service, command.entity)
+
+
+@main.command("view")
+@click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
+def view(scene: Path) -> None:
+    """Open SCENE in MuJoCo's viewer; arrows drive the first robot (cmd_vel), space stops it."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        click.echo(
+            "error: no display: simrun view needs a desktop session; use "
+            f"'simrun play {scene} --video OUT.gif' to see it headless",
+            err=True,
+        )
+        sys.exit(EXIT_INPUT)
+    with _guard():
+        run_viewer(load_scene(scene))
 
 
 @main.command("snapshot")

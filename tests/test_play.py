@@ -134,3 +134,30 @@ def test_play_usage_errors(tmp_path):
     bad.write_text('[[commands]]\nt = 1.0\nentity = "boebot"\ncall = "fly"\n')
     result = runner.invoke(main, ["play", scene, "--commands", str(bad), "--duration", "2"])
     assert result.exit_code == 1 and "has no command 'fly'" in result.stderr
+
+
+def test_view_without_a_display_says_so_in_one_line(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    result = CliRunner().invoke(main, ["view", str(SCENES / "boebot.toml")])
+    assert result.exit_code == 1
+    assert len(result.stderr.splitlines()) == 1 and "no display" in result.stderr and "--video" in result.stderr
+
+
+def test_teleop_keys_drive_the_robot():
+    from simrun.drive_service import DriveService
+    from simrun.teleop import KEY_LEFT, KEY_SPACE, KEY_UP, Teleop
+
+    world = load_scene(SCENES / "boebot.toml")
+    teleop = Teleop(DriveService(world, "boebot"))
+    start = world.body("boebot").xpos.copy()
+    for key in (KEY_UP, KEY_UP, KEY_LEFT):
+        teleop.key(key)
+    assert (teleop.linear, teleop.angular) == (pytest.approx(0.1), 0.5)
+    for _ in range(10):
+        teleop.refresh()
+        world.run(0.2)
+    assert np.linalg.norm(world.body("boebot").xpos[:2] - start[:2]) > 0.1
+    teleop.key(KEY_SPACE)
+    world.run(1.0)
+    assert abs(world.body("boebot").cvel[3]) < 0.01
