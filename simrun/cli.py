@@ -146,6 +146,7 @@ def play_command(
     fps: float,
     realtime: bool,
     record: Path | None,
+    seed: int | None,
     as_json: bool,
 ) -> None:
     """Run SCENE headless: timed commands, optional video or frames, and a summary."""
@@ -176,7 +177,10 @@ def play_command(
 
         for command in commands:  # services exist from the start (and before a recorder, which must come last)
             world.service(command.service, command.entity)
-        recorder = Recorder(world, record, scene, commands) if record is not None else None
+        if seed is not None:
+            for k, sensor in enumerate(world.sensors.values()):
+                sensor.reseed(seed + k)
+        recorder = Recorder(world, record, scene, commands, seed=seed or 0) if record is not None else None
         try:
             result = play(world, duration, commands, sink, fps, realtime, progress)
         finally:

@@ -50,6 +50,10 @@ class Sensor(abc.ABC):
         self.reading = self.sample(model, data)
         self.samples += 1
 
+    def reseed(self, seed: int) -> None:
+        """Restart the noise generator from ``seed``."""
+        self.seed, self.rng = seed, np.random.default_rng(seed)
+
     def snapshot(self) -> dict[str, Any]:
         """Sampling clock and noise generator state (for checkpoints)."""
         return {"next_time": self.next_time, "samples": self.samples, "rng": self.rng.bit_generator.state}
