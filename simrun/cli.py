@@ -133,6 +133,7 @@ def _size(text: str) -> tuple[int, int]:
     default=None,
     help="Record a .simlog (frames every 20 ms, checkpoints every second).",
 )
+@click.option("--seed", type=int, default=None, help="Reseed every sensor's noise (sensor k gets seed + k).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
 def play_command(
     scene: Path,
