@@ -20,7 +20,7 @@ from simrun.archive import save_mjz
 from simrun.doctor import check_environment
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes, write_text
-from simrun.play import encode_gif, encode_mp4, load_commands, play
+from simrun.play import PythonController, encode_gif, encode_mp4, load_commands, play
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
 from simrun.simlog import Recorder, Simlog, check_scene, replay_states, resimulate
@@ -107,7 +107,7 @@ def _size(text: str) -> tuple[int, int]:
     "commands_file",
     type=click.Path(path_type=Path, dir_okay=False),
     default=None,
-    help="TOML file of timed service calls ([[commands]] t, service, entity, call, args).",
+    help="TOML of timed service calls ([[commands]] t, service, entity, call, args), or a .py with step(world).",
 )
 @click.option("--video", type=click.Path(path_type=Path, dir_okay=False), default=None, help="OUT.gif or OUT.mp4.")
 @click.option(
@@ -134,6 +134,7 @@ def _size(text: str) -> tuple[int, int]:
     help="Record a .simlog (frames every 20 ms, checkpoints every second).",
 )
 @click.option("--seed", type=int, default=None, help="Reseed every sensor's noise (sensor k gets seed + k).")
+@click.option("--record-sensors", default=None, help="Comma-separated sensor names whose readings --record keeps.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
 def play_command(
     scene: Path,
@@ -148,13 +149,15 @@ def play_command(
     realtime: bool,
     record: Path | None,
     seed: int | None,
+    record_sensors: str | None,
     as_json: bool,
 ) -> None:
     """Run SCENE headless: timed commands, optional video or frames, and a summary."""
     width, height = _size(size)
     with _guard():
         world = load_scene(scene)
-        commands = load_commands(commands_file) if commands_file else []
+        python = commands_file is not None and commands_file.suffix == ".py"
+        commands = load_commands(commands_file) if commands_file and not python else []
         mode = render_mode or ("visual" if video or frames_dir else "none")
         frames: list[Any] = []
         sink = None
@@ -176,12 +179,18 @@ def play_command(
                 bar.update(now - done[0])
                 done[0] = now
 
-        for command in commands:  # services exist from the start (and before a recorder, which must come last)
-            world.service(command.service, command.entity)
+        _bind_services(world)  # every bound service exists from the start, before a recorder (which must come last)
+        if python:
+            assert commands_file is not None
+            PythonController(world, commands_file)
         if seed is not None:
             for k, sensor in enumerate(world.sensors.values()):
                 sensor.reseed(seed + k)
-        recorder = Recorder(world, record, scene, commands, seed=seed or 0) if record is not None else None
+        chosen = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
+        recorder = None
+        if record:
+            controller = str(commands_file.resolve()) if python and commands_file else None
+            recorder = Recorder(world, record, scene, commands, seed=seed or 0, sensors=chosen, controller=controller)
         try:
             result = play(world, duration, commands, sink, fps, realtime, progress)
         finally:
@@ -272,10 +281,17 @@ def resim(log: Path, start: float) -> None:
     click.echo(f"{log}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
 
 
+def _bind_services(world: Any) -> None:
+    """Create every service the scene binds, in scene order (play and resim must create the same ones)."""
+    for binding in world.services:
+        world.service(binding["type"], binding["entity"])
+
+
 def _bind_recorded_services(world: Any, recording: Any) -> None:
-    """Create the services the recorded commands used, in the order the recording's run created them."""
-    for command in recording.commands():
-        world.service(command.service, command.entity)
+    """Create the services and the controller module the recorded run had, in the same order."""
+    _bind_services(world)
+    if recording.header.get("controller"):
+        PythonController(world, Path(recording.header["controller"]))
 
 
 @main.command("view")

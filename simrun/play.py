@@ -39,6 +39,46 @@ class Command:
         method(*self.args)
 
 
+class PythonController:
+    """A user's control module as a world controller: its ``step(world)`` runs every ``period`` seconds.
+
+    The module is the user's own code (like a scene's plugin); module-level state is not checkpointed, so
+    a re-simulation from a checkpoint is exact only for controllers that keep their state in the world.
+    """
+
+    def __init__(self, world: World, path: Path, period: float = 0.02) -> None:
+        import importlib.util
+
+        spec = importlib.util.spec_from_file_location(f"simrun_controller_{path.stem}", path)
+        if spec is None or spec.loader is None:
+            raise SimrunError(f"{path}: cannot be loaded as a Python module")
+        module = importlib.util.module_from_spec(spec)
+        try:
+            spec.loader.exec_module(module)
+        except Exception as exc:  # the user's module failed to import: one line, with its error
+            raise SimrunError(f"{path}: {type(exc).__name__}: {exc}") from None
+        if not callable(getattr(module, "step", None)):
+            raise SimrunError(f"{path}: a controller module needs a function step(world)")
+        self.world, self.path, self.period, self.next_time = world, path, period, world.time
+        self._step = module.step
+        world.controllers.append(self)
+
+    def tick(self, model: Any, data: Any) -> None:
+        """Run the module's ``step(world)``."""
+        self._step(self.world)
+
+    def reset(self, model: Any, data: Any) -> None:
+        """Nothing to reset."""
+
+    def snapshot(self) -> dict[str, Any]:
+        """Only the clock (see the class note)."""
+        return {"next_time": self.next_time}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Inverse of :meth:`snapshot`."""
+        self.next_time = float(state["next_time"])
+
+
 def load_commands(path: Path) -> list[Command]:
     """Read a commands file: ``[[commands]]`` tables with ``t``, ``service``, ``entity``, ``call``, ``args``.
 

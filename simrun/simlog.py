@@ -29,7 +29,7 @@ from simrun.world import World
 
 MAGIC = b"\x89SIMLOG\n"
 MAJOR, MINOR = 1, 0
-FRAME, CHECKPOINT = 1, 2
+FRAME, CHECKPOINT, SENSORS = 1, 2, 3
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
@@ -65,6 +65,8 @@ class Recorder:
         period: Seconds between frames.
         checkpoint: Seconds between checkpoints.
         seed: The run's seed, recorded.
+        sensors: Names of ``world.sensors`` whose latest readings are recorded with every frame.
+        controller: Path of a Python controller module the run used (re-loaded by ``resim``).
     """
 
     def __init__(
@@ -76,9 +78,16 @@ class Recorder:
         period: float = 0.02,
         checkpoint: float = 1.0,
         seed: int = 0,
+        sensors: tuple[str, ...] = (),
+        controller: str | None = None,
     ) -> None:
         model = world.model
         self.world, self.period, self.checkpoint_every = world, period, checkpoint
+        unknown = [n for n in sensors if n not in world.sensors]
+        if unknown:
+            known = ", ".join(world.sensors) or "none"
+            raise SimrunError(f"no sensor named {', '.join(unknown)} (known: {known})")
+        self.sensors = sensors
         self.next_time = world.time
         self._next_checkpoint = world.time
         header = {
@@ -91,6 +100,8 @@ class Recorder:
             "state_size": int(mujoco.mj_stateSize(model, STATE)),
             "frame_period": period,
             "commands": [[c.t, c.service, c.entity, c.call, list(c.args)] for c in commands],
+            "sensors": list(sensors),
+            "controller": controller,
         }
         raw = json.dumps(header, sort_keys=True).encode("utf-8")
         try:
@@ -114,6 +125,10 @@ class Recorder:
             self._next_checkpoint += self.checkpoint_every
         self._file.write(struct.pack("<BI", kind, len(body)) + body)
         self.frames += 1
+        if self.sensors:
+            readings = {n: _plain(self.world.sensors[n].reading) for n in self.sensors}
+            extra = struct.pack("<d", float(data.time)) + json.dumps(readings).encode("utf-8")
+            self._file.write(struct.pack("<BI", SENSORS, len(extra)) + extra)
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Recording continues across resets."""
@@ -127,6 +142,21 @@ class Recorder:
         self._file.close()
         if self in self.world.controllers:
             self.world.controllers.remove(self)
+
+
+def _plain(value: Any) -> Any:
+    """A sensor reading as JSON-ready data (dataclasses to dicts, arrays to lists, NaN to None)."""
+    if value is None:
+        return None
+    if hasattr(value, "__dataclass_fields__"):
+        return {k: _plain(getattr(value, k)) for k in value.__dataclass_fields__}
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
 
 
 class Simlog:
@@ -156,8 +186,13 @@ class Simlog:
         """The recorded timed commands."""
         return [Command(float(t), s, e, c, tuple(a)) for t, s, e, c, a in self.header["commands"]]
 
-    def records(self) -> Iterator[Record]:
-        """Every record, in order.
+    def sensor_readings(self) -> Iterator[tuple[float, dict[str, Any]]]:
+        """The recorded sensor readings: (time, {sensor name: reading as plain data})."""
+        for record in self.records(sensors=True):
+            yield record.time, (record.controllers or [{}])[0]
+
+    def records(self, sensors: bool = False) -> Iterator[Record]:
+        """Every frame and checkpoint record in order (or, with ``sensors``, the sensor records).
 
         Raises:
             SimlogError: A truncated or malformed record (naming its byte offset).
@@ -173,6 +208,16 @@ class Simlog:
                 raise SimlogError(f"{self.path}: truncated record at byte {offset}")
             kind, length = struct.unpack("<BI", head)
             body = self._file.read(length)
+            if kind == SENSORS and len(body) == length and length >= 8:
+                offset += 5 + length
+                if sensors:
+                    try:
+                        yield Record(
+                            kind, struct.unpack("<d", body[:8])[0], np.zeros(0), [json.loads(body[8:].decode("utf-8"))]
+                        )
+                    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                        raise SimlogError(f"{self.path}: corrupt sensor record ({exc})") from None
+                continue
             if len(body) != length or kind not in (FRAME, CHECKPOINT) or length < frame_bytes:
                 raise SimlogError(f"{self.path}: corrupt or truncated record at byte {offset}")
             time = struct.unpack("<d", body[:8])[0]
@@ -184,7 +229,8 @@ class Simlog:
                     controllers = json.loads(body[frame_bytes + 4 : frame_bytes + 4 + n].decode("utf-8"))
                 except (UnicodeDecodeError, json.JSONDecodeError) as exc:
                     raise SimlogError(f"{self.path}: corrupt checkpoint at byte {offset} ({exc})") from None
-            yield Record(kind, time, state, controllers)
+            if not sensors:
+                yield Record(kind, time, state, controllers)
             offset += 5 + length
 
     def close(self) -> None:

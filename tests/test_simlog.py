@@ -87,3 +87,61 @@ def test_replay_refuses_a_changed_scene(tmp_path):
     scene.write_text(scene.read_text().replace("mass = 5.0", "mass = 6.0"))
     result = CliRunner().invoke(main, ["resim", str(tmp_path / "r.simlog")])
     assert result.exit_code == 1 and "changed since" in result.stderr
+
+
+def test_sensor_readings_are_recorded(tmp_path):
+    path = tmp_path / "room.simlog"
+    result = CliRunner().invoke(
+        main,
+        [
+            "play",
+            str(SCENES / "pioneer_room.toml"),
+            "--duration",
+            "1",
+            "--record",
+            str(path),
+            "--record-sensors",
+            "laser",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    log = Simlog(path)
+    readings = list(log.sensor_readings())
+    assert len(readings) == 50 and len(list(log.records())) == 50
+    time, values = readings[10]
+    assert time == pytest.approx(0.2) and len(values["laser"]["ranges"]) == 360
+    assert min(values["laser"]["ranges"]) == pytest.approx(1.45, abs=0.01)
+    bad = CliRunner().invoke(
+        main,
+        [
+            "play",
+            str(SCENES / "pioneer_room.toml"),
+            "--record",
+            str(tmp_path / "x.simlog"),
+            "--record-sensors",
+            "radar",
+        ],
+    )
+    assert bad.exit_code == 1 and "no sensor named radar" in bad.stderr
+
+
+def test_python_controller_module_drives_and_resimulates(tmp_path):
+    module = tmp_path / "circle.py"
+    module.write_text(
+        "def step(world):\n"
+        "    world.service('DriveService', 'boebot').cmd_vel(0.1, 0.5 if world.data.time < 3 else -0.5)\n"
+    )
+    path = tmp_path / "ctrl.simlog"
+    result = CliRunner().invoke(
+        main, ["play", SCENE, "--duration", "5", "--commands", str(module), "--record", str(path), "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    import json
+
+    assert json.loads(result.stdout)["distances_m"]["boebot"] > 0.3
+    result = CliRunner().invoke(main, ["resim", str(path), "--from", "2.5"])
+    assert result.exit_code == 0 and "bit-identical" in result.stdout
+    broken = tmp_path / "broken.py"
+    broken.write_text("x = 1/0\n")
+    result = CliRunner().invoke(main, ["play", SCENE, "--commands", str(broken)])
+    assert result.exit_code == 1 and "ZeroDivisionError" in result.stderr
