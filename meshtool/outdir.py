@@ -76,6 +76,7 @@ def write_file(out: Path, data: bytes) -> None:
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+        done = False
         try:
             with os.fdopen(fd, "wb") as handle:
                 handle.write(data)
@@ -83,8 +84,9 @@ def write_file(out: Path, data: bytes) -> None:
                 os.fsync(handle.fileno())
             os.chmod(tmp, 0o644)
             os.replace(tmp, out)
-        except BaseException:
-            os.unlink(tmp)
-            raise
+            done = True
+        finally:
+            if not done:  # never leave a partial file behind, whatever interrupted the write
+                os.unlink(tmp)
     except OSError as exc:
         raise OutputError(f"cannot write: {exc.strerror}", path=str(out)) from None

@@ -12,3 +12,20 @@ FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 @pytest.fixture
 def fixtures() -> Path:
     return FIXTURES
+
+
+def gl_available() -> tuple[bool, str]:
+    """Whether an offscreen OpenGL context starts here, and why not."""
+    import mujoco
+
+    try:
+        model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
+        with mujoco.Renderer(model, 8, 8) as renderer:
+            renderer.render()
+    except Exception as exc:
+        return False, f"no OpenGL context ({type(exc).__name__}: {exc})"
+    return True, ""
+
+
+GL, GL_WHY = gl_available()
+needs_gl = pytest.mark.skipif(not GL, reason=GL_WHY)

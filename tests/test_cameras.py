@@ -2,27 +2,12 @@
 
 import numpy as np
 import pytest
+from conftest import needs_gl
 
 from simrun import Box, Camera, Ground, Pose, World
 from simrun.cameras import IRDistance, Sonar, StereoCamera, StereoRig, Webcam
 from simrun.drive import BoeBot
 from simrun.errors import SimrunError
-
-
-def gl_available() -> tuple[bool, str]:
-    import mujoco
-
-    try:
-        model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
-        with mujoco.Renderer(model, 8, 8) as renderer:
-            renderer.render()
-    except Exception as exc:
-        return False, f"no OpenGL context ({type(exc).__name__}: {exc})"
-    return True, ""
-
-
-GL, WHY = gl_available()
-needs_gl = pytest.mark.skipif(not GL, reason=WHY)
 
 
 def robot_facing_wall(distance):

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import needs_gl
 from PIL import Image
 
 from simrun import load_scene
@@ -15,22 +16,6 @@ from simrun.play import load_commands, play
 from simrun.render import MODES, FrameRenderer
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
-
-
-def gl_available():
-    import mujoco
-
-    try:
-        model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
-        with mujoco.Renderer(model, 8, 8) as renderer:
-            renderer.render()
-    except Exception as exc:
-        return False, f"no OpenGL context ({type(exc).__name__}: {exc})"
-    return True, ""
-
-
-GL, WHY = gl_available()
-needs_gl = pytest.mark.skipif(not GL, reason=WHY)
 
 
 @needs_gl
