@@ -33,6 +33,7 @@ from meshtool.normalise import NormaliseOptions, normalise_to, prepare, safe_fil
 from meshtool.outdir import write_file, write_folder
 from meshtool.packfile import load
 from meshtool.packfile.export import describe, to_glb, to_msh, unpack_files
+from meshtool.packfile.usd import export_usd
 from meshtool.resolve import find_files
 from meshtool.units import UNIT_FACTORS
 
@@ -375,15 +376,24 @@ def unpack(file: Path, out_dir: Path) -> None:
 @click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
 @click.option("--glb", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write glTF binary.")
 @click.option("--msh", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write MuJoCo MSH.")
-def export(file: Path, glb: Path | None, msh: Path | None) -> None:
-    """Export an .mbin as GLB and/or MuJoCo's legacy MSH."""
-    if glb is None and msh is None:
-        raise click.UsageError("give --glb and/or --msh")
+@click.option(
+    "--usd",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="Write USD (.usda/.usdc), PNG textures beside it.",
+)
+def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None) -> None:
+    """Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."""
+    if glb is None and msh is None and usd is None:
+        raise click.UsageError("give --glb, --msh and/or --usd")
     with _guard(False), load(file, verify=True) as packed:
         for path, data in ((glb, to_glb(packed) if glb else b""), (msh, to_msh(packed) if msh else b"")):
             if path is not None:
                 write_file(path, data)
                 click.echo(f"wrote {path} ({len(data)} bytes)")
+        if usd is not None:
+            written = export_usd(packed, usd, safe_file_stem(file.stem) or "asset")
+            click.echo(f"wrote {', '.join(str(p) for p in written)}")
 
 
 @main.command("mjcf")

@@ -1,0 +1,116 @@
+"""USD export of ``.mbin`` assets with usd-core: UsdGeom meshes, UsdPreviewSurface materials, PNG textures.
+
+The stage is Z-up with ``metersPerUnit = 1`` (meshtool's conventions). Each submesh becomes a
+``UsdGeom.Mesh`` under ``/NAME/Geom`` with normals and ``primvars:st``, bound to a material whose
+``UsdPreviewSurface`` reads its PNG through ``UsdUVTexture`` (the PNGs are written beside the USD file).
+Collision hulls become ``UsdGeom.Mesh`` prims under ``/NAME/Collision`` with ``UsdPhysics.CollisionAPI``
+and ``UsdPhysics.MeshCollisionAPI`` (approximation ``convexHull``).
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from meshtool.errors import OutputError
+from meshtool.mesh import safe_identifier
+from meshtool.outdir import write_file
+from meshtool.packfile.read import PackedMesh
+from meshtool.resolve import read_cache
+
+
+def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:
+    """Write ``out`` (``.usda``, ``.usdc`` or ``.usd``) and the PNG textures it references beside it.
+
+    Returns:
+        Every file written.
+
+    Raises:
+        OutputError: An unsupported extension or a write failure.
+    """
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, UsdShade, Vt
+
+    if out.suffix.lower() not in (".usda", ".usdc", ".usd"):
+        raise OutputError("USD output must end in .usda, .usdc or .usd", path=str(out))
+    root = "/" + safe_identifier(name, "asset").replace(".", "_").replace("-", "_")
+    written: list[Path] = []
+    textures = list(packed.meta.get("textures", []))
+    for k, data in enumerate(packed.textures):
+        target = out.parent / textures[k]
+        write_file(target, bytes(data))
+        written.append(target)
+    with tempfile.TemporaryDirectory(prefix=".usd-", dir=out.parent if out.parent.exists() else None) as tmp:
+        scratch = Path(tmp) / out.name
+        stage = Usd.Stage.CreateNew(str(scratch))
+        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+        UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+        xform = UsdGeom.Xform.Define(stage, root)
+        stage.SetDefaultPrim(xform.GetPrim())
+        materials = [_material(stage, f"{root}/Materials", m, textures, Sdf, UsdShade) for m in packed.materials]
+        positions = np.asarray(packed.positions, dtype=np.float64)
+        indices = np.asarray(packed.indices, dtype=np.int64)
+        for k, (first, count, material, _) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
+            faces = indices[first : first + count]
+            used, inverse = np.unique(faces, return_inverse=True)
+            mesh = UsdGeom.Mesh.Define(stage, f"{root}/Geom/submesh_{k}")
+            mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(positions[used].astype(np.float32)))
+            mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * count))
+            mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(inverse.astype(np.int32).ravel().tolist()))
+            mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+            if packed.normals is not None:
+                mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(packed.normals, np.float32)[used]))
+                mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+            if packed.uvs is not None:
+                st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+                    "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex
+                )
+                st.Set(Vt.Vec2fArray.FromNumpy(np.asarray(packed.uvs, np.float32)[used]))
+            lo, hi = positions[used].min(axis=0), positions[used].max(axis=0)
+            mesh.CreateExtentAttr([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())])
+            if materials:
+                UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(materials[material])
+        for k, (hull_vertices, hull_faces) in enumerate(packed.hulls):
+            hull = UsdGeom.Mesh.Define(stage, f"{root}/Collision/hull_{k}")
+            hull.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(hull_vertices, np.float32)))
+            hull.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(hull_faces)))
+            hull.CreateFaceVertexIndicesAttr(Vt.IntArray(np.asarray(hull_faces, np.int32).ravel().tolist()))
+            hull.CreatePurposeAttr(UsdGeom.Tokens.guide)
+            UsdPhysics.CollisionAPI.Apply(hull.GetPrim())
+            UsdPhysics.MeshCollisionAPI.Apply(hull.GetPrim()).CreateApproximationAttr(UsdPhysics.Tokens.convexHull)
+        stage.GetRootLayer().Save()
+        saved = read_cache(scratch)
+        if saved is None:
+            raise OutputError("usd-core did not write the stage", path=str(out))
+        write_file(out, saved)
+    written.append(out)
+    return written
+
+
+def _material(stage: Any, scope: str, spec: dict[str, Any], textures: list[str], Sdf: Any, UsdShade: Any) -> Any:
+    """A UsdPreviewSurface material (diffuse colour or texture, opacity, roughness from Ns)."""
+    name = safe_identifier(str(spec.get("name", "material")), "material").replace(".", "_").replace("-", "_")
+    material = UsdShade.Material.Define(stage, f"{scope}/{name}")
+    shader = UsdShade.Shader.Define(stage, f"{scope}/{name}/PreviewSurface")
+    shader.CreateIdAttr("UsdPreviewSurface")
+    kd = spec.get("colors", {}).get("Kd", [0.8, 0.8, 0.8])
+    diffuse = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
+    diffuse.Set(tuple(float(c) for c in kd[:3]))
+    shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(float(spec.get("scalars", {}).get("d", 1.0)))
+    shininess = float(spec.get("scalars", {}).get("Ns", 10.0))
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(1.0 - min(shininess, 1000.0) / 1000.0))
+    texture = spec.get("maps", {}).get("map_Kd")
+    if texture is not None:
+        reader = UsdShade.Shader.Define(stage, f"{scope}/{name}/stReader")
+        reader.CreateIdAttr("UsdPrimvarReader_float2")
+        reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("st")
+        image = UsdShade.Shader.Define(stage, f"{scope}/{name}/DiffuseTexture")
+        image.CreateIdAttr("UsdUVTexture")
+        image.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(textures[int(texture["texture"])])
+        image.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
+        image.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+        diffuse.ConnectToSource(image.ConnectableAPI(), "rgb")
+    material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    return material

@@ -1,0 +1,39 @@
+"""USD export read back with pxr."""
+
+from pathlib import Path
+
+import numpy as np
+from click.testing import CliRunner
+from pxr import Usd, UsdGeom, UsdPhysics, UsdShade
+
+from meshtool.cli import main
+from meshtool.packfile import load
+
+SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
+
+
+def test_mbin_to_usd_keeps_points_faces_texture_and_hulls(tmp_path):
+    source = SCENES / "head.mbin"
+    for suffix in (".usda", ".usdc"):
+        out = tmp_path / f"head{suffix}"
+        result = CliRunner().invoke(main, ["export", str(source), "--usd", str(out)])
+        assert result.exit_code == 0, result.output
+        stage = Usd.Stage.Open(str(out))
+        assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+        meshes = [UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+        visual = [m for m in meshes if "/Geom/" in str(m.GetPath())]
+        hulls = [m for m in meshes if "/Collision/" in str(m.GetPath())]
+        with load(source) as packed:
+            assert sum(len(m.GetPointsAttr().Get()) for m in visual) == packed.positions.shape[0]
+            assert sum(len(m.GetFaceVertexCountsAttr().Get()) for m in visual) == packed.indices.shape[0]
+            assert len(hulls) == len(packed.hulls)
+            np.testing.assert_allclose(np.array(hulls[0].GetPointsAttr().Get()), packed.hulls[0][0], atol=1e-7)
+            st = UsdGeom.PrimvarsAPI(visual[0]).GetPrimvar("st").Get()
+            assert len(st) == packed.positions.shape[0]
+        assert all(h.GetPrim().HasAPI(UsdPhysics.CollisionAPI) for h in hulls)
+        material, _ = UsdShade.MaterialBindingAPI(visual[0].GetPrim()).ComputeBoundMaterial()
+        textures = [p for p in stage.Traverse() if p.GetName() == "DiffuseTexture"]
+        assert material and len(textures) == 1
+        png = textures[0].GetAttribute("inputs:file").Get().path
+        assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert CliRunner().invoke(main, ["export", str(source), "--usd", str(tmp_path / "x.obj")]).exit_code == 1
