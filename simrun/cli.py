@@ -25,6 +25,7 @@ from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
 from simrun.simlog import Recorder, Simlog, check_scene, replay_states, resimulate
 from simrun.teleop import run_viewer
+from simrun.usd_export import export_world_usd
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
 
@@ -74,10 +75,16 @@ def check(scene: Path, seconds: float) -> None:
     default=None,
     help="Write an .mjz: MJCF + textures + the compiled model (reloads bit-identically).",
 )
-def export(scene: Path, mjcf: Path | None, mjz: Path | None) -> None:
-    """Export SCENE as MJCF (assets embedded from memory) and/or a compiled binary model."""
-    if mjcf is None and mjz is None:
-        raise click.UsageError("give --mjcf and/or --mjz")
+@click.option(
+    "--usd",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="Write a USD stage (.usda/.usdc) with UsdPhysics bodies, colliders and joints.",
+)
+def export(scene: Path, mjcf: Path | None, mjz: Path | None, usd: Path | None) -> None:
+    """Export SCENE as MJCF (assets embedded from memory), a compiled binary model and/or USD."""
+    if mjcf is None and mjz is None and usd is None:
+        raise click.UsageError("give --mjcf, --mjz and/or --usd")
     with _guard():
         world = load_scene(scene)
         world.compile()
@@ -87,6 +94,9 @@ def export(scene: Path, mjcf: Path | None, mjz: Path | None) -> None:
         if mjz is not None:
             save_mjz(world, mjz)
             click.echo(f"wrote {mjz}")
+        if usd is not None:
+            export_world_usd(world, usd)
+            click.echo(f"wrote {usd}")
 
 
 def _size(text: str) -> tuple[int, int]:

@@ -1,0 +1,111 @@
+"""simrun's world-to-USD export: read the stage back and compare it with the compiled model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from simrun.cli import main
+from simrun.errors import SimrunError
+from simrun.scene import load_scene
+from simrun.usd_export import export_world_usd
+
+pxr = pytest.importorskip("pxr")
+from pxr import Usd, UsdGeom, UsdPhysics  # noqa: E402
+
+SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
+
+
+def _export(scene: str, out: Path) -> tuple[mujoco.MjModel, Usd.Stage]:
+    world = load_scene(SCENES / scene)
+    world.compile()
+    export_world_usd(world, out)
+    return world.model, Usd.Stage.Open(str(out))
+
+
+def test_every_body_and_geom_becomes_a_prim(tmp_path: Path) -> None:
+    model, stage = _export("pioneer_room.toml", tmp_path / "room.usda")
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    xforms = [p for p in stage.Traverse() if p.GetTypeName() == "Xform" and p.GetPath() != "/World"]
+    assert len(xforms) == model.nbody - 1
+    gprims = [p for p in stage.Traverse() if p.IsA(UsdGeom.Gprim)]
+    supported = sum(int(t) != int(mujoco.mjtGeom.mjGEOM_HFIELD) for t in model.geom_type)
+    assert len(gprims) == supported
+    colliders = [p for p in gprims if p.HasAPI(UsdPhysics.CollisionAPI)]
+    assert len(colliders) == int(np.count_nonzero(model.geom_contype | model.geom_conaffinity))
+    scene = UsdPhysics.Scene(stage.GetPrimAtPath("/PhysicsScene"))
+    assert scene.GetGravityMagnitudeAttr().Get() == pytest.approx(float(np.linalg.norm(model.opt.gravity)))
+
+
+def test_joints_and_rigid_bodies_match_the_model(tmp_path: Path) -> None:
+    model, stage = _export("pioneer_room.toml", tmp_path / "room.usda")
+    revolute = [p for p in stage.Traverse() if p.IsA(UsdPhysics.RevoluteJoint)]
+    hinges = int(np.count_nonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE))
+    assert hinges > 0 and len(revolute) == hinges
+    for prim in revolute:
+        joint = UsdPhysics.RevoluteJoint(prim)
+        (child,) = joint.GetBody1Rel().GetTargets()
+        assert child == prim.GetParent().GetPath()
+        assert stage.GetPrimAtPath(joint.GetBody0Rel().GetTargets()[0]).IsValid()
+    free = int(mujoco.mjtJoint.mjJNT_FREE)
+    free_bodies = {int(model.jnt_bodyid[j]) for j in range(model.njnt) if int(model.jnt_type[j]) == free}
+    rigid = [p for p in stage.Traverse() if p.HasAPI(UsdPhysics.RigidBodyAPI)]
+    assert len(rigid) == len(free_bodies | {b for b in range(model.nbody) if model.body_mocapid[b] >= 0})
+    masses = sorted(UsdPhysics.MassAPI(p).GetMassAttr().Get() for p in rigid)
+    assert masses == pytest.approx(sorted(float(model.body_subtreemass[b]) for b in free_bodies), rel=1e-6)
+
+
+def test_mesh_points_and_world_pose_round_trip(tmp_path: Path) -> None:
+    model, stage = _export("head_on_table.toml", tmp_path / "head.usda")
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+    assert meshes
+    cache = UsdGeom.XformCache()
+    checked = 0
+    for g in range(model.ngeom):
+        if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_MESH:
+            continue
+        mesh_id = int(model.geom_dataid[g])
+        v0, nv = int(model.mesh_vertadr[mesh_id]), int(model.mesh_vertnum[mesh_id])
+        local = np.asarray(model.mesh_vert[v0 : v0 + nv], dtype=float)
+        expected = local @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+        matches = [p for p in meshes if len(UsdGeom.Mesh(p).GetPointsAttr().Get()) == nv]
+        assert matches, f"no USD mesh with {nv} points"
+        prim = matches[0]
+        points = np.asarray(UsdGeom.Mesh(prim).GetPointsAttr().Get(), dtype=float)
+        matrix = np.asarray(cache.GetLocalToWorldTransform(prim), dtype=float)
+        world = points @ matrix[:3, :3] + matrix[3, :3]  # USD uses row vectors
+        np.testing.assert_allclose(world, expected, atol=1e-5)
+        counts = UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get()
+        assert len(counts) == int(model.mesh_facenum[mesh_id]) and set(counts) == {3}
+        checked += 1
+    assert checked >= 1
+
+
+def test_export_is_deterministic_and_cli_writes_it(tmp_path: Path) -> None:
+    first, second = tmp_path / "a.usda", tmp_path / "b.usda"
+    export_world_usd(_loaded("basic.toml"), first)
+    export_world_usd(_loaded("basic.toml"), second)
+    assert first.read_bytes() == second.read_bytes()
+    out = tmp_path / "cli.usda"
+    result = CliRunner().invoke(main, ["export", str(SCENES / "basic.toml"), "--usd", str(out)])
+    assert result.exit_code == 0, result.output
+    assert out.read_bytes() == first.read_bytes()
+
+
+def test_bad_extension_is_a_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(SimrunError, match=r"must end in \.usda"):
+        export_world_usd(_loaded("basic.toml"), tmp_path / "scene.obj")
+    assert not (tmp_path / "scene.obj").exists()
+
+
+def _loaded(scene: str):  # type: ignore[no-untyped-def]
+    world = load_scene(SCENES / scene)
+    world.compile()
+    return world
