@@ -19,6 +19,7 @@ from simrun import __version__
 from simrun.archive import save_mjz
 from simrun.doctor import check_environment
 from simrun.errors import SimrunError
+from simrun.glb_export import export_world_glb
 from simrun.outfile import write_bytes, write_text
 from simrun.play import PythonController, encode_gif, encode_mp4, load_commands, play
 from simrun.render import MODES, FrameRenderer
@@ -81,10 +82,16 @@ def check(scene: Path, seconds: float) -> None:
     default=None,
     help="Write a USD stage (.usda/.usdc) with UsdPhysics bodies, colliders and joints.",
 )
-def export(scene: Path, mjcf: Path | None, mjz: Path | None, usd: Path | None) -> None:
-    """Export SCENE as MJCF (assets embedded from memory), a compiled binary model and/or USD."""
-    if mjcf is None and mjz is None and usd is None:
-        raise click.UsageError("give --mjcf, --mjz and/or --usd")
+@click.option(
+    "--glb",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="Write a GLB (Y-up, metres, colours) for web viewers.",
+)
+def export(scene: Path, mjcf: Path | None, mjz: Path | None, usd: Path | None, glb: Path | None) -> None:
+    """Export SCENE as MJCF (assets embedded from memory), a compiled binary model, USD and/or GLB."""
+    if mjcf is None and mjz is None and usd is None and glb is None:
+        raise click.UsageError("give --mjcf, --mjz, --usd and/or --glb")
     with _guard():
         world = load_scene(scene)
         world.compile()
@@ -97,6 +104,9 @@ def export(scene: Path, mjcf: Path | None, mjz: Path | None, usd: Path | None) -
         if usd is not None:
             export_world_usd(world, usd)
             click.echo(f"wrote {usd}")
+        if glb is not None:
+            export_world_glb(world, glb)
+            click.echo(f"wrote {glb}")
 
 
 def _size(text: str) -> tuple[int, int]:
