@@ -14,12 +14,10 @@ import mujoco
 import numpy as np
 import trimesh
 
+from meshtool.packfile.export import Z_UP_TO_Y_UP
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes
 from simrun.world import World
-
-#: Z-up (MuJoCo) to Y-up (glTF): -90 degrees about X.
-Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
 
 
 def world_to_glb(world: World) -> bytes:

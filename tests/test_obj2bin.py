@@ -11,6 +11,7 @@ from click.testing import CliRunner
 from meshtool.cli import main, obj2bin
 from meshtool.normalise import NormaliseOptions, prepare
 from meshtool.packfile import load, pack
+from meshtool.packfile.export import Z_UP_TO_Y_UP
 
 HEAD = Path("head") / "Head 1.obj"
 
@@ -106,6 +107,10 @@ def test_export_glb_and_msh(fixtures, tmp_path):
     scene = trimesh.load(tmp_path / "h.glb")
     (mesh,) = scene.geometry.values()
     assert len(mesh.faces) == 80
+    with load(src) as packed:
+        np.testing.assert_array_equal(mesh.vertices, np.asarray(packed.positions, dtype=np.float64))
+    (node,) = scene.graph.nodes_geometry
+    np.testing.assert_array_equal(scene.graph[node][0], Z_UP_TO_Y_UP)  # upright in Y-up glTF viewers
     assert mesh.visual.material.baseColorTexture.size == (16, 16)
     spec = mujoco.MjSpec()
     spec.add_mesh(name="m", file=str(tmp_path / "h.msh"))

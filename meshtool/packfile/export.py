@@ -101,8 +101,16 @@ def to_msh(packed: PackedMesh) -> bytes:
     return head + v.tobytes() + n.tobytes() + t.tobytes() + f.tobytes()
 
 
+#: Z-up (meshtool, MuJoCo) to Y-up (glTF 2.0): -90 degrees about X, set as each node's matrix.
+Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
+
+
 def to_glb(packed: PackedMesh) -> bytes:
-    """A glTF binary scene with one primitive per submesh, materials and textures, via trimesh."""
+    """A glTF binary scene with one primitive per submesh, materials and textures, via trimesh.
+
+    Vertex data stays in metres, Z-up, exactly as packed; each node carries :data:`Z_UP_TO_Y_UP`, so
+    viewers that follow glTF's +Y-up show the asset standing upright.
+    """
     scene = trimesh.Scene()
     positions = np.asarray(packed.positions, dtype=np.float64)
     indices = np.asarray(packed.indices, dtype=np.int64)
@@ -132,7 +140,7 @@ def to_glb(packed: PackedMesh) -> bytes:
         mesh.visual = trimesh.visual.TextureVisuals(uv=uv, material=pbr)  # type: ignore[no-untyped-call]
         if packed.normals is not None:
             mesh.vertex_normals = np.asarray(packed.normals, dtype=np.float64)[used]  # type: ignore[method-assign]
-        scene.add_geometry(mesh, geom_name=f"submesh_{k}")
+        scene.add_geometry(mesh, geom_name=f"submesh_{k}", transform=Z_UP_TO_Y_UP)
     data: bytes = scene.export(file_type="glb")  # type: ignore[no-untyped-call]
     return data
 
