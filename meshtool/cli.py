@@ -36,6 +36,7 @@ from meshtool.packfile.export import describe, to_glb, to_msh, unpack_files
 from meshtool.packfile.usd import export_usd
 from meshtool.resolve import find_files
 from meshtool.units import UNIT_FACTORS
+from meshtool.urdf import UrdfOptions, import_urdf, write_import
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 
@@ -426,6 +427,58 @@ def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float
                 files = build_mjcf(packed, name, options)
             folder = write_folder(out_dir, name, {**files, "asset.json": json.dumps({"source": str(path)}).encode()})
             click.echo(f"wrote {folder / (safe_identifier(name, 'asset') + '.xml')}")
+
+
+def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str, ...]) -> tuple[tuple[str, Path], ...]:
+    pairs = []
+    for value in values:
+        name, sep, folder = value.partition("=")
+        if not sep or not name or not folder:
+            raise click.BadParameter(f"expected NAME=DIR, got {value!r}")
+        pairs.append((name, Path(folder)))
+    return tuple(pairs)
+
+
+@main.command("urdf")
+@click.argument("robot", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder for NAME.xml (MJCF), its .msh meshes and PNG textures, and meshes/*.mbin.",
+)
+@click.option(
+    "--package-dir",
+    "package_dirs",
+    multiple=True,
+    callback=_package_dir,
+    help="Folder of a ROS package for package://NAME/... paths, as NAME=DIR (repeatable).",
+)
+@click.option("--actuators", is_flag=True, help="Add a motor per moving joint, limited to its URDF effort.")
+@click.option("--free-base", is_flag=True, help="Give the root link a free joint (mobile robots).")
+@click.option("--allow-outside", is_flag=True, help="Let relative mesh paths leave the robot's package folder.")
+@hull_options
+def urdf(
+    robot: Path,
+    out_dir: Path,
+    package_dirs: tuple[tuple[str, Path], ...],
+    actuators: bool,
+    free_base: bool,
+    allow_outside: bool,
+    **hull_kw: Any,
+) -> None:
+    """Import ROBOT (a URDF): every mesh normalised, packed and hulled; an MJCF of the robot."""
+    with _guard(False):
+        options = UrdfOptions(package_dirs, _hull_options(hull_kw), actuators, free_base, allow_outside)
+        result = import_urdf(robot, options)
+        _echo_findings(result.findings)
+        write_import(result, out_dir)
+        click.echo(
+            f"wrote {out_dir / (result.name + '.xml')}: {len(result.links)} links, {len(result.joints)} moving "
+            f"joints, {len(result.mbins)} mesh(es) in {out_dir / 'meshes'}"
+        )
 
 
 def _summary(stats: dict[str, Any]) -> str:

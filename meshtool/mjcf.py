@@ -50,22 +50,35 @@ class _Msh:
         self.positions, self.indices, self.normals, self.uvs = positions, indices, normals, uvs
 
 
-def build_mjcf(packed: PackedMesh, name: str, options: MjcfOptions | None = None) -> dict[str, bytes]:
-    """The files of a MuJoCo model for one asset: ``NAME.xml``, meshes (``.msh``) and PNG textures.
+@dataclass(slots=True)
+class MeshFragment:
+    """The MJCF pieces of one packed mesh, for a model that places it somewhere.
 
-    Raises:
-        OptionsError: The file has no collision hulls (pack it with ``--hulls`` other than ``none``).
+    Attributes:
+        files: ``.msh`` meshes and PNG textures by file name.
+        assets: ``<texture>``, ``<material>`` and ``<mesh>`` elements.
+        visual: ``<geom class="visual" .../>`` attributes, one per submesh, without pose or closing.
+        collision: ``<geom class="collision" .../>`` attributes, one per hull, without pose or closing.
+        volumes: Volume of each hull, m^3.
     """
-    options = options or MjcfOptions()
-    if not packed.hulls:
-        raise OptionsError("the .mbin has no collision hulls", hint="convert it with obj2bin --hulls convex")
-    model = safe_identifier(name, "asset")
+
+    files: dict[str, bytes]
+    assets: list[str]
+    visual: list[str]
+    collision: list[str]
+    volumes: list[float]
+
+
+def mesh_fragment(packed: PackedMesh, prefix: str, max_hull_vertices: int = 64) -> MeshFragment:
+    """Meshes, materials, textures and geoms of ``packed``, every name starting with ``prefix``."""
+    model = prefix
     files: dict[str, bytes] = {}
     assets: list[str] = []
     textures = list(packed.meta.get("textures", []))
     for k, data in enumerate(packed.textures):
-        files[textures[k]] = bytes(data)
-        assets.append(f'<texture name="{model}_tex{k}" type="2d" file={quoteattr(textures[k])}/>')
+        file_name = f"{model}_{textures[k]}"
+        files[file_name] = bytes(data)
+        assets.append(f'<texture name="{model}_tex{k}" type="2d" file={quoteattr(file_name)}/>')
     material_names = []
     for k, m in enumerate(packed.materials):
         mat = f"{model}_{safe_identifier(str(m.get('name', k)), f'material{k}')}"
@@ -79,7 +92,7 @@ def build_mjcf(packed: PackedMesh, name: str, options: MjcfOptions | None = None
             rgba = f"1 1 1 {_num(alpha)}"
         assets.append(f'<material name="{mat}" rgba="{rgba}"{attrs}/>')
 
-    geoms: list[str] = []
+    visual: list[str] = []
     positions = np.asarray(packed.positions, dtype=np.float32)
     indices = np.asarray(packed.indices, dtype=np.int64)
     for k, (first, count, material, _part) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
@@ -91,22 +104,39 @@ def build_mjcf(packed: PackedMesh, name: str, options: MjcfOptions | None = None
         files[mesh_file] = to_msh(_Msh(positions[used], inverse.reshape(-1, 3), normals, uvs))  # type: ignore[arg-type]
         assets.append(f'<mesh name="{model}_visual_{k}" file="{mesh_file}" inertia="shell"/>')
         mat = f' material="{material_names[material]}"' if material_names else ""
-        geoms.append(f'<geom class="visual" mesh="{model}_visual_{k}"{mat}/>')
+        visual.append(f'class="visual" mesh="{model}_visual_{k}"{mat}')
 
     volumes = [float(trimesh.Trimesh(v, f, process=False).volume) for v, f in packed.hulls]
-    total = sum(volumes)
+    collision: list[str] = []
     for k, (hull_vertices, hull_faces) in enumerate(packed.hulls):
         mesh_file = f"{model}_collision_{k}.msh"
         files[mesh_file] = to_msh(_Msh(np.asarray(hull_vertices, np.float32), np.asarray(hull_faces, np.int64)))  # type: ignore[arg-type]
-        assets.append(
-            f'<mesh name="{model}_collision_{k}" file="{mesh_file}" inertia="convex" '
-            f'maxhullvert="{options.max_hull_vertices}"/>'
-        )
+        hull_attrs = f'inertia="convex" maxhullvert="{max_hull_vertices}"'
+        assets.append(f'<mesh name="{model}_collision_{k}" file="{mesh_file}" {hull_attrs}/>')
+        collision.append(f'class="collision" mesh="{model}_collision_{k}"')
+    return MeshFragment(files, assets, visual, collision, volumes)
+
+
+def build_mjcf(packed: PackedMesh, name: str, options: MjcfOptions | None = None) -> dict[str, bytes]:
+    """The files of a MuJoCo model for one asset: ``NAME.xml``, meshes (``.msh``) and PNG textures.
+
+    Raises:
+        OptionsError: The file has no collision hulls (pack it with ``--hulls`` other than ``none``).
+    """
+    options = options or MjcfOptions()
+    if not packed.hulls:
+        raise OptionsError("the .mbin has no collision hulls", hint="convert it with obj2bin --hulls convex")
+    model = safe_identifier(name, "asset")
+    fragment = mesh_fragment(packed, model, options.max_hull_vertices)
+    files, assets = fragment.files, fragment.assets
+    geoms = [f"<geom {g}/>" for g in fragment.visual]
+    total = sum(fragment.volumes)
+    for k, geom in enumerate(fragment.collision):
         if options.mass is not None:
-            weight = f' mass="{_num(options.mass * volumes[k] / total)}"'
+            weight = f' mass="{_num(options.mass * fragment.volumes[k] / total)}"'
         else:
             weight = f' density="{_num(options.density)}"'
-        geoms.append(f'<geom class="collision" mesh="{model}_collision_{k}"{weight}/>')
+        geoms.append(f"<geom {geom}{weight}/>")
 
     joint = ["    <freejoint/>"] if options.free_joint else []
     xml = "\n".join(

@@ -269,3 +269,23 @@ def read_cache(path: Path) -> bytes | None:
         return path.read_bytes() if path.is_file() else None
     except OSError:
         return None
+
+
+def find_package_dir(start: Path, name: str) -> Path | None:
+    """The ROS package folder ``name`` for a ``package://name/...`` URI, searched from ``start`` upwards.
+
+    An ancestor of ``start`` named ``name`` wins (``pkg/urdf/robot.urdf``), then a sibling folder ``name``
+    of an ancestor (``src/pkg`` beside ``src/robot_description``). Symlinks are resolved.
+    """
+    here = Path(os.path.realpath(start))
+    for folder in (here, *here.parents):
+        if folder.name == name:
+            return folder
+        if (folder / name).is_dir():
+            return Path(os.path.realpath(folder / name))
+    return None
+
+
+def is_file(path: Path) -> bool:
+    """Whether ``path`` names an existing regular file."""
+    return path.is_file()

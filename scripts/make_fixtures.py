@@ -510,6 +510,135 @@ entity = "base/arm"
     )
 
 
+URDF_ARM = """<?xml version="1.0"?>
+<!-- A three-link arm in the ROS layout: an OBJ base in millimetres with a JPG texture, an STL link in
+     millimetres, primitives, a fixed tool link, and package:// mesh paths. -->
+<robot name="tiny_arm">
+  <link name="base_link">
+    <inertial>
+      <origin xyz="0 0 0.025" rpy="0 0 0"/>
+      <mass value="2.0"/>
+      <inertia ixx="0.002083" ixy="0" ixz="0" iyy="0.002083" iyz="0" izz="0.003333"/>
+    </inertial>
+    <visual>
+      <origin xyz="0 0 0" rpy="0 0 0"/>
+      <geometry><mesh filename="package://tiny_arm_description/meshes/base.obj" scale="0.001 0.001 0.001"/></geometry>
+    </visual>
+    <collision>
+      <geometry><mesh filename="package://tiny_arm_description/meshes/base.obj" scale="0.001 0.001 0.001"/></geometry>
+    </collision>
+  </link>
+  <joint name="shoulder" type="revolute">
+    <parent link="base_link"/>
+    <child link="upper"/>
+    <origin xyz="0 0 0.05" rpy="0 0 0.3"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="-2.0" upper="2.0" effort="10" velocity="2"/>
+    <dynamics damping="0.1" friction="0.01"/>
+  </joint>
+  <link name="upper">
+    <inertial>
+      <origin xyz="0 0 0.1" rpy="0 0 0"/>
+      <mass value="0.5"/>
+      <inertia ixx="0.00172" ixy="0" ixz="0" iyy="0.00172" iyz="0" izz="0.0001"/>
+    </inertial>
+    <visual>
+      <geometry>
+        <mesh filename="package://tiny_arm_description/meshes/upper arm.stl" scale="0.001 0.001 0.001"/>
+      </geometry>
+      <material name="grey"><color rgba="0.5 0.5 0.55 1"/></material>
+    </visual>
+    <collision>
+      <geometry><mesh filename="../meshes/upper arm.stl" scale="0.001 0.001 0.001"/></geometry>
+    </collision>
+  </link>
+  <joint name="elbow" type="revolute">
+    <parent link="upper"/>
+    <child link="fore"/>
+    <origin xyz="0 0 0.2" rpy="0.2 0 0"/>
+    <axis xyz="0 1 0"/>
+    <limit lower="-1.5" upper="1.5" effort="5" velocity="2"/>
+  </joint>
+  <link name="fore">
+    <inertial>
+      <origin xyz="0.075 0 0" rpy="0 0 0"/>
+      <mass value="0.3"/>
+      <inertia ixx="0.0001" ixy="0" ixz="0" iyy="0.0006" iyz="0" izz="0.0006"/>
+    </inertial>
+    <visual>
+      <origin xyz="0.075 0 0" rpy="0 1.5707963267948966 0"/>
+      <geometry><cylinder radius="0.015" length="0.15"/></geometry>
+    </visual>
+    <collision>
+      <origin xyz="0.075 0 0" rpy="0 0 0"/>
+      <geometry><box size="0.15 0.03 0.03"/></geometry>
+    </collision>
+  </link>
+  <joint name="slide" type="prismatic">
+    <parent link="fore"/>
+    <child link="tool"/>
+    <origin xyz="0.15 0 0" rpy="0 0 0"/>
+    <axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.05" effort="20" velocity="0.5"/>
+  </joint>
+  <link name="tool">
+    <inertial>
+      <mass value="0.05"/>
+      <inertia ixx="0.00001" ixy="0" ixz="0" iyy="0.00001" iyz="0" izz="0.00001"/>
+    </inertial>
+    <collision><geometry><sphere radius="0.02"/></geometry></collision>
+  </link>
+  <joint name="tip_fixed" type="fixed">
+    <parent link="tool"/>
+    <child link="tip"/>
+    <origin xyz="0.02 0 0" rpy="0 0 0"/>
+  </joint>
+  <link name="tip"/>
+</robot>
+"""
+
+
+def _binary_stl(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    tris = vertices[faces]
+    normals = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    record = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    data = np.zeros(len(faces), dtype=record)
+    data["n"], data["v"] = normals, tris
+    return b"tiny_arm upper link, millimetres".ljust(80, b" ") + np.uint32(len(faces)).tobytes() + data.tobytes()
+
+
+def urdf_robot() -> None:
+    pkg = ROOT / "urdf" / "tiny_arm_description"
+    write(pkg / "urdf" / "tiny_arm.urdf", URDF_ARM)
+    # base: a 100 x 100 x 50 mm box (Z-up, as URDF meshes are), textured with a JPG.
+    corners = [(x, y, z) for z in (0, 50) for y in (-50, 50) for x in (-50, 50)]
+    lines = ["# tiny arm base, millimetres, Z-up", "mtllib base.mtl"]
+    lines += [f"v {x} {y} {z}" for x, y, z in corners]
+    lines += ["vt 0 0", "vt 1 0", "vt 1 1", "vt 0 1", "usemtl painted"]
+    quads = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
+    lines += [f"f {a}/1 {b}/2 {c}/3 {d}/4" for a, b, c, d in quads]
+    write(pkg / "meshes" / "base.obj", "\n".join(lines) + "\n")
+    write(pkg / "meshes" / "base.mtl", "newmtl painted\nKd 1 1 1\nmap_Kd ../textures/base.jpg\n")
+    image(pkg / "textures" / "base.jpg", gradient(16), "JPEG")
+    # upper arm: a 24-sided cylinder, radius 20 mm, 200 mm tall, standing on z = 0.
+    n = 24
+    angles = np.arange(n) * 2 * math.pi / n
+    ring = np.stack([20 * np.cos(angles), 20 * np.sin(angles)], axis=1)
+    vertices = np.concatenate([np.c_[ring, np.zeros(n)], np.c_[ring, np.full(n, 200.0)], [[0, 0, 0], [0, 0, 200]]])
+    faces = []
+    for i in range(n):
+        j = (i + 1) % n
+        faces += [(i, j, n + j), (i, n + j, n + i), (2 * n, j, i), (2 * n + 1, n + i, n + j)]
+    write(pkg / "meshes" / "upper arm.stl", _binary_stl(vertices.astype(np.float64), np.asarray(faces)))
+    write(
+        pkg / "urdf" / "missing_mesh.urdf",
+        URDF_ARM.replace('meshes/upper arm.stl" scale', 'meshes/lower arm.stl" scale', 1),
+    )
+    write(pkg / "urdf" / "escape.urdf", URDF_ARM.replace("../meshes/upper arm.stl", "../../secret.stl", 1))
+    write(ROOT / "urdf" / "secret.stl", _binary_stl(vertices.astype(np.float64), np.asarray(faces)))
+
+
 def main() -> None:
     for child in ROOT.iterdir():
         if child.is_dir() and child.name != "golden":  # goldens are written once, never regenerated here
@@ -519,6 +648,7 @@ def main() -> None:
     bowl()
     scenes()
     robot_scenes()
+    urdf_robot()
 
 
 if __name__ == "__main__":
