@@ -636,6 +636,35 @@ def urdf_robot() -> None:
         URDF_ARM.replace('meshes/upper arm.stl" scale', 'meshes/lower arm.stl" scale', 1),
     )
     write(pkg / "urdf" / "escape.urdf", URDF_ARM.replace("../meshes/upper arm.stl", "../../secret.stl", 1))
+    write(
+        ROOT / "scenes" / "urdf_arm.toml",
+        """# The fixture URDF arm on a table, imported through meshtool (package:// meshes in mm, JPG texture).
+
+[world]
+timestep = 0.002
+
+[[entities]]
+type = "Sky"
+name = "sky"
+
+[[entities]]
+type = "Ground"
+name = "ground"
+
+[[entities]]
+type = "Box"
+name = "table"
+dimensions = [0.6, 0.6, 0.4]
+pose = { position = [0.0, 0.0, 0.2] }
+
+[[entities]]
+type = "UrdfRobot"
+name = "arm"
+urdf = "../urdf/tiny_arm_description/urdf/tiny_arm.urdf"
+actuators = true
+pose = { position = [0.0, 0.0, 0.4] }
+""",
+    )
     write(ROOT / "urdf" / "secret.stl", _binary_stl(vertices.astype(np.float64), np.asarray(faces)))
 
 

@@ -23,6 +23,7 @@ from simrun.mesh_entity import MeshEntity
 from simrun.pose import Pose
 from simrun.scene import load_scene, save_scene, scene_text
 from simrun.shapes import Box, Capsule, Cylinder, Sphere
+from simrun.urdf_robot import UrdfRobot
 from simrun.world import World, WorldOptions
 
 __all__ = [
@@ -43,6 +44,7 @@ __all__ = [
     "SimrunError",
     "Sky",
     "Sphere",
+    "UrdfRobot",
     "World",
     "WorldOptions",
     "__version__",

@@ -26,6 +26,7 @@ from simrun.mesh_entity import MeshEntity
 from simrun.outfile import write_text
 from simrun.pose import Pose
 from simrun.shapes import Box, Capsule, Cylinder, Sphere
+from simrun.urdf_robot import UrdfRobot
 from simrun.world import World, WorldOptions
 
 ENTITY_TYPES: dict[str, type[Entity]] = {
@@ -48,6 +49,7 @@ ENTITY_TYPES: dict[str, type[Entity]] = {
         LegoNxtTribot,
         KukaLBR3,
         LynxL6,
+        UrdfRobot,
     )
 }
 _TOP = ("world", "assets", "entities", "services", "sensors")
