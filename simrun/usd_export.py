@@ -1,7 +1,8 @@
 """USD export of a whole world from its compiled MuJoCo model, with UsdPhysics schemas.
 
-Bodies become nested ``Xform`` prims under ``/World`` named like their entities (``robot/wheel`` becomes
-``/World/robot/wheel``), placed by their local pose; geoms become ``Cube``/``Sphere``/``Capsule``/
+Bodies become nested ``Xform`` prims under ``/World`` following the kinematic tree, each prim named by the
+last part of its body name and carrying the full name (``robot/wheel``) in a ``simrun:name`` string
+attribute, placed by their local pose; geoms become ``Cube``/``Sphere``/``Capsule``/
 ``Cylinder``/``Mesh`` prims (planes a thin ``Cube``); colliding geoms get ``CollisionAPI`` (meshes with a
 ``convexHull`` approximation); bodies with a free joint get ``RigidBodyAPI`` and ``MassAPI``; hinge and
 slide joints become ``RevoluteJoint``/``PrismaticJoint`` with their limits. Z-up, metres, a physics scene
@@ -64,6 +65,8 @@ def export_world_usd(world: World, out: Path) -> None:
                 path += "_"
             paths[b] = path
             xform = UsdGeom.Xform.Define(stage, path)
+            # Prim paths follow the kinematic tree; the full entity/body name travels as an attribute.
+            xform.GetPrim().CreateAttribute("simrun:name", Sdf.ValueTypeNames.String).Set(name)
             _place(xform, model.body_pos[b], model.body_quat[b], Gf)
             free = any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for j in _joints(model, b))
             if free or model.body_mocapid[b] >= 0:
@@ -171,6 +174,8 @@ def _geom(
     else:
         return  # height fields and other types: not exported
     xform = UsdGeom.Xformable(prim)
+    if model.geom(g).name:
+        prim.GetPrim().CreateAttribute("simrun:name", Sdf.ValueTypeNames.String).Set(model.geom(g).name)
     _place(xform, model.geom_pos[g], model.geom_quat[g], Gf)
     if scale is not None:
         xform.AddScaleOp().Set(Gf.Vec3f(*scale))
@@ -184,4 +189,3 @@ def _geom(
             api.CreateApproximationAttr(UsdPhysics.Tokens.convexHull)
     else:
         UsdGeom.Imageable(prim).CreatePurposeAttr(UsdGeom.Tokens.render)
-    del Sdf

@@ -8,11 +8,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+import trimesh
 import yourdfpy
 from click.testing import CliRunner
 
 from meshtool.cli import main
 from meshtool.packfile import load
+from meshtool.packfile.read import parse
 from meshtool.urdf import UrdfError, UrdfOptions, import_urdf, write_import
 
 PKG = Path(__file__).resolve().parent.parent / "fixtures" / "urdf" / "tiny_arm_description"
@@ -133,3 +135,21 @@ def test_package_dir_option_finds_a_package_elsewhere(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "tiny_arm.xml"))
     assert (model.nbody, model.njnt, model.ntex) == (6, 3, 1)
+
+
+def test_collada_meshes_go_through_trimesh(tmp_path: Path) -> None:
+    package = tmp_path / "dae_robot"
+    (package / "meshes").mkdir(parents=True)
+    box = trimesh.creation.box(extents=(40.0, 60.0, 80.0))  # millimetres
+    (package / "meshes" / "block.dae").write_bytes(trimesh.exchange.dae.export_collada(box))
+    (package / "urdf").mkdir()
+    (package / "urdf" / "r.urdf").write_text(
+        '<robot name="r"><link name="base"><visual><geometry>'
+        '<mesh filename="package://dae_robot/meshes/block.dae" scale="0.001 0.001 0.001"/>'
+        "</geometry></visual></link></robot>"
+    )
+    result = import_urdf(package / "urdf" / "r.urdf")
+    packed = parse(result.mbins["meshes/block.mbin"], "block.mbin")
+    positions = np.asarray(packed.positions, dtype=float)
+    np.testing.assert_allclose(positions.max(axis=0) - positions.min(axis=0), [0.04, 0.06, 0.08], atol=1e-9)
+    assert len(packed.indices) == 12

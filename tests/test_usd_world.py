@@ -109,3 +109,19 @@ def _loaded(scene: str):  # type: ignore[no-untyped-def]
     world = load_scene(SCENES / scene)
     world.compile()
     return world
+
+
+def test_entity_names_and_body_poses_round_trip(tmp_path: Path) -> None:
+    model, stage = _export("arm_on_base.toml", tmp_path / "arm.usda")
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    cache = UsdGeom.XformCache()
+    named = {str(p.GetAttribute("simrun:name").Get()): p for p in stage.Traverse() if p.HasAttribute("simrun:name")}
+    assert {model.body(b).name for b in range(1, model.nbody)} <= set(named)
+    assert {model.geom(g).name for g in range(model.ngeom) if model.geom(g).name} <= set(named)
+    for b in range(1, model.nbody):
+        prim = named[model.body(b).name]
+        assert prim.GetTypeName() == "Xform"
+        matrix = np.asarray(cache.GetLocalToWorldTransform(prim), dtype=float)
+        np.testing.assert_allclose(matrix[3, :3], data.xpos[b], atol=1e-6)
+        np.testing.assert_allclose(matrix[:3, :3].T, data.xmat[b].reshape(3, 3), atol=1e-6)
