@@ -108,7 +108,11 @@ def _joint(stage: Any, model: mujoco.MjModel, j: int, parent: str, child: str, U
     else:
         joint = UsdPhysics.PrismaticJoint.Define(stage, path)
     axis = np.asarray(model.jnt_axis[j], dtype=float)
-    joint.CreateAxisAttr("XYZ"[int(np.argmax(np.abs(axis)))])
+    # USD joints turn about X of their joint frames; rotate those frames so X is MuJoCo's axis.
+    joint.CreateAxisAttr("X")
+    to_axis = _x_to(axis / np.linalg.norm(axis))
+    in_parent_rot = np.zeros(4)
+    mujoco.mju_mulQuat(in_parent_rot, np.asarray(model.body_quat[body], dtype=float), to_axis)
     joint.CreateBody0Rel().SetTargets([parent])
     joint.CreateBody1Rel().SetTargets([child])
     anchor = np.asarray(model.jnt_pos[j], dtype=float)  # in the child body's frame
@@ -117,12 +121,25 @@ def _joint(stage: Any, model: mujoco.MjModel, j: int, parent: str, child: str, U
     in_parent = np.asarray(model.body_pos[body], dtype=float) + rotation.reshape(3, 3) @ anchor
     joint.CreateLocalPos0Attr(Gf.Vec3f(*(float(v) for v in in_parent)))
     joint.CreateLocalPos1Attr(Gf.Vec3f(*(float(v) for v in anchor)))
+    joint.CreateLocalRot0Attr(Gf.Quatf(*(float(v) for v in in_parent_rot)))
+    joint.CreateLocalRot1Attr(Gf.Quatf(*(float(v) for v in to_axis)))
     if model.jnt_limited[j]:
         low, high = (float(v) for v in model.jnt_range[j])
         if kind == mujoco.mjtJoint.mjJNT_HINGE:
             low, high = math.degrees(low), math.degrees(high)
         joint.CreateLowerLimitAttr(low)
         joint.CreateUpperLimitAttr(high)
+
+
+def _x_to(axis: np.ndarray) -> np.ndarray:
+    """The shortest rotation (wxyz) taking +X onto the unit vector ``axis``."""
+    x = np.array([1.0, 0.0, 0.0])
+    dot = float(np.dot(x, axis))
+    if dot < -1.0 + 1e-12:
+        return np.array([0.0, 0.0, 0.0, 1.0])  # half a turn about Z
+    quat: np.ndarray = np.array([1.0 + dot, *np.cross(x, axis)])
+    quat /= np.linalg.norm(quat)
+    return quat
 
 
 def _geom(

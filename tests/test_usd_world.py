@@ -52,6 +52,14 @@ def test_joints_and_rigid_bodies_match_the_model(tmp_path: Path) -> None:
         (child,) = joint.GetBody1Rel().GetTargets()
         assert child == prim.GetParent().GetPath()
         assert stage.GetPrimAtPath(joint.GetBody0Rel().GetTargets()[0]).IsValid()
+        # the joint frame's X, seen from the child, is MuJoCo's joint axis
+        j = next(j for j in range(model.njnt) if model.joint(j).name.endswith(prim.GetName()[len("joint_") :]))
+        rot = joint.GetLocalRot1Attr().Get()
+        quat = np.array([rot.GetReal(), *rot.GetImaginary()], dtype=float)
+        x_axis = np.zeros(3)
+        mujoco.mju_rotVecQuat(x_axis, np.array([1.0, 0.0, 0.0]), quat)
+        assert joint.GetAxisAttr().Get() == "X"
+        np.testing.assert_allclose(x_axis, model.jnt_axis[j], atol=1e-6)
     free = int(mujoco.mjtJoint.mjJNT_FREE)
     free_bodies = {int(model.jnt_bodyid[j]) for j in range(model.njnt) if int(model.jnt_type[j]) == free}
     rigid = [p for p in stage.Traverse() if p.HasAPI(UsdPhysics.RigidBodyAPI)]
