@@ -15,6 +15,7 @@ import numpy as np
 import trimesh
 
 from meshtool.packfile.export import Z_UP_TO_Y_UP
+from simrun.compiled_mesh import compiled_mesh
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes
 from simrun.world import World
@@ -72,14 +73,8 @@ def _geom_mesh(model: mujoco.MjModel, g: int) -> trimesh.Trimesh | None:
         mesh = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
         mesh.apply_scale(size)  # type: ignore[no-untyped-call]
     elif kind == int(mujoco.mjtGeom.mjGEOM_MESH):
-        mesh_id = int(model.geom_dataid[g])
-        v0, nv = int(model.mesh_vertadr[mesh_id]), int(model.mesh_vertnum[mesh_id])
-        f0, nf = int(model.mesh_faceadr[mesh_id]), int(model.mesh_facenum[mesh_id])
-        mesh = trimesh.Trimesh(
-            vertices=np.asarray(model.mesh_vert[v0 : v0 + nv], dtype=np.float64),
-            faces=np.asarray(model.mesh_face[f0 : f0 + nf], dtype=np.int64),
-            process=False,
-        )
+        vertices, faces = compiled_mesh(model, int(model.geom_dataid[g]))
+        mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     else:
         return None  # height fields and SDF plugins are not exported
     return mesh

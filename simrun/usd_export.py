@@ -20,6 +20,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from simrun.compiled_mesh import compiled_mesh
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes
 from simrun.world import World
@@ -179,13 +180,11 @@ def _geom(
         prim.CreateAxisAttr(UsdGeom.Tokens.z)
         scale = None
     elif kind == mujoco.mjtGeom.mjGEOM_MESH:
-        mesh_id = int(model.geom_dataid[g])
-        v0, nv = int(model.mesh_vertadr[mesh_id]), int(model.mesh_vertnum[mesh_id])
-        f0, nf = int(model.mesh_faceadr[mesh_id]), int(model.mesh_facenum[mesh_id])
+        vertices, faces = compiled_mesh(model, int(model.geom_dataid[g]))
         prim = UsdGeom.Mesh.Define(stage, path)
-        prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(model.mesh_vert[v0 : v0 + nv], np.float32)))
-        prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * nf))
-        prim.CreateFaceVertexIndicesAttr(Vt.IntArray(np.asarray(model.mesh_face[f0 : f0 + nf]).ravel().tolist()))
+        prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(vertices.astype(np.float32)))
+        prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(faces)))
+        prim.CreateFaceVertexIndicesAttr(Vt.IntArray(faces.ravel().tolist()))
         prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         scale = None
     else:
