@@ -132,6 +132,13 @@ def hull_options(func: Callable[..., Any]) -> Callable[..., Any]:
     return func
 
 
+def _normalise_options(kw: dict[str, Any], **overrides: Any) -> NormaliseOptions:
+    """Build :class:`NormaliseOptions` from the click keywords (removing them from ``kw``), then ``overrides``."""
+    values = {key: kw.pop(key) for key in ("units", "scale", "up", "search_paths", "strict")}
+    values.update(overrides)
+    return NormaliseOptions(**values)
+
+
 def _hull_options(kw: dict[str, Any]) -> HullOptions:
     """Build :class:`HullOptions` from the click keywords (removing them from ``kw``)."""
     preset, max_hulls, max_vertices = kw.pop("preset"), kw.pop("max_hulls"), kw.pop("max_hull_vertices")
@@ -167,16 +174,12 @@ def normalize(
     src: Path,
     out_dir: Path,
     name: str | None,
-    units: str | None,
-    scale: float,
-    up: str | None,
-    search_paths: tuple[Path, ...],
-    strict: bool,
     as_json: bool,
+    **normalise_kw: Any,
 ) -> None:
     """Normalise SRC (an OBJ file) into OUTPUT/NAME/: metres, Z-up, PNG textures, safe names."""
     with _guard(as_json):
-        options = NormaliseOptions(units=units, scale=scale, up=up, name=name, search_paths=search_paths, strict=strict)
+        options = _normalise_options(normalise_kw, name=name)
         folder, asset = normalise_to(src, out_dir, options)
     if as_json:
         click.echo(json.dumps(_report("ok", folder, asset.findings, asset.stats)))
@@ -208,21 +211,12 @@ def obj2bin(
     out: Path | None,
     quantize: bool,
     jobs: int,
-    units: str | None,
-    scale: float,
-    up: str | None,
-    search_paths: tuple[Path, ...],
-    strict: bool,
     as_json: bool,
-    **hull_kw: Any,
+    **kw: Any,
 ) -> None:
     """Convert SRC (an OBJ file, or a folder of them) to .mbin: normalised, collision hulls, packed."""
     with _guard(as_json):
-        options = ConvertOptions(
-            NormaliseOptions(units=units, scale=scale, up=up, search_paths=search_paths, strict=strict),
-            quantize,
-            _hull_options(hull_kw),
-        )
+        options = ConvertOptions(_normalise_options(kw), quantize, _hull_options(kw))
         if src.is_dir():
             if out is None:
                 raise OptionsError("a folder needs -o OUTDIR")
@@ -286,20 +280,12 @@ def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as
 @click.argument("src", type=click.Path(path_type=Path, dir_okay=False))
 @normalise_options
 @hull_options
-def hulls(
-    src: Path,
-    units: str | None,
-    scale: float,
-    up: str | None,
-    search_paths: tuple[Path, ...],
-    strict: bool,
-    as_json: bool,
-    **hull_kw: Any,
-) -> None:
+def hulls(src: Path, as_json: bool, **kw: Any) -> None:
     """Compute the collision hulls of SRC (an OBJ) and report their quality; writes nothing."""
     with _guard(as_json):
-        options = _hull_options(hull_kw)
-        asset = prepare(src, NormaliseOptions(units=units, scale=scale, up=up, search_paths=search_paths))
+        strict = bool(kw["strict"])  # here strict judges the hulls, not the normaliser
+        options = _hull_options(kw)
+        asset = prepare(src, _normalise_options(kw, strict=False))
         result = compute_hulls(asset.mesh, options, src.name)
         report = quality(asset.mesh, result.hulls)
         report["cache_hits"] = result.cache_hits

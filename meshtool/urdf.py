@@ -364,8 +364,7 @@ class _Builder:
             root = self._package_root()
             candidate = Path(text) if Path(text).is_absolute() else self.urdf_dir / text
         resolved = candidate.resolve()
-        allowed = root if not self.options.allow_outside else Path(resolved.anchor)
-        if not (resolved == allowed or allowed in resolved.parents):
+        if not self.options.allow_outside and not Resolver(root).inside(resolved):
             raise UrdfError(
                 f"mesh {ref!r} is outside the robot's folder {root}",
                 **self._where(ref),
