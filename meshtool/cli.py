@@ -23,6 +23,7 @@ import click
 import platformdirs
 
 from meshtool import __version__
+from meshtool.cli_validate import validate_command
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, Severity
@@ -505,6 +506,8 @@ def _guard(as_json: bool) -> Iterator[None]:
         )
         sys.exit(EXIT_INTERNAL)
 
+
+main.add_command(validate_command)
 
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -18,6 +18,8 @@ class MeshtoolError(Exception):
         line: 1-based line number in ``path``, when known.
         offset: 0-based byte offset in ``path``, for binary data, when known.
         hint: How to fix it, one short sentence.
+        code: A stable identifier for the kind of problem (e.g. ``non-finite``, ``pack-version``) where callers
+            such as ``meshtool validate`` need to tell kinds apart; ``None`` otherwise.
     """
 
     def __init__(
@@ -28,8 +30,10 @@ class MeshtoolError(Exception):
         line: int | None = None,
         offset: int | None = None,
         hint: str | None = None,
+        code: str | None = None,
     ) -> None:
         self.message = message
+        self.code = code
         self.path = path
         self.line = line
         self.offset = offset

@@ -231,13 +231,32 @@ def _groups(mesh: TriMesh, options: HullOptions) -> list[tuple[int, FloatArray, 
 def quality(mesh: TriMesh, hulls: list[Hull], samples: int = 2000, seed: int = 0) -> dict[str, object]:
     """Hull count, vertices per hull, hull volume / mesh volume and the sampled surface-to-hull distance.
 
-    The distance is one-sided: points sampled on the mesh surface, distance to the nearest hull (0 inside),
-    in metres (maximum and mean).
+    See :func:`hull_fit`; ``mesh`` gives the positions and faces.
+    """
+    return hull_fit(mesh.positions, mesh.faces, hulls, samples, seed)
+
+
+def hull_fit(
+    positions: FloatArray, faces: IntArray, hulls: list[Hull], samples: int = 2000, seed: int = 0
+) -> dict[str, object]:
+    """Hull count, vertices per hull, hull volume / mesh volume and the sampled surface-to-hull distance.
+
+    Args:
+        positions: (n, 3) mesh vertices, metres.
+        faces: (m, 3) triangles.
+        hulls: The collision hulls.
+        samples: Surface points sampled for the distance.
+        seed: Sampling seed (fixed: the report is deterministic).
+
+    Returns:
+        ``hulls`` and ``vertices_per_hull``; with hulls and faces also ``hull_volume_m3``, ``mesh_volume_m3``
+        (``None`` unless the mesh is closed), ``volume_ratio`` and the one-sided distance of surface points
+        outside the hulls, ``surface_to_hulls_max_m`` and ``surface_to_hulls_mean_m`` (0 inside).
     """
     report: dict[str, object] = {"hulls": len(hulls), "vertices_per_hull": [len(h.vertices) for h in hulls]}
-    if not hulls or mesh.faces.shape[0] == 0:
+    if not hulls or faces.shape[0] == 0:
         return report
-    surface = trimesh.Trimesh(mesh.positions, mesh.faces, process=False)
+    surface = trimesh.Trimesh(positions, faces, process=False)
     volume = float(abs(surface.volume)) if surface.is_watertight else None
     hull_volume = float(sum(trimesh.Trimesh(h.vertices, h.faces, process=False).volume for h in hulls))
     points, _ = trimesh.sample.sample_surface(surface, samples, seed=seed)

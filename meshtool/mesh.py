@@ -129,6 +129,7 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
                 path=path,
                 line=int(obj.vertex_lines[vertex]),
                 hint="fix the coordinate or delete the faces that use it",
+                code="non-finite",
             )
 
     degenerate = _degenerate(obj.positions, faces)

@@ -289,3 +289,11 @@ def find_package_dir(start: Path, name: str) -> Path | None:
 def is_file(path: Path) -> bool:
     """Whether ``path`` names an existing regular file."""
     return path.is_file()
+
+
+def list_names(folder: Path) -> list[str]:
+    """Sorted names of the entries of ``folder`` (empty when it cannot be listed)."""
+    try:
+        return sorted(os.listdir(folder))
+    except OSError:
+        return []

@@ -10,6 +10,7 @@ import math
 import shutil
 from pathlib import Path
 
+import make_validate_fixtures  # the same folder: scripts/
 import numpy as np
 from PIL import Image
 
@@ -678,6 +679,7 @@ def main() -> None:
     scenes()
     robot_scenes()
     urdf_robot()
+    make_validate_fixtures.main()
 
 
 if __name__ == "__main__":

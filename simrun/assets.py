@@ -46,6 +46,10 @@ class AssetLibrary:
     #: In-memory files (MuJoCo's virtual file system) handed to the spec: PNG textures by file name.
     vfs: dict[str, bytes] = field(default_factory=dict)
 
+    def register(self, path: Path, packed: PackedMesh) -> None:
+        """Use ``packed`` (already in memory) as the content of ``path``; nothing is read from disk."""
+        self.files[path.resolve()] = packed
+
     def packed(self, path: Path) -> PackedMesh:
         """The loaded ``.mbin`` (read once)."""
         key = path.resolve()

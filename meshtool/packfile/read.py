@@ -163,6 +163,7 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
             path=name,
             offset=8,
             hint="upgrade meshtool or re-pack the asset",
+            code="pack-version",
         )
     stated = int(header["file_length"])
     if stated != size:

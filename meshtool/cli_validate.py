@@ -1,0 +1,154 @@
+"""``meshtool validate``: the click layer over :mod:`meshtool.validate`.
+
+Exit codes: 0 no errors (warnings allowed unless ``--strict``); 1 errors (or warnings with ``--strict``);
+2 usage (bad options, paths or configuration); 3 meshtool itself failed (an X001 finding, or the executor).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+import platformdirs
+
+from meshtool.errors import MeshtoolError
+from meshtool.outdir import write_file
+from meshtool.validate import FORMATS, ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
+from meshtool.validate import validate as run_validate
+from meshtool.validate.reports.text import to_text
+from meshtool.validate.task import AssetResult
+
+EXIT_OK, EXIT_FINDINGS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+
+
+def default_jobs() -> int:
+    """Worker processes by default: the usable CPUs, at most 8."""
+    return max(1, min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
+
+
+@click.command("validate")
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "--config",
+    "config_file",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="pyproject.toml or meshtool.toml (default: the first found from the working folder upwards).",
+)
+@click.option("--format", "fmt", type=click.Choice(FORMATS), default="text", show_default=True, help="Report format.")
+@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), help="Write the report here.")
+@click.option("-j", "--jobs", type=click.IntRange(1, 256), default=None, help="Workers (default: CPUs, at most 8).")
+@click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True)
+@click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); needs dask.")
+@click.option("--strict", is_flag=True, help="Warnings fail the run (exit 1).")
+@click.option("--changed-only", is_flag=True, help="Report only assets changed since the cached run.")
+@click.option(
+    "--cache-dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    envvar="MESHTOOL_CACHE_DIR",
+    default=None,
+    help="Result cache folder [default: the user cache folder; env MESHTOOL_CACHE_DIR].",
+)
+@click.option("--no-cache", is_flag=True, help="Check everything again and store nothing.")
+@click.option("--thumbnails/--no-thumbnails", default=None, help="Render thumbnails (default: only for --format html).")
+@click.option("-v", "--verbose", is_flag=True, help="Text report: list clean assets and notes too.")
+def validate_command(
+    paths: tuple[Path, ...],
+    config_file: Path | None,
+    fmt: str,
+    output: Path | None,
+    jobs: int | None,
+    executor: str,
+    scheduler: str | None,
+    strict: bool,
+    changed_only: bool,
+    cache_dir: Path | None,
+    no_cache: bool,
+    thumbnails: bool | None,
+    verbose: bool,
+) -> None:
+    """Check OBJ sources and .mbin packs under PATHS against the rules of docs/validate-rules.md."""
+    if scheduler and executor != "dask":
+        _usage("--scheduler needs --executor dask")
+    if changed_only and no_cache:
+        _usage("--changed-only needs the cache (drop --no-cache)")
+    want_thumbnails = fmt == "html" if thumbnails is None else thumbnails
+    if want_thumbnails:
+        os.environ.setdefault("MUJOCO_GL", "egl")  # workers inherit it; MuJoCo reads it on import
+    try:
+        config = load_config(config_file or find_config(Path.cwd()))
+        options = ValidateOptions(
+            config=config,
+            jobs=jobs or default_jobs(),
+            executor=executor,
+            scheduler=scheduler,
+            cache_dir=None if no_cache else (cache_dir or Path(platformdirs.user_cache_dir("meshtool")) / "validate"),
+            changed_only=changed_only,
+            thumbnails=want_thumbnails,
+        )
+        report = run_validate(list(paths), options, _progress_bar())
+        text = (
+            to_text(report, strict, colour=_colour(output), verbose=verbose)
+            if fmt == "text"
+            else render(report, fmt, strict)
+        )
+        if output is not None:
+            write_file(output, text.encode("utf-8"))
+    except ConfigError as exc:
+        _usage(exc.one_line())
+    except ValidateError as exc:
+        if exc.usage:
+            _usage(exc.one_line())
+        click.echo(f"error: {exc.one_line()}", err=True)
+        sys.exit(EXIT_INTERNAL)
+    except MeshtoolError as exc:
+        click.echo(f"error: {exc.one_line()}", err=True)
+        sys.exit(EXIT_INTERNAL)
+    except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
+        if os.environ.get("MESHTOOL_DEBUG"):
+            raise
+        click.echo(
+            f"internal error: {type(exc).__name__}: {exc} (please report; MESHTOOL_DEBUG=1 shows more)", err=True
+        )
+        sys.exit(EXIT_INTERNAL)
+    if output is None:
+        click.echo(text, nl=False)
+    else:
+        summary = to_text(report, strict, colour=sys.stderr.isatty()).rstrip("\n").split("\n")[-2:]
+        click.echo(f"wrote {output}", err=True)
+        for line in summary:
+            click.echo(line, err=True)
+    if report.internal_errors():
+        sys.exit(EXIT_INTERNAL)
+    sys.exit(EXIT_FINDINGS if report.failed(strict) else EXIT_OK)
+
+
+def _usage(message: str) -> None:
+    click.echo(f"usage error: {message}", err=True)
+    sys.exit(EXIT_USAGE)
+
+
+def _colour(output: Path | None) -> bool:
+    return output is None and sys.stdout.isatty() and "NO_COLOR" not in os.environ
+
+
+def _progress_bar() -> Any:
+    """A progress callback drawing a bar on stderr when it is a terminal, else ``None``."""
+    if not sys.stderr.isatty():
+        return None
+    state: dict[str, Any] = {}
+
+    def update(result: AssetResult, done: int, total: int) -> None:
+        bar = state.get("bar")
+        if bar is None:
+            bar = click.progressbar(length=total, label="validating", file=sys.stderr, show_pos=True)
+            bar.__enter__()
+            state["bar"] = bar
+        bar.update(1)
+        if done == total:
+            bar.__exit__(None, None, None)
+
+    return update

@@ -1,0 +1,120 @@
+"""The result cache of ``meshtool validate``: unchanged assets are not checked again.
+
+An entry is keyed by the asset's path and content hash (SHA-256), the rule-set version, the meshtool version
+and the options that change raw findings (the limits). It holds the raw result and the SHA-256 of every
+file the check read (MTLs, textures, a pack's sources), plus the digest of the folder listing for assets
+with unresolved references; it is used only while all of them still match. Entries live in
+``CACHE/ab/abcdef....json`` (written atomically); a damaged entry counts as a miss.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import hashlib
+import json
+from pathlib import Path
+from typing import Any
+
+from meshtool import __version__
+from meshtool.errors import OutputError
+from meshtool.findings import Finding, Severity
+from meshtool.outdir import write_file
+from meshtool.resolve import file_sha256, read_cache
+from meshtool.validate.task import RULESET_VERSION, AssetResult, AssetTask, listing_digest
+
+
+class ResultCache:
+    """Cached :class:`AssetResult` objects in a folder (``None``: no cache, every lookup misses).
+
+    Args:
+        folder: The cache folder (created on the first store).
+        fingerprint: The options that change raw findings (see :meth:`ValidateConfig.fingerprint`).
+    """
+
+    def __init__(self, folder: Path | None, fingerprint: dict[str, Any]) -> None:
+        self.folder = folder
+        self.salt = json.dumps(
+            {"meshtool": __version__, "rules": RULESET_VERSION, "options": fingerprint}, sort_keys=True
+        )
+
+    def key(self, task: AssetTask, content_sha256: str) -> str:
+        """The entry key of an asset with the given content hash."""
+        text = f"{self.salt}\n{task.path.resolve()}\n{content_sha256}"
+        return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+    def lookup(self, task: AssetTask) -> AssetResult | None:
+        """The cached result, if every file it depends on is unchanged (and it has a thumbnail if asked)."""
+        if self.folder is None:
+            return None
+        digest = file_sha256(task.path)
+        if digest is None:
+            return None
+        data = read_cache(self._file(self.key(task, digest)))
+        if data is None:
+            return None
+        try:
+            entry = json.loads(data)
+            if task.thumbnails and not entry["thumbnails"]:
+                return None
+            for path, sha in entry["deps"].items():
+                if file_sha256(Path(path)) != sha:
+                    return None
+            for folder, listing in entry["listings"].items():
+                if listing_digest(Path(folder)) != listing:
+                    return None
+            result = _from_json(entry["result"])
+        except (ValueError, KeyError, TypeError):
+            return None
+        result.path = task.display
+        result.cached = True
+        return result
+
+    def store(self, task: AssetTask, result: AssetResult) -> None:
+        """Remember a fresh result (results with an internal error are not cached)."""
+        if self.folder is None or any(f.code == "X001" for f in result.findings):
+            return
+        digest = result.deps.get(str(task.path.resolve()))
+        if digest is None:
+            return
+        entry = {
+            "thumbnails": task.thumbnails,
+            "deps": result.deps,
+            "listings": result.listings,
+            "result": _to_json(result),
+        }
+        with contextlib.suppress(OutputError):  # a read-only or full cache folder only costs speed
+            write_file(self._file(self.key(task, digest)), json.dumps(entry, sort_keys=True).encode("utf-8"))
+
+    def _file(self, key: str) -> Path:
+        assert self.folder is not None
+        return self.folder / key[:2] / f"{key}.json"
+
+
+def _to_json(result: AssetResult) -> dict[str, Any]:
+    return {
+        "kind": result.kind,
+        "findings": [f.to_dict() for f in result.findings],
+        "deps": result.deps,
+        "listings": result.listings,
+        "stats": result.stats,
+        "thumbnail": base64.b64encode(result.thumbnail).decode("ascii") if result.thumbnail else None,
+        "notes": result.notes,
+    }
+
+
+def _from_json(data: dict[str, Any]) -> AssetResult:
+    findings = [
+        Finding(f["code"], Severity(f["severity"]), f["message"], f["path"], f["line"]) for f in data["findings"]
+    ]
+    thumbnail = base64.b64decode(data["thumbnail"]) if data["thumbnail"] else None
+    return AssetResult(
+        "",
+        data["kind"],
+        findings,
+        dict(data["deps"]),
+        dict(data["listings"]),
+        dict(data["stats"]),
+        thumbnail,
+        list(data["notes"]),
+    )

@@ -1,0 +1,263 @@
+"""Run the per-asset task over many assets: discovery, cache, executors (local processes or Dask).
+
+The executor only decides where :func:`meshtool.validate.task.check_asset` runs; results are sorted by
+asset path afterwards, so reports are identical whatever the executor and the number of workers.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import multiprocessing
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from meshtool.errors import MeshtoolError
+from meshtool.findings import Severity
+from meshtool.resolve import find_files, is_file
+from meshtool.validate.cache import ResultCache
+from meshtool.validate.config import ValidateConfig
+from meshtool.validate.task import AssetResult, AssetTask, check_asset
+
+EXECUTORS = ("local", "dask")
+SUFFIXES = (".obj", ".mbin")
+
+#: Called with each asset's result, the number done so far and the total.
+Progress = Callable[[AssetResult, int, int], None]
+
+
+class ValidateError(MeshtoolError, RuntimeError):
+    """The validation could not run (bad paths are ``usage``; executor failures are not)."""
+
+    def __init__(self, message: str, *, usage: bool = False, **kwargs: str | None) -> None:
+        super().__init__(message, **kwargs)  # type: ignore[arg-type]
+        self.usage = usage
+
+
+@dataclass(frozen=True, slots=True)
+class ValidateOptions:
+    """Options of :func:`validate` (the fields of ``meshtool validate``).
+
+    Attributes:
+        config: Severity overrides, ignores and limits.
+        jobs: Worker processes (1 checks in this process with the local executor).
+        executor: ``local`` (a process pool) or ``dask`` (``dask.distributed``).
+        scheduler: A Dask scheduler address; ``None`` starts a local cluster of ``jobs`` workers.
+        cache_dir: The result cache folder; ``None`` disables the cache.
+        changed_only: Report only assets checked in this run (cache misses); unchanged ones are counted.
+        thumbnails: Render a thumbnail per asset (the HTML report shows them).
+    """
+
+    config: ValidateConfig = field(default_factory=ValidateConfig)
+    jobs: int = 1
+    executor: str = "local"
+    scheduler: str | None = None
+    cache_dir: Path | None = None
+    changed_only: bool = False
+    thumbnails: bool = False
+
+    def __post_init__(self) -> None:
+        if self.executor not in EXECUTORS:
+            raise ValidateError(f"unknown executor {self.executor!r}", usage=True, hint="use local or dask")
+        if self.jobs < 1:
+            raise ValidateError(f"-j must be at least 1, got {self.jobs}", usage=True)
+
+
+@dataclass(slots=True)
+class ValidationReport:
+    """The outcome of one run.
+
+    Attributes:
+        assets: One result per reported asset, sorted by path, configuration applied.
+        checked: Assets checked in this run.
+        cache_hits: Assets whose result came from the cache.
+        unchanged_skipped: Unchanged assets left out of ``assets`` (``changed_only``).
+        seconds: Wall time of the run.
+        executor: ``local`` or ``dask``.
+        jobs: Workers used.
+        config_file: The configuration file, or ``None``.
+    """
+
+    assets: list[AssetResult]
+    checked: int = 0
+    cache_hits: int = 0
+    unchanged_skipped: int = 0
+    seconds: float = 0.0
+    executor: str = "local"
+    jobs: int = 1
+    config_file: str | None = None
+
+    def counts(self) -> dict[str, int]:
+        """Findings per severity over all assets."""
+        counts = {s.value: 0 for s in Severity}
+        for asset in self.assets:
+            for f in asset.findings:
+                counts[f.severity.value] += 1
+        return counts
+
+    def failed(self, strict: bool) -> bool:
+        """Whether there are errors (or, with ``strict``, warnings)."""
+        counts = self.counts()
+        return counts["error"] > 0 or (strict and counts["warning"] > 0)
+
+    def internal_errors(self) -> int:
+        """Assets meshtool itself failed on (X001)."""
+        return sum(any(f.code == "X001" for f in a.findings) for a in self.assets)
+
+
+def discover(paths: list[Path]) -> list[tuple[Path, Path]]:
+    """Every OBJ and ``.mbin`` named or under the folders named, as (file, folder it was found under).
+
+    Hidden folders (``.git``, ``.venv``, caches) are skipped; the list is sorted and has no duplicates.
+
+    Raises:
+        ValidateError: A path does not exist, or nothing to check was found (usage errors).
+    """
+    found: dict[Path, tuple[Path, Path]] = {}
+    for path in paths:
+        if is_file(path):
+            if path.suffix.lower() not in SUFFIXES:
+                raise ValidateError("not an OBJ or .mbin file", usage=True, path=str(path))
+            found.setdefault(path.resolve(), (path, path.parent))
+        elif path.is_dir():
+            for suffix in SUFFIXES:
+                for file in find_files(path, suffix):
+                    if not any(part.startswith(".") for part in file.relative_to(path).parts[:-1]):
+                        found.setdefault(file.resolve(), (file, path))
+        else:
+            raise ValidateError("no such file or folder", usage=True, path=str(path))
+    if not found:
+        raise ValidateError(
+            "no OBJ or .mbin files found", usage=True, path=", ".join(map(str, paths)), hint="check the paths"
+        )
+    return sorted(found.values(), key=lambda pair: display_path(pair[0]))
+
+
+def display_path(path: Path) -> str:
+    """``path`` relative to the working folder when inside it, else absolute; ``/``-separated."""
+    absolute = path.resolve()
+    try:
+        return absolute.relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return absolute.as_posix()
+
+
+def validate(
+    paths: list[Path], options: ValidateOptions | None = None, progress: Progress | None = None
+) -> ValidationReport:
+    """Check every asset under ``paths``.
+
+    Args:
+        paths: Files and folders.
+        options: See :class:`ValidateOptions`.
+        progress: Called with each asset's result as it is done (cached ones first), the count done and the total.
+
+    Returns:
+        The report (findings with the configuration applied). Exit codes are the caller's business.
+
+    Raises:
+        ValidateError: Bad paths (``usage``), or the executor failed.
+    """
+    options = options or ValidateOptions()
+    start = time.perf_counter()
+    config = options.config
+    tasks = [
+        AssetTask(
+            file,
+            display_path(file),
+            config.limits,
+            config.source_roots,
+            root,
+            options.thumbnails,
+        )
+        for file, root in discover(paths)
+    ]
+    cache = ResultCache(options.cache_dir, config.fingerprint())
+    results: dict[str, AssetResult] = {}
+    todo: list[AssetTask] = []
+    for task in tasks:
+        cached = cache.lookup(task)
+        if cached is None:
+            todo.append(task)
+            continue
+        results[task.display] = cached
+        if progress:
+            progress(cached, len(results), len(tasks))
+    by_display = {t.display: t for t in todo}
+    runner = _run_dask if options.executor == "dask" else _run_local
+    for result in runner(todo, options):
+        cache.store(by_display[result.path], result)
+        results[result.path] = result
+        if progress:
+            progress(result, len(results), len(tasks))
+    report = ValidationReport(
+        [],
+        checked=len(todo),
+        cache_hits=len(tasks) - len(todo),
+        executor=options.executor,
+        jobs=options.jobs,
+        config_file=config.file,
+    )
+    for task in tasks:
+        result = results[task.display]
+        if options.changed_only and result.cached:
+            report.unchanged_skipped += 1
+            continue
+        folder = Path(task.display).parent
+        result.findings = [
+            replace(f, path=(folder / f.path).as_posix() if f.path else task.display)
+            for f in config.apply(result.findings, task.path)
+        ]
+        report.assets.append(result)
+    report.seconds = time.perf_counter() - start
+    return report
+
+
+def _run_local(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[AssetResult]:
+    if options.jobs == 1 or len(tasks) <= 1:
+        for task in tasks:
+            yield check_asset(task)
+        return
+    # spawn: workers import MuJoCo and create GL contexts; a forked copy of a parent that has one is unsafe
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(options.jobs, len(tasks)), mp_context=context) as pool:
+        futures = [pool.submit(check_asset, task) for task in tasks]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[AssetResult]:
+    try:
+        distributed: Any = importlib.import_module("distributed")
+    except ImportError:
+        raise ValidateError(
+            "the Dask executor needs dask.distributed", hint="pip install 'meshtool-simrun[dask]'"
+        ) from None
+    cluster = None
+    try:
+        if options.scheduler:
+            client = distributed.Client(options.scheduler, timeout="30s")
+        else:
+            cluster = distributed.LocalCluster(
+                n_workers=options.jobs,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            client = distributed.Client(cluster)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ValidateError(f"cannot reach the Dask scheduler: {exc}", path=options.scheduler) from None
+    try:
+        if tasks:
+            futures = client.map(check_asset, tasks, pure=False)
+            for future in distributed.as_completed(futures):
+                yield future.result()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,108 @@
+"""Source rules (S...), and the normaliser's findings translated into rule findings.
+
+The validator reads an OBJ exactly as ``meshtool normalize`` does (:func:`meshtool.normalise.prepare`, in
+memory) and turns what the normaliser noticed into rule findings: a missing texture is a repair for the
+normaliser but a defect of the source for the validator.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+from typing import Any
+
+from meshtool.findings import Finding
+from meshtool.validate.rules import hit
+
+#: Normaliser finding code -> rule ID (codes not listed are repairs that need no attention).
+FROM_NORMALISER: dict[str, str] = {
+    "mtl-missing": "S002",
+    "texture-missing": "S003",
+    "texture-unreadable": "S003",
+    "material-undefined": "S004",
+    "texture-converted": "S005",
+    "reference-outside-root": "S008",
+    "encoding-latin1": "S010",
+    "unknown-statement": "S011",
+    "usemtl-empty": "S011",
+    "mtllib-empty": "S011",
+    "vertex-extra-values": "S011",
+    "vertex-colors-partial": "S011",
+    "vertex-colors-invalid": "S011",
+    "face-too-small": "S011",
+    "vt-missing": "S011",
+    "vn-missing": "S011",
+    "vt-index-out-of-range": "S011",
+    "vn-index-out-of-range": "S011",
+    "texcoords-partial": "S011",
+    "mtl-statement-invalid": "S011",
+    "mtl-statement-outside-material": "S011",
+    "material-duplicate": "S011",
+    "mtl-reference-empty": "S011",
+    "texture-reference-empty": "S011",
+    "non-finite-vertices": "G001",
+    "no-faces": "G002",
+    "degenerate-faces": "G003",
+    "scale-suspicious": "U001",
+}
+
+_ABSOLUTE = re.compile(r"^([A-Za-z]:[\\/]|[\\/]|[A-Za-z][A-Za-z0-9+.-]*://)")
+_SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-/]+$")
+_REPAIRED = ("backslash", "case-insensitive", "basename", "search-path")
+
+
+def from_normaliser(findings: Iterable[Finding]) -> list[Finding]:
+    """Rule findings for the normaliser's findings (missing files reached by an escape are reported once)."""
+    found = list(findings)
+    escaped = {(f.path, f.line) for f in found if f.code == "reference-outside-root"}
+    out = []
+    for f in found:
+        rule = FROM_NORMALISER.get(f.code)
+        if rule is None:
+            continue
+        if f.code in ("mtl-missing", "texture-missing") and (f.path, f.line) in escaped:
+            continue  # the escape (S008) is the cause; "not found" would repeat it
+        out.append(hit(rule, f.message, f.path, f.line))
+    return out
+
+
+def reference_findings(resolutions: Iterable[dict[str, Any]]) -> list[Finding]:
+    """S006 (absolute) and S007 (needed repair) for the references recorded in ``asset.json`` form."""
+    out = []
+    for r in resolutions:
+        origin, _, line_text = str(r["from"]).rpartition(":")
+        line = int(line_text) if line_text.isdigit() else None
+        ref = str(r["ref"]).strip()
+        if _ABSOLUTE.match(ref):
+            out.append(hit("S006", f"{r['kind']} reference {ref!r} is absolute", origin, line))
+        elif r["found"] is not None and r["rule"] in _REPAIRED:
+            out.append(
+                hit(
+                    "S007",
+                    f"{r['kind']} reference {ref!r} only resolves as {r['found']!r} (rule: {r['rule']})",
+                    origin,
+                    line,
+                )
+            )
+    return out
+
+
+def name_findings(names: Iterable[str]) -> list[Finding]:
+    """S009 for every file name (relative paths, ``/``-separated) with unsafe characters."""
+    out = []
+    for name in sorted(set(names)):
+        if name.startswith("<") or _SAFE_NAME.match(name):
+            continue
+        bad = sorted({c for c in name if not _SAFE_NAME.match(c)})
+        shown = " ".join("space" if c == " " else repr(c) for c in bad)
+        out.append(hit("S009", f"file name {name!r} has unsafe characters: {shown}", name))
+    return out
+
+
+def encoding_findings(name: str, data: bytes) -> list[Finding]:
+    """S010 for a byte-order mark or UTF-16 text (Latin-1 comes from the parser's finding)."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return [hit("S010", "the file is UTF-16 text; most tools read OBJ/MTL as UTF-8 or ASCII", name)]
+    if data.startswith(b"\xef\xbb\xbf"):
+        return [hit("S010", "the file starts with a UTF-8 byte-order mark, which some OBJ readers choke on", name)]
+    return []

@@ -1,0 +1,242 @@
+"""The per-asset task: every rule on one OBJ or ``.mbin``, as a pure function of the files it reads.
+
+:func:`check_asset` is what an executor runs (in this process, a worker process or a Dask worker). It takes
+a picklable :class:`AssetTask` and returns a picklable :class:`AssetResult` with the raw findings (default
+severities; the configuration's overrides and ignores are applied later) and every file it read with its
+SHA-256, so that the cache can tell when the result is out of date.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from meshtool.convert import ConvertOptions
+from meshtool.errors import MeshtoolError
+from meshtool.findings import Finding, Severity
+from meshtool.hulls import Hull, HullOptions, compute_hulls
+from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.packfile import pack, parse
+from meshtool.resolve import Resolver, file_sha256, list_names
+from meshtool.units import scale_findings
+from meshtool.validate.collision import collision_findings
+from meshtool.validate.config import Limits
+from meshtool.validate.geometry import geometry_findings
+from meshtool.validate.plugins import physics_plugin
+from meshtool.validate.rules import RULES, hit
+from meshtool.validate.source import encoding_findings, from_normaliser, name_findings, reference_findings
+
+#: Bumped whenever a rule changes what it reports: cached results of older rules are not reused.
+RULESET_VERSION = 1
+
+
+@dataclass(frozen=True, slots=True)
+class AssetTask:
+    """One asset to check.
+
+    Attributes:
+        path: The OBJ or ``.mbin`` file.
+        display: How reports name it (relative to the working folder when inside it).
+        limits: Budgets and thresholds.
+        source_roots: Folders where ``.mbin`` sources are looked for besides the pack's own folder (K003);
+            each is tried as is and with the pack's folder relative to ``scan_root`` appended.
+        scan_root: The folder the asset was found under.
+        thumbnails: Render a thumbnail.
+    """
+
+    path: Path
+    display: str
+    limits: Limits = field(default_factory=Limits)
+    source_roots: tuple[Path, ...] = ()
+    scan_root: Path | None = None
+    thumbnails: bool = False
+
+    @property
+    def kind(self) -> str:
+        """``obj`` or ``mbin``."""
+        return "mbin" if self.path.suffix.lower() == ".mbin" else "obj"
+
+
+@dataclass(slots=True)
+class AssetResult:
+    """Everything found about one asset.
+
+    Attributes:
+        path: The asset as reports name it.
+        kind: ``obj`` or ``mbin``.
+        findings: Raw findings (default severities), sorted by rule, file and line; their paths are relative
+            to the asset's folder until :func:`meshtool.validate.runner.validate` makes them display paths.
+        deps: Absolute path -> SHA-256 of every file read (``None``: looked for and absent).
+        listings: Folder -> digest of its file names, for assets with unresolved references (a file added
+            later could resolve them).
+        stats: Numbers for reports (triangles, volume, hull fit, mass, ...).
+        thumbnail: PNG bytes, or ``None``.
+        notes: Checks not done and why, one line each.
+        cached: Whether this result came from the cache (set by the runner).
+    """
+
+    path: str
+    kind: str
+    findings: list[Finding] = field(default_factory=list)
+    deps: dict[str, str | None] = field(default_factory=dict)
+    listings: dict[str, str] = field(default_factory=dict)
+    stats: dict[str, Any] = field(default_factory=dict)
+    thumbnail: bytes | None = None
+    notes: list[str] = field(default_factory=list)
+    cached: bool = False
+
+
+def check_asset(task: AssetTask) -> AssetResult:
+    """Run every rule on one asset. Never raises: a failure of meshtool itself becomes an X001 finding."""
+    result = AssetResult(task.display, task.kind)
+    try:
+        with np.errstate(all="ignore"):  # degenerate input makes trimesh divide by zero; rules judge the results
+            if task.kind == "mbin":
+                _check_mbin(task, result)
+            else:
+                _check_obj(task, result)
+    except Exception as exc:
+        where = traceback.extract_tb(exc.__traceback__)[-1]
+        result.findings.append(
+            hit("X001", f"{type(exc).__name__}: {exc} (at {Path(where.filename).name}:{where.lineno})", task.path.name)
+        )
+    result.findings.sort(key=lambda f: (f.code, f.path or "", f.line or 0, f.message))
+    return result
+
+
+def listing_digest(folder: Path) -> str:
+    """SHA-256 of a folder's sorted file names (empty when it cannot be listed)."""
+    return hashlib.sha256("\n".join(list_names(folder)).encode("utf-8")).hexdigest()
+
+
+def _check_obj(task: AssetTask, result: AssetResult) -> None:
+    src = task.path
+    name = src.name
+    resolver = Resolver(src.parent)
+    data = resolver.read_source(src)
+    result.deps[str(src.resolve())] = hashlib.sha256(data).hexdigest()
+    result.findings.extend(encoding_findings(name, data))
+    try:
+        asset = prepare(src, NormaliseOptions())
+    except MeshtoolError as exc:
+        rule = "G001" if exc.code == "non-finite" else "S001"
+        result.findings.append(hit(rule, exc.message, exc.path or name, exc.line))
+        result.findings.extend(name_findings([name]))
+        return
+    manifest = asset.manifest
+    for source in manifest["sources"]:
+        result.deps[str((src.parent / source["path"]).resolve())] = source["sha256"]
+    if any(r["found"] is None for r in manifest["resolutions"]):
+        result.listings[str(src.parent.resolve())] = listing_digest(src.parent)
+    result.findings.extend(from_normaliser(asset.findings))
+    result.findings.extend(reference_findings(manifest["resolutions"]))
+    result.findings.extend(name_findings(s["path"] for s in manifest["sources"]))
+    for source in manifest["sources"][1:]:
+        if source["role"] == "mtl":
+            result.findings.extend(encoding_findings(source["path"], resolver.read(src.parent / source["path"])))
+    mesh = asset.mesh
+    result.stats.update(asset.stats)
+    result.findings.extend(geometry_findings(mesh.positions, mesh.faces, name, task.limits))
+    if mesh.faces.shape[0] == 0:
+        result.notes.append("collision and physics not checked: the mesh has no faces")
+        return
+    hull_options = HullOptions(mode="convex", max_hull_vertices=task.limits.max_hull_vertices)
+    hull_set = compute_hulls(mesh, hull_options, name)
+    found, report = collision_findings(mesh.positions, mesh.faces, hull_set.hulls, name, task.limits)
+    result.findings.extend(found)
+    result.stats["collision"] = report
+    options = ConvertOptions(hulls=hull_options)
+    packed = pack(asset, False, options.fingerprint(), hull_set.hulls, report)
+    _physics(task, result, packed)
+
+
+def _check_mbin(task: AssetTask, result: AssetResult) -> None:
+    path = task.path
+    name = path.name
+    data = Resolver(path.parent).read_source(path)
+    result.deps[str(path.resolve())] = hashlib.sha256(data).hexdigest()
+    try:
+        packed = parse(data, name, verify=True)
+    except MeshtoolError as exc:
+        rule = "K002" if exc.code == "pack-version" else "K001"
+        result.findings.append(hit(rule, exc.one_line().removeprefix(f"{name}: "), name))
+        return
+    meta = packed.meta
+    _staleness(task, result, meta.get("sources", []))
+    positions = np.asarray(packed.positions, dtype=np.float64)
+    faces = np.asarray(packed.indices, dtype=np.int64)
+    result.stats.update(dict(meta.get("stats", {})))
+    result.findings.extend(geometry_findings(positions, faces, name, task.limits))
+    extent = np.ptp(positions, axis=0) if len(positions) else np.zeros(3)
+    result.findings.extend(hit("U001", f.message, name) for f in scale_findings(extent, name, True))
+    hulls = [Hull(np.asarray(v, np.float64), np.asarray(f, np.int64), 0) for v, f in packed.hulls]
+    if not hulls:
+        result.findings.append(hit("C004", "no collision hulls: MuJoCo would collide with the visual mesh", name))
+    found, report = collision_findings(positions, faces, hulls, name, task.limits)
+    result.findings.extend(found)
+    result.stats["collision"] = report
+    packed.close()
+    if faces.shape[0] == 0:
+        result.notes.append("physics not checked: the pack has no triangles")
+        return
+    _physics(task, result, data)
+
+
+def _staleness(task: AssetTask, result: AssetResult, sources: list[dict[str, Any]]) -> None:
+    """K003: find the pack's sources (its folder, then the source roots) and compare their hashes."""
+    if not sources:
+        result.notes.append("staleness not checked: the pack records no sources")
+        return
+    folder = task.path.parent
+    candidates = [folder]
+    for root in task.source_roots:
+        if task.scan_root is not None:
+            with contextlib.suppress(ValueError):  # the pack is not under the scanned folder
+                candidates.append(root / folder.resolve().relative_to(task.scan_root.resolve()))
+        candidates.append(root)
+    obj = str(sources[0]["path"])
+    for base in candidates:
+        first = base / obj
+        digest = file_sha256(first)
+        result.deps[str(first.resolve())] = digest
+        if digest is None:
+            continue
+        changed, missing = [], []
+        for source in sources:
+            p = base / str(source["path"])
+            now = file_sha256(p)
+            result.deps[str(p.resolve())] = now
+            if now is None:
+                missing.append(str(source["path"]))
+            elif now != source["sha256"]:
+                changed.append(str(source["path"]))
+        if changed or missing:
+            parts = [f"changed: {', '.join(changed)}"] if changed else []
+            parts += [f"missing: {', '.join(missing)}"] if missing else []
+            result.findings.append(hit("K003", f"made from older sources ({'; '.join(parts)})", task.path.name))
+        result.stats["sources_dir"] = str(base)
+        return
+    result.notes.append(f"staleness not checked: source {obj!r} not found beside the pack or in source-roots")
+
+
+def _physics(task: AssetTask, result: AssetResult, mbin: bytes) -> None:
+    if any(RULES[f.code].severity is Severity.ERROR and f.code[0] == "G" for f in result.findings):
+        result.notes.append("physics not checked: geometry errors")
+        return
+    plugin = physics_plugin()
+    if plugin is None:
+        result.notes.append("physics not checked: no physics plugin installed (pip install meshtool-simrun)")
+        return
+    outcome = plugin(mbin, task.path.name, task.limits.as_dict(), task.thumbnails)
+    scale_wrong = any(f.code == "U001" for f in result.findings)
+    # a mass far off because the size is far off has one cause, reported once (U001)
+    result.findings.extend(f for f in outcome.findings if not (scale_wrong and f.code == "P004"))
+    result.thumbnail = outcome.thumbnail
+    result.notes.extend(outcome.notes)
+    result.stats["physics"] = outcome.stats
