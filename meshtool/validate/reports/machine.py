@@ -138,7 +138,7 @@ def _finite(value: Any) -> Any:
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {str(k): _finite(v) for k, v in value.items()}
+        return {str(k): _finite(v) for k, v in sorted(value.items())}  # sorted: cached and fresh agree
     if isinstance(value, list | tuple):
         return [_finite(v) for v in value]
     return value
