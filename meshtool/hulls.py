@@ -134,7 +134,7 @@ def _thicken(pts: FloatArray, thickness: float) -> tuple[FloatArray, bool]:
         return pts, False
     centre = pts.mean(axis=0)
     if len(pts) >= 3:
-        _, _singular, axes = np.linalg.svd(pts - centre, full_matrices=True)
+        _, _singular, axes = np.linalg.svd(pts - centre, full_matrices=False)  # (3, 3); U would be (n, n)
         spans = np.ptp((pts - centre) @ axes.T, axis=0)
     else:
         axes = np.eye(3)
