@@ -235,8 +235,8 @@ def _physics(task: AssetTask, result: AssetResult, mbin: bytes) -> None:
         return
     outcome = plugin(mbin, task.path.name, task.limits.as_dict(), task.thumbnails)
     scale_wrong = any(f.code == "U001" for f in result.findings)
-    # a mass far off because the size is far off has one cause, reported once (U001)
-    result.findings.extend(f for f in outcome.findings if not (scale_wrong and f.code == "P004"))
+    # a mass far off, or a fall from far up, because the size is far off: one cause, reported once (U001)
+    result.findings.extend(f for f in outcome.findings if not (scale_wrong and f.code in ("P002", "P004")))
     result.thumbnail = outcome.thumbnail
     result.notes.extend(outcome.notes)
     result.stats["physics"] = outcome.stats
