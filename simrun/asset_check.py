@@ -209,6 +209,8 @@ def _thumbnail(
         views = []
         for mode in ("visual", "physics"):
             option = scene_option(mode)
+            option.flags[mujoco.mjtVisFlag.mjVIS_CONTACTPOINT] = False  # the resting contact would hide the base
+            option.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = False
             renderer.update_scene(data, camera=camera, scene_option=option)
             views.append(Image.fromarray(renderer.render().copy()))
     finally:

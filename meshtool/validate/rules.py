@@ -63,7 +63,7 @@ _TABLE: list[tuple[str, str, Severity, str, str]] = [
     ("S010", "encoding", W, "an OBJ or MTL is not plain UTF-8 (Latin-1, UTF-16, byte-order mark)", "re-save the file as UTF-8 without BOM"),
     ("S011", "syntax", W, "malformed or partial statements were dropped", "fix the lines named, or export again"),
     ("G001", "non-finite", E, "vertices with NaN or infinite coordinates", "fix or delete those vertices"),
-    ("G002", "no-faces", E, "the file has vertices but no faces", "export the faces, not only points or lines"),
+    ("G002", "no-faces", W, "the file has vertices but no faces: usable only as a convex collision hull", "export the faces, not only points or lines"),
     ("G003", "degenerate-faces", W, "triangles with a repeated vertex or zero area", "clean the mesh (merge by distance, delete degenerate)"),
     ("G004", "duplicate-faces", W, "the same triangle appears more than once", "delete the duplicate faces"),
     ("G005", "winding-inconsistent", W, "neighbouring faces wind in opposite directions", "recalculate normals outside in the modeller"),

@@ -87,7 +87,7 @@ def _card(a: AssetResult, key: str) -> str:
     rows = []
     for f in a.findings:
         rule = RULES[f.code]
-        where = f"{f.path}:{f.line}" if f.line is not None else (f.path or "")
+        where = _local(f.path or a.path, a.path) + (f":{f.line}" if f.line is not None else "")
         rows.append(
             f'<tr><td class="sev {f.severity.value}">{f.severity.value}</td>'
             f'<td class="rule">{f.code} {escape(rule.name)}</td>'
@@ -101,6 +101,12 @@ def _card(a: AssetResult, key: str) -> str:
         f'<div class="body"><div class="path">{escape(a.path)}</div>'
         f'<div class="stats">{escape(_stats_line(a))}</div>{findings}{notes}</div></section>'
     )
+
+
+def _local(path: str, asset: str) -> str:
+    """``path`` relative to the asset's folder (the card's title names the folder)."""
+    folder = asset.rpartition("/")[0]
+    return path[len(folder) + 1 :] if folder and path.startswith(folder + "/") else path
 
 
 def _stats_line(a: AssetResult) -> str:
