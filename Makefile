@@ -1,6 +1,6 @@
 # Two entry points for a fresh machine with Python >= 3.11 and pip (see README.md):
-#   make demo   installs into .venv, normalises and packs the seed head, drives the Boe-Bot around the box
-#               and writes demo-out/demo.gif
+#   make demo   installs into .venv, normalises and packs the seed head, validates assets (demo-out/
+#               validate.html), drives the Boe-Bot around the box and writes demo-out/demo.gif
 #   make test   installs into .venv and runs lint, type checks and the test suite
 PYTHON ?= python3
 VENV   ?= .venv
@@ -24,6 +24,8 @@ demo: $(STAMP)
 	$(BIN)/python scripts/show_asset.py out/demo/head_1
 	$(BIN)/obj2bin "fixtures/head/Head 1.obj" --units cm -o out/demo/head_1.mbin
 	$(BIN)/meshtool info out/demo/head_1.mbin
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/meshtool validate fixtures/head fixtures/validate/clean out/demo/head_1.mbin \
+		--format html -o demo-out/validate.html
 	$(BIN)/meshtool urdf fixtures/urdf/tiny_arm_description/urdf/tiny_arm.urdf -o out/demo/tiny_arm --actuators
 	$(BIN)/simrun check fixtures/scenes/urdf_arm.toml
 	$(BIN)/simrun export fixtures/scenes/urdf_arm.toml --usd demo-out/urdf_arm.usda --glb demo-out/urdf_arm.glb
@@ -45,6 +47,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/load.py ../shared/corpus
 	$(BIN)/python bench/world.py ../shared/corpus
 	$(BIN)/python bench/drive.py .
+	$(BIN)/python bench/validate.py ../shared/corpus
 
 PEERS := .bench-peers
 $(PEERS)/bin/obj2mjcf:

@@ -138,6 +138,18 @@ def check_pack(mbin: bytes, name: str, limits: dict[str, float], thumbnail: bool
 
 
 def _drop(model: mujoco.MjModel, name: str, size: float, settle_time: float, outcome: PhysicsOutcome) -> None:
+    messages: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(messages.append)  # MuJoCo would print them to stdout, into the report
+    try:
+        _simulate(model, name, size, settle_time, outcome)
+    finally:
+        mujoco.set_mju_user_warning(previous)
+    if messages:
+        outcome.stats["mujoco_messages"] = sorted(set(m.strip() for m in messages))[:5]
+
+
+def _simulate(model: mujoco.MjModel, name: str, size: float, settle_time: float, outcome: PhysicsOutcome) -> None:
     data = mujoco.MjData(model)
     steps = max(1, round(settle_time / TIMESTEP))
     window = max(1, round(REST_WINDOW / TIMESTEP))

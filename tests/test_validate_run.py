@@ -188,7 +188,7 @@ def test_dask_executor_gives_the_same_findings(assets):
     assert render(dask, "json") == render(local, "json")
 
 
-def test_mujoco_warnings_become_p003():
+def test_mujoco_warnings_become_p003(capfd):
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><option gravity="0 0 -1e13"/><worldbody><body><freejoint/>'
         '<geom type="box" size=".1 .1 .1"/></body></worldbody></mujoco>'
@@ -198,6 +198,8 @@ def test_mujoco_warnings_become_p003():
     codes = {f.code for f in outcome.findings}
     assert "P003" in codes, [f.one_line() for f in outcome.findings]
     assert outcome.stats["warnings"]
+    assert any("unstable" in m for m in outcome.stats["mujoco_messages"])
+    assert capfd.readouterr().out == ""  # MuJoCo's own print would land in a report on stdout
 
 
 def test_a_crashing_rule_is_x001_and_exit_3(assets, monkeypatch):

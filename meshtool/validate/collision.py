@@ -63,7 +63,7 @@ def collision_findings(
             hit(
                 "C003",
                 f"parts of the surface lie {gap:.3g} m outside every hull "
-                f"({gap / diagonal:.0%} of the size; limit {limits.max_hull_gap:.0%})",
+                f"({gap / diagonal:.1%} of the size; limit {limits.max_hull_gap:.0%})",
                 path,
             )
         )

@@ -231,6 +231,8 @@ def _run_local(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[Ass
 
 
 def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[AssetResult]:
+    if not tasks:  # everything came from the cache: no cluster to start
+        return
     try:
         distributed: Any = importlib.import_module("distributed")
     except ImportError:
@@ -253,10 +255,9 @@ def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[Asse
     except (OSError, TimeoutError, ValueError) as exc:
         raise ValidateError(f"cannot reach the Dask scheduler: {exc}", path=options.scheduler) from None
     try:
-        if tasks:
-            futures = client.map(check_asset, tasks, pure=False)
-            for future in distributed.as_completed(futures):
-                yield future.result()
+        futures = client.map(check_asset, tasks, pure=False)
+        for future in distributed.as_completed(futures):
+            yield future.result()
     finally:
         client.close()
         if cluster is not None:
