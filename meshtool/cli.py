@@ -23,6 +23,7 @@ import click
 import platformdirs
 
 from meshtool import __version__
+from meshtool.cli_common import exit_on_bug
 from meshtool.cli_validate import validate_command
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
 from meshtool.errors import MeshtoolError, OptionsError
@@ -499,12 +500,7 @@ def _guard(as_json: bool) -> Iterator[None]:
             )
         sys.exit(EXIT_INPUT)
     except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
-        if os.environ.get("MESHTOOL_DEBUG"):
-            raise
-        click.echo(
-            f"internal error: {type(exc).__name__}: {exc} (please report; MESHTOOL_DEBUG=1 shows more)", err=True
-        )
-        sys.exit(EXIT_INTERNAL)
+        exit_on_bug(exc)
 
 
 main.add_command(validate_command)

@@ -14,6 +14,7 @@ from typing import Any
 import click
 import platformdirs
 
+from meshtool.cli_common import exit_on_bug
 from meshtool.errors import MeshtoolError
 from meshtool.outdir import write_file
 from meshtool.validate import FORMATS, ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
@@ -108,12 +109,7 @@ def validate_command(
         click.echo(f"error: {exc.one_line()}", err=True)
         sys.exit(EXIT_INTERNAL)
     except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
-        if os.environ.get("MESHTOOL_DEBUG"):
-            raise
-        click.echo(
-            f"internal error: {type(exc).__name__}: {exc} (please report; MESHTOOL_DEBUG=1 shows more)", err=True
-        )
-        sys.exit(EXIT_INTERNAL)
+        exit_on_bug(exc)
     if output is None:
         click.echo(text, nl=False)
     else:
