@@ -180,3 +180,20 @@ def test_config_errors_are_one_line_with_the_file(table, message):
 
 def test_default_config_is_empty():
     assert ValidateConfig().apply([], Path("x.obj")) == []
+
+
+def test_config_is_found_from_the_working_folder_up(tmp_path):
+    from meshtool.validate import find_config, load_config
+
+    (tmp_path / "pyproject.toml").write_text('[tool.meshtool.validate]\nignore = ["S009"]\n')
+    inner = tmp_path / "pkg" / "assets"
+    inner.mkdir(parents=True)
+    (tmp_path / "pkg" / "pyproject.toml").write_text("[project]\nname = 'x'\n")  # no table: keep looking
+    found = find_config(inner)
+    assert found == (tmp_path / "pyproject.toml").resolve()
+    assert load_config(found).ignore == ("S009",)
+    (inner / "meshtool.toml").write_text("[validate]\nlimits = { max-vertices = 5 }\n")
+    nearest = find_config(inner)
+    assert nearest == (inner / "meshtool.toml").resolve()
+    config = load_config(nearest)
+    assert config.limits.max_vertices == 5 and config.root == nearest.parent
