@@ -74,12 +74,12 @@ def reference_findings(resolutions: Iterable[dict[str, Any]]) -> list[Finding]:
         line = int(line_text) if line_text.isdigit() else None
         ref = str(r["ref"]).strip()
         if _ABSOLUTE.match(ref):
-            out.append(hit("S006", f"{r['kind']} reference {ref!r} is absolute", origin, line))
+            out.append(hit("S006", f"{r['kind']} reference '{ref}' is absolute", origin, line))
         elif r["found"] is not None and r["rule"] in _REPAIRED:
             out.append(
                 hit(
                     "S007",
-                    f"{r['kind']} reference {ref!r} only resolves as {r['found']!r} (rule: {r['rule']})",
+                    f"{r['kind']} reference '{ref}' only resolves as '{r['found']}' (rule: {r['rule']})",
                     origin,
                     line,
                 )
@@ -95,7 +95,7 @@ def name_findings(names: Iterable[str]) -> list[Finding]:
             continue
         bad = sorted({c for c in name if not _SAFE_NAME.match(c)})
         shown = " ".join("space" if c == " " else repr(c) for c in bad)
-        out.append(hit("S009", f"file name {name!r} has unsafe characters: {shown}", name))
+        out.append(hit("S009", f"file name '{name}' has unsafe characters: {shown}", name))
     return out
 
 

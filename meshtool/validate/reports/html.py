@@ -44,6 +44,7 @@ td.sev{font-weight:700;white-space:nowrap}
 """
 
 _TITLES = {"error": "Errors", "warning": "Warnings", "info": "Notes only", "clean": "Clean"}
+_PILLS = {"error": "with errors", "warning": "with warnings", "info": "with notes", "clean": "clean"}
 
 
 def to_html(report: ValidationReport, strict: bool = False, title: str = "meshtool validate") -> str:
@@ -53,9 +54,7 @@ def to_html(report: ValidationReport, strict: bool = False, title: str = "meshto
     for a in report.assets:
         groups[status(a)].append(a)
     verdict = "FAILED" if report.failed(strict) else "passed"
-    pills = "".join(
-        f'<span class="pill-{k}">{len(groups[k])} {_TITLES[k].lower()}</span>' for k in _TITLES if groups[k]
-    )
+    pills = "".join(f'<span class="pill-{k}">{len(groups[k])} {_PILLS[k]}</span>' for k in _TITLES if groups[k])
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
