@@ -74,6 +74,11 @@ def main() -> None:
         rows.append((label, cold, warm))
         print(f"{label}: cold {cold:.2f} s, warm {warm:.3f} s")
     counts = report.counts()
+    by_rule: dict[str, int] = {}
+    for a in report.assets:
+        for f in a.findings:
+            by_rule[f.code] = by_rule.get(f.code, 0) + 1
+    histogram = ", ".join(f"{rule} {n}" for rule, n in sorted(by_rule.items()))
     lines = [
         BEGIN,
         "## Validation: `meshtool validate` over the corpus",
@@ -85,6 +90,8 @@ def main() -> None:
         f" ({t_trimesh:.2f} s, no checks) and compiling every OBJ as a MuJoCo mesh ({t_mujoco:.2f} s).",
         f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()},"
         f" MuJoCo {mujoco.__version__}, trimesh {trimesh.__version__}. `python bench/validate.py ../shared/corpus`.",
+        "",
+        f"Findings by rule: {histogram}.",
         "",
         "| configuration | cold s | warm s | cold / trimesh load | warm / trimesh load | cold / warm |",
         "|---|---|---|---|---|---|",
