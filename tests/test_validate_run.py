@@ -188,6 +188,15 @@ def test_dask_executor_gives_the_same_findings(assets):
     assert render(dask, "json") == render(local, "json")
 
 
+def test_dask_scheduler_address(assets):
+    """--scheduler: a running cluster (here a LocalCluster started by the test) reached by its address."""
+    distributed = pytest.importorskip("distributed")
+    local = validate([assets], ValidateOptions(jobs=1))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:
+        remote = validate([assets], ValidateOptions(executor="dask", scheduler=cluster.scheduler_address))
+    assert summary_of(remote) == summary_of(local)
+
+
 def test_mujoco_warnings_become_p003(capfd):
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><option gravity="0 0 -1e13"/><worldbody><body><freejoint/>'
