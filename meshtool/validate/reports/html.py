@@ -81,7 +81,7 @@ def _card(a: AssetResult, key: str) -> str:
         alt = f"{a.path}: visual (left) and collision (right)"
     else:
         reason = next((n for n in a.notes if "thumbnail" in n or "not checked" in n), "no preview")
-        src = _placeholder(reason)
+        src = _no_preview_image(reason)
         alt = f"{a.path}: {reason}"
     rows = []
     for f in a.findings:
@@ -125,7 +125,7 @@ def _stats_line(a: AssetResult) -> str:
     return " · ".join(bits)
 
 
-def _placeholder(reason: str) -> str:
+def _no_preview_image(reason: str) -> str:
     svg = (
         '<svg xmlns="http://www.w3.org/2000/svg" width="404" height="150">'
         '<rect width="404" height="150" fill="#e8eaee"/>'
