@@ -19,7 +19,7 @@ from meshtool.errors import MeshtoolError
 from meshtool.outdir import write_file
 from meshtool.validate import FORMATS, ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
 from meshtool.validate import validate as run_validate
-from meshtool.validate.reports.text import to_text
+from meshtool.validate.reports.text import summary_lines, to_text
 from meshtool.validate.task import AssetResult
 
 EXIT_OK, EXIT_FINDINGS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
@@ -113,9 +113,8 @@ def validate_command(
     if output is None:
         click.echo(text, nl=False)
     else:
-        summary = to_text(report, strict, colour=sys.stderr.isatty()).rstrip("\n").split("\n")[-2:]
         click.echo(f"wrote {output}", err=True)
-        for line in summary:
+        for line in summary_lines(report, strict, colour=sys.stderr.isatty()):
             click.echo(line, err=True)
     if report.internal_errors():
         sys.exit(EXIT_INTERNAL)

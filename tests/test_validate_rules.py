@@ -178,8 +178,11 @@ def test_config_errors_are_one_line_with_the_file(table, message):
     assert "\n" not in str(err.value)
 
 
-def test_default_config_is_empty():
-    assert ValidateConfig().apply([], Path("x.obj")) == []
+def test_default_config_keeps_every_finding_as_it_is():
+    from meshtool.validate.rules import hit
+
+    found = [hit(rule, f"{rule} message", "x.obj", 3) for rule in RULES]
+    assert ValidateConfig().apply(found, Path("x.obj")) == found
 
 
 def test_config_is_found_from_the_working_folder_up(tmp_path):

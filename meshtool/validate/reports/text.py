@@ -40,10 +40,19 @@ def to_text(report: ValidationReport, strict: bool = False, colour: bool = False
             lines.append(f"          fix: {rule.hint}")
         if verbose:
             lines.extend(f"  note: {n}" for n in a.notes)
+    if lines:
+        lines.append("")
+    lines.extend(summary_lines(report, strict, colour))
+    return "\n".join(lines) + "\n"
+
+
+def summary_lines(report: ValidationReport, strict: bool = False, colour: bool = False) -> list[str]:
+    """The verdict with the counts, and how the run went (checked, from cache, executor, time)."""
     counts = report.counts()
     clean = sum(status(a) == "clean" for a in report.assets)
-    failed = report.failed(strict)
-    verdict = paint("FAILED", "error") if failed else paint("passed", "clean")
+    verdict = "FAILED" if report.failed(strict) else "passed"
+    if colour:
+        verdict = f"{_COLOUR['error' if report.failed(strict) else 'clean']}{verdict}{_RESET}"
     summary = (
         f"{verdict}: {len(report.assets)} assets, {clean} clean; "
         f"{counts['error']} errors, {counts['warning']} warnings, {counts['info']} infos"
@@ -53,7 +62,4 @@ def to_text(report: ValidationReport, strict: bool = False, colour: bool = False
     if report.unchanged_skipped:
         run += f", {report.unchanged_skipped} unchanged not shown (--changed-only)"
     run += f"; {report.executor} executor, {report.jobs} worker(s), {report.seconds:.2f} s"
-    if lines:
-        lines.append("")
-    lines.extend([summary, run])
-    return "\n".join(lines) + "\n"
+    return [summary, run]
