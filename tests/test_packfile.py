@@ -17,6 +17,17 @@ from meshtool.packfile.encode import oct_decode, oct_encode
 coord = st.floats(-100, 100, allow_nan=False, width=32)
 
 
+def tiny_png(seed):
+    """A real 2x2 PNG (the reader checks the PNG's chunks), different per seed."""
+    import io
+
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.new("RGB", (2, 2), (seed % 256, 40, 80)).save(buffer, format="PNG")
+    return buffer.getvalue()
+
+
 def make_asset(positions, faces, uvs=None, normals=None, colors=None, materials=1, textures=0, parts=1):
     m = faces.shape[0]
     face_material = np.sort(np.arange(m) % materials) if m else np.zeros(0, dtype=np.int64)
@@ -50,7 +61,7 @@ def make_asset(positions, faces, uvs=None, normals=None, colors=None, materials=
         source_polygons=m,
         degenerate=0,
     )
-    png = {n: b"\x89PNG fake " + n.encode() for n in names}
+    png = {n: tiny_png(k) for k, n in enumerate(names)}
     manifest = {"name": "t", "sources": [], "stats": {}, "findings": []}
     return NormalisedAsset("t", dict(png), manifest, [], mesh, mats, png)
 

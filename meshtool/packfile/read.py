@@ -21,6 +21,7 @@ import numpy.typing as npt
 
 from meshtool.errors import PackFormatError
 from meshtool.packfile import format as fmt
+from meshtool.packfile import verify as check
 from meshtool.packfile.encode import dequantize_box, oct_decode
 from meshtool.resolve import map_readonly
 
@@ -183,6 +184,9 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
         raise PackFormatError("header or section table checksum mismatch", path=name, offset=32)
     if any(bytes(view[36:64])):
         raise PackFormatError("reserved header bytes are not zero", path=name, offset=36)
+    flags = int(header["flags"])
+    if flags & ~fmt.FLAG_QUANTIZED:
+        raise PackFormatError(f"unknown header flags {flags:#x}", path=name, offset=12)
 
     fields = fmt.ENTRY_FIELDS
     columns = {f: table[f].tolist() for f in fields}
@@ -194,7 +198,7 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
             s.crc_ok = zlib.crc32(view[s.offset : s.offset + s.length]) == s.crc
             if not s.crc_ok:
                 raise PackFormatError(f"section {s.kind!r} checksum mismatch", path=name, offset=s.offset)
-    return _build(view, sections, name, verify, bool(int(header["flags"]) & fmt.FLAG_QUANTIZED), (major, minor), keep)
+    return _build(view, sections, name, verify, bool(flags & fmt.FLAG_QUANTIZED), (major, minor), keep)
 
 
 def _entry(e: dict[str, Any], k: int, name: str, size: int, table_end: int, table_offset: int) -> Section:
@@ -232,11 +236,16 @@ def _entry(e: dict[str, Any], k: int, name: str, size: int, table_end: int, tabl
 
 
 def _check_layout(sections: list[Section], name: str) -> None:
-    ordered = sorted(sections, key=lambda s: s.offset)
+    # A zero-length section holds no bytes, so it overlaps nothing (its offset is still checked in _entry).
+    ordered = sorted((s for s in sections if s.length), key=lambda s: s.offset)
     for a, b in itertools.pairwise(ordered):
         if a.offset + a.length > b.offset:
             raise PackFormatError(f"sections {a.kind!r} and {b.kind!r} overlap", path=name, offset=b.offset)
     kinds = [s.kind.encode() for s in sections]
+    for k, s in enumerate(sections):
+        if s.index and kinds[k] in fmt.REQUIRED + fmt.OPTIONAL[:3]:
+            at = fmt.HEADER_SIZE + k * fmt.ENTRY_SIZE + 6
+            raise PackFormatError(f"section {s.kind!r} has index {s.index}, expected 0", path=name, offset=at)
     for kind in fmt.REQUIRED + fmt.OPTIONAL[:3]:
         n = kinds.count(kind)
         if n > 1 or (n == 0 and kind in fmt.REQUIRED):
@@ -301,6 +310,7 @@ def _build(
             offset = 0 if s.encoding == fmt.ENC_DEFLATE else s.offset
             arr = np.frombuffer(source, dtype=dtype, count=s.shape[0] * cols, offset=offset)
             raw[s.kind] = arr.reshape(s.shape)
+    meta_at, matl_at = by_kind[fmt.KIND_META].offset, by_kind[fmt.KIND_MATERIALS].offset
     meta = _json(view, by_kind[fmt.KIND_META], name, dict)
     materials = _json(view, by_kind[fmt.KIND_MATERIALS], name, list)
     n = raw["POS "].shape[0]
@@ -311,21 +321,40 @@ def _build(
                 path=name,
                 offset=by_kind[tag.encode()].offset,
             )
+    encodings = {s.encoding for s in by_kind.values()}
+    if quantized != bool(encodings & {fmt.ENC_UNORM16_BOX, fmt.ENC_OCT_SNORM16}):
+        raise PackFormatError(
+            "the header's quantised flag does not match the sections' encodings", path=name, offset=12
+        )
+    boxed = {"positions": ("POS ", 3), "uvs": ("UV  ", 2)}
+    quantised = {
+        array: cols
+        for array, (tag, cols) in boxed.items()
+        if tag in raw and by_kind[tag.encode()].encoding == fmt.ENC_UNORM16_BOX
+    }
+    _, parts = check.check_meta(meta, len(textures), quantised, name, meta_at)
+    check.check_materials(materials, len(textures), name, matl_at)
     indices = raw["IDX "]
     submeshes = raw["SUBM"]
-    if verify:
-        _check_ranges(indices, submeshes, n, len(materials), by_kind, name)
     quant = meta.get("quantization") or {}
-    try:
-        positions = _decode(raw["POS "], by_kind[fmt.KIND_POSITIONS].encoding, quant.get("positions"))
-        normals = _decode(raw["NRM "], by_kind[fmt.KIND_NORMALS].encoding, None) if "NRM " in raw else None
-        uvs = _decode(raw["UV  "], by_kind[fmt.KIND_UVS].encoding, quant.get("uvs")) if "UV  " in raw else None
-    except (KeyError, TypeError, ValueError) as exc:
-        raise PackFormatError(
-            f"quantisation parameters missing or malformed in META ({exc})",
-            path=name,
-            offset=by_kind[fmt.KIND_META].offset,
-        ) from None
+    positions = _decode(raw["POS "], by_kind[fmt.KIND_POSITIONS].encoding, quant.get("positions"))
+    normals = _decode(raw["NRM "], by_kind[fmt.KIND_NORMALS].encoding, None) if "NRM " in raw else None
+    uvs = _decode(raw["UV  "], by_kind[fmt.KIND_UVS].encoding, quant.get("uvs")) if "UV  " in raw else None
+    if verify:
+        idx = by_kind[fmt.KIND_INDICES]
+        check.check_indices(indices, n, "IDX ", name, idx.offset, idx.encoding == fmt.ENC_PLAIN)
+        check.check_submeshes(submeshes, indices.shape[0], len(materials), len(parts), name, by_kind[b"SUBM"].offset)
+        for tag, values in (("POS ", positions), ("NRM ", normals), ("UV  ", uvs), ("HULV", raw["HULV"])):
+            if values is not None:
+                s = by_kind[tag.encode()]
+                check.check_finite(values, tag, name, s.offset, 2 if s.dtype in ("u16", "i16") else 4)
+        offsets = (by_kind[fmt.KIND_HULL_TABLE].offset, by_kind[fmt.KIND_HULL_FACES].offset)
+        check.check_hulls(raw["HULT"], raw["HULV"].shape[0], raw["HULF"], offsets, name)
+        for s in sections:
+            if s.kind == "TEX ":
+                check.check_png(textures[s.index], s.index, name, s.offset)
+        if len(meta.get("hull_parts") or []) not in (0, raw["HULT"].shape[0]):
+            raise check.fail("section 'META': hull_parts does not name one part per hull", name, meta_at)
     hulls = _hulls(raw, by_kind, name)
     return PackedMesh(
         positions=positions,
@@ -369,8 +398,8 @@ def _inflate(view: memoryview, s: Section, name: str) -> bytes:
 def _json(view: memoryview, s: Section, name: str, kind: type) -> Any:
     data = _inflate(view, s, name) if s.encoding == fmt.ENC_DEFLATE else bytes(view[s.offset : s.offset + s.length])
     try:
-        value = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        value = json.loads(data.decode("utf-8"), parse_constant=check.reject_constant, parse_float=check.finite_float)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise PackFormatError(f"section {s.kind!r} is not UTF-8 JSON ({exc})", path=name, offset=s.offset) from None
     if not isinstance(value, kind):
         raise PackFormatError(f"section {s.kind!r} is not a JSON {kind.__name__}", path=name, offset=s.offset)
@@ -389,36 +418,6 @@ def _decode(arr: npt.NDArray[Any], encoding: int, params: dict[str, Any] | None)
     if len(lo) != arr.shape[1] or len(hi) != arr.shape[1]:
         raise ValueError("lo/hi length")
     return dequantize_box(arr, lo, hi)
-
-
-def _check_ranges(
-    indices: npt.NDArray[Any],
-    submeshes: npt.NDArray[Any],
-    n: int,
-    n_materials: int,
-    by_kind: dict[bytes, Section],
-    name: str,
-) -> None:
-    if indices.size and int(indices.max()) >= n:
-        raise PackFormatError(
-            f"an index is {int(indices.max())} but there are {n} vertices",
-            path=name,
-            offset=by_kind[fmt.KIND_INDICES].offset,
-        )
-    m = indices.shape[0]
-    if submeshes.size:
-        first = submeshes[:, 0].astype(np.int64)
-        end = first + submeshes[:, 1].astype(np.int64)
-        if (end > m).any() or (first[1:] != end[:-1]).any() or first[0] != 0 or end[-1] != m:
-            raise PackFormatError(
-                "submeshes do not tile the triangles", path=name, offset=by_kind[fmt.KIND_SUBMESHES].offset
-            )
-        if n_materials and int(submeshes[:, 2].max()) >= n_materials:
-            raise PackFormatError(
-                "a submesh names a material that does not exist", path=name, offset=by_kind[fmt.KIND_SUBMESHES].offset
-            )
-    elif m:
-        raise PackFormatError("triangles without a submesh table", path=name, offset=by_kind[fmt.KIND_SUBMESHES].offset)
 
 
 def _hulls(
