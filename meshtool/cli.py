@@ -301,7 +301,7 @@ def hulls(src: Path, as_json: bool, **kw: Any) -> None:
 
 
 def _hull_summary(report: dict[str, Any]) -> str:
-    text = f"{report['hulls']} hull(s), vertices {report.get('vertices_per_hull')}"
+    text = f"{report.get('hulls')} hull(s), vertices {report.get('vertices_per_hull')}"
     if report.get("volume_ratio") is not None:
         text += f", hull/mesh volume {report['volume_ratio']:.2f}"
     if report.get("surface_to_hulls_max_m") is not None:
@@ -314,31 +314,35 @@ def _hull_summary(report: dict[str, Any]) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def info(file: Path, as_json: bool) -> None:
     """Describe an .mbin file: counts, sections, sizes, checksums and metadata."""
-    with _guard(as_json), load(file, verify=True) as packed:
-        summary = describe(packed)
-    if as_json:
-        click.echo(json.dumps(summary))
-        return
-    click.echo(
+    with _guard(as_json):  # everything that reads the file's content, META included, is inside the guard
+        with load(file, verify=True) as packed:
+            summary = describe(packed)
+        text = json.dumps(summary) if as_json else "\n".join(_info_lines(file, summary))
+    click.echo(text)
+
+
+def _info_lines(file: Path, summary: dict[str, Any]) -> list[str]:
+    lines = [
         f"{file}: mbin {summary['version']}{' quantized' if summary['quantized'] else ''}, "
         f"{summary['vertices']} vertices, {summary['triangles']} triangles ({summary['index_type']}), "
         f"{summary['submeshes']} submesh(es), {len(summary['materials'])} material(s), "
         f"{len(summary['textures'])} texture(s), {summary['hulls']} hull(s)"
-    )
+    ]
     for s in summary["sections"]:
         shape = "x".join(str(d) for d in s["shape"])
-        click.echo(
+        lines.append(
             f"  {s['kind']:<5}{s['index']:>3} {s['dtype']:>5} {shape:>12} at {s['offset']:>10} "
             f"{s['bytes']:>10} bytes {s['encoding']:>11}  crc {s['crc32']} {s['checksum']}"
         )
     meta = summary["meta"]
     if meta.get("hull_quality"):
-        click.echo(f"  hulls: {_hull_summary(meta['hull_quality'])}")
-    t = meta.get("transform", {})
-    click.echo(
+        lines.append(f"  hulls: {_hull_summary(meta['hull_quality'])}")
+    t = meta.get("transform") or {}
+    lines.append(
         f"  source units {t.get('units')} (x{t.get('unit_scale')}), scale {t.get('scale')}, up {t.get('up')}; "
-        f"tool {meta.get('tool', {}).get('version')}"
+        f"tool {(meta.get('tool') or {}).get('version')}"
     )
+    return lines
 
 
 @main.command("unpack")

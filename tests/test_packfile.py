@@ -318,3 +318,31 @@ def test_meshtool_load_is_the_public_entry_point():
     from meshtool.packfile import load
 
     assert meshtool.load is load and meshtool.pack is pack
+
+
+# ------------------------------------------------------------------------------------------------ writer limits
+
+
+@pytest.mark.parametrize("quantize", [False, True])
+@pytest.mark.parametrize("value", [4e38, -1e300, float("inf"), float("nan")])
+def test_the_writer_never_stores_infinity(value, quantize):
+    """Coordinates beyond float32's range (3.4028235e38) are an error before packing, not +-inf in the file."""
+    positions = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, value, 0.0], [0.0, 0.0, 1.0]])
+    faces = np.array([[0, 1, 2], [0, 1, 3]])
+    with pytest.raises(PackFormatError, match="beyond float32's range") as info:
+        pack(make_asset(positions, faces), quantize)
+    assert info.value.code == "non-finite"
+
+
+def test_the_largest_float32_still_packs():
+    big = float(np.finfo(np.float32).max)
+    positions = np.array([[0.0, 0.0, 0.0], [big, 0.0, 0.0], [0.0, -big, 0.0], [0.0, 0.0, 1.0]])
+    p = parse(pack(make_asset(positions, np.array([[0, 1, 2], [0, 1, 3]]))))
+    assert np.isfinite(p.positions).all() and float(p.positions.max()) == big
+
+
+def test_non_finite_material_numbers_are_refused_by_the_writer():
+    asset = make_asset(np.eye(4, 3), np.array([[0, 1, 2], [0, 1, 3]]))
+    asset.materials[0].scalars["Ns"] = float("nan")
+    with pytest.raises(PackFormatError, match="non-finite number"):
+        pack(asset)

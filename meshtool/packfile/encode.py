@@ -88,7 +88,8 @@ def dequantize_box(codes: npt.NDArray[np.uint16], lo: list[float], hi: list[floa
     """Decode :func:`quantize_box`: ``float32(lo + q * ((hi - lo) / 65535))`` computed in float64."""
     lo_a = np.asarray(lo, dtype=np.float64)
     step = (np.asarray(hi, dtype=np.float64) - lo_a) / U16_MAX
-    result: npt.NDArray[np.float32] = (lo_a + codes.astype(np.float64) * step).astype(np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):  # hostile lo/hi: the reader refuses non-finite results
+        result: npt.NDArray[np.float32] = (lo_a + codes.astype(np.float64) * step).astype(np.float32)
     return result
 
 

@@ -155,7 +155,7 @@ def check_meta(
             raise j.fail(f"META.quantization.{array}", "has hi below lo")
     hull_parts = j.optional(meta, "hull_parts", list, "an array", "META") or []
     for k, part in enumerate(hull_parts):
-        if not _integer(part) or not 0 <= part < max(len(parts), 1):
+        if not _integer(part) or not 0 <= part < len(parts):
             raise j.fail(f"META.hull_parts[{k}]", f"is {part!r}, not a part index below {len(parts)}")
     report = j.optional(meta, "hull_quality", (dict, type(None)), "an object or null", "META")
     if report:

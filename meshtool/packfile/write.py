@@ -12,6 +12,7 @@ import numpy.typing as npt
 import trimesh
 
 from meshtool import __version__
+from meshtool.errors import PackFormatError
 from meshtool.hulls import Hull
 from meshtool.normalise import NormalisedAsset
 from meshtool.obj.mtl import Material
@@ -48,8 +49,19 @@ def _deflated(section: _Section) -> _Section:
 
 
 def canonical_json(value: Any) -> bytes:
-    """JSON with sorted keys and no spaces: the same value always gives the same bytes (NaN is refused)."""
-    text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    """JSON with sorted keys and no spaces: the same value always gives the same bytes.
+
+    Raises:
+        PackFormatError: The value holds NaN or an infinity (the format allows only finite numbers).
+    """
+    try:
+        text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    except ValueError as exc:
+        raise PackFormatError(
+            f"cannot pack: the metadata holds a non-finite number ({exc})",
+            hint="fix the non-finite value in the source (an MTL colour or scalar, a coordinate)",
+            code="non-finite",
+        ) from None
     return text.encode("utf-8")
 
 
@@ -73,6 +85,12 @@ def pack(
         The file contents; identical inputs give identical bytes.
     """
     rm = render_mesh(asset.mesh)
+    _check_float32("vertex position", rm.positions, asset.name)
+    for what, values in (("normal", rm.normals), ("texture coordinate", rm.uvs)):
+        if values is not None:
+            _check_float32(what, values, asset.name)
+    for hull in hulls or []:
+        _check_float32("hull vertex", hull.vertices, asset.name)
     sections: list[_Section] = []
     quant: dict[str, Any] = {}
     if quantize:
@@ -123,6 +141,26 @@ def pack(
     }
     sections.append(_deflated(_blob(fmt.KIND_META, canonical_json(meta))))
     return _assemble(sections, fmt.FLAG_QUANTIZED if quantize else 0)
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _check_float32(what: str, values: npt.NDArray[Any], name: str) -> None:
+    """Refuse a value that is not finite or that float32 cannot hold (it would be stored as +-inf)."""
+    flat = np.asarray(values, dtype=np.float64).reshape(-1)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(flat) <= FLOAT32_MAX)
+    if bad.any():
+        k = int(np.argmax(bad))
+        columns = values.shape[1] if values.ndim == 2 else 1
+        raise PackFormatError(
+            f"cannot pack: {what} {k // columns} has the value {float(flat[k]):g}, beyond float32's range "
+            f"(+-{FLOAT32_MAX:.4g})",
+            path=name,
+            hint="scale the asset down (--units, --scale) or fix the source's coordinates",
+            code="non-finite",
+        )
 
 
 def _assemble(sections: list[_Section], flags: int) -> bytes:
