@@ -7,7 +7,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test lint bench bench-hulls corpus clean
+.PHONY: install demo test lint bench bench-hulls corpus fuzz clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -59,6 +59,12 @@ bench-hulls: $(STAMP) $(PEERS)/bin/obj2mjcf
 
 corpus: $(STAMP)
 	$(BIN)/python bench/corpus_check.py ../shared/corpus
+
+# Fuzz the OBJ/MTL, .mbin, scene and .simlog readers for FUZZ_SECONDS in all (not part of make test);
+# crashes land in out/fuzz/crashes/ (see docs/testing.md)
+FUZZ_SECONDS ?= 600
+fuzz: $(STAMP)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} FUZZ_SECONDS=$(FUZZ_SECONDS) $(BIN)/python tests/fuzz/run.py
 
 clean:
 	rm -rf out build dist *.egg-info .pytest_cache .mypy_cache .ruff_cache

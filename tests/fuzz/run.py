@@ -1,0 +1,236 @@
+"""The fuzz harness: ``make fuzz`` (or ``python tests/fuzz/run.py``), not part of ``make test``.
+
+Runs every target of :mod:`targets` for its share of ``FUZZ_SECONDS`` (default 600 in all), each in a
+child process driven by hypothesis. A crash is any exception other than the target's documented error base
+class, or a hang: an input still running after ``FUZZ_INPUT_TIMEOUT`` seconds (default 10; interrupted by
+SIGALRM in the child, and the child is killed by this parent if native code does not return).
+
+New crashes are shrunk by hypothesis (fewest mutations), written to ``OUT/crashes/<target>-<id>/`` (the input
+files and ``traceback.txt``; ``OUT`` is ``out/fuzz`` by default) and counted; a crash with the same exception
+type and place is recorded once. A summary (inputs tried, refusals, crashes per target) goes to
+``OUT/summary.json`` and stdout. Exit status 1 when anything crashed or hung.
+
+Usage::
+
+    python tests/fuzz/run.py [--seconds 600] [--targets obj,mtl,mbin,scene,simlog] [--out out/fuzz]
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import pickle
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+
+class Hang(BaseException):
+    """Raised by SIGALRM when one input runs past the per-input timeout."""
+
+
+def signature(exc: BaseException) -> str:
+    """Exception type and the innermost frame in the project (what makes two crashes the same)."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    ours = [f for f in frames if "/meshtool/" in f.filename or "/simrun/" in f.filename] or frames
+    where = f"{Path(ours[-1].filename).name}:{ours[-1].name}" if ours else "?"
+    return f"{type(exc).__name__} at {where}"
+
+
+def save_crash(out: Path, target: str, sig: str, files: dict[str, bytes], text: str) -> Path:
+    """Write a crash's input files and traceback under ``out/crashes``."""
+    key = hashlib.sha256(sig.encode()).hexdigest()[:10]
+    folder = out / "crashes" / f"{target}-{key}"
+    if folder.exists():
+        shutil.rmtree(folder)
+    (folder / "input").mkdir(parents=True)
+    for name, data in files.items():
+        path = folder / "input" / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    (folder / "traceback.txt").write_text(f"{sig}\n\n{text}")
+    (folder / "input.pickle").write_bytes(pickle.dumps(files))
+    return folder
+
+
+# -- child: one target under hypothesis ------------------------------------------------------------------
+
+
+def child(target_name: str, seconds: float, out: Path, input_timeout: float) -> None:
+    """Fuzz one target until the deadline; progress in ``out/state-<target>.json``."""
+    from hypothesis import HealthCheck, Phase, given, settings
+    from hypothesis import seed as hseed
+    from hypothesis import strategies as st
+    from targets import targets
+
+    target = targets()[target_name]
+    state_file = out / f"state-{target_name}.json"
+    state = json.loads(state_file.read_text()) if state_file.is_file() else {}
+    stats: dict[str, Any] = {"tried": 0, "refused": 0, "crashes": {}, "hangs": {}, "seeds": 0, **state}
+    known: set[str] = set(stats["crashes"]) | set(stats["hangs"])
+    scratch = Path(tempfile.mkdtemp(prefix=f"fuzz-{target_name}-"))
+    seeds = target.seeds(scratch)
+    stats["seeds"] = len(seeds)
+    if not seeds:
+        raise SystemExit(f"{target_name}: no seeds")
+    strategy = target.strategy(seeds)
+    allowed = target.allowed()
+    inflight = out / f"inflight-{target_name}.pickle"
+    deadline = time.monotonic() + seconds
+    failures: dict[str, tuple[dict[str, bytes], str]] = {}
+    counter = [0]
+
+    def on_alarm(_signum: int, _frame: Any) -> None:
+        raise Hang(f"input still running after {input_timeout:g} s")
+
+    signal.signal(signal.SIGALRM, on_alarm)
+
+    def flush() -> None:
+        state_file.write_text(json.dumps(stats, indent=1, sort_keys=True))
+
+    @settings(
+        max_examples=200,
+        deadline=None,
+        database=None,
+        phases=[Phase.generate, Phase.shrink],
+        suppress_health_check=list(HealthCheck),
+        print_blob=False,
+    )
+    @given(st.data())
+    def fuzz_one(data: Any) -> None:
+        files = data.draw(strategy)  # always drawn: hypothesis needs the same draws when it replays
+        if time.monotonic() > deadline:
+            return
+        counter[0] += 1
+        folder = scratch / f"in{counter[0]}"
+        folder.mkdir()
+        inflight.write_bytes(pickle.dumps(files))
+        stats["tried"] += 1
+        signal.setitimer(signal.ITIMER_REAL, input_timeout)
+        try:
+            target.run(files, folder)
+        except allowed:
+            stats["refused"] += 1
+        except Hang as exc:  # recorded as found, not shrunk (each shrink step would cost the timeout)
+            sig = "hang"
+            if sig not in known:
+                known.add(sig)
+                saved = save_crash(out, target_name, sig, files, f"{exc}\n")
+                stats["hangs"][sig] = str(saved)
+                print(f"[{target_name}] HANG -> {saved}", flush=True)
+        except Exception as exc:
+            sig = signature(exc)
+            if sig in known:
+                return
+            failures[sig] = (files, "".join(traceback.format_exception(exc)))
+            raise
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            shutil.rmtree(folder, ignore_errors=True)
+
+    while time.monotonic() < deadline:
+        failures.clear()
+        try:
+            hseed(int.from_bytes(os.urandom(4), "little"))(fuzz_one)()
+        except Exception as exc:
+            if not failures:  # the harness itself failed (hypothesis said why): record it once
+                failures[signature(exc)] = ({}, "".join(traceback.format_exception(exc)))
+        for sig, (files, text) in failures.items():  # the last input seen per crash is the shrunk one
+            known.add(sig)
+            saved = save_crash(out, target_name, sig, files, text)
+            stats["crashes"][sig] = str(saved)
+            print(f"[{target_name}] CRASH {sig} -> {saved}", flush=True)
+        flush()
+    flush()
+    shutil.rmtree(scratch, ignore_errors=True)
+
+
+# -- parent: time budget, watchdog, summary ----------------------------------------------------------------
+
+
+def fuzz_target(name: str, seconds: float, out: Path, input_timeout: float) -> dict[str, Any]:
+    """Run one target's child processes until its time is used (restarting after a native hang)."""
+    state_file = out / f"state-{name}.json"
+    state_file.unlink(missing_ok=True)
+    inflight = out / f"inflight-{name}.pickle"
+    end = time.monotonic() + seconds
+    native_hangs: list[str] = []
+    while time.monotonic() < end - 1:
+        remaining = end - time.monotonic()
+        inflight.unlink(missing_ok=True)
+        command = [sys.executable, __file__, "--child", name, "--seconds", f"{remaining:.1f}", "--out", str(out)]
+        command += ["--input-timeout", str(input_timeout)]
+        proc = subprocess.Popen(command, start_new_session=True)
+        while proc.poll() is None:
+            time.sleep(1)
+            stale = inflight.is_file() and time.time() - inflight.stat().st_mtime > 3 * input_timeout + 30
+            if stale or time.monotonic() > end + 120:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+                if stale:
+                    files = pickle.loads(inflight.read_bytes())
+                    saved = save_crash(out, name, f"native-hang-{len(native_hangs)}", files, "killed by the watchdog\n")
+                    native_hangs.append(str(saved))
+                    print(f"[{name}] NATIVE HANG -> {saved}", flush=True)
+                break
+        if proc.returncode not in (0, -signal.SIGKILL, None):
+            print(f"[{name}] child exited with {proc.returncode}", flush=True)
+            if proc.returncode < 0:  # a native crash (segfault): the in-flight input is the culprit
+                files = pickle.loads(inflight.read_bytes()) if inflight.is_file() else {}
+                saved = save_crash(out, name, f"signal-{-proc.returncode}", files, "child died of a signal\n")
+                native_hangs.append(str(saved))
+            else:
+                break
+    stats: dict[str, Any] = json.loads(state_file.read_text()) if state_file.is_file() else {}
+    stats.setdefault("hangs", {}).update({f"native-{k}": v for k, v in enumerate(native_hangs)})
+    return stats
+
+
+def main() -> int:
+    """Parse arguments and fuzz (or be one target's child)."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=float(os.environ.get("FUZZ_SECONDS", 600)))
+    parser.add_argument("--targets", default=os.environ.get("FUZZ_TARGETS", "obj,mtl,mbin,scene,simlog"))
+    parser.add_argument("--out", type=Path, default=Path(os.environ.get("FUZZ_OUT", "out/fuzz")))
+    parser.add_argument("--input-timeout", type=float, default=float(os.environ.get("FUZZ_INPUT_TIMEOUT", 10)))
+    parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.child:
+        child(args.child, args.seconds, args.out, args.input_timeout)
+        return 0
+    names = [n.strip() for n in args.targets.split(",") if n.strip()]
+    share = args.seconds / len(names)
+    summary: dict[str, Any] = {"seconds": args.seconds, "input_timeout": args.input_timeout, "targets": {}}
+    started = time.monotonic()
+    for name in names:
+        print(f"fuzzing {name} for {share:.0f} s", flush=True)
+        summary["targets"][name] = fuzz_target(name, share, args.out, args.input_timeout)
+    summary["wall_seconds"] = round(time.monotonic() - started, 1)
+    (args.out / "summary.json").write_text(json.dumps(summary, indent=1, sort_keys=True))
+    bad = 0
+    print(f"{'target':<8} {'seeds':>5} {'tried':>8} {'refused':>8} {'crashes':>7} {'hangs':>5}")
+    for name, s in summary["targets"].items():
+        crashes, hangs = len(s.get("crashes", {})), len(s.get("hangs", {}))
+        bad += crashes + hangs
+        counts = f"{s.get('seeds', 0):>5} {s.get('tried', 0):>8} {s.get('refused', 0):>8}"
+        print(f"{name:<8} {counts} {crashes:>7} {hangs:>5}")
+    for name, s in summary["targets"].items():
+        for sig, where in {**s.get("crashes", {}), **s.get("hangs", {})}.items():
+            print(f"  {name}: {sig} -> {where}")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
