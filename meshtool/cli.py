@@ -23,6 +23,7 @@ import click
 import platformdirs
 
 from meshtool import __version__
+from meshtool.changes import split_findings
 from meshtool.cli_common import exit_on_bug
 from meshtool.cli_validate import validate_command
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
@@ -54,16 +55,17 @@ def normalise_options(func: Callable[..., Any]) -> Callable[..., Any]:
     decorators = [
         click.option(
             "--units",
-            type=click.Choice(list(UNIT_FACTORS)),
+            type=click.Choice([*UNIT_FACTORS, "auto"]),
             default=None,
-            help="Unit the source was modelled in (default m).",
+            help="Unit the source was modelled in (default m); auto: what a URDF/SDF/MJCF using the mesh says.",
         ),
         click.option("--scale", type=float, default=1.0, show_default=True, help="Extra uniform scale after --units."),
         click.option(
             "--up",
-            type=click.Choice(["y", "z"]),
-            default=None,
-            help="Up axis of the source: y (OBJ convention, rotated to Z-up; default) or z (kept).",
+            type=click.Choice(["auto", "y", "z"]),
+            default="auto",
+            show_default=True,
+            help="Up axis of the source: y (rotated to Z-up), z (kept) or auto (from evidence; see docs/findings.md).",
         ),
         click.option(
             "--search-path",
@@ -486,9 +488,12 @@ def _report(status: str, output: Path, findings: list[Finding], stats: dict[str,
 
 
 def _echo_findings(findings: list[Finding]) -> None:
-    for finding in findings:
-        if finding.severity is not Severity.INFO or os.environ.get("MESHTOOL_VERBOSE"):
-            click.echo(finding.one_line(), err=True)
+    shown, notes = split_findings(findings)
+    verbose = bool(os.environ.get("MESHTOOL_VERBOSE"))
+    for finding in findings if verbose else shown:
+        click.echo(finding.one_line(), err=True)
+    if notes and not verbose:
+        click.echo(f"note: {len(notes)} more finding(s) that changed nothing (MESHTOOL_VERBOSE=1 shows them)", err=True)
 
 
 @contextlib.contextmanager

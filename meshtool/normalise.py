@@ -20,14 +20,18 @@ from typing import Any
 import numpy as np
 
 from meshtool import __version__
+from meshtool.changes import changes_data
 from meshtool.errors import MeshtoolError, ObjParseError, OptionsError, OutputError, StrictModeError
-from meshtool.findings import Finding, Severity, info, warning
+from meshtool.findings import Finding, info, warning
+from meshtool.frame import decide_frame
 from meshtool.mesh import DEFAULT_MATERIAL, TriMesh, build_mesh, unique_names
-from meshtool.obj.mtl import Material, TextureMap, format_mtl, parse_mtl
+from meshtool.modelroot import model_root_resolver
+from meshtool.obj.mtl import Material, TextureMap, format_mtl, opaque_if_invisible, parse_mtl
 from meshtool.obj.parse import parse_obj
 from meshtool.obj.write import format_obj
 from meshtool.outdir import write_folder
-from meshtool.resolve import Resolution, Resolver
+from meshtool.resolve import Resolution, Resolver, printable
+from meshtool.smallparts import fix_small_parts
 from meshtool.textures import to_png
 from meshtool.units import UNIT_FACTORS, apply_scale, rotation_matrix, scale_findings, to_z_up, unit_scale
 
@@ -58,10 +62,10 @@ class NormaliseOptions:
     strict: bool = False
 
     def __post_init__(self) -> None:
-        if self.units is not None and self.units not in UNIT_FACTORS:
-            raise OptionsError(f"unknown unit {self.units!r}", hint=f"use one of {', '.join(UNIT_FACTORS)}")
-        if self.up is not None and self.up not in ("y", "z"):
-            raise OptionsError(f"unknown up axis {self.up!r}", hint="use y or z")
+        if self.units is not None and self.units not in UNIT_FACTORS and self.units != "auto":
+            raise OptionsError(f"unknown unit {self.units!r}", hint=f"use one of {', '.join(UNIT_FACTORS)} or auto")
+        if self.up is not None and self.up not in ("y", "z", "auto"):
+            raise OptionsError(f"unknown up axis {self.up!r}", hint="use y, z or auto")
         if not (math.isfinite(self.scale) and self.scale > 0):
             raise OptionsError(f"scale must be a positive finite number, got {self.scale!r}")
         if self.name is not None and not safe_file_stem(self.name):
@@ -157,18 +161,16 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
             ``strict`` is set and there are warnings.
     """
     options = options or NormaliseOptions()
-    resolver = Resolver(src.parent, options.search_paths)
-    source_name = src.name
+    resolver, root_findings = model_root_resolver(src, options.search_paths)
+    source_name = printable(src.name)
     data = resolver.read_source(src)
     obj = parse_obj(data, source_name)
-    findings = list(obj.findings)
+    findings = [*obj.findings, *root_findings]
     sources: list[dict[str, str]] = [{"role": "obj", "path": source_name, "sha256": _sha256(data)}]
     resolutions: list[Resolution] = []
 
     normalised_before = any(_MARKER.match(c) for c in obj.header_comments[:1])
-    units = options.units or "m"
-    up = options.up or ("z" if normalised_before else "y")
-    if normalised_before and options.up is None:
+    if normalised_before and options.up in (None, "auto"):
         findings.append(info("already-normalized", "file was written by meshtool: read as metres, Z-up", source_name))
 
     library: dict[str, tuple[Material, Path]] = {}
@@ -179,7 +181,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         if res.found is None:
             continue
         shown = resolver.display(res.found)
-        mtl_bytes = resolver.read(res.found)
+        mtl_bytes = resolver.read(res.found, "mtl")
         sources.append({"role": "mtl", "path": shown, "sha256": _sha256(mtl_bytes)})
         mtl = parse_mtl(mtl_bytes, shown)
         findings.extend(mtl.findings)
@@ -200,8 +202,21 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
                 source_name,
             )
         )
-    mesh.positions = to_z_up(apply_scale(mesh.positions, units, options.scale), up) + 0.0  # no -0.0
+    frame = decide_frame(
+        src,
+        mesh.positions,
+        obj.header_comments,
+        options.units,
+        options.scale,
+        options.up,
+        resolver.model_root,
+        normalised_before,
+    )
+    units, up = frame.units, frame.up
+    findings.extend(frame.findings)
+    mesh.positions = to_z_up(apply_scale(mesh.positions, units, frame.scale), up) + 0.0  # no -0.0
     mesh.normals = to_z_up(mesh.normals, up) + 0.0
+    findings.extend(fix_small_parts(mesh, source_name))
 
     name = (options.name and safe_file_stem(options.name)) or safe_file_stem(src.stem) or "asset"
     files: dict[str, bytes] = {}
@@ -219,10 +234,12 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         out_materials, textures = _materials(
             mesh, library, resolver, source_name, findings, resolutions, sources, files
         )
+        findings.extend(f for m in out_materials if (f := opaque_if_invisible(m, source_name)) is not None)
     else:  # no mtllib and no usemtl: a plain mesh, no MTL written
         out_materials, textures = [], []
     stats = _stats(mesh, len(out_materials), len(textures))
-    findings.extend(scale_findings(np.asarray(stats["bbox"]["extent"]), source_name, options.units is not None))
+    unit_given = options.units not in (None, "auto") or frame.units != "m"
+    findings.extend(scale_findings(np.asarray(stats["bbox"]["extent"]), source_name, unit_given, frame.evidence))
     manifest = {
         "format": "meshtool-asset",
         "format_version": 1,
@@ -232,9 +249,10 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         "transform": {
             "units": units,
             "unit_scale": unit_scale(units),
-            "scale": options.scale,
+            "scale": frame.scale,
             "up": up,
             "rotation": rotation_matrix(up),
+            **frame.record(),
             "note": "x_out = rotation @ (x_src * unit_scale * scale); output is metres, Z-up, right-handed",
         },
         "stats": stats,
@@ -251,7 +269,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         ],
         "findings": [f.to_dict() for f in findings],
     }
-    warnings = [f for f in findings if f.severity is not Severity.INFO]
+    warnings = [f for f in findings if changes_data(f)]
     if options.strict and warnings:
         raise StrictModeError(
             f"{len(warnings)} warning(s) in strict mode, first: {warnings[0].one_line()}",
@@ -349,13 +367,18 @@ def _convert_texture(
     taken: set[str],
 ) -> str | None:
     shown = resolver.display(found)
-    data = resolver.read(found)
+    try:
+        data = resolver.read(found, "texture")
+    except MeshtoolError as exc:
+        findings.append(warning("texture-unreadable", f"{exc.message}: map dropped", shown))
+        return None
     sources.append({"role": "texture", "path": shown, "sha256": _sha256(data)})
     try:
         png = to_png(data, shown)
     except MeshtoolError as exc:
         findings.append(warning("texture-unreadable", f"{exc.message}: map dropped", shown))
         return None
+    findings.extend(png.findings)
     stem = safe_file_stem(found.stem) or "texture"
     out_name, n = f"{stem}.png", 2
     while out_name in taken:

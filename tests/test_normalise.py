@@ -195,7 +195,7 @@ def test_units_scale_and_up(fixtures):
     base = normalise(fixtures / "crlf_ngon" / "shapes.obj", NormaliseOptions(up="z")).stats["bbox"]
     mm = normalise(fixtures / "crlf_ngon" / "shapes.obj", NormaliseOptions(units="mm", scale=2.0, up="z")).stats["bbox"]
     np.testing.assert_allclose(np.asarray(mm["extent"]), np.asarray(base["extent"]) * 0.002)
-    yup = normalise(fixtures / "crlf_ngon" / "shapes.obj").stats["bbox"]
+    yup = normalise(fixtures / "crlf_ngon" / "shapes.obj", NormaliseOptions(up="y")).stats["bbox"]
     assert yup["extent"] == [base["extent"][0], base["extent"][2], base["extent"][1]]
 
 

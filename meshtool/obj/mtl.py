@@ -4,7 +4,17 @@ Colours (``Ka Kd Ks Ke Tf``), scalars (``Ns Ni d Tr illum`` and the PBR extensio
 aniso anisor``) are parsed as floats; every texture statement (``map_*``, ``bump``, ``norm``, ``disp``,
 ``decal``, ``refl``) is split into its options and a file name. File names may contain spaces, may be
 quoted, and options may even follow the name (``bumpmap2.jpg -bm 1.5``). Bad statements become findings;
-the reader only fails on data that is not text.
+the reader only fails on data that is not text. A trailing ``# comment`` after a statement is dropped
+(:mod:`meshtool.obj.comments`).
+
+Transparency: the MTL specification says ``d`` is opacity and ``Tr`` its complement (``Tr 0`` is opaque),
+but MeshLab (and every tool built on its VCG library, which writes ``# Converted by Meshlab Group``) writes
+``Tr 1`` for an opaque material. When the MTL's header names such an exporter, ``Tr`` is read as opacity;
+otherwise as ``1 - d``. ``d`` always wins over ``Tr``. :func:`opaque_if_invisible` turns a material that
+would be fully invisible although faces use it into an opaque one.
+
+Texture roles (:func:`texture_colorspace`): colour maps (``map_Kd map_Ka map_Ks map_Ke decal``) are sRGB
+encoded; data maps (normal, bump, displacement, alpha, roughness, metallic, exponent) are linear.
 """
 
 from __future__ import annotations
@@ -14,6 +24,7 @@ from dataclasses import dataclass, field
 
 from meshtool.errors import MtlParseError
 from meshtool.findings import Finding, info, warning
+from meshtool.obj.comments import strip_name_comment, strip_numeric_comment
 from meshtool.textio import decode_text
 
 COLOR_KEYS = ("Ka", "Kd", "Ks", "Ke", "Tf")
@@ -36,7 +47,26 @@ MAP_KEYS = (
     "decal",
     "refl",
 )
-_MAP_ALIASES = {"map_bump": "bump", "map_Bump": "bump", "bump": "bump", "map_kd": "map_Kd", "map_tr": "map_d"}
+_MAP_ALIASES = {
+    "map_bump": "bump",
+    "map_Bump": "bump",
+    "bump": "bump",
+    "map_kd": "map_Kd",
+    "map_tr": "map_d",
+    "map_Disp": "disp",
+    "map_disp": "disp",
+    "map_Norm": "norm",
+    "map_norm": "norm",
+    "map_Kn": "norm",
+}
+#: Maps whose pixels are colours (sRGB encoded); every other map holds data (linear).
+COLOR_MAPS = frozenset({"map_Ka", "map_Kd", "map_Ks", "map_Ke", "decal"})
+#: Maps that perturb the surface normal (kept in the output; MuJoCo does not use them).
+SURFACE_MAPS = frozenset({"bump", "norm", "disp"})
+#: Header comment words of exporters that write ``Tr`` as opacity (``Tr 1`` = opaque), lower case.
+TR_AS_OPACITY_EXPORTERS = {"meshlab": "MeshLab", "vcglib": "VCGlib"}
+#: Opacity below which a material cannot be seen at all (one step of 8-bit alpha).
+INVISIBLE_BELOW = 1.0 / 255.0
 # option -> (least, most) number of arguments
 MAP_OPTIONS: dict[str, tuple[int, int]] = {
     "-blendu": (1, 1),
@@ -104,11 +134,48 @@ class MtlData:
         path: Name used in findings.
         materials: Materials in file order (a repeated name keeps its first definition).
         findings: Statements that were malformed or ignored.
+        header_comments: Comment lines before the first statement (without the ``#``).
+        tr_exporter: The exporter named in the header that writes ``Tr`` as opacity, or ``None``.
     """
 
     path: str
     materials: list[Material]
     findings: list[Finding]
+    header_comments: list[str] = field(default_factory=list)
+    tr_exporter: str | None = None
+
+
+def texture_colorspace(key: str) -> str:
+    """``sRGB`` for a colour map key (``map_Kd``...), ``linear`` for a data map (normal, bump, alpha...)."""
+    return "sRGB" if key in COLOR_MAPS else "linear"
+
+
+def tr_exporter(header_comments: list[str]) -> str | None:
+    """The exporter that writes ``Tr`` as opacity, when a header comment names one."""
+    text = " ".join(header_comments).lower()
+    return next((name for word, name in TR_AS_OPACITY_EXPORTERS.items() if word in text), None)
+
+
+def opaque_if_invisible(material: Material, path: str | None = None) -> Finding | None:
+    """Make a material that faces use, and that would be fully invisible (``d`` < 1/255), opaque.
+
+    Args:
+        material: A material that faces use; changed in place.
+        path: File for the finding.
+
+    Returns:
+        A ``material-invisible`` warning when the opacity was changed, else ``None``.
+    """
+    d = material.scalars.get("d")
+    if d is None or d >= INVISIBLE_BELOW:
+        return None
+    material.scalars["d"] = 1.0
+    return warning(
+        "material-invisible",
+        f"material {material.name!r} has opacity d={d:g} (fully invisible) but faces use it: made opaque "
+        "(d 1); pass --strict to refuse such files",
+        path,
+    )
 
 
 def parse_mtl(data: bytes | str, path: str = "<mtl>") -> MtlData:
@@ -131,13 +198,18 @@ def parse_mtl(data: bytes | str, path: str = "<mtl>") -> MtlData:
     seen: set[str] = set()
     current: Material | None = None
     unknown: dict[str, int] = {}
+    header: list[str] = []
+    in_header = True
     for line_no, line in enumerate(decoded.text.split("\n"), start=1):
         words = line.split(None, 1)
         if not words or words[0].startswith("#"):
+            if words and in_header:
+                header.append(line.strip().lstrip("#").strip())
             continue
+        in_header = False
         keyword, rest = words[0], (words[1].strip() if len(words) > 1 else "")
         if keyword == "newmtl":
-            name = rest.strip('"') or "default"
+            name = strip_name_comment(rest).strip('"') or "default"
             current = Material(name, line_no)
             if name in seen:
                 findings.append(
@@ -164,24 +236,28 @@ def parse_mtl(data: bytes | str, path: str = "<mtl>") -> MtlData:
             findings.append(warning("mtl-statement-invalid", problem, path, line_no))
     for keyword, line_no in unknown.items():
         findings.append(info("mtl-statement-unsupported", f"unsupported statement '{keyword}' ignored", path, line_no))
+    exporter = tr_exporter(header)
     for material in materials:
         if "d" not in material.scalars and "Tr" in material.scalars:
-            material.scalars["d"] = 1.0 - material.scalars["Tr"]
+            tr = material.scalars["Tr"]
+            if exporter is not None:
+                material.scalars["d"] = tr
+                how = f"read as opacity (d {_num(tr)}) as {exporter} writes it"
+            else:
+                material.scalars["d"] = 1.0 - tr
+                how = f"read as transparency (d {_num(1.0 - tr)}) as the MTL specification says"
             findings.append(
-                info(
-                    "mtl-tr-converted",
-                    f"material {material.name!r}: 'Tr' written as 'd'",
-                    path,
-                    material.line,
-                )
+                info("mtl-tr-converted", f"material {material.name!r}: 'Tr {_num(tr)}' {how}", path, material.line)
             )
         material.scalars.pop("Tr", None)
-    return MtlData(path, materials, findings)
+    return MtlData(path, materials, findings, header, exporter)
 
 
 def _statement(material: Material, keyword: str, rest: str, line_no: int) -> str | None:
     """Apply one statement to ``material``; return a problem description or ``None``."""
     keyword = _COLOR_ALIASES.get(keyword, keyword)
+    key = _MAP_ALIASES.get(keyword, keyword)
+    rest = strip_name_comment(rest) if key in MAP_KEYS else strip_numeric_comment(rest)
     if keyword in COLOR_KEYS:
         values = _floats(rest)
         if values is None or not 1 <= len(values) <= 3:
@@ -205,7 +281,6 @@ def _statement(material: Material, keyword: str, rest: str, line_no: int) -> str
             return f"'illum' needs an integer: {rest[:40]!r}"
         material.illum = int(values[0])
         return None
-    key = _MAP_ALIASES.get(keyword, keyword)
     if key in MAP_KEYS:
         parsed = parse_map_statement(rest)
         if parsed is None:

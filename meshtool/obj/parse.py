@@ -21,6 +21,7 @@ import numpy.typing as npt
 
 from meshtool.errors import ObjParseError
 from meshtool.findings import Finding, info, warning
+from meshtool.obj.comments import strip_statement_comment
 from meshtool.obj.faces import read_faces, resolve_attr_index, resolve_vertex_index
 from meshtool.obj.lines import (
     OTHER,
@@ -241,7 +242,7 @@ def _read_statements(lines: Lines, state: _State, path: str, findings: list[Find
     parts: dict[str, int] = {DEFAULT_PART: 0}
     for i in np.flatnonzero(lines.kinds == OTHER).tolist():
         line_no = i + 1
-        words = lines.text(i).split(None, 1)
+        words = strip_statement_comment(lines.text(i)).split(None, 1)
         if not words:
             continue
         keyword = words[0]

@@ -1,0 +1,45 @@
+"""Which findings changed or dropped data: what the CLI shows by default and what ``--strict`` refuses.
+
+Every warning counts. Of the info findings, those that record a change to the data count too (triangles,
+statements, materials or attributes dropped; values reinterpreted or filled in; collision hulls altered);
+notes that only explain how something was found or read (a repaired reference, the model root, the up axis
+chosen, the encoding) do not. ``docs/findings.md`` marks each code.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from meshtool.findings import Finding, Severity
+
+#: Info codes that record changed or dropped data.
+DATA_CHANGING_INFO = frozenset(
+    {
+        "degenerate-faces",
+        "lines-skipped",
+        "points-skipped",
+        "freeform-skipped",
+        "vertex-w-ignored",
+        "texcoords-filled",
+        "normals-partial",
+        "mtl-tr-converted",
+        "mtl-statement-unsupported",
+        "materials-unused",
+        "hull-thickened",
+        "hull-reduced",
+    }
+)
+
+
+def changes_data(finding: Finding) -> bool:
+    """Whether ``finding`` changed or dropped data (every warning and error does)."""
+    return finding.severity is not Severity.INFO or finding.code in DATA_CHANGING_INFO
+
+
+def split_findings(findings: Iterable[Finding]) -> tuple[list[Finding], list[Finding]]:
+    """(findings that changed or dropped data, the other notes), each in input order."""
+    shown: list[Finding] = []
+    notes: list[Finding] = []
+    for f in findings:
+        (shown if changes_data(f) else notes).append(f)
+    return shown, notes

@@ -1,0 +1,110 @@
+"""The source frame of an OBJ: its unit, extra scale and up axis, from the options and from evidence.
+
+``--units`` and ``--up`` given as a unit / ``y`` / ``z`` are obeyed. ``--up auto`` (the default) decides
+with :func:`meshtool.upaxis.decide_up`; ``--units auto`` applies what a consumer file (URDF, SDF, MJCF
+that uses the mesh) says, and otherwise reads metres. Whatever was decided, and on what evidence, becomes
+findings (``up-axis``, ``units-evidence``) that ``asset.json`` records.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from meshtool.consumers import ConsumerRef, find_consumers
+from meshtool.findings import Finding, info, warning
+from meshtool.modelroot import ModelRoot
+from meshtool.units import UnitEvidence, apply_scale, evidence_findings, unit_evidence
+from meshtool.upaxis import FloatArray, UpDecision, decide_up
+
+
+@dataclass(slots=True)
+class Frame:
+    """The decided source frame.
+
+    Attributes:
+        units: Unit of the source coordinates.
+        scale: Extra uniform scale after the unit.
+        up: ``y`` or ``z``.
+        up_decision: Why that axis.
+        evidence: What files say about the unit, or ``None``.
+        consumers: The description files that use the mesh.
+        findings: ``up-axis`` and ``units-evidence`` findings.
+    """
+
+    units: str
+    scale: float
+    up: str
+    up_decision: UpDecision
+    evidence: UnitEvidence | None
+    consumers: list[ConsumerRef] = field(default_factory=list)
+    findings: list[Finding] = field(default_factory=list)
+
+    def record(self) -> dict[str, Any]:
+        """The decision for ``asset.json``'s ``transform``: rules, evidence and consumer files."""
+        return {
+            "up_rule": self.up_decision.rule,
+            "up_evidence": self.up_decision.evidence,
+            "units_evidence": self.evidence.describe() if self.evidence else None,
+            "consumers": [c.describe() for c in self.consumers],
+        }
+
+
+def decide_frame(
+    src: Path,
+    positions: FloatArray,
+    header_comments: list[str],
+    units: str | None,
+    scale: float,
+    up: str | None,
+    root: ModelRoot | None,
+    normalised_before: bool = False,
+) -> Frame:
+    """Decide unit, scale and up axis of ``src``.
+
+    Args:
+        src: The OBJ file.
+        positions: (N, 3) positions in source units and axes.
+        header_comments: The OBJ's header comment lines.
+        units: ``--units``: a unit, ``auto`` or ``None`` (metres, or what meshtool's header says).
+        scale: ``--scale``.
+        up: ``--up``: ``y``, ``z``, ``auto`` or ``None`` (auto).
+        root: The OBJ's model root.
+        normalised_before: The file was written by meshtool.
+
+    Returns:
+        The frame and its findings.
+    """
+    name = src.name
+    consumers = [] if normalised_before else find_consumers(src, root)
+    evidence = None if normalised_before else unit_evidence(consumers, header_comments)
+    findings: list[Finding] = []
+    chosen_unit, chosen_scale = units or "m", scale
+    if units == "auto":
+        chosen_unit = "m"
+        if evidence is not None and evidence.source == "consumer":
+            if evidence.unit is not None:
+                chosen_unit = evidence.unit
+            elif evidence.scale is not None:
+                chosen_scale = scale * evidence.scale
+            else:
+                findings.append(
+                    warning(
+                        "units-evidence",
+                        f"--units auto: {evidence.text} scales the axes differently; read as metres",
+                        name,
+                    )
+                )
+    findings.extend(evidence_findings(evidence, chosen_unit, chosen_scale, name))
+    if up in ("y", "z"):
+        decision = UpDecision(up, "forced", f"--up {up}")
+    else:
+        metres = apply_scale(np.asarray(positions, dtype=np.float64), chosen_unit, chosen_scale)
+        decision = decide_up(src, metres, header_comments, consumers, root, normalised_before)
+    if decision.rule not in ("forced", "meshtool"):
+        turned = "rotated +90 degrees about X to Z-up" if decision.up == "y" else "kept as it is"
+        findings.append(info("up-axis", f"up axis {decision.up} ({turned}): {decision.evidence}", name))
+    return Frame(chosen_unit, chosen_scale, decision.up, decision, evidence, consumers, findings)

@@ -1,0 +1,116 @@
+"""Model roots: the folder a simulator treats as one model, so references may resolve anywhere inside it.
+
+A Gazebo model keeps ``model.config``/``model.sdf`` at its top with ``meshes/x.obj`` whose MTL names
+``../materials/textures/x.png``; a ROS package keeps ``package.xml`` (and often a URDF) at its top. The
+model root of an OBJ is the nearest folder at or above the OBJ's folder (at most :data:`MAX_LEVELS` levels
+up, never the temporary folder, the home folder or ``/``) that holds one of :data:`MARKERS` or a
+``*.urdf`` file. References may then resolve anywhere inside it,
+never outside it (except into explicit ``--search-path`` folders); paths inside it are shown relative to the
+OBJ's folder (``../materials/textures/x.png``).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from meshtool.findings import Finding, info
+from meshtool.resolve import Resolver, list_names
+
+#: File names that mark the top folder of a model (Gazebo, SDFormat, ROS).
+MARKERS = ("model.config", "model.sdf", "package.xml")
+#: How many folders above the OBJ's folder are searched (``pkg/meshes/visual/x.obj`` is two).
+MAX_LEVELS = 3
+
+
+@dataclass(frozen=True, slots=True)
+class ModelRoot:
+    """A model root.
+
+    Attributes:
+        folder: The root folder (absolute, symlinks resolved).
+        marker: The file that marks it (``model.config``, ``package.xml``, ``robot.urdf``...).
+        kind: ``gazebo`` (model.config / model.sdf), ``ros`` (package.xml) or ``urdf``.
+    """
+
+    folder: Path
+    marker: str
+    kind: str
+
+
+def find_model_root(obj_dir: Path, max_levels: int = MAX_LEVELS) -> ModelRoot | None:
+    """The nearest model root at or above ``obj_dir``.
+
+    Args:
+        obj_dir: Folder of the OBJ file.
+        max_levels: Folders above ``obj_dir`` searched (0: only ``obj_dir``).
+
+    Returns:
+        The model root, or ``None`` when no folder in reach holds a marker.
+    """
+    here = Path(os.path.realpath(obj_dir))
+    shared = {Path(os.path.realpath(tempfile.gettempdir())), Path(os.path.realpath(Path.home())), Path("/")}
+    for folder in [here, *here.parents][: max_levels + 1]:
+        if folder in shared:  # a marker dropped in /tmp or ~ must not open them up
+            break
+        names = list_names(folder)
+        for marker in MARKERS:
+            if marker in names and (folder / marker).is_file():
+                kind = "ros" if marker == "package.xml" else "gazebo"
+                return ModelRoot(folder, marker, kind)
+        urdfs = [n for n in names if n.lower().endswith(".urdf") and (folder / n).is_file()]
+        if urdfs:
+            return ModelRoot(folder, urdfs[0], "urdf")
+    return None
+
+
+class ModelRootResolver(Resolver):
+    """A :class:`~meshtool.resolve.Resolver` whose roots also include the model root.
+
+    Args:
+        asset_dir: The folder of the OBJ file.
+        search_paths: Folders the user allows with ``--search-path``.
+        model_root: The model root (an ancestor of ``asset_dir``), or ``None``.
+    """
+
+    def __init__(self, asset_dir: Path, search_paths: Sequence[Path] = (), model_root: ModelRoot | None = None) -> None:
+        super().__init__(asset_dir, search_paths)
+        self.model_root = model_root
+        if model_root is not None and model_root.folder != self.asset_dir:
+            self.roots.append(model_root.folder)
+
+    def display(self, path: Path) -> str:
+        """Like :meth:`Resolver.display`; a file inside the model root only is shown relative to the OBJ."""
+        real = Path(os.path.realpath(path))
+        inside_first = any(real == root or root in real.parents for root in self.roots[: len(self.search_paths) + 1])
+        root = self.model_root.folder if self.model_root is not None else None
+        if not inside_first and root is not None and (real == root or root in real.parents):
+            return Path(os.path.relpath(real, self.asset_dir)).as_posix()
+        return super().display(path)
+
+
+def model_root_resolver(src: Path, search_paths: Sequence[Path] = ()) -> tuple[ModelRootResolver, list[Finding]]:
+    """A resolver for the OBJ ``src`` that may resolve inside its model root, and a finding naming the root.
+
+    Args:
+        src: The OBJ file.
+        search_paths: Folders the user allows with ``--search-path``.
+
+    Returns:
+        The resolver and zero or one ``model-root`` finding (info).
+    """
+    root = find_model_root(src.parent)
+    resolver = ModelRootResolver(src.parent, search_paths, root)
+    if root is None or root.folder == resolver.asset_dir:
+        return resolver, []
+    rel = Path(os.path.relpath(root.folder, resolver.asset_dir)).as_posix()
+    return resolver, [
+        info(
+            "model-root",
+            f"model root {rel!r} ({root.marker}): references may resolve anywhere inside it",
+            src.name,
+        )
+    ]
