@@ -4,7 +4,9 @@ Each command turns its options into the library's frozen options dataclass, call
 the outcome to output and an exit code:
 
 * 0: written (warnings allowed);
-* 1: the input could not be converted (one ``error:`` line on stderr, nothing written);
+* 1: the input could not be converted, or the output would replace an input or a file meshtool did not
+  write (one ``error:`` line on stderr, nothing written; ``--force`` replaces files of other kinds, never
+  an input);
 * 2: usage error (click);
 * 3: meshtool itself failed (a bug: please report it; set ``MESHTOOL_DEBUG=1`` for the traceback).
 """
@@ -33,7 +35,7 @@ from meshtool.hulls import MODES, PRESETS, HullOptions, compute_hulls, quality
 from meshtool.mesh import safe_identifier
 from meshtool.mjcf import MjcfOptions, build_mjcf
 from meshtool.normalise import NormaliseOptions, normalise_to, prepare, safe_file_stem
-from meshtool.outdir import write_file, write_folder
+from meshtool.outdir import check_output, overwrite_allowed, write_folder, write_output
 from meshtool.packfile import load
 from meshtool.packfile.export import describe, to_glb, to_msh, unpack_files
 from meshtool.packfile.usd import export_usd
@@ -42,6 +44,12 @@ from meshtool.units import UNIT_FACTORS
 from meshtool.urdf import UrdfOptions, import_urdf, write_import
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+
+force_option = click.option(
+    "--force",
+    is_flag=True,
+    help="Replace an existing output that meshtool did not write (an input is never replaced).",
+)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -124,6 +132,14 @@ def hull_options(func: Callable[..., Any]) -> Callable[..., Any]:
             help="Seconds one CoACD run may take.",
         ),
         click.option(
+            "--time-budget",
+            "time_budget_s",
+            type=click.FloatRange(min=0, min_open=True),
+            default=180.0,
+            show_default=True,
+            help="Seconds all CoACD runs of one asset may take; parts left then get their convex hull.",
+        ),
+        click.option(
             "--cache-dir",
             type=click.Path(path_type=Path, file_okay=False),
             default=None,
@@ -153,6 +169,7 @@ def _hull_options(kw: dict[str, Any]) -> HullOptions:
         "merge_parts": kw.pop("merge_parts"),
         "threshold": kw.pop("threshold"),
         "timeout_s": kw.pop("timeout_s"),
+        "time_budget_s": kw.pop("time_budget_s"),
         "cache_dir": None if no_cache else (cache_dir or Path(platformdirs.user_cache_dir("meshtool")) / "hulls"),
     }
     if max_hulls is not None:
@@ -173,16 +190,18 @@ def _hull_options(kw: dict[str, Any]) -> HullOptions:
     help="Folder to write NAME/ into (created when missing).",
 )
 @click.option("--name", default=None, help="Output folder and file stem (default: the source stem made safe).")
+@force_option
 @normalise_options
 def normalize(
     src: Path,
     out_dir: Path,
     name: str | None,
+    force: bool,
     as_json: bool,
     **normalise_kw: Any,
 ) -> None:
     """Normalise SRC (an OBJ file) into OUTPUT/NAME/: metres, Z-up, PNG textures, safe names."""
-    with _guard(as_json):
+    with _guard(as_json), overwrite_allowed(force):
         options = _normalise_options(normalise_kw, name=name)
         folder, asset = normalise_to(src, out_dir, options)
     if as_json:
@@ -208,6 +227,7 @@ def normalize(
 @click.option(
     "-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes for a folder."
 )
+@force_option
 @normalise_options
 @hull_options
 def obj2bin(
@@ -215,6 +235,7 @@ def obj2bin(
     out: Path | None,
     quantize: bool,
     jobs: int,
+    force: bool,
     as_json: bool,
     **kw: Any,
 ) -> None:
@@ -224,11 +245,11 @@ def obj2bin(
         if src.is_dir():
             if out is None:
                 raise OptionsError("a folder needs -o OUTDIR")
-            _convert_folder(src, out, options, jobs, as_json)
+            _convert_folder(src, out, options, jobs, as_json, force)
             return
         default_name = f"{safe_file_stem(src.stem) or 'asset'}.mbin"
         target = out / default_name if out is not None and out.is_dir() else out or Path(default_name)
-        result = convert(src, target, options)
+        result = convert(src, target, options, force=force)
     if as_json:
         click.echo(json.dumps(_report("ok", result.output, result.findings, result.stats)))
         return
@@ -236,10 +257,10 @@ def obj2bin(
     _echo_findings(result.findings)
 
 
-def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as_json: bool) -> None:
+def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as_json: bool, force: bool) -> None:
     results: list[ConvertResult] = []
     total = len(tree_jobs(src, out))
-    stream = convert_tree(src, out, options, jobs)
+    stream = convert_tree(src, out, options, jobs, force=force)
     if sys.stdout.isatty() and not as_json:
         with click.progressbar(stream, length=total, label="converting") as bar:
             results.extend(bar)
@@ -357,13 +378,14 @@ def _info_lines(file: Path, summary: dict[str, Any]) -> list[str]:
     type=click.Path(path_type=Path, file_okay=False),
     help="Folder to write NAME/ into.",
 )
-def unpack(file: Path, out_dir: Path) -> None:
+@force_option
+def unpack(file: Path, out_dir: Path, force: bool) -> None:
     """Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."""
     with _guard(False), load(file, verify=True) as packed:
         name = safe_file_stem(file.stem) or "asset"
         files = unpack_files(packed, name)
         files["asset.json"] = (json.dumps(packed.meta, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
-        folder = write_folder(out_dir, name, files)
+        folder = write_folder(out_dir, name, files, force=force, inputs=[file])
     click.echo(f"wrote {folder}: {', '.join(sorted(files))}")
 
 
@@ -377,16 +399,25 @@ def unpack(file: Path, out_dir: Path) -> None:
     default=None,
     help="Write USD (.usda/.usdc), PNG textures beside it.",
 )
-def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None) -> None:
+@force_option
+def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, force: bool) -> None:
     """Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."""
     if glb is None and msh is None and usd is None:
         raise click.UsageError("give --glb, --msh and/or --usd")
+    targets = [p for p in (glb, msh, usd) if p is not None]
+    if len({os.path.normcase(os.path.abspath(p)) for p in targets}) != len(targets):
+        raise click.UsageError("--glb, --msh and --usd must name different files")
     with _guard(False), load(file, verify=True) as packed:
-        for path, data in ((glb, to_glb(packed) if glb else b""), (msh, to_msh(packed) if msh else b"")):
+        for path, kind, make in ((glb, "glb", to_glb), (msh, "msh", to_msh)):
             if path is not None:
-                write_file(path, data)
+                data = make(packed)
+                write_output(path, data, kind, force=force, inputs=[file])
                 click.echo(f"wrote {path} ({len(data)} bytes)")
         if usd is not None:
+            check_output(usd, "usd", force=force, inputs=[file])
+            names = list(packed.meta.get("textures", []))
+            for name, texture in zip(names, packed.textures, strict=True):  # the PNGs written beside the USD
+                check_output(usd.parent / name, None, force=force, inputs=[file], data=bytes(texture))
             written = export_usd(packed, usd, safe_file_stem(file.stem) or "asset")
             click.echo(f"wrote {', '.join(str(p) for p in written)}")
 
@@ -404,7 +435,8 @@ def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None) -> 
 @click.option("--free-joint", is_flag=True, help="Give each body a free joint.")
 @click.option("--density", type=float, default=1000.0, show_default=True, help="Collision density, kg/m^3.")
 @click.option("--mass", type=float, default=None, help="Total body mass in kg (overrides --density).")
-def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float | None) -> None:
+@force_option
+def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float | None, force: bool) -> None:
     """Write a MuJoCo model for SRC (an .mbin, or a folder searched for .mbin files)."""
     with _guard(False):
         options = MjcfOptions(free_joint=free_joint, density=density, mass=mass)
@@ -419,7 +451,8 @@ def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float
             name = safe_file_stem(path.stem) or "asset"
             with load(path) as packed:
                 files = build_mjcf(packed, name, options)
-            folder = write_folder(out_dir, name, {**files, "asset.json": json.dumps({"source": str(path)}).encode()})
+            manifest = json.dumps({"source": str(path)}).encode()
+            folder = write_folder(out_dir, name, {**files, "asset.json": manifest}, force=force, inputs=sources)
             click.echo(f"wrote {folder / (safe_identifier(name, 'asset') + '.xml')}")
 
 
@@ -453,6 +486,7 @@ def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str
 @click.option("--actuators", is_flag=True, help="Add a motor per moving joint, limited to its URDF effort.")
 @click.option("--free-base", is_flag=True, help="Give the root link a free joint (mobile robots).")
 @click.option("--allow-outside", is_flag=True, help="Let relative mesh paths leave the robot's package folder.")
+@force_option
 @hull_options
 def urdf(
     robot: Path,
@@ -461,10 +495,11 @@ def urdf(
     actuators: bool,
     free_base: bool,
     allow_outside: bool,
+    force: bool,
     **hull_kw: Any,
 ) -> None:
     """Import ROBOT (a URDF): every mesh normalised, packed and hulled; an MJCF of the robot."""
-    with _guard(False):
+    with _guard(False), overwrite_allowed(force):
         options = UrdfOptions(package_dirs, _hull_options(hull_kw), actuators, free_base, allow_outside)
         result = import_urdf(robot, options)
         _echo_findings(result.findings)

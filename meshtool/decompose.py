@@ -2,18 +2,28 @@
 
 CoACD can kill its process on bad input and prints to C stdout, so it runs in a child Python process
 (:mod:`meshtool.coacd_worker`) with a timeout and its output silenced; a crash or hang becomes a message
-for that part. Results are cached under a key made of the mesh arrays, the options and the versions of
-meshtool and CoACD, so a second run over unchanged assets reads the cache.
+for that part. The child runs in its own process group and dies with this process (it watches its parent
+and has a parent-death signal); the job's temporary folder ``meshtool-coacd-*`` is removed on every exit
+path: here on success, failure, timeout and exceptions (Ctrl-C), by the child when this process is killed.
+The caller shares one time budget across parts (:class:`Budget`). Results are cached under a key made
+of the mesh arrays, the options and the versions of meshtool and CoACD, so a second run over unchanged
+assets reads the cache.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
+import os
+import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import time
+from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -69,17 +79,41 @@ def repair(points: FloatArray, faces: IntArray) -> tuple[FloatArray, IntArray, b
     )
 
 
-def decompose(points: FloatArray, faces: IntArray, options: HullOptions) -> tuple[list[FloatArray], bool, str | None]:
+@dataclass(slots=True)
+class Budget:
+    """Seconds left for decomposing the parts of one asset (a monotonic-clock deadline).
+
+    Args:
+        seconds: The whole budget.
+    """
+
+    seconds: float
+    deadline: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.deadline = time.monotonic() + self.seconds
+
+    def left(self) -> float:
+        """Seconds left (0 when spent)."""
+        return max(0.0, self.deadline - time.monotonic())
+
+
+def decompose(
+    points: FloatArray, faces: IntArray, options: HullOptions, timeout_s: float | None = None
+) -> tuple[list[FloatArray], bool, str | None]:
     """Decompose one part into convex pieces.
 
     Args:
         points: (n, 3) vertices, metres.
         faces: (k, 3) triangles.
         options: Budgets, threshold, seed, timeout and cache folder.
+        timeout_s: Seconds this run may take (default ``options.timeout_s``); the caller passes what is
+            left of the asset's time budget when that is less.
 
     Returns:
         The pieces' points, whether they came from the cache, and a problem description (then no pieces).
     """
+    limit = options.timeout_s if timeout_s is None else min(timeout_s, options.timeout_s)
     if not np.isfinite(points).all() or points.shape[0] < 4 or faces.shape[0] < 4:
         return [], False, "mesh is empty, too small or not finite"
     key = cache_key(points, faces, options)
@@ -88,7 +122,8 @@ def decompose(points: FloatArray, faces: IntArray, options: HullOptions) -> tupl
         return cached, True, None
     points, faces, manifold = repair(points, faces)
     mode = "off" if manifold else "auto"  # CoACD's remeshing only where the mesh needs it
-    with tempfile.TemporaryDirectory(prefix="meshtool-coacd-") as tmp:
+    tmp = tempfile.mkdtemp(prefix="meshtool-coacd-")
+    try:
         job, out = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
         params = {
             "threshold": options.threshold,
@@ -100,25 +135,49 @@ def decompose(points: FloatArray, faces: IntArray, options: HullOptions) -> tupl
         buffer = io.BytesIO()
         np.savez(buffer, points=points, faces=faces, params=np.frombuffer(json.dumps(params).encode(), np.uint8))
         write_file(job, buffer.getvalue())
-        try:
-            proc = subprocess.run(
-                [sys.executable, "-m", "meshtool.coacd_worker", str(job), str(out)],
-                stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL,
-                stderr=subprocess.PIPE,
-                timeout=options.timeout_s,
-                check=False,
-            )
-        except subprocess.TimeoutExpired:
-            return [], False, f"CoACD did not finish within {options.timeout_s:.0f} s"
-        if proc.returncode != 0:
-            last = (proc.stderr.decode("utf-8", "replace").strip().splitlines() or [f"exit {proc.returncode}"])[-1]
+        returncode, stderr = _run_worker([str(os.getpid()), tmp, str(job), str(out)], limit)
+        if returncode is None:
+            return [], False, f"CoACD did not finish within {limit:.0f} s"
+        if returncode != 0:
+            last = (stderr.decode("utf-8", "replace").strip().splitlines() or [f"exit {returncode}"])[-1]
             return [], False, f"CoACD failed ({last[:160]})"
         pieces = _load(read_cache(out))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
     if not pieces:
         return [], False, "CoACD returned no hulls"
     _write(options.cache_dir, key, pieces)
     return pieces, False, None
+
+
+def _run_worker(args: list[str], timeout_s: float) -> tuple[int | None, bytes]:
+    """Run the worker in its own process group; (exit status or ``None`` on timeout, its stderr).
+
+    The whole group is killed on timeout and on any exception here (Ctrl-C), so no CoACD run survives.
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "meshtool.coacd_worker", *args],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+    try:
+        _, stderr = proc.communicate(timeout=max(timeout_s, 0.001))
+    except subprocess.TimeoutExpired:
+        _kill_group(proc)
+        return None, b""
+    except BaseException:
+        _kill_group(proc)
+        raise
+    return proc.returncode, stderr
+
+
+def _kill_group(proc: subprocess.Popen[bytes]) -> None:
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.kill()
+    proc.communicate()
 
 
 def _load(data: bytes | None) -> list[FloatArray]:

@@ -41,6 +41,8 @@ class HullOptions:
         threshold: CoACD concavity threshold (0.01..1; smaller gives more, tighter hulls).
         seed: CoACD random seed (fixed for determinism).
         timeout_s: Limit for one CoACD run, seconds.
+        time_budget_s: Limit for all CoACD runs of one asset, seconds; parts left when it is spent get
+            their convex hull (a ``decompose-budget`` warning).
         cache_dir: Decomposition cache folder; ``None`` disables the cache.
     """
 
@@ -53,14 +55,15 @@ class HullOptions:
     seed: int = 0
     timeout_s: float = 300.0
     cache_dir: Path | None = None
+    time_budget_s: float = 180.0
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise OptionsError(f"unknown hull mode {self.mode!r}", hint=f"use one of {', '.join(MODES)}")
         if self.max_hulls < 1 or self.max_hull_vertices < 4:
             raise OptionsError("--max-hulls must be >= 1 and --max-hull-vertices >= 4")
-        if not (self.min_thickness > 0 and 0 < self.threshold <= 1 and self.timeout_s > 0):
-            raise OptionsError("min thickness, threshold (0..1] and timeout must be positive")
+        if not (self.min_thickness > 0 and 0 < self.threshold <= 1 and self.timeout_s > 0 and self.time_budget_s > 0):
+            raise OptionsError("min thickness, threshold (0..1], timeout and time budget must be positive")
 
     @classmethod
     def preset(cls, name: str, **overrides: object) -> HullOptions:
@@ -210,11 +213,15 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
     if options.mode == "none" or mesh.positions.shape[0] == 0:
         return result
     groups = _groups(mesh, options)
-    for part, points, faces in groups:
-        if options.mode == "decompose" and faces.shape[0] >= 4:
-            from meshtool.decompose import decompose
+    from meshtool.decompose import Budget, decompose
 
-            pieces, hit, problem = decompose(points, faces, options)
+    budget, over_budget = Budget(options.time_budget_s), 0
+    for part, points, faces in groups:
+        if options.mode == "decompose" and faces.shape[0] >= 4 and budget.left() <= 0:
+            over_budget += 1
+            pieces = [points[np.unique(faces)]]
+        elif options.mode == "decompose" and faces.shape[0] >= 4:
+            pieces, hit, problem = decompose(points, faces, options, budget.left())
             result.cache_hits += int(hit)
             if problem:
                 result.findings.append(warning("decompose-failed", f"{problem}: convex hull used instead", name))
@@ -226,6 +233,15 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
             result.hulls.append(Hull(vertices, hull_faces, part))
             for note in notes:
                 result.findings.append(info(f"hull-{note}", _NOTE[note].format(part=mesh.part_names[part]), name))
+    if over_budget:
+        result.findings.append(
+            warning(
+                "decompose-budget",
+                f"time budget of {options.time_budget_s:g} s spent: {over_budget} part(s) got their convex hull "
+                "(raise --time-budget)",
+                name,
+            )
+        )
     if options.mode == "decompose":
         result.findings.append(
             info(
