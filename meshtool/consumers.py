@@ -20,8 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import unquote
 
+from meshtool.errors import ResolveError
 from meshtool.modelroot import ModelRoot
 from meshtool.resolve import list_names
+from meshtool.safeopen import read_file
 
 #: Largest description file read, bytes.
 MAX_BYTES = 4 * 1024 * 1024
@@ -92,10 +94,8 @@ def find_consumers(obj: Path, root: ModelRoot | None) -> list[ConsumerRef]:
 
 def _parse(path: Path) -> ET.Element | None:
     try:
-        if not path.is_file() or path.stat().st_size > MAX_BYTES:
-            return None
-        data = path.read_bytes()
-    except OSError:
+        data = read_file(path, MAX_BYTES)  # regular files only, never blocks, bounded
+    except ResolveError:
         return None
     if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
         return None

@@ -17,6 +17,7 @@ import numpy as np
 from meshtool.consumers import ConsumerRef, find_consumers
 from meshtool.findings import Finding, info, warning
 from meshtool.modelroot import ModelRoot
+from meshtool.safeopen import printable
 from meshtool.units import UnitEvidence, apply_scale, evidence_findings, unit_evidence
 from meshtool.upaxis import FloatArray, UpDecision, decide_up
 
@@ -78,7 +79,7 @@ def decide_frame(
     Returns:
         The frame and its findings.
     """
-    name = src.name
+    name = printable(src.name)  # non-UTF-8 file names print as \xNN
     consumers = [] if normalised_before else find_consumers(src, root)
     evidence = None if normalised_before else unit_evidence(consumers, header_comments)
     findings: list[Finding] = []

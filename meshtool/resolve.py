@@ -12,17 +12,23 @@ in order:
 5. ``basename``: the file name alone beside the referencing file, then beside the OBJ, ignoring case;
 6. ``search-path``: the relative path, then the file name, in each ``--search-path`` folder in order.
 
+Rule 3 (and 5) also match names whose bytes on disk are not UTF-8: a reference read as Latin-1 matches
+the file whose name has those bytes.
+
 Nothing outside the asset roots (the OBJ's folder and the explicit search paths, after following
-symbolic links) is ever read: a reference that would leave them becomes a finding. Every lookup is
-recorded as a :class:`Resolution`.
+symbolic links) is ever read: a reference that would leave them becomes a finding. Reading is race-free:
+:meth:`Resolver.read` opens the file by walking from its root without following symbolic links
+(:mod:`meshtool.safeopen`), so a link swapped in after resolution cannot lead out of the root. FIFOs,
+sockets and devices are never opened for reading, and every read is bounded (:class:`ReadLimits`). Every
+lookup is recorded as a :class:`Resolution`.
 """
 
 from __future__ import annotations
 
-import hashlib
 import mmap
 import os
 import re
+import stat
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +36,20 @@ from urllib.parse import unquote
 
 from meshtool.errors import ResolveError
 from meshtool.findings import Finding, info, warning
+from meshtool.safeopen import (
+    DEFAULT_LIMITS,
+    ReadLimits,
+    describe_mode,
+    is_folder,
+    is_regular,
+    open_regular,
+    printable,
+    read_beneath,
+    read_file,
+    sha256_of,
+)
+
+__all__ = ["DEFAULT_LIMITS", "ReadLimits", "Resolution", "Resolver", "printable"]
 
 _URI = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*)://")
 _WINDOWS_ABS = re.compile(r"^[A-Za-z]:[\\/]")
@@ -64,56 +84,75 @@ class Resolver:
     Args:
         asset_dir: The folder of the OBJ file; the first root.
         search_paths: Further folders the user allows references to resolve into.
+        limits: Most bytes read per file, per kind of file.
     """
 
-    def __init__(self, asset_dir: Path, search_paths: Sequence[Path] = ()) -> None:
+    def __init__(self, asset_dir: Path, search_paths: Sequence[Path] = (), limits: ReadLimits = DEFAULT_LIMITS) -> None:
         self.asset_dir = Path(os.path.realpath(asset_dir))
         self.search_paths = [Path(os.path.realpath(p)) for p in search_paths]
         self.roots = [self.asset_dir, *self.search_paths]
-        self._listing: dict[Path, list[str]] = {}
+        self.limits = limits
+        self._listing: dict[Path, _Listing] = {}
 
     # -- reading -------------------------------------------------------------------------------------------
 
-    def read_source(self, path: Path) -> bytes:
-        """Read a file the user named on the command line (the OBJ itself).
+    def read_source(self, path: Path, kind: str = "obj") -> bytes:
+        """Read a file the user named on the command line (the OBJ itself); symbolic links are followed.
+
+        Args:
+            path: The file.
+            kind: Selects the size limit (``obj``; ``other`` for URDF and ``.mbin`` files).
 
         Raises:
-            ResolveError: When it does not exist, is not a file or cannot be read.
+            ResolveError: When it does not exist, is not a regular file (a folder, FIFO, device or socket),
+                is larger than the limit, or cannot be read.
         """
-        if not path.is_file():
-            what = "is a folder, not a file" if path.is_dir() else "does not exist"
-            raise ResolveError(what, path=str(path), hint="check the path")
-        try:
-            return path.read_bytes()
-        except OSError as exc:
-            raise ResolveError(f"cannot be read: {exc.strerror}", path=str(path)) from None
+        return read_file(path, self.limits.for_kind(kind), printable(path))
 
-    def read(self, found: Path) -> bytes:
-        """Read a file returned by :meth:`resolve` (it is inside a root by construction).
+    def read(self, found: Path, kind: str = "other") -> bytes:
+        """Read a file returned by :meth:`resolve`, race-free.
+
+        The path is resolved once to find its root, then opened by walking from that root without following
+        any symbolic link (``openat`` + ``O_NOFOLLOW``): if a component was replaced by a link since, the
+        read fails; it never returns bytes from outside the roots.
+
+        Args:
+            found: The file (normally :attr:`Resolution.found`).
+            kind: ``mtl``, ``texture`` or ``other``; selects the size limit.
 
         Raises:
-            ResolveError: When it left the roots or cannot be read.
+            ResolveError: When it left the roots, changed while being read, is not a regular file, is larger
+                than the limit, or cannot be read.
         """
-        if not self.inside(found):
-            raise ResolveError("is outside the asset folder and search paths", path=str(found))
-        try:
-            return found.read_bytes()
-        except OSError as exc:
-            raise ResolveError(f"cannot be read: {exc.strerror}", path=self.display(found)) from None
+        real = _realpath(found)
+        if real is None:
+            raise ResolveError(
+                "changed while it was being read; not read",
+                path=printable(found),
+                hint="do not modify the asset while meshtool reads it",
+            )
+        for root in self.roots:
+            if real == root or root in real.parents:
+                rel = real.relative_to(root).parts
+                return read_beneath(root, rel, self.limits.for_kind(kind), self.display(real))
+        raise ResolveError("is outside the asset folder and search paths; not read", path=printable(found))
 
     def inside(self, path: Path) -> bool:
         """Whether ``path`` (after resolving symlinks) lies inside one of the roots."""
-        real = Path(os.path.realpath(path))
-        return any(real == root or root in real.parents for root in self.roots)
+        real = _realpath(path)
+        return real is not None and any(real == root or root in real.parents for root in self.roots)
 
     def display(self, path: Path) -> str:
-        """A path for messages and metadata: relative to the asset folder, or ``<search-path N>/rel``."""
-        real = Path(os.path.realpath(path))
+        r"""A path for messages and metadata: relative to the asset folder, or ``<search-path N>/rel``.
+
+        Bytes of names that are not UTF-8 are shown as ``\xNN`` (see :func:`printable`).
+        """
+        real = _realpath(path) or Path(os.path.abspath(path))
         for n, root in enumerate(self.roots):
             if real == root or root in real.parents:
-                rel = real.relative_to(root).as_posix()
+                rel = printable(real.relative_to(root).as_posix())
                 return rel if n == 0 else f"<search-path {n}>/{rel}"
-        return real.as_posix()
+        return printable(real.as_posix())
 
     # -- resolving -----------------------------------------------------------------------------------------
 
@@ -146,8 +185,9 @@ class Resolver:
         if not parts:
             res.findings.append(warning(f"{kind}-reference-empty", f"empty {kind} reference", origin, line))
             return res
-        base = Path(os.path.realpath(base_dir))
+        base = _realpath(base_dir) or Path(os.path.abspath(base_dir))
         escaped = False
+        special: str | None = None
         candidates: list[tuple[str, list[str], Path]] = []
         if not foreign:
             if "\\" not in text:
@@ -174,7 +214,16 @@ class Resolver:
             if not self.inside(path):
                 escaped = True
                 continue
-            res.found, res.rule = Path(os.path.realpath(path)), rule
+            mode = _mode(path)
+            if mode is None or stat.S_ISDIR(mode):
+                continue
+            if not stat.S_ISREG(mode):
+                special = special or describe_mode(mode)
+                continue
+            real = _realpath(path)
+            if real is None:
+                continue
+            res.found, res.rule = real, rule
             break
 
         shown = ref.strip()
@@ -188,7 +237,16 @@ class Resolver:
                     line,
                 )
             )
-        if res.found is None:
+        if res.found is None and special is not None:
+            res.findings.append(
+                warning(
+                    f"{kind}-not-a-file",
+                    f"{kind} {shown!r} is {special}, not a regular file; not read",
+                    origin,
+                    line,
+                )
+            )
+        elif res.found is None:
             res.findings.append(warning(f"{kind}-missing", f"{kind} {shown!r} not found", origin, line))
         elif res.rule not in ("exact",):
             res.findings.append(
@@ -202,7 +260,11 @@ class Resolver:
         return res
 
     def _walk(self, start: Path, parts: list[str], exact: bool) -> Path | None:
-        """Follow ``parts`` from ``start``; ``exact`` matches names as written, else ignoring case."""
+        """Follow ``parts`` from ``start``; ``exact`` matches names as written, else ignoring case.
+
+        Returns the path reached when something exists there (a file, or a special file the caller
+        reports), or a path outside the roots (reported as escaping; never probed or read), else ``None``.
+        """
         current = start
         for n, part in enumerate(parts):
             if part == "..":
@@ -211,63 +273,110 @@ class Resolver:
             if exact:
                 current = current / part
                 continue
-            names = self._names(current)
-            if part in names:
-                current = current / part
-                continue
-            lowered = part.casefold()
-            matches = sorted(name for name in names if name.casefold() == lowered)
-            if not matches:
+            name = self._listing_of(current).match(part)
+            if name is None:
                 return None
-            current = current / matches[0]
-            if n < len(parts) - 1 and not current.is_dir():
+            current = current / name
+            if n < len(parts) - 1 and not is_folder(current):
                 return None
         if not self.inside(current):
-            return current  # reported as escaping; never probed or read
-        return current if current.is_file() else None
+            return current
+        return current if _mode(current) is not None else None
 
-    def _names(self, folder: Path) -> list[str]:
-        if folder not in self._listing:
-            try:
-                self._listing[folder] = sorted(os.listdir(folder)) if self.inside(folder) else []
-            except OSError:
-                self._listing[folder] = []
-        return self._listing[folder]
+    def _listing_of(self, folder: Path) -> _Listing:
+        """The folder's names, listed once per resolver (a ``mtllib`` with many names lists it once)."""
+        listing = self._listing.get(folder)
+        if listing is None:
+            names: list[str] = []
+            if self.inside(folder):
+                try:
+                    names = os.listdir(folder)
+                except (OSError, ValueError):
+                    names = []
+            listing = self._listing[folder] = _Listing(names)
+        return listing
 
 
-def file_sha256(path: Path) -> str | None:
-    """SHA-256 hex digest of a file the user pointed at (or that a manifest names), ``None`` if unreadable."""
-    try:
-        return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
-    except OSError:
+class _Listing:
+    """A folder's entry names indexed for exact and case-insensitive lookup, including non-UTF-8 names."""
+
+    def __init__(self, names: list[str]) -> None:
+        self.names = set(names)
+        self.folded: dict[str, str] = {}
+        for name in sorted(names, reverse=True):  # the smallest name wins a case clash (deterministic)
+            self.folded[name.casefold()] = name
+
+    def match(self, part: str) -> str | None:
+        """The entry named ``part``, else its Latin-1 byte spelling, else either ignoring case."""
+        spellings = [part]
+        try:
+            raw = os.fsdecode(part.encode("latin-1"))
+        except UnicodeEncodeError:
+            raw = part
+        if raw != part:
+            spellings.append(raw)
+        for spelling in spellings:
+            if spelling in self.names:
+                return spelling
+        for spelling in spellings:
+            found = self.folded.get(spelling.casefold())
+            if found is not None:
+                return found
         return None
 
 
+def _realpath(path: str | os.PathLike[str]) -> Path | None:
+    """``os.path.realpath``, or ``None`` when a link changed under it (it raises ``OSError`` then)."""
+    try:
+        return Path(os.path.realpath(path))
+    except (OSError, ValueError):
+        return None
+
+
+def _mode(path: Path) -> int | None:
+    """``st_mode`` of ``path`` (symlinks followed), ``None`` when it cannot be looked up (also too-long names)."""
+    try:
+        return os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+
+
+def file_sha256(path: Path) -> str | None:
+    """SHA-256 hex digest of a file the user pointed at (or that a manifest names), ``None`` if unreadable.
+
+    Read in chunks; FIFOs, devices and sockets give ``None`` without being read.
+    """
+    return sha256_of(path)
+
+
 def find_files(root: Path, suffix: str) -> list[Path]:
-    """Files under ``root`` (recursively) whose suffix matches ``suffix`` ignoring case, sorted."""
-    return sorted(p for p in root.rglob("*") if p.is_file() and p.suffix.lower() == suffix.lower())
+    """Regular files under ``root`` (recursively) whose suffix matches ``suffix`` ignoring case, sorted."""
+    return sorted(p for p in root.rglob("*") if p.suffix.lower() == suffix.lower() and is_regular(p))
 
 
 def map_readonly(path: Path) -> mmap.mmap | None:
-    """Memory-map a file the user named, read-only; ``None`` for an empty file.
+    """Memory-map a regular file the user named, read-only; ``None`` for an empty file.
 
     Raises:
-        ResolveError: It cannot be opened.
+        ResolveError: It cannot be opened or is not a regular file (FIFOs and devices are never opened
+            for reading).
     """
+    fd = open_regular(path)
     try:
-        with open(path, "rb") as handle:
-            if handle.seek(0, 2) == 0:
-                return None
-            return mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
+        if os.fstat(fd).st_size == 0:
+            return None
+        return mmap.mmap(fd, 0, access=mmap.ACCESS_READ)
     except OSError as exc:
-        raise ResolveError(f"cannot be read: {exc.strerror}", path=str(path)) from None
+        raise ResolveError(f"cannot be read: {exc.strerror}", path=printable(path)) from None
+    finally:
+        os.close(fd)
 
 
 def read_cache(path: Path) -> bytes | None:
     """Bytes of a cache or scratch file meshtool wrote itself, ``None`` when it is missing or unreadable."""
     try:
-        return path.read_bytes() if path.is_file() else None
-    except OSError:
+        return read_file(path, DEFAULT_LIMITS.other)
+    except ResolveError:
         return None
 
 
@@ -281,19 +390,19 @@ def find_package_dir(start: Path, name: str) -> Path | None:
     for folder in (here, *here.parents):
         if folder.name == name:
             return folder
-        if (folder / name).is_dir():
+        if is_folder(folder / name):
             return Path(os.path.realpath(folder / name))
     return None
 
 
 def is_file(path: Path) -> bool:
-    """Whether ``path`` names an existing regular file."""
-    return path.is_file()
+    """Whether ``path`` names an existing regular file (never raises, also not for over-long names)."""
+    return is_regular(path)
 
 
 def list_names(folder: Path) -> list[str]:
     """Sorted names of the entries of ``folder`` (empty when it cannot be listed)."""
     try:
         return sorted(os.listdir(folder))
-    except OSError:
+    except (OSError, ValueError):
         return []

@@ -18,6 +18,7 @@ from meshtool.findings import Finding, info
 _CONTINUATION = re.compile(r"\\\n")
 # Control characters that never occur in a text OBJ/MTL (tab, LF, CR, FF, VT are allowed).
 _BINARY_BYTES = bytes(b for b in range(32) if b not in (9, 10, 11, 12, 13))
+_BINARY_HEAD = 1 << 16  # a bad byte this early means a binary file (reported by byte offset)
 
 
 @dataclass(slots=True)
@@ -114,15 +115,30 @@ def _decode(data: bytes, codec: str, path: str, error: type[MeshtoolError], skip
 
 
 def _reject_binary(data: bytes, path: str, error: type[MeshtoolError]) -> None:
-    head = data[: 1 << 16]
-    bad = [head.find(bytes([b])) for b in _BINARY_BYTES if bytes([b]) in head]
-    if bad:
-        raise error(
-            "binary data, not a text file",
-            path=path,
-            offset=min(bad),
-            hint="pass a text OBJ/MTL file; binary formats are not OBJ",
-        )
+    """Refuse data with a control byte that never occurs in text, anywhere in the file (not only its start).
+
+    A bad byte in the first 64 KiB (a binary file) is located by byte offset; one further in (a text file
+    with a stray NUL) by line, with the offset in the message.
+    """
+    bad = [at for at in (data.find(bytes([b])) for b in _BINARY_BYTES) if at >= 0]
+    if not bad:
+        return
+    offset = min(bad)
+    hint = "pass a text OBJ/MTL file; binary formats are not OBJ"
+    if offset < _BINARY_HEAD:
+        raise error("binary data, not a text file", path=path, offset=offset, hint=hint)
+    raise error(
+        f"binary data, not a text file (byte 0x{data[offset]:02x} at byte offset {offset})",
+        path=path,
+        line=_line_at(data, offset),
+        hint="remove the control bytes; text OBJ/MTL files contain none",
+    )
+
+
+def _line_at(data: bytes, offset: int) -> int:
+    """1-based line of byte ``offset``, counting LF, CRLF and lone CR line endings as the parsers do."""
+    lf, cr, crlf = data.count(b"\n", 0, offset), data.count(b"\r", 0, offset), data.count(b"\r\n", 0, offset)
+    return lf + cr - crlf + 1
 
 
 def _join_continuations(text: str) -> tuple[str, int]:

@@ -3,20 +3,41 @@
 MuJoCo reads PNG (and KTX) only. BMP, TGA, JPEG and GIF are converted; PNGs that are already 8-bit RGB or
 RGBA pass through byte for byte; palette, grey, 16-bit and other PNG modes are converted to 8-bit RGB(A)
 (16-bit channels keep their high byte). This module works on bytes and never touches the file system.
+
+Hostile images are bounded before they are decoded:
+
+- **Decoded size**: at most :data:`MAX_SIDE` pixels per side and :data:`MAX_PIXELS` pixels in all (checked
+  from the header, before any pixel is decoded; Pillow's own decompression-bomb guard becomes the same
+  error). The file size is bounded by the reader (:class:`meshtool.safeopen.ReadLimits`).
+- **Trailing bytes**: a PNG passed through is cut at the end of its ``IEND`` chunk; the bytes after it are
+  dropped with a ``texture-trailing-data`` finding.
+- **Truncated JPEG**: Huffman-coded JPEG needs at least one bit per 8x8 block; a file too short for the
+  size its header declares (libjpeg would silently fill the rest with grey) is refused.
 """
 
 from __future__ import annotations
 
 import io
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from meshtool.errors import TextureError
+from meshtool.findings import Finding, warning
 
 _PASS_MODES = ("RGB", "RGBA")
+
+MAX_SIDE = 16384
+"""Most pixels along either side of a texture."""
+MAX_PIXELS = 1 << 27
+"""Most pixels in a texture (134,217,728: 512 MiB as 8-bit RGBA, e.g. 16384 x 8192)."""
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_MAX_CHUNKS = 100_000  # a PNG with more chunks than this is re-encoded instead of walked further
+_JPEG_HUFFMAN_SOF = frozenset({0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7})
+_JPEG_LOSSLESS_SOF = frozenset({0xC3, 0xC7})
 
 
 @dataclass(frozen=True, slots=True)
@@ -29,7 +50,9 @@ class PngTexture:
         source_mode: Pillow mode of the source (``P``, ``I;16``, ``RGB``...).
         mode: Mode of the PNG written (``RGB`` or ``RGBA``).
         size: (width, height) in pixels.
-        converted: False when the source bytes were passed through unchanged.
+        converted: False when the source bytes were passed through unchanged (trailing bytes after the
+            PNG's end excepted).
+        findings: What was dropped (``texture-trailing-data``).
     """
 
     data: bytes
@@ -38,43 +61,123 @@ class PngTexture:
     mode: str
     size: tuple[int, int]
     converted: bool
+    findings: tuple[Finding, ...] = field(default=())
 
 
-def to_png(data: bytes, name: str) -> PngTexture:
+def to_png(data: bytes, name: str, max_side: int = MAX_SIDE, max_pixels: int = MAX_PIXELS) -> PngTexture:
     """Convert image bytes to an 8-bit RGB or RGBA PNG.
 
     Args:
         data: The image file's bytes.
         name: Name for error messages.
+        max_side: Most pixels along either side.
+        max_pixels: Most pixels in all (width x height).
 
     Returns:
         The PNG and what was done.
 
     Raises:
-        TextureError: When the data is not an image Pillow can decode (or is a decompression bomb).
+        TextureError: When the data is not an image Pillow can decode, is larger than the limits (also
+            Pillow's decompression-bomb guard), or is a JPEG too short for its declared size.
     """
+    hint = "re-save it as PNG"
     try:
         with warnings.catch_warnings():
-            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            # The limits below are checked from the header before decoding; Pillow's warning threshold
+            # (about 89 million pixels) is below them, its error threshold above.
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             image = Image.open(io.BytesIO(data))
+            width, height = image.size
+            if width > max_side or height > max_side or width * height > max_pixels:
+                raise TextureError(
+                    f"{width}x{height} pixels is over the texture limit ({max_side} per side, {max_pixels} in all)",
+                    path=name,
+                    hint="downscale the image",
+                )
+            if image.format == "JPEG":
+                _check_jpeg_length(data, width, height, name)
             image.load()
-    except (
-        UnidentifiedImageError,
-        OSError,
-        ValueError,
-        SyntaxError,
-        Image.DecompressionBombError,
-        Image.DecompressionBombWarning,
-    ) as exc:
-        raise TextureError(f"not a readable image ({exc})", path=name, hint="re-save it as PNG") from None
+    except Image.DecompressionBombError as exc:
+        raise TextureError(f"over the texture size limit ({exc})", path=name, hint="downscale the image") from None
+    except TextureError:
+        raise
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError, MemoryError) as exc:
+        raise TextureError(f"not a readable image ({exc})", path=name, hint=hint) from None
     fmt = image.format or "unknown"
     source_mode = image.mode
     if fmt == "PNG" and source_mode in _PASS_MODES and _is_8bit_png(data):
-        return PngTexture(data, fmt, source_mode, source_mode, image.size, False)
+        end = _png_end(data)
+        if end == len(data):
+            return PngTexture(data, fmt, source_mode, source_mode, image.size, False)
+        if end is not None:
+            dropped = warning(
+                "texture-trailing-data",
+                f"{len(data) - end} bytes after the end of the PNG image dropped",
+                name,
+            )
+            return PngTexture(data[:end], fmt, source_mode, source_mode, image.size, False, (dropped,))
     rgb = _to_8bit(image)
     out = io.BytesIO()
     rgb.save(out, format="PNG", compress_level=6)
     return PngTexture(out.getvalue(), fmt, source_mode, rgb.mode, rgb.size, True)
+
+
+def _png_end(data: bytes) -> int | None:
+    """Offset just past the ``IEND`` chunk, found by walking the chunks; ``None`` if the walk fails."""
+    if not data.startswith(_PNG_SIGNATURE):
+        return None
+    pos = len(_PNG_SIGNATURE)
+    for _ in range(_PNG_MAX_CHUNKS):
+        if pos + 12 > len(data):
+            return None
+        length = int.from_bytes(data[pos : pos + 4], "big")
+        kind = data[pos + 4 : pos + 8]
+        pos += 12 + length
+        if kind == b"IEND":
+            return pos if pos <= len(data) else None
+    return None
+
+
+def _check_jpeg_length(data: bytes, width: int, height: int, name: str) -> None:
+    """Refuse a Huffman-coded JPEG with fewer bytes than its declared size needs.
+
+    Every 8x8 block of the largest component costs at least one bit in Huffman coding (the DC difference
+    code is at least one bit long), and every sample one bit in lossless mode. Arithmetic-coded JPEG has no
+    such bound and is not checked.
+    """
+    sof = _jpeg_sof(data)
+    if sof is None or sof not in _JPEG_HUFFMAN_SOF:
+        return
+    units = width * height if sof in _JPEG_LOSSLESS_SOF else -(-width // 8) * -(-height // 8)
+    needed = -(-units // 8)
+    if len(data) < needed:
+        raise TextureError(
+            f"truncated JPEG: {len(data)} bytes cannot hold the {width}x{height} image its header declares "
+            f"(at least {needed} bytes of image data needed)",
+            path=name,
+            hint="the file is cut short; export it again",
+        )
+
+
+def _jpeg_sof(data: bytes) -> int | None:
+    """The start-of-frame marker (``0xC0``..``0xCF``, not DHT/JPG/DAC) of a JPEG, walking its segments."""
+    pos = 2
+    while pos + 4 <= len(data):
+        if data[pos] != 0xFF:
+            return None
+        marker = data[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        if marker in (0x01, 0xD8) or 0xD0 <= marker <= 0xD7:
+            pos += 2
+            continue
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            return marker
+        if marker in (0xD9, 0xDA):
+            return None
+        pos += 2 + int.from_bytes(data[pos + 2 : pos + 4], "big")
+    return None
 
 
 def _is_8bit_png(data: bytes) -> bool:
