@@ -1,7 +1,18 @@
-"""OBJ to ``.mbin`` conversion: one file, or a folder tree in parallel, skipping unchanged assets."""
+"""OBJ to ``.mbin`` conversion: one file, or a folder tree in parallel, skipping unchanged assets.
+
+Worker processes die with their parent: on Linux the kernel sends them SIGKILL when the parent dies
+(``prctl(PR_SET_PDEATHSIG)``), and everywhere a watchdog thread in each worker exits it when its parent
+process changes, so a killed ``obj2bin -j N`` leaves no worker behind.
+"""
 
 from __future__ import annotations
 
+import ctypes
+import os
+import signal
+import sys
+import threading
+import time
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
@@ -12,7 +23,7 @@ from meshtool.errors import MeshtoolError, OutputError, PackFormatError, StrictM
 from meshtool.findings import Finding
 from meshtool.hulls import HullOptions, compute_hulls, quality
 from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
-from meshtool.outdir import write_file
+from meshtool.outdir import check_output, refuse_inputs, write_file
 from meshtool.packfile import load, pack
 from meshtool.resolve import file_sha256, find_files
 
@@ -60,13 +71,22 @@ class ConvertResult:
     error: str | None = None
 
 
-def convert(src: Path, out: Path, options: ConvertOptions | None = None) -> ConvertResult:
+def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, force: bool = False) -> ConvertResult:
     """Normalise ``src`` and write it as ``out`` (.mbin) atomically.
 
+    Args:
+        src: The OBJ.
+        out: The ``.mbin`` to write.
+        options: Conversion options.
+        force: Replace an existing ``out`` that is not a meshtool ``.mbin`` (never an input: the OBJ, or an
+            MTL or texture it uses).
+
     Raises:
-        MeshtoolError: The input cannot be converted, or the output cannot be written.
+        MeshtoolError: The input cannot be converted, or the output cannot be written or would replace an
+            input or a file meshtool did not write (:class:`OutputError`).
     """
     options = options or ConvertOptions()
+    refuse_inputs(out, [src])  # before any work: `obj2bin box.obj -o box.obj`
     asset = prepare(src, options.normalise)
     hull_set = compute_hulls(asset.mesh, options.hulls, src.name)
     report = quality(asset.mesh, hull_set.hulls) if hull_set.hulls else None
@@ -75,6 +95,9 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None) -> Conv
         first = next(f for f in hull_set.findings if f.severity.value == "warning")
         raise StrictModeError(f"hull warning in strict mode: {first.one_line()}", path=src.name)
     data = pack(asset, options.quantize, options.fingerprint(), hull_set.hulls, report)
+    roots = [src.parent, *options.normalise.search_paths]
+    used = [_source_path(str(s.get("path", "")), roots) for s in asset.manifest.get("sources", [])]
+    check_output(out, "mbin", force=force, inputs=[src, *(p for p in used if p is not None)], data=data)
     write_file(out, data)
     stats = dict(asset.stats)
     stats["bytes"] = len(data)
@@ -104,6 +127,8 @@ def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
             if path is None or file_sha256(path) != source["sha256"]:
                 return False
         return bool(meta.get("sources"))
+    except (KeyError, TypeError, AttributeError, ValueError):  # a hostile or foreign META: not up to date
+        return False
     finally:
         packed.close()
 
@@ -126,17 +151,17 @@ def tree_jobs(src_dir: Path, out_dir: Path) -> list[tuple[Path, Path]]:
     return jobs
 
 
-def _run(src: Path, out: Path, options: ConvertOptions) -> ConvertResult:
+def _run(src: Path, out: Path, options: ConvertOptions, force: bool = False) -> ConvertResult:
     if is_unchanged(src, out, options):
         return ConvertResult(src, out, "unchanged")
     try:
-        return convert(src, out, options)
+        return convert(src, out, options, force=force)
     except MeshtoolError as exc:
         return ConvertResult(src, out, "failed", error=f"{src}: {exc.one_line()}")
 
 
 def convert_tree(
-    src_dir: Path, out_dir: Path, options: ConvertOptions | None = None, jobs: int = 1
+    src_dir: Path, out_dir: Path, options: ConvertOptions | None = None, jobs: int = 1, *, force: bool = False
 ) -> Iterator[ConvertResult]:
     """Convert every OBJ under ``src_dir``; yields results as they finish.
 
@@ -144,7 +169,8 @@ def convert_tree(
         src_dir: Folder searched recursively for ``*.obj``.
         out_dir: Output root; the folder layout is kept (names made safe).
         options: Conversion options (``normalise.name`` is ignored).
-        jobs: Worker processes (1 converts in this process).
+        jobs: Worker processes (1 converts in this process); they die with this process.
+        force: Replace existing outputs that are not meshtool ``.mbin`` files (never an input).
 
     Yields:
         One result per OBJ, unchanged ones included.
@@ -157,9 +183,38 @@ def convert_tree(
         raise OutputError("two sources map to the same output", path=str(clash), hint="rename one of them")
     if jobs <= 1:
         for src, out in work:
-            yield _run(src, out, options)
+            yield _run(src, out, options, force)
         return
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        futures = [pool.submit(_run, src, out, options) for src, out in work]
+    with ProcessPoolExecutor(max_workers=jobs, initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
+        futures = [pool.submit(_run, src, out, options, force) for src, out in work]
         for future in as_completed(futures):
             yield future.result()
+
+
+#: Seconds between two checks of the watchdog thread.
+WATCH_PERIOD_S = 0.5
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Worker initializer: make this process exit when ``parent_pid`` dies.
+
+    On Linux, ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` asks the kernel to kill the worker when its parent
+    goes; everywhere (and in case the parent died before the call), a daemon thread polls ``os.getppid()``
+    and exits the process when the parent changes (the worker was re-parented).
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):  # no libc prctl: the watchdog below still works
+            pass
+    if os.getppid() != parent_pid:
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), name="meshtool-parent-watch", daemon=True).start()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(WATCH_PERIOD_S)
+    os._exit(1)

@@ -1,48 +1,288 @@
-"""Atomic output folders: everything is written to a temporary folder beside the target, then renamed.
+"""Outputs: atomic, and never over something meshtool did not write.
 
-A reader never sees a half-written asset folder, a failed run leaves nothing behind, and an existing
-folder is only replaced when meshtool wrote it (it holds an ``asset.json``).
+Files and folders are written to a temporary name beside the target, then renamed: a reader never sees a
+half-written output and a failed run leaves nothing behind.
+
+Before anything is replaced, :func:`check_output` (files) and :func:`write_folder` (folders) make sure that
+nothing the user made is destroyed:
+
+* an output path that is one of the inputs (the same file, also through a symbolic link, a hard link or a
+  case-insensitive alias) is always refused, ``force`` or not;
+* an existing file is replaced only when it is a meshtool output of the same kind, told by its magic
+  number and the generator recorded inside (``.mbin``: magic + ``META.tool.name``; GLB: ``glTF`` magic +
+  ``asset.generator``; USD: ``customLayerData.generator``; MSH, which has no room for a marker: its exact
+  structure), or when its bytes are already exactly those to be written; ``force`` overrides;
+* an existing folder is replaced only when its ``asset.json`` carries meshtool's marker
+  (``"meshtool_output": {"version", "files"}``) and the folder holds exactly the files listed there (older
+  ``normalize`` folders without the marker qualify when ``asset.json`` names meshtool as its ``tool`` and
+  its ``files`` list every other file); ``force`` overrides, but never for a folder holding an input.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+import json
 import os
 import re
 import shutil
+import stat
+import struct
 import tempfile
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
+from meshtool import __version__
 from meshtool.errors import OutputError
 
 SAFE_FILE = re.compile(r"^[a-z0-9_][a-z0-9_.-]*$")
 MARKER = "asset.json"
+#: The key meshtool adds to every ``asset.json`` it writes: its version and the folder's content list.
+MARKER_KEY = "meshtool_output"
+#: What meshtool records as the writer of GLB (``asset.generator``) and USD (``customLayerData.generator``).
+GENERATOR = f"meshtool {__version__}"
+#: Generators whose files count as meshtool outputs (simrun writes through meshtool's writer).
+GENERATORS = ("meshtool", "simrun")
+#: File kinds :func:`check_output` recognises, by suffix.
+KINDS = {".mbin": "mbin", ".glb": "glb", ".usd": "usd", ".usda": "usd", ".usdc": "usd", ".msh": "msh"}
+FORCE_HINT = "choose another output path, remove it, or pass --force to replace it"
+_HEAD_LIMIT = 64 << 20  # bytes read to recognise an existing output (a GLB's JSON chunk)
+
+_FORCE: contextvars.ContextVar[bool] = contextvars.ContextVar("meshtool_force_overwrite", default=False)
 
 
-def write_folder(parent: Path, name: str, files: dict[str, bytes]) -> Path:
-    """Write ``files`` as ``parent/name/`` atomically.
+@contextlib.contextmanager
+def overwrite_allowed(force: bool = True) -> Iterator[None]:
+    """Within the block, outputs that are not meshtool's may be replaced (``--force``); inputs never are."""
+    token = _FORCE.set(force)
+    try:
+        yield
+    finally:
+        _FORCE.reset(token)
+
+
+def _force(force: bool | None) -> bool:
+    return _FORCE.get() if force is None else force
+
+
+def same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` name the same file: same inode (links, case-insensitive aliases) or real path."""
+    try:
+        if os.path.samefile(a, b):
+            return True
+    except OSError:
+        pass
+    try:
+        return os.path.normcase(os.path.realpath(a)) == os.path.normcase(os.path.realpath(b))
+    except (OSError, ValueError):
+        return False
+
+
+def refuse_inputs(out: Path, inputs: Iterable[Path]) -> None:
+    """Refuse ``out`` when it is one of ``inputs`` (always, whatever ``--force`` says).
+
+    Raises:
+        OutputError: ``out`` is an input.
+    """
+    for source in inputs:
+        if same_file(out, source):
+            raise OutputError(
+                f"is an input ({source}); refusing to overwrite it",
+                path=str(out),
+                hint="choose another output path (--force does not override this)",
+            )
+
+
+def check_output(
+    out: Path,
+    kind: str | None = None,
+    *,
+    force: bool | None = None,
+    inputs: Iterable[Path] = (),
+    data: bytes | None = None,
+) -> None:
+    """Refuse to replace ``out`` unless it is a meshtool output of ``kind`` (see the module docstring).
+
+    Args:
+        out: The file about to be written.
+        kind: ``mbin``, ``glb``, ``usd`` or ``msh``; ``None`` infers it from the suffix (an unknown suffix
+            has no recognisable kind: an existing file is replaced only when ``data`` equals it, or forced).
+        force: Replace a file that is not meshtool's (never an input); ``None`` uses
+            :func:`overwrite_allowed`'s setting.
+        inputs: Files this run reads; ``out`` may never be one of them.
+        data: The bytes about to be written; an existing file with exactly these bytes may be replaced.
+
+    Raises:
+        OutputError: ``out`` is an input, not a regular file, or an existing file meshtool did not write.
+    """
+    refuse_inputs(out, inputs)
+    try:
+        info = os.lstat(out)
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise OutputError(f"cannot check the existing output: {exc.strerror}", path=str(out)) from None
+    if stat.S_ISDIR(info.st_mode):
+        raise OutputError("is a folder, not a file", path=str(out), hint="name a file")
+    if _force(force):
+        return
+    if not stat.S_ISREG(info.st_mode):
+        raise OutputError(
+            "exists and is not a regular file (a link, pipe or device); not replacing it",
+            path=str(out),
+            hint=FORCE_HINT,
+        )
+    kind = kind or KINDS.get(out.suffix.lower())
+    if data is not None and info.st_size == len(data) and _read_head(out, len(data)) == data:
+        return
+    if kind is None or not _RECOGNISERS[kind](out, info.st_size):
+        what = f"a meshtool {kind} output" if kind else "written by meshtool"
+        raise OutputError(f"exists and is not {what}; not replacing it", path=str(out), hint=FORCE_HINT)
+
+
+def write_output(
+    out: Path, data: bytes, kind: str | None = None, *, force: bool | None = None, inputs: Iterable[Path] = ()
+) -> None:
+    """:func:`check_output`, then :func:`write_file`."""
+    check_output(out, kind, force=force, inputs=inputs, data=data)
+    write_file(out, data)
+
+
+def _read_head(path: Path, limit: int) -> bytes | None:
+    """Up to ``limit`` bytes of a regular file (never follows a link, never blocks on a pipe)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        chunks, left = [], limit
+        while left > 0:
+            chunk = os.read(fd, min(left, 1 << 20))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+        return b"".join(chunks)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+
+
+def _is_mbin(path: Path, size: int) -> bool:
+    from meshtool.errors import MeshtoolError
+    from meshtool.packfile.format import MAGIC
+    from meshtool.packfile.read import load
+
+    if _read_head(path, len(MAGIC)) != MAGIC:
+        return False
+    try:
+        with load(path, verify=False) as packed:
+            tool = packed.meta.get("tool")
+            return isinstance(tool, dict) and bool(tool.get("name") == "meshtool")
+    except MeshtoolError:
+        return False
+
+
+def _is_glb(path: Path, size: int) -> bool:
+    head = _read_head(path, 20)
+    if head is None or len(head) < 20 or head[:4] != b"glTF":
+        return False
+    version, _, json_length, chunk = struct.unpack("<IIII", head[4:20])
+    if version != 2 or chunk != 0x4E4F534A or json_length > min(size, _HEAD_LIMIT):
+        return False
+    body = _read_head(path, 20 + json_length)
+    try:
+        tree = json.loads((body or b"")[20:])
+        generator = tree["asset"]["generator"]
+    except (ValueError, KeyError, TypeError):
+        return False
+    return isinstance(generator, str) and generator.startswith(GENERATORS)
+
+
+def _is_usd(path: Path, size: int) -> bool:
+    head = _read_head(path, 16) or b""
+    if not (head.startswith(b"#usda ") or head.startswith(b"PXR-USDC")):
+        return False
+    try:
+        from pxr import Sdf
+
+        layer = Sdf.Layer.OpenAsAnonymous(str(path))
+        generator = dict(layer.customLayerData).get("generator") if layer is not None else None
+    except Exception:  # usd-core raises Tf errors of its own for unreadable layers
+        return False
+    return isinstance(generator, str) and generator.startswith(GENERATORS)
+
+
+def _is_msh(path: Path, size: int) -> bool:
+    """MuJoCo's legacy MSH has no magic or metadata: the four counts must account for the size exactly."""
+    head = _read_head(path, 16)
+    if head is None or len(head) < 16:
+        return False
+    nv, nn, nt, nf = struct.unpack("<4i", head)
+    if min(nv, nn, nt, nf) < 0 or nv == 0:
+        return False
+    return bool(16 + 4 * (3 * nv + 3 * nn + 2 * nt + 3 * nf) == size)
+
+
+_RECOGNISERS = {"mbin": _is_mbin, "glb": _is_glb, "usd": _is_usd, "msh": _is_msh}
+
+
+def stamp_glb(tree: dict[str, Any]) -> None:
+    """Record meshtool as the GLB's ``asset.generator`` (a ``tree_postprocessor`` for trimesh's export)."""
+    tree.setdefault("asset", {"version": "2.0"})["generator"] = GENERATOR
+
+
+def stamp_usd(layer: Any, generator: str = GENERATOR) -> None:
+    """Record ``generator`` in a USD layer's ``customLayerData`` (how :func:`check_output` knows it)."""
+    data = dict(layer.customLayerData)
+    data["generator"] = generator
+    layer.customLayerData = data
+
+
+def write_folder(
+    parent: Path, name: str, files: dict[str, bytes], *, force: bool | None = None, inputs: Iterable[Path] = ()
+) -> Path:
+    """Write ``files`` as ``parent/name/`` atomically, with meshtool's marker in ``asset.json``.
 
     Args:
         parent: Output folder (created when missing).
         name: Folder name, ``[a-z0-9_.-]+``.
-        files: File name (``[a-z0-9_.-]+``, no folders) to contents; must include ``asset.json``.
+        files: File name (``[a-z0-9_.-]+``, no folders) to contents; must include ``asset.json`` holding a
+            JSON object, to which the marker ``"meshtool_output": {"version", "files"}`` is added.
+        force: Replace an existing folder meshtool did not write (never one holding an input); ``None``
+            uses :func:`overwrite_allowed`'s setting.
+        inputs: Files this run reads; the folder may not be or hold one of them.
 
     Returns:
         The written folder.
 
     Raises:
-        OutputError: A bad name, an existing folder that meshtool did not write, or an OS error (the
-            temporary folder is removed and an existing folder restored).
+        OutputError: A bad name, an existing folder that meshtool did not write (or that holds files it
+            did not write), a folder holding an input, or an OS error (the temporary folder is removed and
+            an existing folder restored).
     """
     for file_name in (name, *files):
         if not SAFE_FILE.match(file_name):
             raise OutputError(f"unsafe output name {file_name!r}", hint="names must match [a-z0-9_.-]+")
+    files = {**files, MARKER: with_marker(files)}
     target = parent / name
-    if target.exists() and not (target.is_dir() and (target / MARKER).is_file()):
-        raise OutputError(
-            "exists and was not written by meshtool; not replacing it",
-            path=str(target),
-            hint="choose another --name or output folder, or remove it",
-        )
+    for source in inputs:
+        if same_file(target, source) or _inside(Path(source), target):
+            raise OutputError(
+                f"would replace a folder holding an input ({source})",
+                path=str(target),
+                hint="write to a folder outside the source (--force does not override this)",
+            )
+    if os.path.lexists(target) and not _force(force):
+        reason = replaceable_folder(target)
+        if reason:
+            raise OutputError(f"{reason}; not replacing it", path=str(target), hint=FORCE_HINT)
+    elif os.path.islink(target) or (os.path.lexists(target) and not target.is_dir()):
+        raise OutputError("exists and is not a folder; not replacing it", path=str(target), hint="remove it")
     try:
         parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{name}.tmp-", dir=parent))
@@ -69,6 +309,71 @@ def write_folder(parent: Path, name: str, files: dict[str, bytes]) -> Path:
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
     return target
+
+
+def with_marker(files: dict[str, bytes]) -> bytes:
+    """``files["asset.json"]`` with meshtool's marker: its version and the sorted list of the folder's files.
+
+    Raises:
+        OutputError: ``asset.json`` is missing or not a JSON object (a bug in the caller).
+    """
+    try:
+        manifest = json.loads(files[MARKER])
+    except (KeyError, ValueError):
+        manifest = None
+    if not isinstance(manifest, dict):
+        raise OutputError("an output folder needs an asset.json holding a JSON object", path=MARKER)
+    manifest[MARKER_KEY] = {"tool": "meshtool", "version": __version__, "files": sorted({*files, MARKER})}
+    return (json.dumps(manifest, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
+
+
+def replaceable_folder(target: Path) -> str | None:
+    """Why meshtool may not replace the existing ``target`` (``None``: it may: meshtool wrote all of it).
+
+    A folder qualifies when it is a real folder (not a link) whose ``asset.json`` carries the marker and
+    whose entries are exactly the files the marker lists, all regular files. A folder written before the
+    marker existed qualifies when its ``asset.json`` names meshtool as ``tool`` and its ``files`` (what
+    ``normalize`` recorded: ``obj``, ``mtl``, ``textures``) plus ``asset.json`` are exactly its entries.
+    """
+    if os.path.islink(target) or not target.is_dir():
+        return "exists and is not a folder"
+    data = _read_head(target / MARKER, 16 << 20)
+    try:
+        manifest = json.loads(data) if data is not None else None
+    except ValueError:
+        manifest = None
+    if not isinstance(manifest, dict):
+        return "exists and was not written by meshtool (no asset.json of meshtool's)"
+    marker = manifest.get(MARKER_KEY)
+    listed: set[str] | None = None
+    if isinstance(marker, dict) and isinstance(marker.get("files"), list):
+        listed = {str(f) for f in marker["files"]}
+    elif isinstance(manifest.get("tool"), dict) and manifest["tool"].get("name") == "meshtool":
+        legacy = manifest.get("files")
+        if isinstance(legacy, dict):
+            names = [legacy.get("obj"), legacy.get("mtl"), *(legacy.get("textures") or [])]
+            listed = {str(n) for n in names if n} | {MARKER}
+    if listed is None:
+        return "exists and was not written by meshtool (its asset.json has no meshtool marker)"
+    try:
+        entries = {e.name: e for e in os.scandir(target)}
+    except OSError as exc:
+        return f"exists and cannot be listed ({exc.strerror})"
+    extra = sorted(set(entries) - listed)
+    if extra:
+        return f"holds files meshtool did not write ({', '.join(extra[:3])}{', ...' if len(extra) > 3 else ''})"
+    odd = sorted(n for n, e in entries.items() if not e.is_file(follow_symlinks=False))
+    if odd:
+        return f"holds something other than a plain file ({', '.join(odd[:3])})"
+    return None
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    try:
+        real, root = os.path.normcase(os.path.realpath(path)), os.path.normcase(os.path.realpath(folder))
+    except (OSError, ValueError):
+        return False
+    return real.startswith(root.rstrip(os.sep) + os.sep)
 
 
 def write_file(out: Path, data: bytes) -> None:

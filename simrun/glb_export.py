@@ -17,7 +17,7 @@ import trimesh
 from meshtool.packfile.export import Z_UP_TO_Y_UP
 from simrun.compiled_mesh import compiled_mesh
 from simrun.errors import SimrunError
-from simrun.outfile import write_bytes
+from simrun.outfile import stamp_glb, write_bytes
 from simrun.world import World
 
 
@@ -44,7 +44,7 @@ def world_to_glb(world: World) -> bytes:
         scene.add_geometry(mesh, node_name=name, geom_name=name, transform=Z_UP_TO_Y_UP @ pose)
     if not scene.geometry:
         raise SimrunError("the world has no geoms to export")
-    out: bytes = scene.export(file_type="glb")  # type: ignore[no-untyped-call]
+    out: bytes = scene.export(file_type="glb", tree_postprocessor=stamp_glb)  # type: ignore[no-untyped-call]
     return out
 
 

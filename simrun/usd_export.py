@@ -22,7 +22,7 @@ import numpy as np
 
 from simrun.compiled_mesh import compiled_mesh
 from simrun.errors import SimrunError
-from simrun.outfile import write_bytes
+from simrun.outfile import stamp_usd, write_bytes
 from simrun.world import World
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9_]")
@@ -79,6 +79,7 @@ def export_world_usd(world: World, out: Path) -> None:
                 _joint(stage, model, j, paths[parent], path, UsdPhysics, Gf)
         for g in range(model.ngeom):
             _geom(stage, model, g, paths[int(model.geom_bodyid[g])], UsdGeom, UsdPhysics, Gf, Vt, Sdf)
+        stamp_usd(stage.GetRootLayer())  # how a later export knows this file is simrun's to replace
         stage.GetRootLayer().Save()
         try:
             data = scratch.read_bytes()

@@ -13,6 +13,7 @@ from PIL import Image
 
 from meshtool import __version__
 from meshtool.obj.mtl import Material, TextureMap, format_mtl
+from meshtool.outdir import stamp_glb
 from meshtool.packfile.read import PackedMesh
 
 
@@ -141,7 +142,7 @@ def to_glb(packed: PackedMesh) -> bytes:
         if packed.normals is not None:
             mesh.vertex_normals = np.asarray(packed.normals, dtype=np.float64)[used]  # type: ignore[method-assign]
         scene.add_geometry(mesh, geom_name=f"submesh_{k}", transform=Z_UP_TO_Y_UP)
-    data: bytes = scene.export(file_type="glb")  # type: ignore[no-untyped-call]
+    data: bytes = scene.export(file_type="glb", tree_postprocessor=stamp_glb)  # type: ignore[no-untyped-call]
     return data
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from meshtool.errors import OutputError
 from meshtool.mesh import safe_identifier
-from meshtool.outdir import write_file
+from meshtool.outdir import stamp_usd, write_file
 from meshtool.packfile.read import PackedMesh
 from meshtool.resolve import read_cache
 
@@ -80,6 +80,7 @@ def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:
             hull.CreatePurposeAttr(UsdGeom.Tokens.guide)
             UsdPhysics.CollisionAPI.Apply(hull.GetPrim())
             UsdPhysics.MeshCollisionAPI.Apply(hull.GetPrim()).CreateApproximationAttr(UsdPhysics.Tokens.convexHull)
+        stamp_usd(stage.GetRootLayer())  # how a later export knows this file is meshtool's to replace
         stage.GetRootLayer().Save()
         saved = read_cache(scratch)
         if saved is None:
