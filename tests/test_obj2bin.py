@@ -179,3 +179,64 @@ def test_folder_mode_converts_in_parallel_and_skips_unchanged(fixtures, tmp_path
 @pytest.mark.parametrize("args", [["-j", "0"], []])
 def test_folder_needs_output(fixtures, args):
     assert run(obj2bin, fixtures / "head", *args).exit_code in (1, 2)
+
+
+def _slow_tree(root, count=12, n=60000):
+    """``count`` OBJs of ``n`` random points on a sphere, a fan of triangles: each takes a worker a while."""
+    rng = np.random.default_rng(5)
+    for k in range(count):
+        p = rng.normal(size=(n, 3))
+        p /= np.linalg.norm(p, axis=1, keepdims=True)
+        lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in p]
+        lines += [f"f 1 {i} {i + 1}" for i in range(2, n)]
+        (root / f"ball_{k:02d}.obj").write_text("\n".join(lines) + "\n")
+
+
+def test_killed_obj2bin_leaves_no_worker_behind(tmp_path):
+    """kill -9 of `obj2bin DIR -o OUT -j 2`: its workers exit too (they used to block forever)."""
+    import contextlib
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    psutil = pytest.importorskip("psutil")
+    src = tmp_path / "src"
+    src.mkdir()
+    _slow_tree(src)
+    command = [
+        sys.executable,
+        "-c",
+        "from meshtool.cli import obj2bin; obj2bin()",
+        str(src),
+        "-o",
+        str(tmp_path / "out"),
+    ]
+    parent = subprocess.Popen([*command, "-j", "2", "--no-cache"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        workers: list = []
+        while len(workers) < 2 and time.monotonic() < deadline and parent.poll() is None:
+            workers = psutil.Process(parent.pid).children()
+            time.sleep(0.05)
+        assert len(workers) >= 2, "the workers never started"
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+        deadline = time.monotonic() + 30
+
+        def alive(p):
+            try:
+                return p.status() != psutil.STATUS_ZOMBIE
+            except psutil.NoSuchProcess:
+                return False
+
+        while any(alive(w) for w in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        left = [w.pid for w in workers if alive(w)]
+    finally:
+        for w in workers:  # never leave a process behind, whatever happened (only the ones this test started)
+            with contextlib.suppress(psutil.NoSuchProcess):
+                w.kill()
+        if parent.poll() is None:
+            parent.kill()
+    assert left == [], f"workers {left} outlived their killed parent"
