@@ -1,45 +1,54 @@
-"""URDF import: a robot's meshes through normalise -> hulls -> pack, and a MuJoCo MJCF of the robot.
+"""URDF import: a robot's meshes through normalise -> hulls -> pack, and a MuJoCo model of the robot.
 
-The URDF is parsed with yourdfpy; every mesh it names (``package://``, relative or ``file://``; OBJ with
-its MTL and textures, or STL/PLY/DAE through trimesh) is found inside the allowed folders, run through the
-same normaliser as ``obj2bin`` with the link frame kept as it is (URDF meshes are already Z-up; no up-axis
-rotation), given collision hulls, and packed as ``.mbin``. The MJCF follows MuJoCo Menagerie: a
-``visual`` class (group 2, no contacts, massless) and a ``collision`` class (group 3); one body per link,
-posed by its parent joint's origin; hinge/slide joints with the URDF limits, damping and friction;
-inertials from the URDF; mimic joints as joint equalities; optional motors with the effort limits.
+The URDF is parsed with yourdfpy from its bytes (so XML and encoding declarations and comments before
+``<robot>`` are fine); every mesh it names (``package://NAME/...``, ``package:///...`` for the robot's
+own package, relative or ``file://``; OBJ with its MTL and textures, STL/PLY/OFF/GLB/COLLADA through
+trimesh with their colours and textures) is found inside the allowed folders, normalised with the link
+frame kept (URDF meshes are already Z-up), scaled (a negative scale mirrors), given collision hulls and
+packed as ``.mbin`` once per file and scale, however many links use it.
 
-Nothing here writes files except :func:`write_import`, and only inside the output folder.
+The model (:class:`meshtool.model.ModelDesc`) follows MuJoCo Menagerie: a ``visual`` class (group 2,
+no contacts, massless) and a ``collision`` class (group 3, massless here: URDF inertials are the only
+source of mass, and a link without one stays massless); one body per link, posed by its parent joint's
+origin; a root link named ``world`` is MuJoCo's world body; hinge/slide joints with the URDF limits,
+damping and friction; inertials as principal moments with the rotation to their axes (MuJoCo forbids
+``fullinertia`` with a rotated frame), made physical like MuJoCo's ``balanceinertia`` with a warning
+naming the link; ``mimic`` joints as joint equalities; optional motors with the effort limits.
+
+:func:`write_import` hands the model to the installed MJCF builder, which compiles it before anything is
+written.
 """
 
 from __future__ import annotations
 
 import io
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-from xml.sax.saxutils import quoteattr
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
 import trimesh
 
-from meshtool.errors import MeshtoolError
-from meshtool.findings import Finding
-from meshtool.hulls import HullOptions, compute_hulls, quality
+from meshtool.findings import Finding, warning
+from meshtool.hulls import HullOptions
 from meshtool.mesh import safe_identifier
-from meshtool.mjcf import mesh_fragment
-from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
+from meshtool.model import (
+    BodyDesc,
+    GeomDesc,
+    InertialDesc,
+    JointCouplingDesc,
+    JointDesc,
+    ModelDesc,
+    MotorDesc,
+    balance_inertia,
+    mjcf_files,
+)
 from meshtool.outdir import write_file
-from meshtool.packfile import pack
-from meshtool.packfile.read import parse
 from meshtool.resolve import Resolver, find_package_dir, is_file
+from meshtool.urdf_mesh import MESH_TYPES, LoadedMesh, UrdfError, load_mesh, mesh_prefix, parse_scale
 
-MESH_TYPES = (".obj", ".stl", ".ply", ".dae", ".off", ".glb")
-
-
-class UrdfError(MeshtoolError, ValueError):
-    """The URDF cannot be imported (bad XML, a missing or escaping mesh, an unsupported construct)."""
+WORLD = "world"
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,46 +77,60 @@ class UrdfImport:
 
     Attributes:
         name: The robot's name (an identifier).
-        mjcf: File name to bytes: ``NAME.xml`` with its ``.msh`` meshes and PNG textures.
+        model: The robot's model description (see :mod:`meshtool.model`).
         mbins: ``meshes/STEM.mbin`` to bytes, one per distinct mesh file and scale.
-        findings: The normaliser's and the hull builder's findings, per mesh.
-        links: Link names in MJCF body order.
-        joints: Moving joint names in MJCF order.
+        findings: What was noticed and repaired: inertias, missing textures, the normaliser's and the hull
+            builder's findings.
+        links: Link names in body order (a ``world`` root link is not a body).
+        joints: Moving joint names in model order.
     """
 
     name: str
-    mjcf: dict[str, bytes]
+    model: ModelDesc
     mbins: dict[str, bytes]
     findings: list[Finding]
     links: list[str]
     joints: list[str]
+
+    def mjcf(self) -> dict[str, bytes]:
+        """``NAME.xml`` with its ``.msh`` meshes and PNG textures, built and compiled by the MJCF builder.
+
+        Raises:
+            ModelError: No builder is installed, or MuJoCo refuses the model.
+        """
+        return mjcf_files(self.model)
 
 
 def import_urdf(path: Path, options: UrdfOptions | None = None) -> UrdfImport:
     """Import the robot in ``path``.
 
     Raises:
-        UrdfError: The XML is invalid, a mesh is missing or outside the allowed folders, a scale is not
-            uniform and positive, or a joint type has no MuJoCo equivalent.
+        UrdfError: The XML is invalid, a mesh is missing or outside the allowed folders, a scale is zero,
+            or a joint type has no MuJoCo equivalent.
         MeshtoolError: A mesh itself cannot be normalised (its own error, naming the mesh file).
     """
     import yourdfpy
 
     options = options or UrdfOptions()
-    resolver = Resolver(path.parent)
-    text = resolver.read_source(path).decode("utf-8", errors="replace")
+    data = Resolver(path.parent).read_source(path)
+    text = data.decode("utf-8", errors="replace")
     try:
-        robot = yourdfpy.URDF.load(io.StringIO(text), build_scene_graph=False, load_meshes=False).robot
+        # Bytes, not text: lxml refuses a str that carries an encoding declaration (what xacro writes).
+        robot = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False).robot
     except Exception as exc:  # yourdfpy raises lxml and ValueError variants for malformed files
         raise UrdfError(f"not a valid URDF: {str(exc).splitlines()[0]}", path=str(path)) from None
-    builder = _Builder(path, text, options)
-    return builder.build(robot)
+    return _Builder(path, text, options).build(robot)
 
 
 def write_import(result: UrdfImport, out_dir: Path) -> list[Path]:
-    """Write the MJCF, its meshes and textures, and ``meshes/*.mbin`` under ``out_dir`` atomically."""
+    """Write the MJCF (compiled first), its meshes and textures, and ``meshes/*.mbin`` under ``out_dir``.
+
+    Raises:
+        ModelError: No MJCF builder is installed, or MuJoCo refuses the model (nothing is written).
+    """
+    files = result.mjcf()
     written = []
-    for name, data in sorted({**result.mjcf, **result.mbins}.items()):
+    for name, data in sorted({**files, **result.mbins}.items()):
         target = out_dir / name
         write_file(target, data)
         written.append(target)
@@ -119,17 +142,18 @@ class _Builder:
         self.path, self.text, self.options = path, text, options
         self.urdf_dir = Path(path).resolve().parent
         self.packages = {name: Path(folder).resolve() for name, folder in options.package_dirs}
-        self.meshes: dict[tuple[str, float], tuple[str, Any]] = {}
+        self.meshes: dict[tuple[str, tuple[float, float, float]], LoadedMesh] = {}
         self.used: dict[str, set[str]] = {}
-        self.mbins: dict[str, bytes] = {}
         self.findings: list[Finding] = []
-        self.names: set[str] = set()
-        self.primitive_count = 0
+        self.prefixes: set[str] = set()
+        self.materials: dict[str, Any] = {}
+        self.excludes: list[tuple[str, str]] = []
 
     # -- structure ------------------------------------------------------------------------------------
 
     def build(self, robot: Any) -> UrdfImport:
         name = safe_identifier(robot.name or self.path.stem, "robot")
+        self.materials = {m.name: m for m in (robot.materials or []) if m.name}
         links = {link.name: link for link in robot.links}
         children = {j.child for j in robot.joints}
         roots = [n for n in links if n not in children]
@@ -141,33 +165,28 @@ class _Builder:
                 missing = joint.parent if joint.parent not in links else joint.child
                 raise UrdfError(f"joint {joint.name!r} names unknown link {missing!r}", **self._where(joint.name))
             by_parent.setdefault(joint.parent, []).append(joint)
-        body_lines: list[str] = []
+        model = ModelDesc(name, inertia_from_geoms=False)
         order: list[str] = []
         moving: list[Any] = []
-        self._body(links, by_parent, links[roots[0]], None, 2, body_lines, order, moving)
-        extras = self._equalities(robot.joints) + self._actuators(moving)
-        files, assets = self._used_assets()
-        xml = "\n".join(
-            [
-                f'<mujoco model="{name}">',
-                '  <compiler angle="radian" meshdir="." texturedir="." autolimits="true"/>',
-                "  <default>",
-                '    <default class="visual"><geom group="2" contype="0" conaffinity="0" mass="0"/></default>',
-                '    <default class="collision"><geom group="3"/></default>',
-                "  </default>",
-                "  <asset>",
-                *(f"    {a}" for a in assets),
-                "  </asset>",
-                "  <worldbody>",
-                *body_lines,
-                "  </worldbody>",
-                *extras,
-                "</mujoco>",
-                "",
-            ]
-        )
-        files[f"{name}.xml"] = xml.encode("utf-8")
-        return UrdfImport(name, files, dict(self.mbins), self.findings, order, [j.name for j in moving])
+        root = links[roots[0]]
+        if root.name == WORLD:
+            # The world link is MuJoCo's world body: its geoms are fixed to the world, its children top level.
+            if root.inertial is not None and root.inertial.mass:
+                self.findings.append(
+                    warning("urdf-world-mass", "the world link's inertial is ignored", **self._at(WORLD))
+                )
+            model.world_geoms = self._geoms_of(root)
+            for joint in by_parent.get(root.name, []):
+                model.bodies.append(self._body(links, by_parent, links[joint.child], joint, order, moving))
+        else:
+            model.bodies.append(self._body(links, by_parent, root, None, order, moving))
+        model.excludes = self.excludes
+        model.couplings = self._couplings(robot.joints, {j.name for j in moving})
+        model.motors = self._motors(moving)
+        self._assets(model)
+        model.where = self._locations(links, robot.joints)
+        mbins = {f"meshes/{m.prefix}.mbin": m.mbin for m in self.meshes.values()}
+        return UrdfImport(name, model, mbins, self.findings, order, [j.name for j in moving])
 
     def _body(
         self,
@@ -175,189 +194,220 @@ class _Builder:
         by_parent: dict[str, list[Any]],
         link: Any,
         joint: Any,
-        depth: int,
-        out: list[str],
         order: list[str],
         moving: list[Any],
-    ) -> None:
-        pad = " " * depth
-        pose = _pose(joint.origin) if joint is not None else ""
-        out.append(f"{pad}<body name={quoteattr(link.name)}{pose}>")
+    ) -> BodyDesc:
+        pos, quat = _pose(joint.origin if joint is not None else None)
+        body_name = link.name if link.name != WORLD else "world_link"
+        body = BodyDesc(body_name, pos, quat)
         order.append(link.name)
-        inner = pad + "  "
-        if joint is None:
-            if self.options.free_base:
-                out.append(f"{inner}<freejoint name={quoteattr(link.name + '_free')}/>")
+        if joint is None or joint.type == "floating":
+            if joint is not None and joint.parent != WORLD:
+                raise UrdfError(
+                    f"joint {joint.name!r} of type 'floating' is only supported from the world link",
+                    **self._where(joint.name),
+                    hint="use --free-base for a floating root, or split the robot",
+                )
+            body.free = self.options.free_base or joint is not None
         else:
-            line = self._joint(joint)
-            if line:
-                out.append(inner + line)
+            described = self._joint(joint)
+            if described is not None:
+                body.joints.append(described)
                 moving.append(joint)
-        if link.inertial is not None and link.inertial.mass and link.inertial.mass > 0:
-            out.append(inner + _inertial(link.inertial))
-        for kind, items in (("visual", link.visuals), ("collision", link.collisions)):
-            for item in items:
-                out.extend(inner + g for g in self._geoms(kind, item, link.name))
+        body.inertial = self._inertial(link)
+        body.geoms = self._geoms_of(link)
         for child in by_parent.get(link.name, []):
-            self._body(links, by_parent, links[child.child], child, depth + 2, out, order, moving)
-        out.append(f"{pad}</body>")
+            body.children.append(self._body(links, by_parent, links[child.child], child, order, moving))
+            self.excludes.append((body_name, body.children[-1].name))
+        return body
 
-    def _joint(self, joint: Any) -> str:
+    def _joint(self, joint: Any) -> JointDesc | None:
         kind = joint.type
         if kind == "fixed":
-            return ""
-        if kind in ("floating", "planar"):
+            return None
+        if kind == "planar":
             raise UrdfError(
-                f"joint {joint.name!r} of type {kind!r} is not supported inside a robot",
+                f"joint {joint.name!r} of type 'planar' is not supported",
                 **self._where(joint.name),
-                hint="use --free-base for a floating root, or split the robot",
+                hint="replace it by two prismatic joints and a revolute one",
             )
-        mj_type = "slide" if kind == "prismatic" else "hinge"
         axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
-        attrs = [f"name={quoteattr(joint.name)}", f'type="{mj_type}"', f'axis="{_vec(axis)}"']
+        if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
+            raise UrdfError(f"joint {joint.name!r} has a zero axis", **self._where(joint.name))
+        described = JointDesc(joint.name, "slide" if kind == "prismatic" else "hinge", _vec3(axis))
         limit = joint.limit
         if kind in ("revolute", "prismatic") and limit is not None and limit.lower is not None:
-            upper = limit.upper if limit.upper is not None else limit.lower
-            attrs.append(f'range="{_num(limit.lower)} {_num(upper)}"')
+            lower, upper = float(limit.lower), float(limit.upper if limit.upper is not None else limit.lower)
+            if lower < upper:
+                described.range = (lower, upper)
+            else:  # exporters write lower = upper = 0 for "not set"; MuJoCo refuses an empty range
+                self.findings.append(
+                    warning(
+                        "urdf-empty-range",
+                        f"joint {joint.name!r}: limits [{lower:g}, {upper:g}] leave no motion; imported unlimited",
+                        **self._at(joint.name),
+                    )
+                )
         if limit is not None and limit.effort:
-            attrs.append(f'actuatorfrcrange="{_num(-limit.effort)} {_num(limit.effort)}"')
+            described.actuator_force_range = (-abs(float(limit.effort)), abs(float(limit.effort)))
         if joint.dynamics is not None:
-            if joint.dynamics.damping:
-                attrs.append(f'damping="{_num(joint.dynamics.damping)}"')
-            if joint.dynamics.friction:
-                attrs.append(f'frictionloss="{_num(joint.dynamics.friction)}"')
-        return f"<joint {' '.join(attrs)}/>"
+            described.damping = float(joint.dynamics.damping or 0.0)
+            described.frictionloss = float(joint.dynamics.friction or 0.0)
+        return described
 
-    def _equalities(self, joints: list[Any]) -> list[str]:
-        lines = []
+    def _inertial(self, link: Any) -> InertialDesc | None:
+        """Principal moments and axes of the link's inertial; ``None`` when massless."""
+        inertial = link.inertial
+        if inertial is None or inertial.mass is None or not float(inertial.mass) > 0:
+            return None
+        tensor = np.asarray(inertial.inertia if inertial.inertia is not None else np.zeros((3, 3)), dtype=float)
+        tensor = (tensor + tensor.T) / 2
+        origin = np.asarray(inertial.origin if inertial.origin is not None else np.eye(4), dtype=float)
+        moments, axes = np.linalg.eigh(tensor)
+        if np.linalg.det(axes) < 0:
+            axes[:, 2] *= -1
+        balanced, changed = balance_inertia(moments)
+        if changed:
+            self.findings.append(
+                warning(
+                    "urdf-inertia-fixed",
+                    f"link {link.name!r}: principal moments {_fmt(moments)} kg m^2 are not physical "
+                    f"(MuJoCo needs all > 0 and A + B >= C); replaced by {_fmt(balanced)} as balanceinertia does",
+                    **self._at(link.name),
+                )
+            )
+        rotation = origin[:3, :3] @ axes
+        return InertialDesc(float(inertial.mass), _vec3(origin[:3, 3]), _quat(rotation), _vec3(balanced))
+
+    def _couplings(self, joints: list[Any], moving: set[str]) -> list[JointCouplingDesc]:
+        couplings = []
         for joint in joints:
             mimic = joint.mimic
             if mimic is None:
                 continue
-            offset, multiplier = (
-                float(mimic.offset or 0.0),
-                float(mimic.multiplier if mimic.multiplier is not None else 1.0),
-            )
-            lines.append(
-                f"    <joint joint1={quoteattr(joint.name)} joint2={quoteattr(mimic.joint)} "
-                f'polycoef="{_num(offset)} {_num(multiplier)} 0 0 0"/>'
-            )
-        return ["  <equality>", *lines, "  </equality>"] if lines else []
+            if mimic.joint not in moving or joint.name not in moving:
+                raise UrdfError(
+                    f"joint {joint.name!r} mimics {mimic.joint!r}, which is not a moving joint",
+                    **self._where(joint.name),
+                )
+            offset = float(mimic.offset or 0.0)
+            multiplier = float(mimic.multiplier if mimic.multiplier is not None else 1.0)
+            couplings.append(JointCouplingDesc(joint.name, mimic.joint, offset, multiplier))
+        return couplings
 
-    def _actuators(self, moving: list[Any]) -> list[str]:
+    def _motors(self, moving: list[Any]) -> list[MotorDesc]:
         if not self.options.actuators:
             return []
-        lines = []
+        motors = []
         for joint in moving:
-            effort = float(joint.limit.effort) if joint.limit is not None and joint.limit.effort else 0.0
-            limits = f' ctrlrange="{_num(-effort)} {_num(effort)}"' if effort > 0 else ""
-            lines.append(f"    <motor name={quoteattr(joint.name)} joint={quoteattr(joint.name)}{limits}/>")
-        return ["  <actuator>", *lines, "  </actuator>"] if lines else []
+            effort = abs(float(joint.limit.effort)) if joint.limit is not None and joint.limit.effort else 0.0
+            motors.append(MotorDesc(joint.name, joint.name, (-effort, effort) if effort > 0 else None))
+        return motors
+
+    def _locations(self, links: dict[str, Any], joints: list[Any]) -> dict[str, tuple[str, int | None]]:
+        where: dict[str, tuple[str, int | None]] = {}
+        for name in [*links, *(j.name for j in joints)]:
+            found = self._where(name)
+            where[name] = (str(self.path), found.get("line"))
+        return where
 
     # -- geometry -------------------------------------------------------------------------------------
 
-    def _geoms(self, kind: str, item: Any, link: str) -> list[str]:
-        pose = _pose(item.origin)
+    def _geoms_of(self, link: Any) -> list[GeomDesc]:
+        geoms: list[GeomDesc] = []
+        for item in link.visuals:
+            geoms += self._geoms("visual", item, link.name)
+        for item in link.collisions:
+            geoms += self._geoms("collision", item, link.name)
+        return geoms
+
+    def _geoms(self, role: Literal["visual", "collision"], item: Any, link: str) -> list[GeomDesc]:
+        pos, quat = _pose(item.origin)
         geometry = item.geometry
-        cls = f'class="{kind}"'
-        rgba = ""
-        material = getattr(item, "material", None)
-        if material is not None and material.color is not None and material.color.rgba is not None:
-            rgba = f' rgba="{_vec(material.color.rgba)}"'
+        rgba = self._rgba(getattr(item, "material", None)) if role == "visual" else None
+        common: dict[str, Any] = {"pos": pos, "quat": quat, "contributes_mass": False}
         if geometry.box is not None:
-            return [f'<geom {cls} type="box" size="{_vec(np.asarray(geometry.box.size) / 2)}"{pose}{rgba}/>']
+            size = tuple(float(v) / 2 for v in np.asarray(geometry.box.size, dtype=float))
+            return [GeomDesc(role, "box", size, rgba=rgba, **common)]
         if geometry.cylinder is not None:
             c = geometry.cylinder
-            return [f'<geom {cls} type="cylinder" size="{_num(c.radius)} {_num(c.length / 2)}"{pose}{rgba}/>']
+            return [GeomDesc(role, "cylinder", (float(c.radius), float(c.length) / 2), rgba=rgba, **common)]
         if geometry.sphere is not None:
-            return [f'<geom {cls} type="sphere" size="{_num(geometry.sphere.radius)}"{pose}{rgba}/>']
+            return [GeomDesc(role, "sphere", (float(geometry.sphere.radius),), rgba=rgba, **common)]
         if geometry.mesh is None:
-            raise UrdfError(f"a {kind} of link {link!r} has no geometry", **self._where(link))
-        prefix, fragment = self._mesh(geometry.mesh, link)
-        self.used[prefix].add(kind)
-        geoms = fragment.visual if kind == "visual" else fragment.collision
-        if not geoms:
-            raise UrdfError(f"{kind} mesh {geometry.mesh.filename!r} gave no geoms", **self._where(link))
-        if kind == "visual" and rgba and not any("material=" in g for g in geoms):
-            return [f"<geom {g}{pose}{rgba}/>" for g in geoms]
-        return [f"<geom {g}{pose}/>" for g in geoms]
+            raise UrdfError(f"a {role} of link {link!r} has no geometry", **self._where(link))
+        loaded = self._mesh(geometry.mesh)
+        self.used[loaded.prefix].add(role)
+        parts = loaded.parts.visual if role == "visual" else loaded.parts.collision
+        if not parts:
+            raise UrdfError(f"{role} mesh {geometry.mesh.filename!r} gave no geoms", **self._where(link))
+        out = []
+        for part in parts:
+            material = part.material if (loaded.own_materials or rgba is None) else None
+            out.append(
+                GeomDesc(role, "mesh", mesh=part.mesh, material=material, rgba=None if material else rgba, **common)
+            )
+        return out
 
-    def _used_assets(self) -> tuple[dict[str, bytes], list[str]]:
-        """The files and asset elements of the mesh roles used: visual parts, collision hulls, or both."""
-        files: dict[str, bytes] = {}
-        assets: list[str] = []
-        for prefix, fragment in self.meshes.values():
-            roles = self.used[prefix]
-            for element in fragment.assets:
-                is_hull = f'name="{prefix}_collision_' in element
-                if ("collision" in roles and is_hull) or ("visual" in roles and not is_hull):
-                    assets.append(element)
-            for name, data in fragment.files.items():
-                is_hull = name.startswith(f"{prefix}_collision_")
-                if ("collision" in roles and is_hull) or ("visual" in roles and not is_hull):
-                    files[name] = data
-        return files, assets
+    def _rgba(self, material: Any) -> tuple[float, float, float, float] | None:
+        if material is None:
+            return None
+        color = material.color
+        if color is None and material.name in self.materials:
+            color = self.materials[material.name].color
+        if color is None or color.rgba is None:
+            return None
+        r, g, b, a = (float(v) for v in np.asarray(color.rgba, dtype=float))
+        return (r, g, b, a)
 
-    def _mesh(self, mesh: Any, link: str) -> tuple[str, Any]:
+    def _assets(self, model: ModelDesc) -> None:
+        """The model assets of the mesh roles used: visual parts, collision hulls, or both."""
+        for loaded in self.meshes.values():
+            roles = self.used[loaded.prefix]
+            hulls = {g.mesh for g in loaded.parts.collision}
+            for mesh in loaded.parts.meshes:
+                if ("collision" in roles and mesh.name in hulls) or ("visual" in roles and mesh.name not in hulls):
+                    model.meshes.append(mesh)
+            if "visual" in roles:
+                model.materials += loaded.parts.materials
+                model.textures += loaded.parts.textures
+
+    def _mesh(self, mesh: Any) -> LoadedMesh:
         ref = str(mesh.filename)
-        scale = _uniform_scale(mesh.scale)
+        scale = parse_scale(mesh.scale)
         if scale is None:
             raise UrdfError(
-                f"mesh {ref!r} has scale {mesh.scale!r}; only a uniform positive scale is supported",
+                f"mesh {ref!r} has scale {_fmt(mesh.scale)}; a scale must be finite and not zero",
                 **self._where(ref),
-                hint="scale the mesh file itself",
+                hint="fix the scale attribute",
             )
         found, root = self._locate(ref)
         key = (str(found), scale)
-        if key in self.meshes:
-            return self.meshes[key]
-        stem = safe_file_stem(found.stem) or "mesh"
-        prefix = safe_identifier(stem, "mesh")
-        while prefix in self.names:
-            prefix += "_"
-        self.names.add(prefix)
-        normalise = NormaliseOptions(up="z", scale=scale, name=stem, search_paths=(root,))
-        hull_options = self.options.hulls
-        is_obj = found.suffix.lower() == ".obj"
-        asset = prepare(found, normalise) if is_obj else self._foreign(found, root, normalise)
-        hull_set = compute_hulls(asset.mesh, hull_options, found.name)
-        report = quality(asset.mesh, hull_set.hulls) if hull_set.hulls else None
-        self.findings += [*asset.findings, *hull_set.findings]
-        data = pack(asset, False, {"urdf_scale": scale, "hulls": hull_options.fingerprint()}, hull_set.hulls, report)
-        self.mbins[f"meshes/{prefix}.mbin"] = data
-        fragment = mesh_fragment(parse(data, f"{prefix}.mbin"), prefix, hull_options.max_hull_vertices)
-        self.meshes[key] = (prefix, fragment)
-        self.used[prefix] = set()
-        return prefix, fragment
-
-    def _foreign(self, found: Path, root: Path, normalise: NormaliseOptions) -> Any:
-        """STL/PLY/DAE/OFF/GLB through trimesh, handed to the normaliser as an OBJ in a scratch folder."""
-        data = Resolver(root).read(found)
-        try:
-            loaded = trimesh.load(io.BytesIO(data), file_type=found.suffix.lower()[1:], force="mesh", process=False)
-        except Exception as exc:  # trimesh raises many types for unreadable files
-            raise UrdfError(f"trimesh cannot read it: {exc}", path=str(found)) from None
-        if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-            raise UrdfError("has no triangles", path=str(found))
-        text = trimesh.exchange.obj.export_obj(loaded, include_normals=False, include_texture=False)  # type: ignore[no-untyped-call]
-        with tempfile.TemporaryDirectory(prefix="meshtool-urdf-") as tmp:
-            scratch = Path(tmp) / f"{normalise.name}.obj"
-            write_file(scratch, str(text).encode("utf-8"))
-            return prepare(scratch, normalise)
+        if key not in self.meshes:
+            prefix = mesh_prefix(found, self.prefixes)
+            loaded, findings = load_mesh(found, root, scale, prefix, self.options.hulls)
+            self.findings += findings
+            self.meshes[key] = loaded
+            self.used[prefix] = set()
+        return self.meshes[key]
 
     def _locate(self, ref: str) -> tuple[Path, Path]:
         """The mesh file and the folder it may reference files in (its package, or the URDF's folder)."""
         text = ref.strip()
         if text.startswith("package://"):
             package, _, rest = text[len("package://") :].partition("/")
-            root = self.packages.get(package) or find_package_dir(self.urdf_dir, package)
-            if root is None:
-                raise UrdfError(
-                    f"package {package!r} of mesh {ref!r} not found",
-                    **self._where(ref),
-                    hint=f"pass --package-dir {package}=FOLDER",
-                )
-            candidate = root / rest
+            if not package:  # package:///path: the robot's own package
+                root = self._package_root()
+            else:
+                found_root = self.packages.get(package) or find_package_dir(self.urdf_dir, package)
+                if found_root is None:
+                    raise UrdfError(
+                        f"package {package!r} of mesh {ref!r} not found",
+                        **self._where(ref),
+                        hint=f"pass --package-dir {package}=FOLDER",
+                    )
+                root = found_root
+            candidate = root / rest.lstrip("/")
         else:
             if text.startswith("file://"):
                 text = text[len("file://") :]
@@ -389,50 +439,41 @@ class _Builder:
                 return {"path": str(self.path), "line": number}
         return {"path": str(self.path)}
 
-
-def _uniform_scale(scale: Any) -> float | None:
-    if scale is None:
-        return 1.0
-    values = np.atleast_1d(np.asarray(scale, dtype=float))
-    if values.size not in (1, 3) or not np.all(values > 0) or not np.all(np.isfinite(values)):
-        return None
-    if np.ptp(values) > 1e-12 * float(np.max(values)):
-        return None
-    return float(values[0])
+    def _at(self, name: str) -> dict[str, Any]:
+        """``path`` and ``line`` of the element whose ``name="..."`` is ``name`` (for findings)."""
+        for quote in ('"', "'"):
+            found = self._where(f"name={quote}{name}{quote}")
+            if "line" in found:
+                return found
+        return self._where(name)
 
 
-def _pose(matrix: Any) -> str:
-    """``pos``/``quat`` attributes (wxyz, w >= 0) of a 4x4 homogeneous transform; empty for identity."""
+def _pose(matrix: Any) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
+    """Position and quaternion (wxyz, w >= 0) of a 4x4 homogeneous transform (identity for ``None``)."""
     if matrix is None:
-        return ""
+        return (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)
     m = np.asarray(matrix, dtype=float)
-    pos = m[:3, 3]
+    return _vec3(m[:3, 3]), _quat(m[:3, :3])
+
+
+def _quat(rotation: Any) -> tuple[float, float, float, float]:
+    m = np.eye(4)
+    m[:3, :3] = rotation
     raw = trimesh.transformations.quaternion_from_matrix(m)  # type: ignore[no-untyped-call]
-    quat: npt.NDArray[np.float64] = np.array(raw, dtype=np.float64)
-    if quat[0] < 0:
-        quat = quat * -1.0
-    text = ""
-    if np.any(pos != 0):
-        text += f' pos="{_vec(pos)}"'
-    if not np.allclose(quat, (1.0, 0.0, 0.0, 0.0), rtol=0.0, atol=1e-15):
-        text += f' quat="{_vec(quat)}"'
-    return text
+    q: npt.NDArray[np.float64] = np.array(raw, dtype=np.float64)
+    if q[0] < 0:
+        q = -q
+    q /= np.linalg.norm(q)
+    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
 
 
-def _inertial(inertial: Any) -> str:
-    i = np.asarray(inertial.inertia, dtype=float)
-    full = (i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2])
-    pose = _pose(inertial.origin) or ' pos="0 0 0"'
-    return f'<inertial mass="{_num(inertial.mass)}" fullinertia="{_vec(full)}"{pose}/>'
+def _vec3(values: Any) -> tuple[float, float, float]:
+    v = np.asarray(values, dtype=float).ravel()
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
-def _vec(values: Any) -> str:
-    return " ".join(_num(float(v)) for v in np.asarray(values, dtype=float).ravel())
-
-
-def _num(value: float) -> str:
-    text = repr(float(value))
-    return text[:-2] if text.endswith(".0") else text
+def _fmt(values: Any) -> str:
+    return "(" + ", ".join(f"{float(v):.6g}" for v in np.atleast_1d(np.asarray(values, dtype=float))) + ")"
 
 
 __all__ = ["MESH_TYPES", "UrdfError", "UrdfImport", "UrdfOptions", "import_urdf", "write_import"]

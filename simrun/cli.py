@@ -20,7 +20,8 @@ from simrun.archive import save_mjz
 from simrun.doctor import check_environment
 from simrun.errors import SimrunError
 from simrun.glb_export import export_world_glb
-from simrun.outfile import write_bytes, write_text
+from simrun.mjcf_builder import export_world_mjcf
+from simrun.outfile import write_bytes
 from simrun.play import PythonController, encode_gif, encode_mp4, load_commands, play
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
@@ -69,7 +70,12 @@ def check(scene: Path, seconds: float) -> None:
 
 @main.command("export")
 @click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--mjcf", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write MJCF XML.")
+@click.option(
+    "--mjcf",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="Write MJCF XML with its .msh meshes and PNG textures beside it (a folder that loads on its own).",
+)
 @click.option(
     "--mjz",
     type=click.Path(path_type=Path, dir_okay=False),
@@ -88,16 +94,19 @@ def check(scene: Path, seconds: float) -> None:
     default=None,
     help="Write a GLB (Y-up, metres, colours) for web viewers.",
 )
-def export(scene: Path, mjcf: Path | None, mjz: Path | None, usd: Path | None, glb: Path | None) -> None:
-    """Export SCENE as MJCF (assets embedded from memory), a compiled binary model, USD and/or GLB."""
+@click.option("--glb-collision", is_flag=True, help="Also put the collision geoms in the GLB, as hidden nodes.")
+def export(
+    scene: Path, mjcf: Path | None, mjz: Path | None, usd: Path | None, glb: Path | None, glb_collision: bool
+) -> None:
+    """Export SCENE as MJCF (a self-contained folder), a compiled binary model, USD and/or GLB."""
     if mjcf is None and mjz is None and usd is None and glb is None:
         raise click.UsageError("give --mjcf, --mjz, --usd and/or --glb")
     with _guard():
         world = load_scene(scene)
         world.compile()
         if mjcf is not None:
-            write_text(mjcf, world.spec.to_xml())
-            click.echo(f"wrote {mjcf}")
+            written = export_world_mjcf(world, mjcf)
+            click.echo(f"wrote {mjcf} and {len(written) - 1} mesh and texture file(s) beside it")
         if mjz is not None:
             save_mjz(world, mjz)
             click.echo(f"wrote {mjz}")
@@ -105,7 +114,7 @@ def export(scene: Path, mjcf: Path | None, mjz: Path | None, usd: Path | None, g
             export_world_usd(world, usd)
             click.echo(f"wrote {usd}")
         if glb is not None:
-            export_world_glb(world, glb)
+            export_world_glb(world, glb, collision=glb_collision)
             click.echo(f"wrote {glb}")
 
 

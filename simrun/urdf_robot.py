@@ -1,26 +1,26 @@
 """UrdfRobot: a URDF robot in a world, its meshes through meshtool's normalise -> hulls -> pack path.
 
 The robot is imported with :func:`meshtool.urdf.import_urdf` (package:// paths, mm meshes, JPG textures
-and all), its MJCF parsed into a child spec from memory and attached under the entity's body with the
-``NAME/`` prefix: ``arm/shoulder`` is the joint ``shoulder`` of the entity ``arm``. The root link sits at
-the entity's pose; ``free=True`` makes it a mobile robot.
+and all) into a model description, built into a child spec by :func:`simrun.mjcf_builder.spec_from_model`
+(meshes from arrays, PNG textures in the world's virtual file system under names unique to the entity)
+and attached under the entity's body with the ``NAME/`` prefix: ``arm/shoulder`` is the joint
+``shoulder`` of the entity ``arm``. The root link sits at the entity's pose; ``free=True`` makes it a
+mobile robot. A URDF ``world`` link becomes a body ``NAME/world`` fixed to the entity's body.
 """
 
 from __future__ import annotations
 
-import re
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-import mujoco
-
 from meshtool.errors import MeshtoolError
 from meshtool.hulls import HullOptions
+from meshtool.model import BodyDesc
 from meshtool.urdf import UrdfOptions, import_urdf
 from simrun.entity import BuildContext, Entity
 from simrun.errors import EntityError
-
-_FILE_ATTR = re.compile(r'file="([^"]+)"')
+from simrun.mjcf_builder import compile_spec, spec_from_model
 
 
 @dataclass(kw_only=True)
@@ -50,18 +50,16 @@ class UrdfRobot(Entity):
         options = UrdfOptions(packages, HullOptions(mode=self.hulls), self.actuators)
         try:
             result = import_urdf(ctx.base_dir / self.urdf, options)
+            model = result.model
+            if model.world_geoms:  # a URDF 'world' link: a body fixed to the entity's body, named 'world'
+                world = BodyDesc("world", geoms=model.world_geoms, children=model.bodies)
+                model = dataclasses.replace(model, world_geoms=[], bodies=[world])
+            tag = "".join(c if c.isalnum() else "_" for c in ctx.full_name)
+            child, files = spec_from_model(model, texture_prefix=f"urdf_{tag}_")
+            compile_spec(child, model)
         except MeshtoolError as exc:
             raise EntityError(f"UrdfRobot {self.name!r}: {exc.one_line()}") from None
-        xml_name = f"{result.name}.xml"
-        tag = "".join(c if c.isalnum() else "_" for c in ctx.full_name)
-        renamed = {name: f"urdf_{tag}_{name}" for name in result.mjcf if name != xml_name}
-        xml = _FILE_ATTR.sub(lambda m: f'file="{renamed.get(m.group(1), m.group(1))}"', result.mjcf[xml_name].decode())
-        files = {renamed[name]: data for name, data in result.mjcf.items() if name in renamed}
-        try:
-            child = mujoco.MjSpec.from_string(xml, assets=files)
-        except ValueError as exc:
-            raise EntityError(f"UrdfRobot {self.name!r}: MuJoCo rejects the imported robot: {exc}") from None
-        root = child.worldbody.first_body()
         frame = body.add_frame()
-        frame.attach_body(root, f"{ctx.full_name}/", "")
+        for root in child.worldbody.bodies:
+            frame.attach_body(root, f"{ctx.full_name}/", "")
         ctx.assets.vfs.update(files)

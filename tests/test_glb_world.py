@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import io
+import json
+import struct
 from pathlib import Path
 
 import mujoco
@@ -31,10 +33,10 @@ def test_every_geom_is_a_named_node_in_its_world_pose() -> None:
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     scene = trimesh.load(io.BytesIO(world_to_glb(world)), file_type="glb")
-    names = {model.geom(g).name for g in range(model.ngeom)}
-    assert set(scene.graph.nodes_geometry) == names
+    shown = [g for g in range(model.ngeom) if model.geom_group[g] < 3]  # collision geoms are not drawn
+    assert set(scene.graph.nodes_geometry) == {model.geom(g).name for g in shown}
     back = np.linalg.inv(Z_UP_TO_Y_UP)
-    for g in range(model.ngeom):
+    for g in shown:
         name = model.geom(g).name
         transform, geometry = scene.graph[name]
         pose = back @ transform
@@ -46,6 +48,40 @@ def test_every_geom_is_a_named_node_in_its_world_pose() -> None:
             mesh_id = int(model.geom_dataid[g])
             assert len(scene.geometry[geometry].faces) == int(model.mesh_facenum[mesh_id])
             assert len(scene.geometry[geometry].vertices) == int(model.mesh_vertnum[mesh_id])
+
+
+def test_collision_geoms_are_left_out_by_default_and_hidden_on_request() -> None:
+    world = _world("head_on_table.toml")
+    model = world.model
+    visible = {model.geom(g).name for g in range(model.ngeom) if model.geom_group[g] < 3}
+    hulls = {model.geom(g).name for g in range(model.ngeom) if model.geom_group[g] >= 3}
+    assert visible and hulls
+    plain = trimesh.load(io.BytesIO(world_to_glb(world)), file_type="glb")
+    assert set(plain.graph.nodes_geometry) == visible
+    tree = _gltf_json(world_to_glb(world, collision=True))
+    scenes = tree["scenes"]
+    assert tree["scene"] == 0 and [s["name"] for s in scenes] == ["visual", "visual+collision"]
+    collision = next(i for i, n in enumerate(tree["nodes"]) if n["name"] == "collision")
+    assert collision not in _reachable(tree, scenes[0]["nodes"])
+    assert {tree["nodes"][i]["name"] for i in tree["nodes"][collision]["children"]} == {f"collision/{n}" for n in hulls}
+    shown = {tree["nodes"][i].get("name") for i in _reachable(tree, scenes[1]["nodes"])}
+    assert visible | {f"collision/{n}" for n in hulls} <= shown
+
+
+def _gltf_json(glb: bytes) -> dict:  # type: ignore[type-arg]
+    length = struct.unpack_from("<I", glb, 12)[0]
+    document: dict = json.loads(glb[20 : 20 + length])  # type: ignore[type-arg]
+    return document
+
+
+def _reachable(tree: dict, roots: list[int]) -> set[int]:  # type: ignore[type-arg]
+    seen: set[int] = set()
+    stack = list(roots)
+    while stack:
+        node = stack.pop()
+        seen.add(node)
+        stack.extend(tree["nodes"][node].get("children", []))
+    return seen
 
 
 def test_cli_writes_byte_identical_glb(tmp_path: Path) -> None:

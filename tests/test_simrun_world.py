@@ -238,7 +238,7 @@ def test_export_mjcf_and_mjz_reload_bit_identically(tmp_path):
         mujoco.mj_step(reloaded, data)
     world.step(500)
     assert world.data.qpos.tobytes() == data.qpos.tobytes()
-    xml_model = mujoco.MjModel.from_xml_string((tmp_path / "w.xml").read_text(), world.spec.assets)
+    xml_model = mujoco.MjModel.from_xml_path(str(tmp_path / "w.xml"))  # meshes and textures beside it
     assert (xml_model.nbody, xml_model.nmesh, xml_model.ntex) == (
         world.model.nbody,
         world.model.nmesh,

@@ -92,7 +92,7 @@ def test_the_model_steps_cleanly(imported: tuple[Path, mujoco.MjModel]) -> None:
 
 def test_import_is_deterministic() -> None:
     a, b = import_urdf(ARM), import_urdf(ARM)
-    assert a.mjcf == b.mjcf and a.mbins == b.mbins
+    assert a.mjcf() == b.mjcf() and a.mbins == b.mbins
 
 
 def test_missing_mesh_names_the_urdf_line(tmp_path: Path) -> None:
@@ -141,7 +141,7 @@ def test_collada_meshes_go_through_trimesh(tmp_path: Path) -> None:
     package = tmp_path / "dae_robot"
     (package / "meshes").mkdir(parents=True)
     box = trimesh.creation.box(extents=(40.0, 60.0, 80.0))  # millimetres
-    (package / "meshes" / "block.dae").write_bytes(trimesh.exchange.dae.export_collada(box))
+    (package / "meshes" / "block.dae").write_bytes(trimesh.exchange.dae.export_collada(box))  # type: ignore[no-untyped-call]
     (package / "urdf").mkdir()
     (package / "urdf" / "r.urdf").write_text(
         '<robot name="r"><link name="base"><visual><geometry>'

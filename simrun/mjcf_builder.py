@@ -1,0 +1,358 @@
+"""The one MJCF builder: a :class:`meshtool.model.ModelDesc` or a world's spec to a compiled MJCF folder.
+
+Everything MJCF that meshtool or simrun writes goes through here, on ``mujoco.MjSpec``:
+
+- :func:`spec_from_model` turns meshtool's neutral description into a spec (meshes from arrays, PNG
+  textures in the spec's virtual file system, Menagerie's ``visual``/``collision`` default classes);
+- :func:`folder_files` turns any spec into the files of a self-contained folder: the XML, one ``.msh``
+  per mesh (MuJoCo's binary mesh: vertices, normals, texture coordinates, faces) and one PNG per texture,
+  all flat beside the XML and referenced by plain file names, so the folder loads from wherever it is
+  moved; the written folder is compiled again before it is returned, and must give the same model;
+- :func:`build_files` is the ``meshtool.mjcf`` entry point (``meshtool mjcf``, ``meshtool urdf``);
+- :func:`export_world_mjcf` writes a world (``simrun export --mjcf``).
+
+A model MuJoCo refuses raises :class:`meshtool.model.ModelError` with MuJoCo's message and the element
+at fault (with the source file and line when the description knows them).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import functools
+import re
+import struct
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from meshtool.model import GeomDesc, ModelDesc, ModelError
+from simrun.errors import SimrunError
+from simrun.outfile import write_bytes
+
+_ELEMENT = re.compile(r"Element name '([^']*)'(?:, id (\d+))?")
+_UNSAFE = re.compile(r"[^A-Za-z0-9_.-]")
+_GEOM_TYPES = {
+    "mesh": mujoco.mjtGeom.mjGEOM_MESH,
+    "box": mujoco.mjtGeom.mjGEOM_BOX,
+    "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+}
+
+
+def spec_from_model(model: ModelDesc, texture_prefix: str = "") -> tuple[mujoco.MjSpec, dict[str, bytes]]:
+    """A spec of ``model`` and the PNG files its textures name (``texture_prefix + NAME.png``).
+
+    The PNGs are also set as the spec's ``assets``, so the spec compiles as it is.
+    """
+    spec = mujoco.MjSpec()
+    spec.modelname = model.name
+    spec.compiler.degree = False
+    spec.compiler.autolimits = True
+    spec.compiler.inertiafromgeom = (
+        mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO
+        if model.inertia_from_geoms
+        else mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    )
+    visual = spec.add_default("visual", spec.default)
+    visual.geom.group, visual.geom.contype, visual.geom.conaffinity = 2, 0, 0
+    visual.geom.density = 0.0
+    collision = spec.add_default("collision", spec.default)
+    collision.geom.group = 3
+    files: dict[str, bytes] = {}
+    for texture in model.textures:
+        file = f"{texture_prefix}{texture.name}.png"
+        files[file] = texture.png
+        spec.add_texture(name=texture.name, type=mujoco.mjtTexture.mjTEXTURE_2D, file=file)
+    for material in model.materials:
+        mat = spec.add_material(name=material.name, rgba=list(material.rgba))
+        if material.texture is not None:
+            mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = material.texture
+    for mesh in model.meshes:
+        added = spec.add_mesh(name=mesh.name)
+        added.uservert = np.asarray(mesh.vertices, np.float64).ravel()
+        added.userface = np.asarray(mesh.faces, np.int32).ravel()
+        if mesh.normals is not None:
+            added.usernormal = np.asarray(mesh.normals, np.float64).ravel()
+        if mesh.uvs is not None:
+            uv = np.asarray(mesh.uvs, np.float64).copy()
+            uv[:, 1] = 1.0 - uv[:, 1]  # OBJ's v = 0 at the image bottom; MuJoCo's texcoords start at the top
+            added.usertexcoord = uv.ravel()
+        added.inertia = (
+            mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
+            if mesh.inertia == "convex"
+            else mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+        )
+        added.maxhullvert = mesh.max_hull_vertices
+    classes = {"visual": visual, "collision": collision}
+    for geom in model.world_geoms:
+        _add_geom(spec.worldbody, geom, classes)
+    stack = [(spec.worldbody, body) for body in reversed(model.bodies)]
+    while stack:
+        parent, desc = stack.pop()
+        body = parent.add_body(name=desc.name, pos=list(desc.pos), quat=list(desc.quat))
+        if desc.free:
+            body.add_freejoint(name=f"{desc.name}_free")
+        for joint in desc.joints:
+            kind = mujoco.mjtJoint.mjJNT_HINGE if joint.type == "hinge" else mujoco.mjtJoint.mjJNT_SLIDE
+            added_joint = body.add_joint(name=joint.name, type=kind, axis=list(joint.axis))
+            if joint.range is not None:
+                added_joint.range = list(joint.range)
+                added_joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+            added_joint.damping = [joint.damping, 0.0, 0.0]  # MuJoCo 4: linear, quadratic, cubic
+            added_joint.frictionloss = joint.frictionloss
+            if joint.actuator_force_range is not None:
+                added_joint.actfrcrange = list(joint.actuator_force_range)
+                added_joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        if desc.inertial is not None:
+            body.explicitinertial = True
+            body.mass = desc.inertial.mass
+            body.ipos = list(desc.inertial.pos)
+            body.iquat = list(desc.inertial.quat)
+            body.inertia = list(desc.inertial.diaginertia)
+        for geom in desc.geoms:
+            _add_geom(body, geom, classes)
+        stack.extend((body, child) for child in reversed(desc.children))
+    for coupling in model.couplings:
+        equality = spec.add_equality(
+            type=mujoco.mjtEq.mjEQ_JOINT,
+            name1=coupling.joint1,
+            name2=coupling.joint2,
+            objtype=mujoco.mjtObj.mjOBJ_JOINT,
+        )
+        data = np.asarray(equality.data, dtype=np.float64).copy()
+        data[:5] = (coupling.offset, coupling.multiplier, 0.0, 0.0, 0.0)  # polycoef: joint1 = c0 + c1 * joint2
+        equality.data = data
+    for first, second in model.excludes:
+        spec.add_exclude(bodyname1=first, bodyname2=second)
+    for motor in model.motors:
+        actuator = spec.add_actuator(name=motor.name, target=motor.joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        if motor.ctrl_range is not None:
+            actuator.ctrlrange = list(motor.ctrl_range)
+            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    spec.assets = dict(files)
+    return spec, files
+
+
+def _add_geom(body: Any, geom: GeomDesc, classes: dict[str, Any]) -> None:
+    added = body.add_geom(classes[geom.role])
+    added.name = geom.name
+    added.type = _GEOM_TYPES[geom.type]
+    if geom.size:
+        added.size = [*geom.size, *([0.0] * (3 - len(geom.size)))]
+    if geom.mesh is not None:
+        added.meshname = geom.mesh
+    if geom.material is not None:
+        added.material = geom.material
+    if geom.rgba is not None:
+        added.rgba = list(geom.rgba)
+    added.pos, added.quat = list(geom.pos), list(geom.quat)
+    if not geom.contributes_mass:
+        added.density = 0.0
+    elif geom.mass is not None:
+        added.mass = geom.mass
+    elif geom.density is not None:
+        added.density = geom.density
+
+
+def compile_spec(spec: mujoco.MjSpec, model: ModelDesc | None = None) -> mujoco.MjModel:
+    """``spec.compile()``, MuJoCo's refusal as one :class:`ModelError` naming the element at fault."""
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        raise _refusal(str(exc), model) from None
+
+
+def _refusal(text: str, model: ModelDesc | None) -> ModelError:
+    lines = [line.strip() for line in text.replace("Error:", "").splitlines() if line.strip()]
+    message = lines[0] if lines else "unknown error"
+    found = _ELEMENT.search(text)
+    element = found.group(1) if found else ""
+    where = model.where.get(element) if model is not None and element else None
+    detail = f" (element {element!r})" if element else ""
+    return ModelError(
+        f"MuJoCo refuses the model: {message}{detail}",
+        path=where[0] if where else None,
+        line=where[1] if where else None,
+        hint="fix that element in the source",
+    )
+
+
+def folder_files(
+    spec: mujoco.MjSpec, xml_name: str, vfs: dict[str, bytes] | None = None, base_dir: Path | None = None
+) -> dict[str, bytes]:
+    """The files of a self-contained MJCF folder for ``spec``: ``xml_name``, ``*.msh`` and ``*.png``.
+
+    Meshes given as arrays become ``.msh`` files; meshes and textures that name files are copied from
+    ``vfs`` (the spec's in-memory files) or from ``base_dir``. Every file name is made unique (MuJoCo
+    caches meshes by file name). The result is written to a scratch folder and compiled there with
+    ``MjModel.from_xml_path``; it must give the same counts as the spec itself.
+
+    Raises:
+        ModelError: MuJoCo refuses the spec, a referenced file is missing, or the written folder loads
+            differently.
+    """
+    vfs = dict(vfs if vfs is not None else spec.assets)
+    reference = compile_spec(spec)
+    out = spec.copy()
+    files: dict[str, bytes] = {}
+    used = {xml_name.lower()}
+
+    def claim(stem: str, suffix: str) -> str:
+        base = _UNSAFE.sub("_", stem) or "asset"
+        name = f"{base}{suffix}"
+        while name.lower() in used:
+            base += "_"
+            name = f"{base}{suffix}"
+        used.add(name.lower())
+        return name
+
+    for mesh in out.meshes:
+        if mesh.file:
+            name = claim(Path(mesh.file).stem, Path(mesh.file).suffix.lower())
+            files[name] = _referenced(mesh.file, vfs, base_dir, spec)
+        else:
+            name = claim(mesh.name, ".msh")
+            files[name] = _msh(mesh)
+            mesh.uservert, mesh.userface = [], []
+            mesh.usernormal, mesh.usertexcoord = [], []
+        mesh.file = name
+    for texture in out.textures:
+        if texture.file:
+            name = claim(Path(texture.file).stem, Path(texture.file).suffix.lower())
+            files[name] = _referenced(texture.file, vfs, base_dir, spec)
+            texture.file = name
+        if any(texture.cubefiles):
+            raise ModelError(f"texture {texture.name!r}: cube textures from files are not exported")
+    out.compiler.meshdir = ""
+    out.compiler.texturedir = ""
+    out.assets = dict(files)  # to_xml compiles the copy: it reads the new files from memory
+    try:
+        with exact_numbers():
+            files[xml_name] = out.to_xml().encode("utf-8")
+    except ValueError as exc:
+        raise _refusal(str(exc), None) from None
+    _check_folder(files, xml_name, reference)
+    return files
+
+
+@contextlib.contextmanager
+def exact_numbers() -> Iterator[None]:
+    """Within the block, MuJoCo's XML writer prints every number as the shortest text that reads back the same.
+
+    MuJoCo writes 6 significant digits by default (masses, poses and limits would change on reload); its
+    writer has a precision switch (``xml_numeric_format.h``, precision 0 = exact) that the Python bindings do
+    not expose, so it is called in ``libmujoco`` directly. Without it the folder check still catches a change.
+    """
+    lib = _libmujoco()
+    if lib is None:
+        yield
+        return
+    previous = int(lib._mjPRIVATE__get_xml_precision())
+    lib._mjPRIVATE__set_xml_precision(0)
+    try:
+        yield
+    finally:
+        lib._mjPRIVATE__set_xml_precision(previous)
+
+
+@functools.cache
+def _libmujoco() -> Any:
+    for path in sorted(Path(mujoco.__file__).parent.glob("libmujoco.so*")) + sorted(
+        Path(mujoco.__file__).parent.glob("*mujoco*.dylib")
+    ):
+        try:
+            lib = ctypes.CDLL(str(path))
+            lib._mjPRIVATE__get_xml_precision.restype = ctypes.c_int
+            lib._mjPRIVATE__set_xml_precision.argtypes = [ctypes.c_int]
+            return lib
+        except (OSError, AttributeError):
+            continue
+    return None
+
+
+def _referenced(file: str, vfs: dict[str, bytes], base_dir: Path | None, spec: mujoco.MjSpec) -> bytes:
+    if file in vfs:
+        return vfs[file]
+    folder = base_dir if base_dir is not None else Path(".")
+    path = folder / spec.compiler.meshdir / file if file.lower().endswith((".msh", ".obj", ".stl")) else folder / file
+    for candidate in (path, folder / file):
+        try:
+            return candidate.read_bytes()
+        except OSError:
+            continue
+    raise ModelError(f"the model names {file!r}, which is neither in memory nor on disk", hint="check the asset")
+
+
+def _msh(mesh: Any) -> bytes:
+    """MuJoCo's binary mesh: int32 counts (vertices, normals, texcoords, faces), float32 data, int32 faces."""
+    v = np.asarray(mesh.uservert, dtype="<f4").reshape(-1, 3)
+    n = np.asarray(mesh.usernormal, dtype="<f4").reshape(-1, 3)
+    t = np.asarray(mesh.usertexcoord, dtype="<f4").reshape(-1, 2)
+    f = np.asarray(mesh.userface, dtype="<i4").reshape(-1, 3)
+    if len(mesh.userfacenormal) or len(mesh.userfacetexcoord):
+        raise ModelError(f"mesh {mesh.name!r} has per-corner normal or texture indices, which .msh cannot hold")
+    head = struct.pack("<4i", v.shape[0], n.shape[0], t.shape[0], f.shape[0])
+    return head + v.tobytes() + n.tobytes() + t.tobytes() + f.tobytes()
+
+
+def _check_folder(files: dict[str, bytes], xml_name: str, reference: mujoco.MjModel) -> None:
+    """Write ``files`` to a scratch folder and load the XML from there alone; compare with ``reference``."""
+    with tempfile.TemporaryDirectory(prefix="simrun-mjcf-") as tmp:
+        for name, data in files.items():
+            (Path(tmp) / name).write_bytes(data)
+        try:
+            loaded = mujoco.MjModel.from_xml_path(str(Path(tmp) / xml_name))
+        except ValueError as exc:
+            raise _refusal(str(exc), None) from None
+    counts = ("nbody", "njnt", "ngeom", "nmesh", "ntex", "nmat", "nu", "neq", "nmeshvert", "nmeshface")
+    differ = [c for c in counts if getattr(loaded, c) != getattr(reference, c)]
+    same = all(
+        np.array_equal(getattr(loaded, f), getattr(reference, f))
+        for f in ("body_mass", "body_pos", "body_quat", "jnt_range", "jnt_axis", "body_inertia")
+    )
+    if differ or not same:
+        what = (
+            ", ".join(f"{c} {getattr(loaded, c)} != {getattr(reference, c)}" for c in differ)
+            or "body masses, poses, inertias or joints"
+        )
+        raise ModelError(f"the written MJCF loads differently from the model ({what})")
+
+
+def build_files(model: ModelDesc) -> dict[str, bytes]:
+    """The ``meshtool.mjcf`` builder: ``model`` compiled and written as a flat MJCF folder's files.
+
+    Raises:
+        ModelError: MuJoCo refuses the model (its message and the element at fault).
+    """
+    spec, files = spec_from_model(model)
+    compile_spec(spec, model)
+    return folder_files(spec, f"{model.name}.xml", files)
+
+
+def export_world_mjcf(world: Any, out: Path) -> list[Path]:
+    """Write ``world`` as ``out`` (an ``.xml``) with its meshes and PNG textures beside it.
+
+    Returns:
+        Every file written (the XML last).
+
+    Raises:
+        SimrunError: ``out`` does not end in ``.xml``, or the model cannot be written.
+    """
+    if out.suffix.lower() != ".xml":
+        raise SimrunError(f"{out}: MJCF output must end in .xml")
+    world.compile()
+    try:
+        files = folder_files(world.spec, out.name, base_dir=world.base_dir)
+    except ModelError as exc:
+        raise SimrunError(f"{out}: {exc.one_line()}") from None
+    written = []
+    for name in sorted(files, key=lambda n: (n == out.name, n)):
+        target = out.parent / name
+        write_bytes(target, files[name])
+        written.append(target)
+    return written
