@@ -21,7 +21,7 @@ from simrun.doctor import check_environment
 from simrun.errors import SimrunError
 from simrun.glb_export import export_world_glb
 from simrun.mjcf_builder import export_world_mjcf
-from simrun.outfile import write_bytes
+from simrun.outfile import check_output, output_policy, write_bytes
 from simrun.play import PythonController, encode_gif, encode_mp4, load_commands, play
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
@@ -95,13 +95,20 @@ def check(scene: Path, seconds: float) -> None:
     help="Write a GLB (Y-up, metres, colours) for web viewers.",
 )
 @click.option("--glb-collision", is_flag=True, help="Also put the collision geoms in the GLB, as hidden nodes.")
+@click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
 def export(
-    scene: Path, mjcf: Path | None, mjz: Path | None, usd: Path | None, glb: Path | None, glb_collision: bool
+    scene: Path,
+    mjcf: Path | None,
+    mjz: Path | None,
+    usd: Path | None,
+    glb: Path | None,
+    glb_collision: bool,
+    force: bool = False,
 ) -> None:
     """Export SCENE as MJCF (a self-contained folder), a compiled binary model, USD and/or GLB."""
     if mjcf is None and mjz is None and usd is None and glb is None:
         raise click.UsageError("give --mjcf, --mjz, --usd and/or --glb")
-    with _guard():
+    with _guard(), output_policy(force, [scene]):
         world = load_scene(scene)
         world.compile()
         if mjcf is not None:
@@ -165,6 +172,7 @@ def _size(text: str) -> tuple[int, int]:
 @click.option("--seed", type=int, default=None, help="Reseed every sensor's noise (sensor k gets seed + k).")
 @click.option("--record-sensors", default=None, help="Comma-separated sensor names whose readings --record keeps.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
+@click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
 def play_command(
     scene: Path,
     duration: float,
@@ -180,10 +188,14 @@ def play_command(
     seed: int | None,
     record_sensors: str | None,
     as_json: bool,
+    force: bool = False,
 ) -> None:
     """Run SCENE headless: timed commands, optional video or frames, and a summary."""
     width, height = _size(size)
-    with _guard():
+    with _guard(), output_policy(force, [scene, commands_file]):
+        for target in (video, record):  # the .mp4 and .simlog writers do not go through write_bytes
+            if target is not None:
+                check_output(target)
         world = load_scene(scene)
         python = commands_file is not None and commands_file.suffix == ".py"
         commands = load_commands(commands_file) if commands_file and not python else []

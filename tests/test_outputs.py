@@ -242,3 +242,27 @@ def test_simrun_writer_applies_the_same_rules(tmp_path):
     write_text(mjcf, '<mujoco model="a"/>')
     write_text(mjcf, '<mujoco model="b"/>')  # an MJCF: the same kind, replaced
     assert "b" in mjcf.read_text()
+
+
+def test_simrun_export_and_play_refuse_foreign_files_and_inputs(fixtures, tmp_path):
+    from simrun.cli import main as simrun
+
+    for name in ("basic.toml", "globe.png"):
+        shutil.copy(fixtures / "scenes" / name, tmp_path / name)
+    scene = tmp_path / "basic.toml"
+    before = scene.read_bytes()
+    user = tmp_path / "mine.glb"
+    user.write_text("mine")
+    refused(run(simrun, "export", scene, "--glb", user), "not replacing it")
+    assert user.read_text() == "mine"
+    assert run(simrun, "export", scene, "--glb", user, "--force").exit_code == 0
+    assert run(simrun, "export", scene, "--glb", user).exit_code == 0  # simrun's own GLB now: replaced
+    for extra in ([], ["--force"]):
+        refused(run(simrun, "export", scene, "--usd", scene.with_suffix(".usda"), "--mjz", scene, *extra), "input")
+    assert scene.read_bytes() == before
+    log = tmp_path / "notes.simlog"
+    log.write_text("field notes")
+    refused(run(simrun, "play", scene, "--duration", "0.01", "--record", log), "not replacing it")
+    assert log.read_text() == "field notes"
+    assert run(simrun, "play", scene, "--duration", "0.01", "--record", log, "--force").exit_code == 0
+    assert run(simrun, "play", scene, "--duration", "0.01", "--record", log).exit_code == 0  # a .simlog now
