@@ -56,13 +56,22 @@ class ConsumerRef:
 
 
 def search_folders(obj_dir: Path, root: ModelRoot | None) -> list[Path]:
-    """Folders searched for description files: the OBJ's folder up to the model root (or its parent)."""
+    """Folders searched for description files.
+
+    The OBJ's folder up to the model root and the model root's subfolders (``urdf/``, ``robots/``); without
+    a model root, the OBJ's folder and its parent (``model.xml`` beside ``assets/``). The temporary folder,
+    the home folder and ``/`` are never searched unless they hold the OBJ.
+    """
     here = Path(os.path.realpath(obj_dir))
     chain = [here, *here.parents]
     inside_root = root is not None and root.folder in chain
     folders = chain[: chain.index(root.folder) + 1] if root is not None and inside_root else chain[:2]
     unsafe = {Path(os.path.realpath(tempfile.gettempdir())), Path(os.path.realpath(Path.home())), Path("/")}
-    return [f for f in folders if f not in unsafe or f == here]
+    folders = [f for f in folders if f not in unsafe or f == here]
+    if root is not None and inside_root:  # pkg/urdf/robot.urdf, model/sdf/...: the root's own subfolders
+        subfolders = [root.folder / n for n in list_names(root.folder) if (root.folder / n).is_dir()]
+        folders.extend(f for f in subfolders if Path(os.path.realpath(f)) not in folders)
+    return folders
 
 
 def find_consumers(obj: Path, root: ModelRoot | None) -> list[ConsumerRef]:
