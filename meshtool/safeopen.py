@@ -177,7 +177,7 @@ def read_fd(fd: int, limit: int, shown: str) -> bytes:
             raise ResolveError(
                 f"is {_bytes(size)}, over the {_bytes(limit)} limit for this kind of file; not read",
                 path=shown,
-                hint="check that it is the right file (see the read limits in the README)",
+                hint="check that it is the right file; the read limits are listed in the README",
             )
         chunks: list[bytes] = []
         remaining = size
@@ -267,7 +267,7 @@ def _not_regular(mode: int, shown: str) -> ResolveError:
     what = describe_mode(mode)
     if stat.S_ISDIR(mode):
         return ResolveError("is a folder, not a file", path=shown, hint="name a file")
-    return ResolveError(f"is {what}, not a regular file; not read", path=shown, hint="point it at a regular file")
+    return ResolveError(f"is {what}, not a regular file; not read", path=shown, hint="replace it with a regular file")
 
 
 def _bytes(n: int) -> str:

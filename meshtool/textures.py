@@ -98,7 +98,12 @@ def to_png(data: bytes, name: str, max_side: int = MAX_SIDE, max_pixels: int = M
                 _check_jpeg_length(data, width, height, name)
             image.load()
     except Image.DecompressionBombError as exc:
-        raise TextureError(f"over the texture size limit ({exc})", path=name, hint="downscale the image") from None
+        raise TextureError(
+            f"over the texture limit ({max_side} per side, {max_pixels} in all; Pillow's decompression-bomb "
+            f"guard: {str(exc).rstrip('.')})",
+            path=name,
+            hint="downscale the image",
+        ) from None
     except TextureError:
         raise
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError, MemoryError) as exc:

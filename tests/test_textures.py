@@ -71,3 +71,78 @@ def test_conversion_is_deterministic():
 def test_not_an_image():
     with pytest.raises(TextureError, match="not a readable image"):
         to_png(b"definitely not an image", "x.png")
+
+
+# -- issue 21: hostile images ------------------------------------------------------------------------------
+
+
+def png_chunk(kind: bytes, body: bytes) -> bytes:
+    import zlib
+
+    return len(body).to_bytes(4, "big") + kind + body + zlib.crc32(kind + body).to_bytes(4, "big")
+
+
+def png_header_only(width: int, height: int) -> bytes:
+    """A PNG whose IHDR declares ``width`` x ``height`` 8-bit RGB, with one tiny (wrong) IDAT."""
+    import zlib
+
+    ihdr = width.to_bytes(4, "big") + height.to_bytes(4, "big") + bytes([8, 2, 0, 0, 0])
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + png_chunk(b"IHDR", ihdr)
+        + png_chunk(b"IDAT", zlib.compress(b"\0" * 64))
+        + png_chunk(b"IEND", b"")
+    )
+
+
+def jpeg_claiming(width: int, height: int) -> bytes:
+    """A small real JPEG whose frame header is patched to declare ``width`` x ``height`` (a cut-short file)."""
+    data = bytearray(encode(Image.fromarray(RGB, "RGB"), "JPEG", quality=90))
+    sof = data.index(b"\xff\xc0")
+    data[sof + 5 : sof + 9] = height.to_bytes(2, "big") + width.to_bytes(2, "big")
+    return bytes(data)
+
+
+def test_trailing_bytes_after_a_png_are_dropped_with_a_finding():
+    png = encode(Image.fromarray(RGB, "RGB"), "PNG")
+    out = to_png(png + b"\0" * 5_000_000, "t.png")
+    assert out.data == png and not out.converted
+    (finding,) = out.findings
+    assert finding.code == "texture-trailing-data" and "5000000 bytes" in finding.message
+    assert finding.path == "t.png"
+    np.testing.assert_array_equal(np.asarray(decode(out.data)), RGB)
+    assert to_png(png, "t.png").findings == ()
+
+
+def test_too_many_pixels_is_refused_before_decoding():
+    with pytest.raises(TextureError, match=r"20000x100 pixels is over the texture limit \(16384 per side"):
+        to_png(png_header_only(20000, 100), "wide.png")
+    with pytest.raises(TextureError, match=r"16000x9000 pixels is over the texture limit"):
+        to_png(png_header_only(16000, 9000), "bomb.png")  # each side fits, the area does not
+    with pytest.raises(TextureError, match=r"over the texture limit .*decompression-bomb guard"):
+        to_png(png_header_only(20000, 20000), "bomb.png")  # Pillow refuses first, in the same words
+    with pytest.raises(TextureError, match="over the texture limit"):
+        to_png(png_header_only(64, 64), "small.png", max_side=32)
+
+
+def test_pillows_decompression_bomb_guard_becomes_a_texture_error():
+    big = png_header_only(20000, 10000)  # 200 Mpx: over Pillow's own error threshold (about 179 Mpx)
+    with pytest.raises(TextureError, match="decompression-bomb guard"):
+        to_png(big, "bomb.png", max_side=10**6, max_pixels=10**12)
+
+
+def test_truncated_jpeg_claiming_9000_by_9000_is_refused():
+    data = jpeg_claiming(9000, 9000)
+    assert len(data) < 1000
+    assert Image.open(io.BytesIO(data)).size == (9000, 9000)  # what a decoder would have produced
+    with pytest.raises(TextureError, match=r"truncated JPEG: \d+ bytes cannot hold the 9000x9000 image"):
+        to_png(data, "cut.jpg")
+
+
+@pytest.mark.parametrize("options", [{"quality": 1, "optimize": True}, {"progressive": True, "optimize": True}])
+def test_small_but_complete_jpegs_still_convert(options):
+    """The truncation bound (one bit per 8x8 block) holds for the most compressible real JPEGs."""
+    flat = Image.new("L", (2048, 2048), 0)
+    data = encode(flat, "JPEG", **options)
+    png = to_png(data, "flat.jpg")
+    assert png.size == (2048, 2048) and png.converted

@@ -17,8 +17,11 @@ from meshtool.validate.rules import hit
 #: Normaliser finding code -> rule ID (codes not listed are repairs that need no attention).
 FROM_NORMALISER: dict[str, str] = {
     "mtl-missing": "S002",
+    "mtl-not-a-file": "S002",
     "texture-missing": "S003",
+    "texture-not-a-file": "S003",
     "texture-unreadable": "S003",
+    "texture-trailing-data": "S005",
     "material-undefined": "S004",
     "texture-converted": "S005",
     "reference-outside-root": "S008",
