@@ -44,6 +44,14 @@ def default_jobs() -> int:
 @click.option("-j", "--jobs", type=click.IntRange(1, 256), default=None, help="Workers (default: CPUs, at most 8).")
 @click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True)
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); needs dask.")
+@click.option(
+    "--timeout",
+    type=click.FloatRange(0, max_open=False),
+    default=None,
+    metavar="SECONDS",
+    help="Stop one asset's check after this long: an X002 finding, the run goes on (default: the "
+    "configuration's timeout, else 300; 0: no limit).",
+)
 @click.option("--strict", is_flag=True, help="Warnings fail the run (exit 1).")
 @click.option("--changed-only", is_flag=True, help="Report only assets changed since the cached run.")
 @click.option(
@@ -64,6 +72,7 @@ def validate_command(
     jobs: int | None,
     executor: str,
     scheduler: str | None,
+    timeout: float | None,
     strict: bool,
     changed_only: bool,
     cache_dir: Path | None,
@@ -89,6 +98,7 @@ def validate_command(
             cache_dir=None if no_cache else (cache_dir or Path(platformdirs.user_cache_dir("meshtool")) / "validate"),
             changed_only=changed_only,
             thumbnails=want_thumbnails,
+            timeout=timeout,
         )
         report = run_validate(list(paths), options, _progress_bar())
         text = (

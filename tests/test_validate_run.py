@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import FIXTURES, GL, needs_gl
+from PIL import Image
 
 from meshtool.cli import main
 from meshtool.validate import ValidateOptions, render, validate
@@ -154,7 +155,7 @@ def test_cache_serves_unchanged_assets_and_notices_changes(assets, tmp_path):
     assert summary_of(second) == summary_of(first)
     assert render(second, "json") == render(first, "json")  # byte-identical whether cached or not
     # a changed texture re-checks the OBJ that uses it and the pack made from it (now stale), only those
-    (assets / "clean" / "box.png").write_bytes((ROOT / "S007_path_foreign/textures/box.png").read_bytes() + b"\0")
+    Image.new("RGB", (4, 4), (200, 30, 30)).save(assets / "clean" / "box.png")  # another valid PNG
     third = validate([assets], options)
     assert (third.checked, third.cache_hits) == (2, 4)
     pack = next(a for a in third.assets if a.path.endswith("clean/box.mbin"))

@@ -72,8 +72,8 @@ class ResultCache:
         return result
 
     def store(self, task: AssetTask, result: AssetResult) -> None:
-        """Remember a fresh result (results with an internal error are not cached)."""
-        if self.folder is None or any(f.code == "X001" for f in result.findings):
+        """Remember a fresh result (results with an internal error or a timeout are not cached)."""
+        if self.folder is None or any(f.code in ("X001", "X002") for f in result.findings):
             return
         digest = result.deps.get(str(task.path.resolve()))
         if digest is None:

@@ -6,6 +6,7 @@ Read from ``[tool.meshtool.validate]`` in a ``pyproject.toml`` or ``[validate]``
     severity = { G007 = "error", hull-fit = "off" }   # by ID or name; off drops the rule
     ignore = ["S009"]                                  # rules never reported
     source-roots = ["assets/src"]                      # where .mbin sources live (for K003)
+    timeout = 300                                      # seconds per asset (X002 past it); 0: no limit
 
     [tool.meshtool.validate.per-path-ignores]          # globs relative to the config file's folder
     "props/balls/**" = ["P002"]
@@ -28,6 +29,9 @@ from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, Severity
 from meshtool.resolve import is_file, read_cache
 from meshtool.validate.rules import rule_id
+
+#: Seconds one asset's check may take before it is stopped with an X002 finding (``timeout``, ``--timeout``).
+DEFAULT_TIMEOUT = 300.0
 
 
 class ConfigError(MeshtoolError, ValueError):
@@ -84,6 +88,7 @@ class ValidateConfig:
         source_roots: Extra folders where ``.mbin`` sources are looked for (K003).
         root: Folder the globs and source roots are relative to (the config file's folder).
         file: The configuration file, or ``None`` for the defaults.
+        timeout: Seconds one asset's check may take (X002 past it); 0 for no limit.
     """
 
     severity: tuple[tuple[str, str], ...] = ()
@@ -93,6 +98,7 @@ class ValidateConfig:
     source_roots: tuple[Path, ...] = ()
     root: Path = Path(".")
     file: str | None = None
+    timeout: float = DEFAULT_TIMEOUT
 
     def fingerprint(self) -> dict[str, Any]:
         """What changes the raw findings (the cache key part); severities and ignores apply afterwards."""
@@ -177,7 +183,7 @@ def parse_config(table: dict[str, Any], file: str, where: str, root: Path) -> Va
             out.append(rid)
         return tuple(out)
 
-    known = {"severity", "ignore", "per-path-ignores", "limits", "source-roots"}
+    known = {"severity", "ignore", "per-path-ignores", "limits", "source-roots", "timeout"}
     for key in table:
         if key not in known:
             raise fail(f"unknown key {key!r}", f"use one of {', '.join(sorted(known))}")
@@ -204,6 +210,9 @@ def parse_config(table: dict[str, Any], file: str, where: str, root: Path) -> Va
         if isinstance(value, bool) or not isinstance(value, int | float) or value <= 0:
             raise fail(f"limits.{key} must be a positive number, got {value!r}")
         values[name] = kind(value)
+    timeout = table.get("timeout", DEFAULT_TIMEOUT)
+    if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not 0 <= timeout < float("inf"):
+        raise fail(f"timeout must be a number of seconds (0: no limit), got {timeout!r}")
     roots = table.get("source-roots", [])
     if not isinstance(roots, list) or not all(isinstance(r, str) for r in roots):
         raise fail("source-roots must be a list of folders")
@@ -215,6 +224,7 @@ def parse_config(table: dict[str, Any], file: str, where: str, root: Path) -> Va
         source_roots=tuple(root / r for r in roots),
         root=root,
         file=file,
+        timeout=float(timeout),
     )
 
 

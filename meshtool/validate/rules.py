@@ -87,6 +87,7 @@ _TABLE: list[tuple[str, str, Severity, str, str]] = [
     ("K002", "pack-version", E, "an .mbin has a format version this meshtool cannot read", "re-pack it, or upgrade meshtool"),
     ("K003", "pack-stale", W, "an .mbin was made from sources that have changed or gone since", "convert again with obj2bin"),
     ("X001", "internal-error", E, "meshtool itself failed checking this asset (a bug: please report it)", "report the message; the asset was not checked"),
+    ("X002", "timeout", E, "the check of an asset did not finish within the time limit (timeout, default 300 s)", "find what makes the asset slow (a huge face, thousands of names), or raise timeout / --timeout"),
 ]  # fmt: skip
 
 #: Every rule by ID, in documentation order.

@@ -8,19 +8,18 @@ from __future__ import annotations
 
 import importlib
 import logging
-import multiprocessing
+import os
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Severity
-from meshtool.resolve import find_files, is_file
 from meshtool.validate.cache import ResultCache
 from meshtool.validate.config import ValidateConfig
+from meshtool.validate.pool import run_here, run_workers
 from meshtool.validate.task import AssetResult, AssetTask, check_asset
 
 EXECUTORS = ("local", "dask")
@@ -50,6 +49,8 @@ class ValidateOptions:
         cache_dir: The result cache folder; ``None`` disables the cache.
         changed_only: Report only assets checked in this run (cache misses); unchanged ones are counted.
         thumbnails: Render a thumbnail per asset (the HTML report shows them).
+        timeout: Seconds one asset's check may take (X002 past it; 0: no limit); ``None``: the
+            configuration's ``timeout`` (default :data:`meshtool.validate.config.DEFAULT_TIMEOUT`).
     """
 
     config: ValidateConfig = field(default_factory=ValidateConfig)
@@ -59,12 +60,20 @@ class ValidateOptions:
     cache_dir: Path | None = None
     changed_only: bool = False
     thumbnails: bool = False
+    timeout: float | None = None
 
     def __post_init__(self) -> None:
         if self.executor not in EXECUTORS:
             raise ValidateError(f"unknown executor {self.executor!r}", usage=True, hint="use local or dask")
         if self.jobs < 1:
             raise ValidateError(f"-j must be at least 1, got {self.jobs}", usage=True)
+        if self.timeout is not None and not 0 <= self.timeout < float("inf"):
+            raise ValidateError(f"--timeout must be 0 or more seconds, got {self.timeout}", usage=True)
+
+    def effective_timeout(self) -> float | None:
+        """Seconds per asset, or ``None`` for no limit."""
+        seconds = self.config.timeout if self.timeout is None else self.timeout
+        return seconds or None
 
 
 @dataclass(slots=True)
@@ -112,22 +121,25 @@ class ValidationReport:
 def discover(paths: list[Path]) -> list[tuple[Path, Path]]:
     """Every OBJ and ``.mbin`` named or under the folders named, as (file, folder it was found under).
 
-    Hidden folders (``.git``, ``.venv``, caches) are skipped; the list is sorted and has no duplicates.
+    Hidden folders (``.git``, ``.venv``, caches) are skipped; the list is sorted and has no duplicates. Entries
+    with an asset's suffix that are not regular files (a FIFO named ``x.obj``) are listed too: the check
+    reports them (S001) without opening them.
 
     Raises:
         ValidateError: A path does not exist, or nothing to check was found (usage errors).
     """
     found: dict[Path, tuple[Path, Path]] = {}
     for path in paths:
-        if is_file(path):
+        if path.is_dir():
+            for file in sorted(path.rglob("*")):
+                if file.suffix.lower() not in SUFFIXES or file.is_dir():
+                    continue
+                if not any(part.startswith(".") for part in file.relative_to(path).parts[:-1]):
+                    found.setdefault(file.resolve(), (file, path))
+        elif os.path.exists(path):
             if path.suffix.lower() not in SUFFIXES:
                 raise ValidateError("not an OBJ or .mbin file", usage=True, path=str(path))
             found.setdefault(path.resolve(), (path, path.parent))
-        elif path.is_dir():
-            for suffix in SUFFIXES:
-                for file in find_files(path, suffix):
-                    if not any(part.startswith(".") for part in file.relative_to(path).parts[:-1]):
-                        found.setdefault(file.resolve(), (file, path))
         else:
             raise ValidateError("no such file or folder", usage=True, path=str(path))
     if not found:
@@ -218,16 +230,11 @@ def validate(
 
 
 def _run_local(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[AssetResult]:
-    if options.jobs == 1 or len(tasks) <= 1:
-        for task in tasks:
-            yield check_asset(task)
-        return
-    # spawn: workers import MuJoCo and create GL contexts; a forked copy of a parent that has one is unsafe
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(options.jobs, len(tasks)), mp_context=context) as pool:
-        futures = [pool.submit(check_asset, task) for task in tasks]
-        for future in as_completed(futures):
-            yield future.result()
+    timeout = options.effective_timeout()
+    if options.jobs == 1 or (len(tasks) <= 1 and timeout is None):
+        yield from run_here(tasks, timeout)
+    else:  # a single task with a deadline also goes to a worker: only a process can be stopped for sure
+        yield from run_workers(tasks, options.jobs, timeout)
 
 
 def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[AssetResult]:

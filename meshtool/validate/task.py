@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import stat
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -95,6 +96,11 @@ class AssetResult:
 def check_asset(task: AssetTask) -> AssetResult:
     """Run every rule on one asset. Never raises: a failure of meshtool itself becomes an X001 finding."""
     result = AssetResult(task.display, task.kind)
+    special = _special_file(task.path)
+    if special:  # never opened: a FIFO blocks the reader, a device never ends
+        rule = "K001" if task.kind == "mbin" else "S001"
+        result.findings.append(hit(rule, f"is {special}, not a regular file: not read", task.path.name))
+        return result
     try:
         with np.errstate(all="ignore"):  # degenerate input makes trimesh divide by zero; rules judge the results
             if task.kind == "mbin":
@@ -108,6 +114,21 @@ def check_asset(task: AssetTask) -> AssetResult:
         )
     result.findings.sort(key=lambda f: (f.code, f.path or "", f.line or 0, f.message))
     return result
+
+
+def _special_file(path: Path) -> str | None:
+    """What ``path`` is when it exists but is not a regular file or a folder (after symbolic links)."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return None
+    kinds = {
+        stat.S_ISFIFO: "a FIFO (named pipe)",
+        stat.S_ISSOCK: "a socket",
+        stat.S_ISCHR: "a character device",
+        stat.S_ISBLK: "a block device",
+    }
+    return next((what for test, what in kinds.items() if test(mode)), None)
 
 
 def listing_digest(folder: Path) -> str:
