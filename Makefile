@@ -30,7 +30,7 @@ demo: $(STAMP)
 	$(BIN)/simrun check fixtures/scenes/urdf_arm.toml
 	$(BIN)/simrun export fixtures/scenes/urdf_arm.toml --usd demo-out/urdf_arm.usda --glb demo-out/urdf_arm.glb
 	$(BIN)/simrun check fixtures/scenes/boebot.toml
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/simrun play fixtures/scenes/boebot.toml --duration 32 \
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/simrun play fixtures/scenes/boebot.toml --duration 40 \
 		--commands fixtures/scenes/square.commands.toml --video demo-out/demo.gif --size 320x240 --fps 5
 
 lint: $(STAMP)

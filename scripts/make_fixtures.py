@@ -424,15 +424,21 @@ entity = "boebot"
 
 
 def square_commands() -> str:
-    """Timed DriveService calls that take the Boe-Bot of boebot.toml around the box."""
-    lines = ["# Drive the Boe-Bot of boebot.toml around the box: a right turn, then legs of 0.9 m and left turns.\n"]
-    t = 0.2
-    sequence = [("rotate_degrees", [-90.0, 0.5])]
-    for _ in range(4):
-        sequence += [("drive_distance", [0.9, 0.6]), ("rotate_degrees", [90.0, 0.5])]
-    for call, args in sequence:
+    """Timed DriveService calls that take the Boe-Bot of boebot.toml around the box and back (at full power).
+
+    The Boe-Bot's servos give 0.131 m/s, so a leg of 0.8 m takes 7.2 s; each call starts 0.2-0.3 s after the
+    previous one ends (times measured in simulation), the last ends at 39.7 s.
+    """
+    lines = ["# Drive the Boe-Bot of boebot.toml around the box and back to its start: a right turn, legs of 0.3,\n"]
+    lines.append("# 0.8, 0.6, 0.8 and 0.3 m with left turns between them, 0.2 m or more from the box.\n")
+    sequence: list[tuple[float, str, list[float]]] = [(0.2, "rotate_degrees", [-90.0, 1.0])]
+    starts = [2.6, 6.2, 8.5, 16.0, 18.3, 24.2, 26.5, 34.0, 36.3]
+    calls = [("drive_distance", [0.3, 1.0])]
+    for leg in (0.8, 0.6, 0.8, 0.3):
+        calls += [("rotate_degrees", [90.0, 1.0]), ("drive_distance", [leg, 1.0])]
+    sequence += [(t, call, args) for t, (call, args) in zip(starts, calls, strict=True)]
+    for t, call, args in sequence:
         lines.append(f'[[commands]]\nt = {t:.1f}\nentity = "boebot"\ncall = "{call}"\nargs = {args}\n\n')
-        t += 5.0 if call == "drive_distance" else 3.0
     return "".join(lines).rstrip() + "\n"
 
 

@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from simrun.entity import BuildContext, Entity, check_positive
 from simrun.errors import EntityError, SimrunError
-from simrun.sensors import Sensor
+from simrun.sensors import RayCaster, Sensor
 from simrun.world import World
 
 
@@ -35,7 +35,7 @@ class RangeCone(Sensor):
 
     Args:
         world: The world.
-        entity: Entity carrying the sensor; its body is excluded from hits.
+        entity: Entity carrying the sensor.
         offset: Mounting point in the body frame, metres.
         direction: Viewing direction in the body frame.
         cone_deg: Full cone angle, degrees (0: a single ray).
@@ -47,6 +47,8 @@ class RangeCone(Sensor):
         rate: Hz.
         noise: Distance noise, metres.
         seed: Noise seed.
+        exclude: What the rays ignore (:data:`simrun.sensors.EXCLUDES`): by default every geom of the robot
+            the sensor is mounted on.
     """
 
     def __init__(
@@ -63,8 +65,10 @@ class RangeCone(Sensor):
         rate: float = 20.0,
         noise: float = 0.0,
         seed: int = 0,
+        exclude: str = "robot",
     ) -> None:
         super().__init__(world, entity, rate, noise, seed)
+        self.caster = RayCaster(entity, exclude)
         if max_range <= min_range or rays < 1 or cone_deg < 0:
             raise EntityError("range cone: 0 <= min_range < max_range, rays >= 1, cone >= 0")
         self.offset = np.asarray(offset, dtype=float)
@@ -85,29 +89,14 @@ class RangeCone(Sensor):
         self._local = np.asarray(dirs)
         self._geomid = np.zeros(len(dirs), dtype=np.int32)
         self._dist = np.zeros(len(dirs))
-        self._body, self._model_id = -1, 0
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> RangeReading:
         """Nearest hit in the cone."""
-        if self._model_id != id(model):
-            self._body, self._model_id = model.body(self.entity).id, id(model)
-        rotation = data.xmat[self._body].reshape(3, 3)
-        origin = data.xpos[self._body] + rotation @ self.offset
+        body = self.caster.bind(model)
+        rotation = data.xmat[body].reshape(3, 3)
+        origin = data.xpos[body] + rotation @ self.offset
         directions = (self._local @ rotation.T).ravel()
-        mujoco.mj_multiRay(
-            model,
-            data,
-            origin,
-            directions,
-            None,
-            1,
-            self._body,
-            self._geomid,
-            self._dist,
-            None,
-            len(self._local),
-            self.max_range,
-        )
+        self.caster.cast(model, data, origin, directions, self._geomid, self._dist, self.max_range)
         hit = self._dist[self._geomid >= 0]
         distance = float(hit.min()) if hit.size else self.max_range
         distance = float(

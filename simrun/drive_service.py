@@ -19,6 +19,11 @@ from simrun.drive import DifferentialDrive
 from simrun.errors import EntityError
 from simrun.world import World
 
+#: Closed-loop pole of the wheel-speed loop per control period (see DriveService._speed_loop).
+POLE = 0.8
+#: Control periods a robot must rest on its wheels before a distance or turn starts (none once it has).
+SETTLED_TICKS = 5
+
 
 @dataclass(frozen=True, slots=True)
 class Odometry:
@@ -48,14 +53,15 @@ class DriveLimits:
     Attributes:
         max_linear: m/s.
         max_angular: rad/s.
-        max_linear_accel: m/s^2.
+        max_linear_accel: m/s^2 (also the ramp of every wheel-speed target; 0.3 is ARIA's default ``TransAccel``
+            for the Pioneer, gentle enough that no ready robot's tyres slip).
         max_angular_accel: rad/s^2.
         command_timeout: Seconds without a new ``cmd_vel`` after which the robot stops.
     """
 
     max_linear: float = 0.5
     max_angular: float = 3.0
-    max_linear_accel: float = 1.0
+    max_linear_accel: float = 0.3
     max_angular_accel: float = 6.0
     command_timeout: float = 0.5
 
@@ -69,9 +75,13 @@ class DriveService:
         limits: ``cmd_vel`` limits.
         radius_scale: Odometry calibration: effective / nominal wheel radius.
         separation_scale: Odometry calibration: effective / nominal wheel separation.
-        gain: Proportional gain of wheel-speed control, power per rad/s.
-        integral_gain: Integral gain of wheel-speed control, power per rad.
+        gain: Proportional gain of wheel-speed control, power per rad/s; ``None``: derived from the robot's
+            motor and inertia (:meth:`speed_loop`).
+        integral_gain: Integral gain of wheel-speed control, power per rad; ``None``: derived.
         rate: Control and odometry rate, Hz (controls hold between updates).
+
+    Raises:
+        EntityError: The entity is not a differential-drive robot, or a number is not positive and finite.
     """
 
     def __init__(
@@ -81,18 +91,25 @@ class DriveService:
         limits: DriveLimits | None = None,
         radius_scale: float = 1.0,
         separation_scale: float = 1.0,
-        gain: float = 0.2,
-        integral_gain: float = 0.5,
+        gain: float | None = None,
+        integral_gain: float | None = None,
         rate: float = 50.0,
     ) -> None:
         robot = world.entity(entity)
         if not isinstance(robot, DifferentialDrive):
             raise EntityError(f"{entity!r} is a {robot.TYPE}, not a differential-drive robot")
+        _finite("drive service", radius_scale=radius_scale, separation_scale=separation_scale, rate=rate)
+        _finite("drive service", positive=False, gain=gain, integral_gain=integral_gain)
         self.world, self.name, self.robot = world, entity, robot
         self.limits = limits or DriveLimits()
         self.radius = robot.wheel_radius * radius_scale
-        self.separation = robot.track * separation_scale
-        self.gain, self.ki = gain, integral_gain
+        self.separation = robot.separation * separation_scale
+        self._fixed_gains = (gain, integral_gain)
+        self.gain, self.ki = 0.0, 0.0  # set from the compiled model on the first tick (speed_loop)
+        self._design: dict[str, float] = {}
+        self._free = -1  # first dof of the robot's free joint (-1: none)
+        self._rested = False  # has stood still on its wheels since the start (or reset)
+        self.max_wheel_speed = robot.wheel_speed_limit
         self.enabled = True
         self._mode = "idle"
         self._power = (0.0, 0.0)
@@ -115,31 +132,48 @@ class DriveService:
     # -- commands ------------------------------------------------------------------------------------------
 
     def set_drive_power(self, left: float, right: float) -> None:
-        """Open-loop power per wheel in [-1, 1] (torque = power x MotorTorqueScaling)."""
+        """Open-loop motor power per wheel in [-1, 1]: the fraction of the motor's full voltage.
+
+        At power 1 a wheel without load turns at the robot's ``no_load_speed``; held still it pushes with the
+        motor's ``stall_torque`` (the DC-motor model of :mod:`simrun.drive`).
+        """
         self._require_enabled()
+        _finite("set_drive_power", positive=False, left=left, right=right)
         self._mode, self._power = "power", (_clip(left), _clip(right))
 
     def drive_speed(self, left: float, right: float) -> None:
-        """Closed-loop wheel surface speeds, m/s."""
+        """Closed-loop wheel surface speeds, m/s (beyond the motor's top speed the wheel runs at full power)."""
         self._require_enabled()
-        self._mode, self._speed = "speed", (float(left), float(right))
+        _finite("drive_speed", positive=False, left=left, right=right)
+        self._start("speed")
+        self._speed = (float(left), float(right))
 
     def drive_distance(self, metres: float, power: float = 0.5) -> None:
-        """Drive straight ``metres`` (negative: backwards) and stop, closed loop on the encoders."""
+        """Drive straight ``metres`` (negative: backwards) and stop, closed loop on the encoders.
+
+        ``power`` in (0, 1] sets the cruising speed: that fraction of the robot's top speed (at most
+        ``limits.max_linear``).
+        """
         self._require_enabled()
-        left, right = self.encoders()
-        self._mode = "distance"
-        self._goal = {"start": (left + right) / 2, "distance": float(metres), "speed": self._top_speed(power)}
+        _finite("drive_distance", positive=False, metres=metres)
+        _finite("drive_distance", power=power)
+        self._start("distance")
+        self._goal = {"start": 0.0, "distance": float(metres), "speed": self._top_speed(power), "started": 0.0}
 
     def rotate_degrees(self, degrees: float, power: float = 0.5) -> None:
-        """Turn in place by ``degrees`` (positive: counter-clockwise seen from above) and stop."""
+        """Turn in place by ``degrees`` (positive: counter-clockwise seen from above) and stop.
+
+        The wheels run at half the speed ``power`` gives :meth:`drive_distance`.
+        """
         self._require_enabled()
-        left, right = self.encoders()
-        self._mode = "rotate"
+        _finite("rotate_degrees", positive=False, degrees=degrees)
+        _finite("rotate_degrees", power=power)
+        self._start("rotate")
         self._goal = {
-            "start": (right - left) / 2,
+            "start": 0.0,
             "arc": math.radians(degrees) * self.separation / 2,
             "speed": self._top_speed(power) * 0.5,
+            "started": 0.0,
         }
 
     def cmd_vel(self, linear: float, angular: float) -> None:
@@ -149,14 +183,22 @@ class DriveService:
         without a new command.
         """
         self._require_enabled()
+        _finite("cmd_vel", positive=False, linear=linear, angular=angular)
+        if self._mode != "cmd_vel":
+            self._start("cmd_vel")
+            self._vel = self._measured_velocity()
         self._mode, self._cmd, self._cmd_time = "cmd_vel", (float(linear), float(angular)), self._time()
 
     def all_stop(self) -> None:
         """Cancel any command and brake the wheels to a stop."""
-        self._mode, self._goal, self._vel = "stop", {}, (0.0, 0.0)
+        self._start("stop")
+        self._goal, self._vel = {}, (0.0, 0.0)
 
     def enable(self, on: bool) -> None:
-        """Enable or disable the drive; disabled motors are unpowered and commands are refused."""
+        """Enable or disable the drive; disabled motors get no power and commands are refused.
+
+        Unpowered DC motors still brake by their back EMF (the driver shorts them, as an idle H-bridge).
+        """
         self.enabled = bool(on)
         if not on:
             self._mode = "idle"
@@ -182,27 +224,47 @@ class DriveService:
         return float(travel[0]), float(travel[1])
 
     def odometry(self) -> Odometry:
-        """The latest odometry estimate."""
+        """The latest odometry estimate: the body origin (the axle midpoint) in the frame of the last reset."""
         return self._odom
+
+    def speed_loop(self) -> dict[str, float]:
+        """The wheel-speed loop's design, from the compiled model (see docs/robots.md, "Speed loop").
+
+        Returns:
+            ``inertia`` (kg m^2, a wheel's share of the robot's inertia), ``time_constant`` (s, the motor's
+            mechanical time constant under that load), ``gain`` (power per rad/s), ``integral_gain`` (power
+            per rad) and ``pole`` (the closed loop's slowest discrete pole per control period).
+        """
+        model = self.world.model
+        self._lookup(model)
+        return dict(self._design)
 
     # -- controller hooks ----------------------------------------------------------------------------------
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Update odometry from the encoders, then turn the current command into motor controls."""
-        self._integrate(model, data)
         left_act, right_act, left_dof, right_dof = self._lookup(model)
+        self._integrate(model, data)
         if not self.enabled or self._mode == "idle":
             data.ctrl[left_act] = data.ctrl[right_act] = 0.0
             return
         if self._mode == "power":
             data.ctrl[left_act], data.ctrl[right_act] = self._power
             return
-        targets = self._ramp(self._targets(model, data), self.period)
+        targets = self._ramp(self._targets(data), self.period)
+        top, gain, ki, h = self.max_wheel_speed, self.gain, self.ki, self.period
         for k, (act, dof, target) in enumerate(((left_act, left_dof, targets[0]), (right_act, right_dof, targets[1]))):
-            error = target / self.radius - data.qvel[dof]
-            # PI control on wheel speed; the integral is clamped so it cannot wind up past full power
-            self._integral[k] = _limit(self._integral[k] + error * self.period, -1.0 / self.ki, 1.0 / self.ki)
-            data.ctrl[act] = _clip(self.gain * error + self.ki * self._integral[k])
+            wanted = target / self.radius
+            error = wanted - data.qvel[dof]
+            # feed-forward (the motor's steady state) plus PI on wheel speed; the integral stops while the
+            # output is saturated in the error's direction (no wind-up)
+            integral = self._integral[k] + error * h
+            power = wanted / top + gain * error + ki * integral
+            if (power > 1.0 and error > 0) or (power < -1.0 and error < 0):
+                integral = self._integral[k]
+                power = wanted / top + gain * error + ki * integral
+            self._integral[k] = integral
+            data.ctrl[act] = _clip(power)
 
     def _integrate(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Odometry: integrate the encoder change since the last update (midpoint heading)."""
@@ -224,7 +286,8 @@ class DriveService:
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """After ``World.reset``: idle, encoders and odometry at zero."""
-        self._mode, self._goal = "idle", {}
+        self._mode, self._goal, self._rested = "idle", {}, False
+        self._integral, self._wheel_targets, self._vel = [0.0, 0.0], (0.0, 0.0), (0.0, 0.0)
         self._encoder_zero = self._raw_encoders(model, data)
         self._last = np.zeros(2)
         self._odom = Odometry(float(data.time), 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -249,6 +312,7 @@ class DriveService:
             "last": [float(v) for v in self._last],
             "odom": [o.time, o.x, o.y, o.theta, o.linear, o.angular],
             "next_time": self.next_time,
+            "rested": self._rested,
         }
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -262,28 +326,64 @@ class DriveService:
         self._encoder_zero, self._last = np.asarray(state["encoder_zero"]), np.asarray(state["last"])
         self._odom = Odometry(*(float(v) for v in state["odom"]))
         self.next_time = float(state["next_time"])
+        self._rested = bool(state.get("rested", True))
 
     # -- internals -----------------------------------------------------------------------------------------
 
-    def _targets(self, model: mujoco.MjModel, data: mujoco.MjData) -> tuple[float, float]:
+    def _start(self, mode: str) -> None:
+        """Switch to a closed-loop mode: the speed ramp starts from the wheels' measured speeds."""
+        if self._mode in ("idle", "power"):
+            self._integral = [0.0, 0.0]
+            self._wheel_targets = self._measured_wheel_speeds()
+        self._mode = mode
+
+    def _settled(self, data: mujoco.MjData) -> bool:
+        """Whether a free robot rests on its wheels: vertical, roll and pitch speeds below 5 mm/s, 0.05 rad/s."""
+        if self._free < 0:
+            return True
+        v = data.qvel[self._free : self._free + 6]
+        return bool(abs(v[2]) < 0.005 and abs(v[3]) < 0.05 and abs(v[4]) < 0.05)
+
+    def _measured_wheel_speeds(self) -> tuple[float, float]:
+        model, data = self.world.model, self.world.data
+        _, _, left, right = self._lookup(model)
+        return (float(data.qvel[left]) * self.radius, float(data.qvel[right]) * self.radius)
+
+    def _measured_velocity(self) -> tuple[float, float]:
+        left, right = self._measured_wheel_speeds()
+        return ((left + right) / 2, (right - left) / self.separation)
+
+    def _targets(self, data: mujoco.MjData) -> tuple[float, float]:
         """Wheel surface speed targets (m/s) for the current mode."""
         if self._mode == "speed":
             return self._speed
         if self._mode == "stop":
             return (0.0, 0.0)
-        left, right = self.encoders()
-        if self._mode == "distance":
-            remaining = self._goal["distance"] - ((left + right) / 2 - self._goal["start"])
-            speed = _approach(remaining, self._goal["speed"])
-            if abs(remaining) < 0.0005 and abs(data.qvel[self._ids[2]]) * self.radius < 0.005:  # type: ignore[index]
+        if self._mode in ("distance", "rotate"):
+            left, right = self.encoders()
+            if not self._goal["started"]:
+                if not self._rested:
+                    # a distance or turn counts from when the robot stands on its wheels: one given while it is
+                    # still settling (a scene's command at t = 0) waits for that, then runs as it would later
+                    self._goal["still"] = self._goal.get("still", 0.0) + 1.0 if self._settled(data) else 0.0
+                    if self._goal["still"] < SETTLED_TICKS:
+                        return (0.0, 0.0)
+                    self._rested = True
+                self._goal["started"] = 1.0
+                self._goal["start"] = (left + right) / 2 if self._mode == "distance" else (right - left) / 2
+            if self._mode == "distance":
+                remaining = self._goal["distance"] - ((left + right) / 2 - self._goal["start"])
+                tolerance = 0.0005
+            else:
+                remaining = self._goal["arc"] - ((right - left) / 2 - self._goal["start"])
+                tolerance = 0.0002
+            speed = _approach(remaining, self._goal["speed"], self.limits.max_linear_accel)
+            assert self._ids is not None
+            still = max(abs(data.qvel[self._ids[2]]), abs(data.qvel[self._ids[3]])) * self.radius < 0.005
+            if abs(remaining) < tolerance and still:
                 self._mode = "stop"
-            return (speed, speed)
-        if self._mode == "rotate":
-            remaining = self._goal["arc"] - ((right - left) / 2 - self._goal["start"])
-            speed = _approach(remaining, self._goal["speed"])
-            if abs(remaining) < 0.0001 and abs(data.qvel[self._ids[2]]) * self.radius < 0.005:  # type: ignore[index]
-                self._mode = "stop"
-            return (-speed, speed)
+                return (0.0, 0.0)
+            return (speed, speed) if self._mode == "distance" else (-speed, speed)
         # cmd_vel, with timeout and value/acceleration limits
         lim = self.limits
         linear, angular = self._cmd
@@ -310,10 +410,10 @@ class DriveService:
         return ramped
 
     def _top_speed(self, power: float) -> float:
-        """Wheel surface speed (m/s) for a power level: a fraction of the robot's speed at full power."""
-        return abs(_clip(power)) * self.limits.max_linear
+        """Cruising wheel surface speed (m/s) for a power level: that fraction of the robot's top speed."""
+        return abs(_clip(power)) * min(self.limits.max_linear, self.max_wheel_speed * self.radius)
 
-    def _lookup(self, model: mujoco.MjModel) -> tuple[int, ...]:
+    def _lookup(self, model: mujoco.MjModel) -> tuple[int, int, int, int]:
         if self._ids is None or self._model_id != id(model):
             n = self.name
             self._ids = (
@@ -325,7 +425,49 @@ class DriveService:
                 int(model.joint(f"{n}/right_wheel").qposadr[0]),
             )
             self._model_id = id(model)
-        return self._ids[:4]
+            self._design = self._speed_loop(model)
+            fixed_gain, fixed_ki = self._fixed_gains
+            self.gain = self._design["gain"] if fixed_gain is None else fixed_gain
+            self.ki = self._design["integral_gain"] if fixed_ki is None else fixed_ki
+        ids = self._ids
+        return ids[0], ids[1], ids[2], ids[3]
+
+    def _speed_loop(self, model: mujoco.MjModel) -> dict[str, float]:
+        """Gains of the wheel-speed loop from the motor and the inertia each wheel drives.
+
+        The plant per wheel is ``J dw/dt = stall (u - w / w0)``: first order with the time constant
+        ``T = J w0 / stall``; held for a control period ``h`` it is ``w[k+1] = a w[k] + (1 - a) w0 u[k]`` with
+        ``a = exp(-h / T)``. With the feed-forward ``u = w* / w0`` plus PI, the error obeys
+        ``z^2 - (1 + a - g Kp - g Ki h) z + (a - g Kp)`` (``g = (1 - a) w0``); both poles go to
+        ``p = POLE`` (0.8) per period (a critically damped loop with a time constant of 4.5 periods: slow
+        enough that the chassis rocking, which the encoders see, does not excite it), or, where the motor alone
+        is faster than that, ``Kp = 0`` and the integral puts the slower pole at ``p``.
+        """
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        full = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, full)
+        dof = self._ids[2] if self._ids is not None else 0
+        inertia = float(full[dof, dof])  # the wheel, its armature
+        body = model.body(self.name).id
+        jnt = int(model.body_jntadr[body])
+        self._free = -1
+        if jnt >= 0 and model.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_FREE:
+            base = self._free = int(model.jnt_dofadr[jnt])
+            mass, yaw = float(full[base, base]), float(full[base + 5, base + 5])
+            r, s = self.robot.wheel_radius, self.robot.separation
+            # a wheel's share of the robot: half its mass going straight, its yaw inertia turning in place
+            inertia += max(mass * r * r / 2, 2 * yaw * r * r / (s * s))
+        robot, h, pole = self.robot, self.period, POLE
+        w0 = robot.wheel_speed_limit
+        tau = inertia * w0 / robot.stall_torque
+        a = math.exp(-h / tau)
+        g = (1 - a) * w0
+        if a >= pole * pole:
+            kp, ki = (a - pole * pole) / g, (1 - pole) ** 2 / (g * h)
+        else:
+            kp, ki = 0.0, (1 - pole) * (1 - a / pole) / (g * h)
+        return {"inertia": inertia, "time_constant": tau, "gain": kp, "integral_gain": ki, "pole": pole}
 
     def _raw_encoders(self, model: mujoco.MjModel, data: mujoco.MjData) -> Any:
         self._lookup(model)
@@ -340,6 +482,18 @@ class DriveService:
             raise EntityError(f"the drive of {self.name!r} is disabled; call enable(True) first")
 
 
+def _finite(what: str, positive: bool = True, **values: float | None) -> None:
+    """Raise :class:`EntityError` for a value that is not a finite number (or not positive, when asked)."""
+    for key, value in values.items():
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+            raise EntityError(f"{what}: {key} must be a number, got {value!r}")
+        if not math.isfinite(value) or (positive and value <= 0):
+            kind = "a positive finite number" if positive else "a finite number"
+            raise EntityError(f"{what}: {key} must be {kind}, got {value!r}")
+
+
 def _limit(value: float, low: float, high: float) -> float:
     """Scalar clip (numpy's costs microseconds per call on a Python float)."""
     return low if value < low else high if value > high else value
@@ -349,6 +503,12 @@ def _clip(value: float) -> float:
     return float(min(1.0, max(-1.0, value)))
 
 
-def _approach(remaining: float, top: float, gain: float = 4.0) -> float:
-    """Speed towards a goal: proportional near it, capped at ``top`` (m/s)."""
-    return _limit(gain * remaining, -top, top)
+def _approach(remaining: float, top: float, accel: float, gain: float = 4.0) -> float:
+    """Speed (m/s) towards a goal ``remaining`` metres away.
+
+    Capped at ``top``, slow enough to stop at half the acceleration limit ``accel`` (m/s^2), and proportional
+    (``gain``, 1/s) in the last centimetres.
+    """
+    distance = abs(remaining)
+    speed = min(top, math.sqrt(accel * distance), gain * distance)
+    return math.copysign(speed, remaining)

@@ -21,6 +21,80 @@ from simrun.world import World
 
 FloatArray = npt.NDArray[np.float64]
 
+#: What a ray sensor ignores: ``robot`` every geom of the robot it is mounted on (the whole tree of bodies
+#: under the top-level entity, mounted arms included), ``body`` only the mounting body's geoms, ``none``
+#: nothing.
+EXCLUDES = ("robot", "body", "none")
+
+
+class RayCaster:
+    """Casts rays from one point, ignoring the geoms of the robot the sensor is mounted on.
+
+    Args:
+        entity: Full name of the mounting entity (its body).
+        exclude: One of :data:`EXCLUDES`.
+    """
+
+    def __init__(self, entity: str, exclude: str = "robot") -> None:
+        if exclude not in EXCLUDES:
+            raise EntityError(f"exclude must be one of {', '.join(EXCLUDES)}, got {exclude!r}")
+        self.entity, self.exclude = entity, exclude
+        self.body = -1
+        self._own = np.zeros(0, dtype=bool)
+        self._model_id = 0
+        self._hit = np.zeros(1, dtype=np.int32)
+
+    def bind(self, model: mujoco.MjModel) -> int:
+        """The mounting body's id (and the geoms to ignore) for ``model``."""
+        if self._model_id != id(model):
+            body = model.body(self.entity).id
+            if self.exclude == "robot":
+                root = model.body_rootid[body]
+                self._own = model.body_rootid[model.geom_bodyid] == root
+            elif self.exclude == "body":
+                self._own = model.geom_bodyid == body
+            else:
+                self._own = np.zeros(model.ngeom, dtype=bool)
+            self.body, self._model_id = body, id(model)
+        return self.body
+
+    def cast(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        origin: FloatArray,
+        directions: FloatArray,
+        geomid: npt.NDArray[np.int32],
+        dist: FloatArray,
+        cutoff: float,
+    ) -> None:
+        """Fill ``geomid`` and ``dist`` (-1 where nothing is hit) for unit ``directions`` (n * 3, flat).
+
+        One ``mj_multiRay`` skips the mounting body; a ray that still hits a geom of the robot (a wheel, a
+        mounted arm) is continued past it with ``mj_ray`` until it leaves the robot.
+        """
+        body = self.bind(model)
+        n = len(geomid)
+        skip = body if self.exclude != "none" else -1
+        mujoco.mj_multiRay(model, data, origin, directions, None, 1, skip, geomid, dist, None, n, cutoff)
+        if self.exclude != "robot":
+            return
+        hits = geomid >= 0
+        own = np.zeros(n, dtype=bool)
+        own[hits] = self._own[geomid[hits]]
+        for k in np.flatnonzero(own):
+            direction = directions[3 * k : 3 * k + 3]
+            travelled, gid = float(dist[k]), int(geomid[k])
+            while gid >= 0 and self._own[gid] and travelled < cutoff:
+                start = origin + direction * travelled
+                step = mujoco.mj_ray(model, data, start, direction, None, 1, int(model.geom_bodyid[gid]), self._hit)
+                gid = int(self._hit[0]) if step >= 0 else -1
+                travelled += step if step >= 0 else 0.0
+            if gid < 0 or travelled > cutoff:
+                geomid[k], dist[k] = -1, -1.0
+            else:
+                geomid[k], dist[k] = gid, travelled
+
 
 class Sensor(abc.ABC):
     """Base: sampling at ``rate`` Hz (0: every step) on the simulation clock, the first sample at once.
@@ -101,7 +175,7 @@ class LaserRangeFinder(Sensor):
 
     Args:
         world: The world.
-        entity: Robot entity; the robot's own body is excluded from hits.
+        entity: Entity carrying the laser (its body frame; the scan plane is its XY plane).
         height: Mounting height above the body origin, metres (MSRS: 0.3 m above the base).
         fov_deg: Field of view, degrees, centred ahead.
         rays: Number of rays.
@@ -110,6 +184,8 @@ class LaserRangeFinder(Sensor):
         noise: Range noise standard deviation, metres.
         points: Also return hit points.
         seed: Noise seed.
+        exclude: What the rays ignore (:data:`EXCLUDES`): by default every geom of the robot the laser is
+            mounted on.
     """
 
     def __init__(
@@ -124,10 +200,12 @@ class LaserRangeFinder(Sensor):
         noise: float = 0.0,
         points: bool = False,
         seed: int = 0,
+        exclude: str = "robot",
     ) -> None:
         super().__init__(world, entity, rate, noise, seed)
         if rays < 1 or max_range <= 0 or not 0 < fov_deg <= 360:
             raise EntityError("laser: rays >= 1, max_range > 0, 0 < fov <= 360")
+        self.caster = RayCaster(entity, exclude)
         self.height, self.max_range, self.points = height, max_range, points
         span = math.radians(fov_deg)
         if fov_deg == 360:
@@ -137,19 +215,14 @@ class LaserRangeFinder(Sensor):
         self._local = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros(rays)], axis=1)
         self._geomid = np.zeros(rays, dtype=np.int32)
         self._dist = np.zeros(rays)
-        self._body, self._model_id = -1, 0
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> LaserScan:
         """Cast all rays from the mounting point in the body's heading plane."""
-        if self._model_id != id(model):
-            self._body, self._model_id = model.body(self.entity).id, id(model)
-        rotation = data.xmat[self._body].reshape(3, 3)
-        origin = data.xpos[self._body] + rotation[:, 2] * self.height
+        body = self.caster.bind(model)
+        rotation = data.xmat[body].reshape(3, 3)
+        origin = data.xpos[body] + rotation[:, 2] * self.height
         directions = (self._local @ rotation.T).ravel()
-        rays = len(self.angles)
-        mujoco.mj_multiRay(
-            model, data, origin, directions, None, 1, self._body, self._geomid, self._dist, None, rays, self.max_range
-        )
+        self.caster.cast(model, data, origin, directions, self._geomid, self._dist, self.max_range)
         ranges = np.where(self._geomid >= 0, self._dist, self.max_range)
         if self.noise:
             ranges = np.clip(self._noisy(ranges), 0.0, self.max_range)

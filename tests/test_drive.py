@@ -1,17 +1,64 @@
-"""Drive stack: differential-drive robots, the drive service and sensors, in real MuJoCo worlds."""
+"""Drive stack: differential-drive robots, the drive service and sensors, in real MuJoCo worlds.
+
+Ground truth is the simulator's body poses (``data.xpos`` / ``data.xquat``) and the published numbers the
+robots are built from, never the drive service's own estimates.
+"""
 
 import math
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
 from simrun import Box, EntityError, Ground, Pose, World, load_scene
-from simrun.drive import BoeBot, IRobotCreate, LegoNxtTribot, Pioneer3DX
+from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
 from simrun.drive_service import DriveLimits, DriveService
 from simrun.sensors import GPS, IMU, Bumper, Encoders, LaserRangeFinder
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
+
+
+def custom(name="r", pose=None):
+    """A user-built robot unlike the ready ones: 3 kg, 0.05 m wheels, a 2 N m / 10 rad/s motor."""
+    return DifferentialDrive(
+        name=name,
+        pose=pose or Pose(),
+        mass=2.8,
+        chassis_dimensions=(0.3, 0.2, 0.1),
+        chassis_clearance=0.02,
+        wheel_radius=0.05,
+        wheel_width=0.03,
+        wheel_mass=0.1,
+        track=0.26,
+        axle_offset=0.05,
+        caster_radius=0.025,
+        caster_offset=None,
+        stall_torque=2.0,
+        no_load_speed=10.0,
+    )
+
+
+# Published full-power speed of each robot, m/s (docs/robots.md names the sources): Parallax servo 50 rpm on the
+# seed's 0.025 m wheels, Pioneer 3-DX 1.2 m/s, Create 500 mm/s, NXT motor 170 rpm on 0.028 m wheels.
+PUBLISHED_TOP_SPEED = {
+    "BoeBot": 50 * 2 * math.pi / 60 * 0.025,
+    "Pioneer3DX": 1.2,
+    "IRobotCreate": 0.5,
+    "LegoNxtTribot": 170 * 2 * math.pi / 60 * 0.028,
+    "DifferentialDrive": 10.0 * 0.05,
+}
+ROBOTS = [BoeBot, Pioneer3DX, IRobotCreate, LegoNxtTribot, custom]
+IDS = ["BoeBot", "Pioneer3DX", "IRobotCreate", "LegoNxtTribot", "custom"]
+
+
+def make(robot, settle=0.3, name="r"):
+    world = World()
+    world.insert(Ground(name="ground"))
+    entity = world.insert(robot(name=name, pose=Pose((0, 0, 0.001))))
+    drive = DriveService(world, name)
+    world.run(settle)
+    return world, drive, entity
 
 
 def heading(world, name):
@@ -20,16 +67,12 @@ def heading(world, name):
 
 
 def boebot_world():
-    world = World()
-    world.insert(Ground(name="ground"))
-    world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001))))
-    drive = DriveService(world, "bot")
-    world.run(0.3)
+    world, drive, _ = make(BoeBot, name="bot")
     return world, drive
 
 
-@pytest.mark.parametrize("robot", [BoeBot, Pioneer3DX, IRobotCreate, LegoNxtTribot])
-def test_ready_robots_stand_still_on_the_ground(robot):
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_robots_stand_still_with_their_published_mass(robot):
     world = World()
     world.insert(Ground(name="ground"))
     entity = world.insert(robot(name="r", pose=Pose((0, 0, 0.001))))
@@ -37,57 +80,241 @@ def test_ready_robots_stand_still_on_the_ground(robot):
     assert world.warnings() == {}
     assert abs(world.body("r").xpos[2]) < 2e-3 and np.abs(world.body("r").cvel).max() < 1e-2
     total = world.model.body_subtreemass[world.model.body("r").id]
-    assert total == pytest.approx(entity.mass + 2 * entity.wheel_mass + 0.001)
+    assert total == pytest.approx(entity.mass + 2 * entity.wheel_mass + entity.caster_mass)
+    published = {"Pioneer3DX": 9.0, "IRobotCreate": 2.2, "LegoNxtTribot": 0.6, "BoeBot": 0.454 + 0.02 + 0.001}
+    if entity.TYPE in published:
+        assert total == pytest.approx(published[entity.TYPE], abs=1e-9)
 
 
-def test_drive_one_metre_stops_within_two_centimetres():
-    world, drive = boebot_world()
-    start = world.body("bot").xpos.copy()
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_full_power_reaches_the_published_top_speed_and_no_more(robot):
+    world, drive, entity = make(robot)
+    drive.set_drive_power(1.0, 1.0)
+    world.run(2.0)
+    x1 = world.body("r").xpos.copy()
+    world.run(1.0)
+    x2 = world.body("r").xpos.copy()
+    world.run(1.0)
+    x3 = world.body("r").xpos.copy()
+    speed, later = np.linalg.norm((x2 - x1)[:2]), np.linalg.norm((x3 - x2)[:2])
+    assert speed == pytest.approx(PUBLISHED_TOP_SPEED[entity.TYPE], rel=0.10)
+    assert later == pytest.approx(speed, rel=0.01)  # a top speed: no longer accelerating
+    assert abs(x3[1]) < 0.01 * x3[0]  # straight
+    drive.set_drive_power(0.5, 0.5)
+    world.run(2.0)
+    x4 = world.body("r").xpos.copy()
+    world.run(1.0)
+    half = np.linalg.norm((world.body("r").xpos - x4)[:2])
+    assert half == pytest.approx(speed / 2, rel=0.1)  # power is the motor's voltage fraction
+
+
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+@pytest.mark.parametrize("settle", [0.3, 0.0], ids=["settled", "at_t0"])
+def test_drive_one_metre_within_two_centimetres_and_odometry_agrees(robot, settle):
+    world, drive, _ = make(robot, settle)
+    start = world.body("r").xpos.copy()
     drive.drive_distance(1.0, power=0.6)
     assert drive.busy
-    assert world.run_until(lambda: not drive.busy, timeout=20)
+    assert world.run_until(lambda: not drive.busy, timeout=30)
     world.run(0.5)
-    travelled = world.body("bot").xpos - start
-    assert abs(np.linalg.norm(travelled[:2]) - 1.0) < 0.02
-    assert abs(travelled[1]) < 0.02  # straight
+    travelled = world.body("r").xpos - start
+    assert np.linalg.norm(travelled[:2]) == pytest.approx(1.0, abs=0.02)
+    assert travelled[0] > 0.98 and abs(travelled[1]) < 0.005  # forward and straight
     odometry = drive.odometry()
-    assert abs(odometry.x - travelled[0]) < 0.02 and abs(odometry.y) < 0.01
+    assert math.hypot(odometry.x - travelled[0], odometry.y - travelled[1]) < 0.02
 
 
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_short_drive_at_t0_behaves_as_after_settling(robot):
+    results = []
+    for settle in (0.0, 0.5):
+        world, drive, _ = make(robot, settle)
+        start = world.body("r").xpos.copy()
+        drive.drive_distance(0.2, power=0.5)
+        assert world.run_until(lambda d=drive: not d.busy, timeout=20)
+        world.run(0.3)
+        results.append(np.linalg.norm((world.body("r").xpos - start)[:2]))
+    assert results[0] == pytest.approx(0.2, abs=0.01) and results[1] == pytest.approx(0.2, abs=0.01)
+    assert abs(results[0] - results[1]) < 0.005
+
+
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
 @pytest.mark.parametrize("degrees", [90.0, -90.0])
-def test_rotate_ninety_degrees_within_two(degrees):
-    world, drive = boebot_world()
-    before = heading(world, "bot")
+def test_rotate_ninety_degrees_within_two_about_the_body_origin(robot, degrees):
+    world, drive, _ = make(robot)
+    before, start = heading(world, "r"), world.body("r").xpos.copy()
     drive.rotate_degrees(degrees, power=0.5)
     assert world.run_until(lambda: not drive.busy, timeout=20)
     world.run(0.5)
-    assert abs((heading(world, "bot") - before) - degrees) < 2.0
+    assert abs((heading(world, "r") - before) - degrees) < 2.0
+    # the body origin is the axle midpoint (docs/robots.md): a turn in place leaves it where it was
+    assert np.linalg.norm((world.body("r").xpos - start)[:2]) < 0.01
+    odometry = drive.odometry()
+    assert math.degrees(odometry.theta) == pytest.approx(degrees, abs=2.0)
+    assert math.hypot(odometry.x, odometry.y) < 0.01
 
 
-def test_cmd_vel_arc_matches_its_radius():
-    world, drive = boebot_world()
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_cmd_vel_arc_matches_its_radius(robot):
+    world, drive, entity = make(robot)
+    speed = 0.4 * min(entity.top_speed, 0.5)
+    radius = max(0.2, 1.5 * entity.separation)
     points = []
-    for k in range(3000):
+    for k in range(4000):
         if k % 50 == 0:
-            drive.cmd_vel(0.1, 0.5)  # radius 0.2 m
+            drive.cmd_vel(speed, speed / radius)
         world.step()
-        if k > 1000 and k % 10 == 0:
-            points.append(world.body("bot").xpos[:2].copy())
+        if k > 1500 and k % 10 == 0:
+            points.append(world.body("r").xpos[:2].copy())
     p = np.array(points)
     a = np.c_[2 * p, np.ones(len(p))]
     cx, cy, c = np.linalg.lstsq(a, (p**2).sum(axis=1), rcond=None)[0]
-    radius = math.sqrt(c + cx * cx + cy * cy)
-    assert radius == pytest.approx(0.2, rel=0.05)
+    assert math.sqrt(c + cx * cx + cy * cy) == pytest.approx(radius, rel=0.05)
+    assert cy > 0  # a positive turn rate curves left (+Y)
+
+
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_the_service_moves_the_robot_only_through_its_actuators(robot):
+    """Replaying the controls the service wrote, with bare mj_step, gives bit-identical motion."""
+    world, drive, _ = make(robot, settle=0.0)
+    model, data = world.model, world.data
+    initial = (data.qpos.copy(), data.qvel.copy())
+    controls = []
+    drive.cmd_vel(0.1, 0.5)
+    for _ in range(300):
+        world.step()
+        controls.append(data.ctrl.copy())
+    replay = mujoco.MjData(model)
+    replay.qpos[:], replay.qvel[:] = initial
+    mujoco.mj_forward(model, replay)
+    for ctrl in controls:
+        replay.ctrl[:] = ctrl  # the controls were in place for the step just taken
+        mujoco.mj_step(model, replay)
+    assert np.linalg.norm(data.qpos[:3] - initial[0][:3]) > 0.005  # it did move
+    np.testing.assert_array_equal(replay.qpos, data.qpos)
+    np.testing.assert_array_equal(replay.qvel, data.qvel)
+
+
+@pytest.mark.parametrize("call", ["set_drive_power", "drive_speed", "drive_distance", "rotate_degrees", "cmd_vel"])
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_commands_are_refused_and_nothing_moves(call, bad):
+    world, drive = boebot_world()
+    start = world.body("bot").xpos.copy()
+    with pytest.raises(EntityError, match="finite"):
+        getattr(drive, call)(bad, 0.5) if call != "drive_distance" else drive.drive_distance(bad)
+    if call in ("drive_distance", "rotate_degrees"):
+        with pytest.raises(EntityError, match="power"):
+            getattr(drive, call)(0.1, bad)
+    world.run(0.5)
+    assert np.linalg.norm(world.body("bot").xpos - start) < 1e-4 and not drive.busy
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        {"mass": 0.15, "wheel_radius": 0.02, "stall_torque": 0.05, "no_load_speed": 30.0},  # light, fast motor
+        {"mass": 0.15, "wheel_radius": 0.02, "stall_torque": 0.08, "no_load_speed": 3.0},  # light, stiff servo
+        {"mass": 20.0, "wheel_radius": 0.15, "stall_torque": 40.0, "no_load_speed": 10.0},  # heavy
+        {"mass": 20.0, "wheel_radius": 0.15, "stall_torque": 5.0, "no_load_speed": 3.0},  # heavy, weak motor
+    ],
+    ids=["light-fast", "light-stiff", "heavy", "heavy-weak"],
+)
+def test_custom_robots_across_the_documented_range_hold_a_speed(params):
+    size = 4 * params["wheel_radius"]
+    robot = DifferentialDrive(
+        name="r",
+        pose=Pose((0, 0, 0.001)),
+        chassis_dimensions=(2.5 * size, size, size / 2),
+        chassis_clearance=params["wheel_radius"] / 3,
+        caster_radius=params["wheel_radius"] / 2,
+        caster_offset=None,
+        wheel_width=params["wheel_radius"] / 2,
+        wheel_mass=params["mass"] / 40,
+        **params,
+    )
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(robot)
+    drive = DriveService(world, "r")
+    target = 0.5 * robot.top_speed
+    drive.drive_speed(target, target)
+    world.run(3.0)
+    speeds = []
+    for _ in range(50):
+        before = world.body("r").xpos.copy()
+        world.run(0.02)
+        speeds.append(np.linalg.norm((world.body("r").xpos - before)[:2]) / 0.02)
+    assert np.mean(speeds) == pytest.approx(target, rel=0.03)
+    assert np.std(speeds) < 0.02 * target  # steady: no limit cycle
+    assert world.warnings() == {}
+
+
+def test_boebot_has_the_seed_articles_dimensions():
+    world = World()
+    world.insert(BoeBot(name="b"))
+    model = world.model
+    left, right = (model.body(f"b/{side}_wheel").pos for side in ("left", "right"))
+    caster, chassis = model.geom("b/caster").pos, model.geom("b/chassis")
+    assert left[1] - right[1] == pytest.approx(0.090)  # wheels at +-X/2 of the 0.09 m chassis
+    assert model.geom("b/left_tyre").size[1] == pytest.approx(0.010 / 2)  # wheel width 0.010
+    assert left[0] - chassis.pos[0] == pytest.approx(0.02)  # axle 0.02 ahead of the chassis centre
+    assert left[0] - caster[0] == pytest.approx(0.055)  # axle to caster
+    assert chassis.pos[2] - chassis.size[2] == pytest.approx(0.015)  # clearance
+    np.testing.assert_allclose(2 * chassis.size, [0.13, 0.09, 0.09])
+    assert (left[0], left[2]) == pytest.approx((0.0, 0.025))  # body origin: axle midpoint on the ground
+    assert model.geom("b/caster").size[0] == pytest.approx(0.0125)
+    assert model.body_mass[model.body("b/left_wheel").id] == pytest.approx(0.01)
+    assert BoeBot(name="x", motor_torque_scaling=30).top_speed == pytest.approx(30 * 0.025)  # the seed's MSRS speed
+
+
+def test_published_dimensions_of_the_other_robots():
+    world = World()
+    world.insert(Pioneer3DX(name="p"))
+    world.insert(IRobotCreate(name="c", pose=Pose((2, 0, 0))))
+    world.insert(LegoNxtTribot(name="t", pose=Pose((4, 0, 0))))
+    model = world.model
+    tyre = model.geom("p/left_tyre").size
+    outer = model.body("p/left_wheel").pos[1] - model.body("p/right_wheel").pos[1] + 2 * tyre[1]
+    assert outer == pytest.approx(0.381)  # Adept: 381 mm wide over the wheels
+    assert 2 * tyre[0] == pytest.approx(0.195)
+    disc = model.geom("c/chassis")
+    assert disc.type[0] == mujoco.mjtGeom.mjGEOM_CYLINDER and 2 * disc.size[0] == pytest.approx(0.33)
+    assert model.body("c/left_wheel").pos[1] * 2 == pytest.approx(0.258)
+    assert model.geom("t/left_tyre").size[0] == pytest.approx(0.028)
+    bad = World()
+    bad.insert(IRobotCreate(name="x", chassis_dimensions=(0.3, 0.2, 0.05)))
+    with pytest.raises(EntityError, match="disc chassis needs length == width"):
+        bad.compile()
+
+
+def test_speed_loop_gains_come_from_the_motor_and_inertia():
+    designs = {}
+    for robot in (BoeBot, Pioneer3DX):
+        _, drive, _ = make(robot, settle=0.0)
+        designs[robot.TYPE] = drive.speed_loop()
+    # the Pioneer's motor is slow under its 9 kg (a 0.09 s time constant): it needs a proportional term;
+    # the Boe-Bot's servo is faster than the 20 ms control period: the integral alone
+    assert designs["Pioneer3DX"]["time_constant"] == pytest.approx(0.09, rel=0.1)
+    assert designs["Pioneer3DX"]["gain"] > 0 and designs["BoeBot"]["gain"] == 0
+    assert designs["BoeBot"]["integral_gain"] != designs["Pioneer3DX"]["integral_gain"]
 
 
 def test_cmd_vel_limits_and_timeout():
-    world, drive = boebot_world()
+    world, drive, _ = make(Pioneer3DX)
     drive.limits = DriveLimits(max_linear=0.2, command_timeout=0.5)
     drive.cmd_vel(5.0, 0.0)  # far above the limit
+    world.run(0.4)  # 0.2 m/s reached at 0.3 m/s^2 after 0.67 s
+    moved = world.body("r").xpos[0]
+    assert moved == pytest.approx(0.5 * 0.3 * 0.4**2, abs=0.006)  # the acceleration limit
+    drive.cmd_vel(5.0, 0.0)
     world.run(0.4)
-    assert world.body("bot").cvel[3] == pytest.approx(0.2, abs=0.03)
+    before = world.body("r").xpos.copy()
+    world.run(0.1)
+    assert (world.body("r").xpos[0] - before[0]) / 0.1 == pytest.approx(0.2, abs=0.02)
     world.run(2.0)  # no new command: it stops
-    assert abs(world.body("bot").cvel[3]) < 0.01
+    before = world.body("r").xpos.copy()
+    world.run(0.1)
+    assert abs(world.body("r").xpos[0] - before[0]) < 1e-3
 
 
 def test_stop_disable_and_encoders():
@@ -118,7 +345,8 @@ def test_driving_into_a_box_is_stopped_and_the_bumper_fires():
     bumper = Bumper(world, "bot")
     drive.drive_distance(1.0, power=0.6)
     world.run(6.0)
-    assert world.body("bot").xpos[0] < 0.4 - 0.05 - 0.065 + 0.01  # front face stopped at the wall
+    front = world.body("bot").xpos[0] - 0.02 + 0.065  # the axle (origin) is 0.02 ahead of the chassis centre
+    assert 0.35 - 0.01 < front < 0.35 + 0.002  # stopped at the wall's face
     assert bumper.reading.pressed and bumper.reading.touching == ("wall/geom",)
 
 
@@ -143,6 +371,25 @@ def test_laser_sees_the_walls_at_the_right_distances():
         assert scan.ranges[k] == pytest.approx(distance, abs=0.005)
     assert np.nanmax(np.abs(scan.points[:, :2])) <= 1.95 + 1e-6 + 0.0  # every hit on a wall face
     assert scan.ranges.min() > 1.4  # the robot's own body is excluded
+
+
+def test_a_low_laser_does_not_see_its_own_wheels_or_mounted_arm():
+    from simrun.arm import LynxL6
+
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001))))
+    world.insert(Pioneer3DX(name="p3dx", pose=Pose((3, 0, 0.001))))
+    world.insert(LynxL6(name="arm", parent="p3dx", pose=Pose((0.1, 0, 0.237))))
+    low = LaserRangeFinder(world, "bot", height=0.03, fov_deg=360, rays=360, max_range=2.0)
+    own = LaserRangeFinder(world, "bot", height=0.03, fov_deg=360, rays=360, max_range=2.0, exclude="body")
+    arm_level = LaserRangeFinder(world, "p3dx", height=0.3, fov_deg=360, rays=360, max_range=2.0)
+    world.step(1)
+    assert np.all(low.reading.ranges == 2.0)  # 360 rays at 3 cm: nothing of its own robot
+    assert np.sum(own.reading.ranges < 0.06) > 20  # only the body excluded: the wheels are in the way
+    assert np.all(arm_level.reading.ranges == 2.0)  # the Pioneer's laser does not see its arm
+    with pytest.raises(EntityError, match="exclude must be one of"):
+        LaserRangeFinder(world, "bot", exclude="wheels")
 
 
 def test_sensor_noise_is_seeded_and_deterministic():
@@ -229,10 +476,10 @@ def test_sensor_specs_are_checked(tmp_path):
     path = tmp_path / "s.toml"
     base = (SCENES / "pioneer_room.toml").read_text()
     path.write_text(base.replace('type = "LaserRangeFinder"', 'type = "Lidar"'))
-    with pytest.raises(SceneError, match=r"sensors\[0\]: unknown sensor type 'Lidar'"):
+    with pytest.raises(SceneError, match=r"sensors\[0\].*: unknown sensor type 'Lidar'"):
         load_scene(path)
     path.write_text(base.replace("rays = 360", "rays = 360\nbeams = 3"))
-    with pytest.raises(SceneError, match=r"sensors\[0\]: sensor 'laser': .*beams"):
+    with pytest.raises(SceneError, match=r"sensors\[0\].*: sensor 'laser': .*beams"):
         load_scene(path)
 
 

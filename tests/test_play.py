@@ -38,11 +38,13 @@ def test_play_applies_commands_and_summarises():
     world = load_scene(SCENES / "boebot.toml")
     commands = load_commands(SCENES / "square.commands.toml")
     assert [c.call for c in commands][:3] == ["rotate_degrees", "drive_distance", "rotate_degrees"]
-    result = play(world, 11.0, commands)
+    start = world.body("boebot").xpos.copy()
+    result = play(world, 40.0, commands)
     summary = result.to_dict()
-    assert summary["simulated_s"] == 11.0 and summary["steps"] == 5500
-    # the first 0.9 m leg, plus the body origin's small circles while turning about the axle (two turns)
-    assert summary["distances_m"]["boebot"] == pytest.approx(0.9 + 2 * 0.03 * np.pi / 2, abs=0.03)
+    assert summary["simulated_s"] == 40.0 and summary["steps"] == 20000
+    # legs of 0.3 + 0.8 + 0.6 + 0.8 + 0.3 m; the body origin is the axle midpoint, so turns add nothing
+    assert summary["distances_m"]["boebot"] == pytest.approx(2.8, abs=0.03)
+    assert np.linalg.norm(world.body("boebot").xpos[:2] - start[:2]) < 0.02  # back where it started
     assert summary["warnings"] == {}
 
 
