@@ -20,6 +20,12 @@ from PIL import Image
 import meshtool
 from meshtool.packfile import PackedMesh
 from simrun.errors import EntityError
+from simrun.safeio import FileReadError, check_regular, read_regular
+
+#: Largest texture or height-field image file read, bytes.
+MAX_IMAGE_BYTES = 64 * 1024 * 1024
+#: Most pixels of a decoded texture or height-field image (8192 x 8192).
+MAX_IMAGE_PIXELS = 8192 * 8192
 
 
 @dataclass(slots=True)
@@ -55,7 +61,10 @@ class AssetLibrary:
         key = path.resolve()
         if key not in self.files:
             try:
+                check_regular(key, "mesh asset")  # never hand a FIFO or device to the reader
                 self.files[key] = meshtool.load(key)
+            except FileReadError as exc:
+                raise EntityError(str(exc)) from None
             except meshtool.MeshtoolError as exc:
                 raise EntityError(f"cannot load mesh asset: {exc}") from None
         return self.files[key]
@@ -142,10 +151,7 @@ class AssetLibrary:
     def read_image(self, path: Path, shown: str) -> bytes:
         """The bytes of a PNG file, read once and checked to decode."""
         if path not in self.images:
-            try:
-                data = path.read_bytes()
-            except OSError as exc:
-                raise EntityError(f"texture {shown!r} cannot be read: {exc.strerror}") from None
+            data = read_image_file(path, shown)
             _decode(data)
             self.images[path] = data
         return self.images[path]
@@ -158,13 +164,39 @@ class AssetLibrary:
         return name
 
 
+def read_image_file(path: Path, shown: str) -> bytes:
+    """The bytes of an image file (a regular file of at most :data:`MAX_IMAGE_BYTES`).
+
+    Raises:
+        EntityError: It cannot be read, is not a regular file (a FIFO, device...) or is too large.
+    """
+    try:
+        return read_regular(path, f"image {shown!r}", MAX_IMAGE_BYTES)
+    except FileReadError as exc:
+        raise EntityError(str(exc)) from None
+
+
+def open_image(data: bytes, shown: str = "texture") -> Image.Image:
+    """A decoded image, refusing images over :data:`MAX_IMAGE_PIXELS` before decoding their pixels.
+
+    Raises:
+        EntityError: Not a readable image, or too many pixels.
+    """
+    try:
+        image = Image.open(io.BytesIO(data))
+        if image.width * image.height > MAX_IMAGE_PIXELS:
+            raise EntityError(
+                f"{shown} is {image.width} x {image.height} pixels, over the limit of {MAX_IMAGE_PIXELS} pixels"
+            )
+        image.load()
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:
+        raise EntityError(f"{shown} is not a readable image ({exc})") from None
+    return image
+
+
 def _decode(png: bytes) -> tuple[int, int, int, bytes]:
     """(width, height, channels, pixel bytes) of an image, RGB or RGBA, rows top to bottom."""
-    try:
-        image = Image.open(io.BytesIO(png))
-        image.load()
-    except (OSError, ValueError) as exc:
-        raise EntityError(f"texture is not a readable image ({exc})") from None
+    image = open_image(png)
     mode = "RGBA" if image.mode in ("RGBA", "LA", "PA") or "transparency" in image.info else "RGB"
     converted = image.convert(mode)
     return converted.width, converted.height, len(mode), converted.tobytes()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import os
 import sys
 from collections.abc import Iterator
@@ -25,17 +26,75 @@ from simrun.outfile import check_output, output_policy, write_bytes
 from simrun.play import PythonController, encode_gif, encode_mp4, load_commands, play
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
-from simrun.simlog import Recorder, Simlog, check_scene, replay_states, resimulate
+from simrun.simlog import Recorder, Simlog, check_model, check_scene, replay_states, resimulate
 from simrun.teleop import run_viewer
 from simrun.usd_export import export_world_usd
 
-EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
+#: Exit codes (README, simrun section): 0 ok; 1 the input is invalid or the check failed (a scene, commands
+#: file, recording or controller refused, a re-simulation that differs); 2 usage; 3 simrun itself failed.
+EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+#: Set to 1 to get the traceback of an internal error (exit 3) instead of its one-line summary.
+DEBUG_VARIABLE = "SIMRUN_DEBUG"
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Group(click.Group):
+    """The command group: a user error is one ``error:`` line (exit 1), a bug one ``internal error:`` line (3)."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except SimrunError as exc:
+            click.echo(f"error: {_one_line(str(exc))}", err=True)
+            sys.exit(EXIT_INPUT)
+        except Exception as exc:
+            if os.environ.get(DEBUG_VARIABLE):
+                raise
+            message = _one_line(f"{type(exc).__name__}: {exc}")
+            click.echo(f"internal error: {message} (please report; {DEBUG_VARIABLE}=1 shows more)", err=True)
+            sys.exit(EXIT_INTERNAL)
+
+
+def _one_line(text: str) -> str:
+    """Messages (MuJoCo's among them) may hold line breaks; the error stays on one line."""
+    return "; ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
+class _Number(click.ParamType):  # type: ignore[type-arg]
+    """A finite float in [low, high] (click's FloatRange lets NaN through)."""
+
+    name = "number"
+
+    def __init__(self, low: float, high: float, low_open: bool = False) -> None:
+        self.low, self.high, self.low_open = low, high, low_open
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number", param, ctx)
+        below = number <= self.low if self.low_open else number < self.low
+        if not math.isfinite(number) or below or number > self.high:
+            bracket = "(" if self.low_open else "["
+            self.fail(f"{value!r} is not in {bracket}{self.low:g}, {self.high:g}]", param, ctx)
+        return number
+
+
+#: Longest simulated run from the command line (one day), seconds.
+MAX_SECONDS = 86400.0
+SECONDS = _Number(0.0, MAX_SECONDS)
+FPS = _Number(0.0, 1000.0, low_open=True)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="simrun")
 def main() -> None:
-    """Run MuJoCo worlds of meshtool assets."""
+    """Run MuJoCo worlds of meshtool assets.
+
+    Exit codes: 0 ok, 1 invalid input or a failed check (one 'error:' line naming the file and line), 2 usage,
+    3 simrun failed (a bug; SIMRUN_DEBUG=1 shows the traceback).
+    """
 
 
 @main.command("doctor")
@@ -50,11 +109,12 @@ def doctor() -> None:
 
 @main.command("check")
 @click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--seconds", type=float, default=1.0, show_default=True, help="Simulated time to step.")
+@click.option("--seconds", type=SECONDS, default=1.0, show_default=True, help="Simulated time to step.")
 def check(scene: Path, seconds: float) -> None:
-    """Load SCENE, compile it and step it; fail on any MuJoCo warning or non-finite state."""
+    """Load SCENE, compile it, bind its services and sensors, and step it; fail on any warning or non-finite state."""
     with _guard():
         world = load_scene(scene)
+        world.check_bindings()
         world.run(seconds)
         warnings = world.warnings()
         if warnings:
@@ -137,7 +197,7 @@ def _size(text: str) -> tuple[int, int]:
 
 @main.command("play")
 @click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--duration", type=float, default=5.0, show_default=True, help="Simulated seconds.")
+@click.option("--duration", type=SECONDS, default=5.0, show_default=True, help="Simulated seconds.")
 @click.option(
     "--commands",
     "commands_file",
@@ -161,7 +221,7 @@ def _size(text: str) -> tuple[int, int]:
 )
 @click.option("--camera", default=None, help="Camera name (default: the main view, else a free camera).")
 @click.option("--size", default="320x240", show_default=True, help="Frame size WxH.")
-@click.option("--fps", type=float, default=15.0, show_default=True, help="Frames per simulated second.")
+@click.option("--fps", type=FPS, default=15.0, show_default=True, help="Frames per simulated second.")
 @click.option("--realtime", is_flag=True, help="Do not run faster than the wall clock.")
 @click.option(
     "--record",
@@ -230,7 +290,7 @@ def play_command(
         chosen = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
         recorder = None
         if record:
-            controller = str(commands_file.resolve()) if python and commands_file else None
+            controller = commands_file if python else None
             recorder = Recorder(world, record, scene, commands, seed=seed or 0, sensors=chosen, controller=controller)
         try:
             result = play(world, duration, commands, sink, fps, realtime, progress)
@@ -274,15 +334,16 @@ def play_command(
 )
 @click.option("--camera", default=None, help="Camera name.")
 @click.option("--size", default="320x240", show_default=True, help="Frame size WxH.")
-@click.option("--fps", type=float, default=15.0, show_default=True, help="Frames per simulated second.")
+@click.option("--fps", type=FPS, default=15.0, show_default=True, help="Frames per simulated second.")
 def replay(log: Path, video: Path, render_mode: str, camera: str | None, size: str, fps: float) -> None:
     """Replay a .simlog kinematically (the recorded poses, no physics) into a video."""
     width, height = _size(size)
     with _guard():
         recording = Simlog(log)
-        scene = Path(recording.header["scene"])
+        scene = recording.scene_path()
         check_scene(recording, scene)
         world = load_scene(scene)
+        check_model(recording, world)
         renderer = FrameRenderer(world.model, width, height, render_mode, camera, world.data)
         frames, next_frame = [], 0.0
         for t in replay_states(world, recording):
@@ -302,19 +363,43 @@ def replay(log: Path, video: Path, render_mode: str, camera: str | None, size: s
 @click.option(
     "--from",
     "start",
-    type=float,
+    type=SECONDS,
     default=0.0,
     show_default=True,
     help="Re-simulate from the last checkpoint at or before this time, seconds.",
 )
-def resim(log: Path, start: float) -> None:
-    """Re-simulate a .simlog from a checkpoint and check it matches the recording bit for bit."""
+@click.option(
+    "--controller",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="The Python controller module the recorded run used (its SHA-256 must match the recorded one).",
+)
+def resim(log: Path, start: float, controller: Path | None) -> None:
+    """Re-simulate a .simlog from a checkpoint and check it matches the recording bit for bit.
+
+    A recording never names code to run: when the run used a Python controller, give the same file with
+    --controller; it runs only if its SHA-256 equals the recorded one. The recorded scene path is
+    relative to the recording, so this works from any folder.
+    """
     with _guard():
         recording = Simlog(log)
-        scene = Path(recording.header["scene"])
+        recorded = recording.controller_sha256()
+        if recording.header["controller"] is not None and controller is None:
+            raise SimrunError(
+                f"{log}: the run used the controller {recording.header['controller']!r}; give that file with "
+                "--controller PATH (it runs only if its SHA-256 matches the recording)"
+            )
+        if controller is not None and recording.header["controller"] is None:
+            raise SimrunError(f"{log}: the recorded run used no controller; leave out --controller")
+        if controller is not None and recorded is None:
+            raise SimrunError(f"{log}: the recording holds no controller SHA-256 to check {controller} against")
+        scene = recording.scene_path()
         check_scene(recording, scene)
         world = load_scene(scene)
-        _bind_recorded_services(world, recording)
+        check_model(recording, world)
+        _bind_services(world)
+        if controller is not None:
+            PythonController(world, controller, sha256=recorded)
         compared, mismatch = resimulate(world, recording, start)
         recording.close()
         if mismatch is not None:
@@ -323,16 +408,11 @@ def resim(log: Path, start: float) -> None:
 
 
 def _bind_services(world: Any) -> None:
-    """Create every service the scene binds, in scene order (play and resim must create the same ones)."""
-    for binding in world.services:
-        world.service(binding["type"], binding["entity"])
+    """Create every bound service in scene order (play and resim create the same ones); check every binding.
 
-
-def _bind_recorded_services(world: Any, recording: Any) -> None:
-    """Create the services and the controller module the recorded run had, in the same order."""
-    _bind_services(world)
-    if recording.header.get("controller"):
-        PythonController(world, Path(recording.header["controller"]))
+    Errors name the scene file and line of the binding.
+    """
+    world.check_bindings()
 
 
 @main.command("view")
@@ -358,7 +438,7 @@ def view(scene: Path) -> None:
 )
 @click.option("--camera", default=None, help="Camera name (default: the main view, else a free camera).")
 @click.option("--size", default="640x480", show_default=True, help="Image size WxH.")
-@click.option("--at", "at_time", type=float, default=0.0, show_default=True, help="Simulated time to show.")
+@click.option("--at", "at_time", type=SECONDS, default=0.0, show_default=True, help="Simulated time to show.")
 def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, size: str, at_time: float) -> None:
     """Render one picture of SCENE (after stepping to --at seconds)."""
     width, height = _size(size)
@@ -377,5 +457,5 @@ def _guard() -> Iterator[None]:
     try:
         yield
     except SimrunError as exc:
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {_one_line(str(exc))}", err=True)
         sys.exit(EXIT_INPUT)

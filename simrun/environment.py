@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import io
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
-from PIL import Image
 
+from simrun.assets import open_image, read_image_file
 from simrun.entity import BuildContext, Entity, Material, check_positive
 from simrun.errors import EntityError
 from simrun.pose import Pose
@@ -73,10 +72,14 @@ class HeightField(Entity):
         if (self.heights is None) == (self.image is None):
             raise EntityError(f"HeightField {self.name!r}: give exactly one of heights and image")
         if self.heights is not None:
+            rows = [len(row) for row in self.heights]
+            if len(set(rows)) > 1:
+                raise EntityError(f"HeightField {self.name!r}: rows must be equally long, got lengths {rows}")
             grid = np.asarray(self.heights, dtype=np.float64)
         else:
-            data = (ctx.base_dir / str(self.image)).read_bytes()
-            grid = np.asarray(Image.open(io.BytesIO(data)).convert("L"), dtype=np.float64)[::-1] / 255.0
+            data = read_image_file(ctx.base_dir / str(self.image), str(self.image))
+            image = open_image(data, f"height-field image {self.image!r}")
+            grid = np.asarray(image.convert("L"), dtype=np.float64)[::-1] / 255.0
         if grid.ndim != 2 or min(grid.shape) < 2 or not np.isfinite(grid).all():
             raise EntityError(f"HeightField {self.name!r}: heights must be a finite 2D grid of at least 2x2")
         check_positive(self, **{f"size[{k}]": v for k, v in enumerate(self.size)})

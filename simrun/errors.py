@@ -12,18 +12,32 @@ class EntityError(SimrunError, ValueError):
 
 
 class SceneError(SimrunError, ValueError):
-    """A scene file is invalid; the message names the file and the key path.
+    """A scene, commands or recording file is invalid; the message names the file, line and key path.
+
+    The text is ``FILE:LINE: KEY 'NAME': message``, for example
+    ``scene.toml:14: entities[3] 'box': mass: expected a positive number, got -100``; parts that are not
+    known are left out (``FILE: message`` for a file that cannot be read).
 
     Args:
-        message: What is wrong.
-        path: The scene file.
-        key: Key path inside it, e.g. ``entities[3].pose.position``.
+        message: What is wrong (and, where it helps, how to fix it).
+        path: The file.
+        key: Key path inside it, e.g. ``entities[3]`` or ``world.timestep``.
+        line: 1-based line of the key in the file.
+        label: The name of the entity (or service, sensor, command) the key belongs to.
     """
 
-    def __init__(self, message: str, path: str | None = None, key: str | None = None) -> None:
-        self.path, self.key, self.message = path, key, message
-        where = ": ".join(x for x in (path, key) if x)
-        super().__init__(f"{where}: {message}" if where else message)
+    def __init__(
+        self,
+        message: str,
+        path: str | None = None,
+        key: str | None = None,
+        line: int | None = None,
+        label: str | None = None,
+    ) -> None:
+        self.path, self.key, self.message, self.line, self.label = path, key, message, line, label
+        where = f"{path}:{line}" if path and line else path
+        what = f"{key} {label!r}" if key and label else key
+        super().__init__(": ".join(x for x in (where, what, message) if x))
 
 
 class CompileError(SimrunError, RuntimeError):

@@ -12,6 +12,8 @@ from simrun.entity import BuildContext, Entity, Material, check_positive
 from simrun.errors import EntityError
 
 COLLISION = ("hulls", "convex", "none")
+#: Largest uniform scale accepted (and smallest: its inverse).
+MAX_SCALE = 1e6
 
 
 @dataclass(kw_only=True)
@@ -40,6 +42,8 @@ class MeshEntity(Entity):
     def build(self, body: Any, ctx: BuildContext) -> None:
         """Visual geoms per submesh (group 2, massless) and collision geoms (group 3)."""
         check_positive(self, scale=self.scale, mass=self.mass, density=self.density)
+        if not 1 / MAX_SCALE <= self.scale <= MAX_SCALE:
+            raise EntityError(f"MeshEntity {self.name!r}: scale must be in [{1 / MAX_SCALE:g}, {MAX_SCALE:g}]")
         if self.collision not in COLLISION:
             raise EntityError(f"MeshEntity {self.name!r}: collision must be one of {', '.join(COLLISION)}")
         asset = ctx.assets.mesh(ctx.base_dir / Path(ctx.asset_paths.get(self.asset, self.asset)), self.scale)

@@ -1,14 +1,15 @@
 """Headless playback: run a world with timed service commands, render video or frames, summarise.
 
-``simrun play`` uses :func:`play`; commands come from a TOML file of ``[[commands]]`` tables.
+``simrun play`` uses :func:`play`; commands come from a TOML file of ``[[commands]]`` tables
+(:mod:`simrun.commands`) or from a Python controller module given on the command line.
 """
 
 from __future__ import annotations
 
+import hashlib
 import io
 import math
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,45 +17,55 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from simrun.errors import SceneError, SimrunError
+from simrun.commands import Command, check_commands, load_commands
+from simrun.errors import SimrunError
+from simrun.safeio import FileReadError, read_regular
 from simrun.world import World
 
-
-@dataclass(frozen=True, slots=True)
-class Command:
-    """A service call at a simulated time, e.g. ``DriveService`` of ``boebot``: ``drive_distance(1.0, 0.5)``."""
-
-    t: float
-    service: str
-    entity: str
-    call: str
-    args: tuple[Any, ...] = ()
-
-    def apply(self, world: World) -> None:
-        """Call it on the bound service."""
-        target = world.service(self.service, self.entity)
-        method = getattr(target, self.call, None)
-        if method is None or self.call.startswith("_"):
-            raise SimrunError(f"{self.service} has no command {self.call!r}")
-        method(*self.args)
+__all__ = ["Command", "PlayResult", "PythonController", "encode_gif", "encode_mp4", "load_commands", "play"]
 
 
 class PythonController:
     """A user's control module as a world controller: its ``step(world)`` runs every ``period`` seconds.
 
-    The module is the user's own code (like a scene's plugin); module-level state is not checkpointed, so
-    a re-simulation from a checkpoint is exact only for controllers that keep their state in the world.
+    The module is the user's own code, named on the command line (never taken from a data file: a
+    ``.simlog`` records only its SHA-256, which ``simrun resim --controller`` checks before running it);
+    module-level state is not checkpointed, so a re-simulation from a checkpoint is exact only for
+    controllers that keep their state in the world.
+
+    Args:
+        world: The world it controls.
+        path: The ``.py`` file.
+        period: Seconds between calls of ``step(world)``.
+        sha256: When given, the file's SHA-256 must equal it (hex), else nothing is run.
+
+    Attributes:
+        sha256: The SHA-256 (hex) of the module's source as run.
+
+    Raises:
+        SimrunError: The file cannot be read, differs from ``sha256``, fails to import or has no ``step``.
     """
 
-    def __init__(self, world: World, path: Path, period: float = 0.02) -> None:
+    def __init__(self, world: World, path: Path, period: float = 0.02, sha256: str | None = None) -> None:
         import importlib.util
 
-        spec = importlib.util.spec_from_file_location(f"simrun_controller_{path.stem}", path)
-        if spec is None or spec.loader is None:
+        try:
+            source = read_regular(path, "controller")
+        except FileReadError as exc:
+            raise SimrunError(str(exc)) from None
+        self.sha256 = hashlib.sha256(source).hexdigest()
+        if sha256 is not None and sha256 != self.sha256:
+            raise SimrunError(
+                f"{path}: controller SHA-256 {self.sha256[:16]}... differs from the recorded {sha256[:16]}...; "
+                "give the controller file the run used"
+            )
+        spec = importlib.util.spec_from_loader(f"simrun_controller_{path.stem}", loader=None, origin=str(path))
+        if spec is None:
             raise SimrunError(f"{path}: cannot be loaded as a Python module")
         module = importlib.util.module_from_spec(spec)
+        module.__file__ = str(path)
         try:
-            spec.loader.exec_module(module)
+            exec(compile(source, str(path), "exec"), module.__dict__)  # the user's own module, checked above
         except Exception as exc:  # the user's module failed to import: one line, with its error
             raise SimrunError(f"{path}: {type(exc).__name__}: {exc}") from None
         if not callable(getattr(module, "step", None)):
@@ -64,8 +75,13 @@ class PythonController:
         world.controllers.append(self)
 
     def tick(self, model: Any, data: Any) -> None:
-        """Run the module's ``step(world)``."""
-        self._step(self.world)
+        """Run the module's ``step(world)`` (its errors are the user's: one line naming the module)."""
+        try:
+            self._step(self.world)
+        except SimrunError as exc:
+            raise SimrunError(f"{self.path}: step(world) at t = {data.time:.3f} s: {exc}") from None
+        except Exception as exc:
+            raise SimrunError(f"{self.path}: step(world) raised {type(exc).__name__}: {exc}") from None
 
     def reset(self, model: Any, data: Any) -> None:
         """Nothing to reset."""
@@ -77,36 +93,6 @@ class PythonController:
     def restore(self, state: dict[str, Any]) -> None:
         """Inverse of :meth:`snapshot`."""
         self.next_time = float(state["next_time"])
-
-
-def load_commands(path: Path) -> list[Command]:
-    """Read a commands file: ``[[commands]]`` tables with ``t``, ``service``, ``entity``, ``call``, ``args``.
-
-    Raises:
-        SceneError: Bad TOML or fields, naming the file and the key path.
-    """
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise SceneError(f"cannot be read: {exc.strerror}", str(path)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"not valid TOML: {exc}", str(path)) from None
-    commands = []
-    for k, table in enumerate(doc.get("commands", [])):
-        key = f"commands[{k}]"
-        try:
-            commands.append(
-                Command(
-                    float(table["t"]),
-                    str(table.get("service", "DriveService")),
-                    str(table["entity"]),
-                    str(table["call"]),
-                    tuple(table.get("args", [])),
-                )
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise SceneError(f"needs t, entity, call (and args): {exc}", str(path), key) from None
-    return sorted(commands, key=lambda c: c.t)
 
 
 @dataclass
@@ -159,6 +145,11 @@ def play(
     Returns:
         The summary.
     """
+    if not (math.isfinite(duration) and duration >= 0):
+        raise SimrunError(f"duration must be a finite number of seconds >= 0, got {duration}")
+    if frame_sink and not (math.isfinite(fps) and fps > 0):
+        raise SimrunError(f"fps must be a positive number, got {fps}")
+    check_commands(world, list(commands or []))
     model, data = world.model, world.data
     pending = list(commands or [])
     robots = {name: np.array(world.body(name).xpos) for name, e in world if e.TYPE in _ROBOT_TYPES}

@@ -18,6 +18,7 @@ from typing import Any
 import tomli_w
 
 from simrun.arm import KukaLBR3, LynxL6
+from simrun.commands import toml_error_line
 from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
 from simrun.entity import Entity, Material
 from simrun.environment import Camera, Ground, HeightField, Light, Sky
@@ -25,9 +26,11 @@ from simrun.errors import EntityError, SceneError
 from simrun.mesh_entity import MeshEntity
 from simrun.outfile import write_text
 from simrun.pose import Pose
+from simrun.safeio import FileReadError, check_regular, read_regular
 from simrun.shapes import Box, Capsule, Cylinder, Sphere
+from simrun.tomlpos import KeyPath, key_lines, line_of
 from simrun.urdf_robot import UrdfRobot
-from simrun.world import World, WorldOptions
+from simrun.world import MAX_TIMESTEP, MIN_TIMESTEP, SERVICE_TYPES, World, WorldOptions
 
 ENTITY_TYPES: dict[str, type[Entity]] = {
     cls.TYPE: cls
@@ -54,64 +57,195 @@ ENTITY_TYPES: dict[str, type[Entity]] = {
 }
 _TOP = ("world", "assets", "entities", "services", "sensors")
 _BASE = ("type", "name", "parent", "pose", "free", "kinematic")
+#: Largest scene file read, bytes.
+MAX_SCENE_BYTES = 16 * 1024 * 1024
+#: Most entities in one scene file (the world's body limit, :data:`simrun.world.MAX_BODIES`, also holds).
+MAX_ENTITIES = 10_000
+#: Largest magnitude of any number in a scene (metres, kg, seconds...); larger values are typing mistakes.
+MAX_MAGNITUDE = 1e6
+#: Most cells of a height field given as numbers.
+MAX_HEIGHT_CELLS = 1024 * 1024
+#: Entity parameters that name a file (relative to the scene's folder), checked at load.
+_FILE_FIELDS = ("texture", "image", "urdf", "asset", "visual_mesh")
+_GROUPS = ("entities", "services", "sensors")
 
 
 def load_scene(path: str | Path) -> World:
     """Read a scene file into a new :class:`World` (relative paths resolve against the file's folder).
 
+    Every error names the file, the line and the key, e.g.
+    ``scene.toml:14: entities[3] 'box': mass: expected a positive number, got -100``; errors found later,
+    when the world is built, carry the same ``FILE:LINE: entities[3] 'box'`` prefix (``World.origins``).
+
     Raises:
-        SceneError: Unreadable TOML, an unknown key, a value of the wrong type, an unknown entity type,
-            a duplicate name or unknown parent, a service bound to a missing entity.
+        SceneError: An unreadable or non-UTF-8 file, bad TOML, an unknown key, a value of the wrong type,
+            range or a non-finite number, an unknown entity, service or sensor type, a duplicate name or
+            unknown parent, a missing file, or a service or sensor bound to a missing entity.
     """
-    path = Path(path)
-    name = str(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise SceneError(f"cannot be read: {exc.strerror}", name) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"not valid TOML: {exc}", name) from None
-    _known(doc, _TOP, name, "")
-    options = _world_options(doc.get("world", {}), name)
-    world = World(options, base_dir=path.parent)
-    assets = doc.get("assets", {})
-    if not isinstance(assets, dict) or not all(isinstance(v, str) for v in assets.values()):
-        raise SceneError("expected a table of asset names to file paths", name, "assets")
-    world.assets.update(assets)
-    entities = doc.get("entities", [])
-    if not isinstance(entities, list):
-        raise SceneError("expected an array of tables ([[entities]])", name, "entities")
-    for k, table in enumerate(entities):
-        key = f"entities[{k}]"
-        entity = _entity(table, name, key)
-        if isinstance(entity, MeshEntity) and entity.asset not in world.assets and not entity.asset.endswith(".mbin"):
-            message = f"asset {entity.asset!r} is not in [assets] and is not an .mbin path"
-            raise SceneError(message, name, f"{key}.asset")
+    return _Loader(Path(path)).load()
+
+
+class _Loader:
+    """One scene file being loaded: its parsed document and the line of every key."""
+
+    def __init__(self, path: Path) -> None:
+        self.path, self.name = path, str(path)
+        self.lines: dict[KeyPath, int] = {}
+        self.labels: dict[KeyPath, str] = {}
+
+    def error(self, message: str, where: KeyPath = ()) -> SceneError:
+        """A :class:`SceneError` at a key path (``("entities", 3, "mass")``) with its line."""
+        line = line_of(self.lines, where) if where else None
+        if len(where) >= 2 and where[0] in _GROUPS and isinstance(where[1], int):
+            rest = _key_text(where[2:])
+            text = f"{rest}: {message}" if rest else message
+            key = f"{where[0]}[{where[1]}]"
+            return SceneError(text, self.name, key, line, self.labels.get(where[:2]))
+        return SceneError(message, self.name, _key_text(where) or None, line)
+
+    def load(self) -> World:
+        doc = self.read()
+        _known(doc, _TOP, self, ())
+        options = self.world_options(doc.get("world", {}))
+        world = World(options, base_dir=self.path.parent)
+        self.assets(doc.get("assets", {}), world)
+        entities = doc.get("entities", [])
+        if not isinstance(entities, list):
+            raise self.error("expected an array of tables ([[entities]])", ("entities",))
+        if len(entities) > MAX_ENTITIES:
+            raise self.error(f"{len(entities)} entities, over the limit of {MAX_ENTITIES}", ("entities", MAX_ENTITIES))
+        for k, table in enumerate(entities):
+            where: KeyPath = ("entities", k)
+            if isinstance(table, dict) and isinstance(table.get("name"), str):
+                self.labels[where] = table["name"]
+            entity = _entity(table, self, where)
+            self.files(entity, world, where)
+            try:
+                world.insert(entity)
+            except EntityError as exc:
+                raise self.error(str(exc), where) from None
+            line = line_of(self.lines, where)
+            world.origins[world.full_name(entity)] = f"{self.name}:{line}: entities[{k}] {entity.name!r}"
+        self.services(doc.get("services", []), world)
+        self.sensors(doc.get("sensors", []), world)
+        return world
+
+    def read(self) -> dict[str, Any]:
         try:
-            world.insert(entity)
+            raw = read_regular(self.path, "scene", MAX_SCENE_BYTES)
+        except FileReadError as exc:
+            raise SceneError(str(exc)) from None
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            line = raw[: exc.start].count(b"\n") + 1
+            raise SceneError(f"not UTF-8 (byte {exc.start}); save the scene as UTF-8", self.name, line=line) from None
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise SceneError(f"not valid TOML: {exc}", self.name, line=toml_error_line(exc)) from None
+        self.lines = key_lines(text)
+        return doc
+
+    def world_options(self, table: Any) -> WorldOptions:
+        _known(table, ("timestep", "gravity", "integrator"), self, ("world",))
+        values: dict[str, Any] = {}
+        if "timestep" in table:
+            step = _number(table["timestep"], self, ("world", "timestep"))
+            if not MIN_TIMESTEP <= step <= MAX_TIMESTEP:
+                message = f"must be in [{MIN_TIMESTEP:g}, {MAX_TIMESTEP:g}] seconds, got {step:g}"
+                raise self.error(message, ("world", "timestep"))
+            values["timestep"] = step
+        if "gravity" in table:
+            values["gravity"] = _vector(table["gravity"], 3, self, ("world", "gravity"))
+        if "integrator" in table:
+            values["integrator"] = _typed(table["integrator"], str, self, ("world", "integrator"))
+        try:
+            return WorldOptions(**values)
         except EntityError as exc:
-            raise SceneError(str(exc), name, key) from None
-    services = doc.get("services", [])
-    if not isinstance(services, list):
-        raise SceneError("expected an array of tables ([[services]])", name, "services")
-    for k, service in enumerate(services):
-        key = f"services[{k}]"
-        if not isinstance(service, dict) or not isinstance(service.get("type"), str):
-            raise SceneError("a service needs a 'type' string", name, key)
-        if not isinstance(service.get("entity"), str):
-            raise SceneError("a service needs an 'entity' string naming the entity it drives", name, key)
-        if service["entity"] not in dict(world):
-            raise SceneError(f"no entity named {service['entity']!r}", name, f"{key}.entity")
-        world.services.append(dict(service))
-    sensors = doc.get("sensors", [])
-    if not isinstance(sensors, list):
-        raise SceneError("expected an array of tables ([[sensors]])", name, "sensors")
-    for k, spec in enumerate(sensors):
+            raise self.error(str(exc), ("world",)) from None
+
+    def assets(self, assets: Any, world: World) -> None:
+        if not isinstance(assets, dict):
+            raise self.error("expected a table of asset names to .mbin file paths", ("assets",))
+        for key, value in assets.items():
+            if not isinstance(value, str):
+                raise self.error(f"expected a file path string, got {value!r}", ("assets", key))
+            self.check_file(world, value, ("assets", key))
+        world.assets.update(assets)
+
+    def files(self, entity: Entity, world: World, where: KeyPath) -> None:
+        """Refuse, at load, file parameters that name no regular file (missing, a folder, a FIFO...)."""
+        if isinstance(entity, MeshEntity) and entity.asset not in world.assets and not entity.asset.endswith(".mbin"):
+            raise self.error(f"{entity.asset!r} is not in [assets] and is not an .mbin path", (*where, "asset"))
+        for key in _FILE_FIELDS:
+            value = getattr(entity, key, None)
+            if isinstance(value, str) and value and not (key in ("asset", "visual_mesh") and value in world.assets):
+                self.check_file(world, value, (*where, key))
+        if isinstance(entity, UrdfRobot):
+            for package, folder in entity.package_dirs.items():
+                if not (world.base_dir / folder).is_dir():
+                    raise self.error(f"{folder!r} is not a folder", (*where, "package_dirs", package))
+
+    def check_file(self, world: World, value: str, where: KeyPath) -> None:
         try:
-            world.add_sensor(dict(spec) if isinstance(spec, dict) else spec)
-        except (EntityError, TypeError, ValueError) as exc:
-            raise SceneError(str(exc), name, f"sensors[{k}]") from None
-    return world
+            check_regular(world.base_dir / value, "file")
+        except FileReadError as exc:
+            reason = str(exc).split(": file ", 1)[-1]
+            raise self.error(f"{value!r} {reason}", where) from None
+
+    def services(self, services: Any, world: World) -> None:
+        if not isinstance(services, list):
+            raise self.error("expected an array of tables ([[services]])", ("services",))
+        entities = dict(world)
+        for k, service in enumerate(services):
+            where: KeyPath = ("services", k)
+            _known(service, ("type", "entity"), self, where)
+            kind = service.get("type")
+            if not isinstance(kind, str):
+                raise self.error("a service needs a 'type' string", where)
+            self.labels[where] = kind
+            if kind not in SERVICE_TYPES:
+                known = ", ".join(SERVICE_TYPES)
+                raise self.error(f"unknown service type {kind!r} (known: {known})", (*where, "type"))
+            if not isinstance(service.get("entity"), str):
+                raise self.error("a service needs an 'entity' string naming the entity it drives", where)
+            if service["entity"] not in entities:
+                raise self.error(f"no entity named {service['entity']!r}", (*where, "entity"))
+            if any(s["type"] == kind and s["entity"] == service["entity"] for s in world.services):
+                raise self.error(f"a {kind} is already bound to {service['entity']!r}", where)
+            world.services.append(dict(service))
+            world.origins[f"services:{kind}:{service['entity']}"] = self.where_text(where)
+
+    def sensors(self, sensors: Any, world: World) -> None:
+        if not isinstance(sensors, list):
+            raise self.error("expected an array of tables ([[sensors]])", ("sensors",))
+        entities = dict(world)
+        for k, spec in enumerate(sensors):
+            where: KeyPath = ("sensors", k)
+            if not isinstance(spec, dict):
+                raise self.error("expected a table", where)
+            if isinstance(spec.get("name"), str):
+                self.labels[where] = spec["name"]
+            for key, value in spec.items():
+                problem = _bad_value(value)
+                if problem:
+                    raise self.error(problem, (*where, key))
+            target_key = "camera" if spec.get("type") == "Webcam" else "entity"
+            target = spec.get(target_key)
+            if isinstance(target, str) and target not in entities:
+                raise self.error(f"no entity named {target!r}", (*where, target_key))
+            try:
+                world.add_sensor(dict(spec))
+            except (EntityError, TypeError, ValueError) as exc:
+                raise self.error(str(exc), where) from None
+            world.origins[f"sensors:{spec['name']}"] = self.where_text(where)
+
+    def where_text(self, where: KeyPath) -> str:
+        line = line_of(self.lines, where)
+        label = self.labels.get(where)
+        head = f"{self.name}:{line}" if line else self.name
+        return f"{head}: {where[0]}[{where[1]}]" + (f" {label!r}" if label else "")
 
 
 def scene_text(world: World) -> str:
@@ -169,108 +303,157 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _known(table: Any, keys: tuple[str, ...] | list[str], name: str, prefix: str) -> None:
+def _key_text(path: KeyPath) -> str:
+    """``("pose", "position", 1)`` as ``pose.position[1]``."""
+    text = ""
+    for part in path:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+def _bad_value(value: Any) -> str | None:
+    """Why a sensor parameter is refused (a non-finite or huge number anywhere in it), or ``None``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"expected a finite number, got {value!r}"
+    if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > 2**63:
+        return f"number out of range: {value!r}"
+    if isinstance(value, list):
+        return next((p for p in map(_bad_value, value) if p), None)
+    if isinstance(value, dict):
+        return next((p for p in map(_bad_value, value.values()) if p), None)
+    return None
+
+
+def _known(table: Any, keys: tuple[str, ...] | list[str], loader: _Loader, where: KeyPath) -> None:
     if not isinstance(table, dict):
-        raise SceneError("expected a table", name, prefix or None)
+        raise loader.error("expected a table", where)
     for key in table:
         if key not in keys:
-            where = f"{prefix}.{key}" if prefix else key
-            raise SceneError(f"unknown key (known: {', '.join(keys)})", name, where)
+            raise loader.error(f"unknown key (known: {', '.join(keys)})", (*where, key))
 
 
-def _world_options(table: Any, name: str) -> WorldOptions:
-    _known(table, ("timestep", "gravity", "integrator"), name, "world")
-    values: dict[str, Any] = {}
-    if "timestep" in table:
-        values["timestep"] = _number(table["timestep"], name, "world.timestep", positive=True)
-    if "gravity" in table:
-        values["gravity"] = _vector(table["gravity"], 3, name, "world.gravity")
-    if "integrator" in table:
-        values["integrator"] = table["integrator"]
-    try:
-        return WorldOptions(**values)
-    except EntityError as exc:
-        raise SceneError(str(exc), name, "world") from None
-
-
-def _entity(table: Any, name: str, key: str) -> Entity:
+def _entity(table: Any, loader: _Loader, where: KeyPath) -> Entity:
     if not isinstance(table, dict):
-        raise SceneError("expected a table", name, key)
+        raise loader.error("expected a table", where)
     kind = table.get("type")
     if kind not in ENTITY_TYPES:
-        raise SceneError(f"unknown entity type {kind!r} (known: {', '.join(ENTITY_TYPES)})", name, f"{key}.type")
+        known = ", ".join(ENTITY_TYPES)
+        raise loader.error(f"unknown entity type {kind!r} (known: {known})", (*where, "type"))
     cls = ENTITY_TYPES[kind]
     hints = typing.get_type_hints(cls)
     fields = [f.name for f in dataclasses.fields(cls)]
     params = [f for f in fields if f not in _BASE]
-    _known(table, list(_BASE) + params, name, key)
+    _known(table, list(_BASE) + params, loader, where)
     if not isinstance(table.get("name"), str):
-        raise SceneError("every entity needs a 'name' string", name, f"{key}.name")
+        raise loader.error("every entity needs a 'name' string", (*where, "name"))
     values: dict[str, Any] = {"name": table["name"]}
     if "parent" in table:
-        values["parent"] = _typed(table["parent"], str, name, f"{key}.parent")
+        values["parent"] = _typed(table["parent"], str, loader, (*where, "parent"))
     for flag in ("free", "kinematic"):
         if flag in table:
-            values[flag] = _typed(table[flag], bool, name, f"{key}.{flag}")
+            values[flag] = _typed(table[flag], bool, loader, (*where, flag))
     if "pose" in table:
         pose = table["pose"]
-        _known(pose, ("position", "orientation"), name, f"{key}.pose")
-        position = _vector(pose.get("position", [0, 0, 0]), 3, name, f"{key}.pose.position")
-        orientation = _vector(pose.get("orientation", [1, 0, 0, 0]), 4, name, f"{key}.pose.orientation")
+        _known(pose, ("position", "orientation"), loader, (*where, "pose"))
+        position = _vector(pose.get("position", [0, 0, 0]), 3, loader, (*where, "pose", "position"))
+        orientation = _vector(pose.get("orientation", [1, 0, 0, 0]), 4, loader, (*where, "pose", "orientation"))
         try:
             values["pose"] = Pose(position, orientation)  # type: ignore[arg-type]
         except ValueError as exc:
-            raise SceneError(str(exc), name, f"{key}.pose") from None
+            raise loader.error(str(exc), (*where, "pose")) from None
     for param in params:
         if param in table:
-            values[param] = _convert(table[param], hints[param], name, f"{key}.{param}")
+            values[param] = _convert(table[param], hints[param], loader, (*where, param))
+    if kind == "Camera":
+        _check_camera(values, loader, where)
     try:
         return cls(**values)
     except (EntityError, ValueError, TypeError) as exc:
-        raise SceneError(str(exc), name, key) from None
+        raise loader.error(str(exc), where) from None
 
 
-def _convert(value: Any, hint: Any, name: str, key: str) -> Any:
+def _check_camera(values: dict[str, Any], loader: _Loader, where: KeyPath) -> None:
+    eye, target = values.get("eye"), values.get("target")
+    if (eye is None) != (target is None):
+        raise loader.error("give both eye and target (or neither, and a pose)", (*where, "eye" if eye else "target"))
+    if eye is not None and target is not None and math.dist(eye, target) < 1e-9:
+        raise loader.error(f"eye and target are the same point {list(eye)}; the camera would look nowhere", where)
+
+
+def _convert(value: Any, hint: Any, loader: _Loader, where: KeyPath) -> Any:
     """Check a TOML value against a field's type annotation and convert it (lists to tuples...)."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (types.UnionType, typing.Union):
         options = [a for a in args if a is not type(None)]
-        return _convert(value, options[0], name, key)
+        return _convert(value, options[0], loader, where)
     if hint is Material:
-        _known(value, ("restitution", "dynamic_friction", "static_friction"), name, key)
-        coefficients = {k: _number(v, name, f"{key}.{k}") for k, v in value.items()}
+        _known(value, ("restitution", "dynamic_friction", "static_friction"), loader, where)
+        coefficients = {k: _number(v, loader, (*where, k)) for k, v in value.items()}
         try:
             return Material(**coefficients)
         except EntityError as exc:
-            raise SceneError(str(exc), name, key) from None
+            raise loader.error(str(exc), where) from None
     if origin is tuple:
-        numbers = _vector(value, len(args), name, key)
+        if Ellipsis in args or not all(a in (int, float) for a in args):
+            raise loader.error("cannot be set in a scene file (create this entity in code)", where)
+        numbers = _vector(value, len(args), loader, where)
+        for k, (v, a) in enumerate(zip(numbers, args, strict=True)):
+            if a is int and not float(v).is_integer():
+                raise loader.error(f"expected a whole number, got {v!r}", (*where, k))
         return tuple(int(v) if a is int else v for v, a in zip(numbers, args, strict=True))
     if origin is list:
-        if not isinstance(value, list) or not all(isinstance(row, list) for row in value):
-            raise SceneError("expected an array of arrays of numbers", name, key)
-        return [[_number(v, name, f"{key}[{r}][{c}]") for c, v in enumerate(row)] for r, row in enumerate(value)]
+        return _grid(value, loader, where)
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise loader.error(f"expected a table, got {type(value).__name__}", where)
+        for key, item in value.items():
+            _typed(item, str, loader, (*where, key))
+        return dict(value)
     if hint is float:
-        return _number(value, name, key)
-    return _typed(value, hint, name, key)
+        return _number(value, loader, where)
+    if hint is int:
+        number = _typed(value, int, loader, where)
+        if abs(number) > MAX_MAGNITUDE:
+            raise loader.error(f"must be at most {MAX_MAGNITUDE:g} in magnitude, got {number}", where)
+        return number
+    if not isinstance(hint, type):
+        raise loader.error("cannot be set in a scene file (create this entity in code)", where)
+    return _typed(value, hint, loader, where)
 
 
-def _typed(value: Any, kind: type, name: str, key: str) -> Any:
+def _grid(value: Any, loader: _Loader, where: KeyPath) -> list[list[float]]:
+    """A rectangular array of arrays of numbers (a height field), at least 2 x 2."""
+    if not isinstance(value, list) or not value or not all(isinstance(row, list) for row in value):
+        raise loader.error("expected an array of arrays of numbers (rows)", where)
+    width = len(value[0])
+    for r, row in enumerate(value):
+        if len(row) != width:
+            raise loader.error(
+                f"row {r} has {len(row)} numbers, row 0 has {width}; rows must be equally long", (*where, r)
+            )
+    if len(value) < 2 or width < 2:
+        raise loader.error(f"needs at least 2 x 2 numbers, got {len(value)} x {width}", where)
+    if len(value) * width > MAX_HEIGHT_CELLS:
+        raise loader.error(f"{len(value)} x {width} numbers, over the limit of {MAX_HEIGHT_CELLS}", where)
+    return [[_number(v, loader, (*where, r, c)) for c, v in enumerate(row)] for r, row in enumerate(value)]
+
+
+def _typed(value: Any, kind: type, loader: _Loader, where: KeyPath) -> Any:
     if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-        raise SceneError(f"expected {kind.__name__}, got {type(value).__name__} {value!r}", name, key)
+        raise loader.error(f"expected {kind.__name__}, got {type(value).__name__} {value!r}", where)
     return value
 
 
-def _number(value: Any, name: str, key: str, positive: bool = False) -> float:
+def _number(value: Any, loader: _Loader, where: KeyPath) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise SceneError(f"expected a number, got {value!r}", name, key)
-    if positive and value <= 0:
-        raise SceneError(f"expected a positive number, got {value!r}", name, key)
+        raise loader.error(f"expected a finite number, got {value!r}", where)
+    if abs(value) > MAX_MAGNITUDE:
+        raise loader.error(f"must be at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}", where)
     return float(value)
 
 
-def _vector(value: Any, n: int, name: str, key: str) -> tuple[float, ...]:
+def _vector(value: Any, n: int, loader: _Loader, where: KeyPath) -> tuple[float, ...]:
     if not isinstance(value, list) or len(value) != n:
         got = f"{len(value)}" if isinstance(value, list) else type(value).__name__
-        raise SceneError(f"expected {n} numbers, got {got}", name, key)
-    return tuple(_number(v, name, f"{key}[{k}]") for k, v in enumerate(value))
+        raise loader.error(f"expected {n} numbers, got {got}", where)
+    return tuple(_number(v, loader, (*where, k)) for k, v in enumerate(value))

@@ -7,6 +7,7 @@ the body ``box`` and elements ``box/...``; a child ``wheel`` of ``robot`` is ``r
 
 from __future__ import annotations
 
+import importlib
 import math
 import re
 from collections.abc import Iterator
@@ -29,6 +30,27 @@ INTEGRATORS = {
     "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
 }
 _NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
+#: Shortest and longest physics timestep accepted, seconds.
+MIN_TIMESTEP, MAX_TIMESTEP = 1e-5, 0.1
+#: Most bodies a world may have (entities with a body, robot links included); bounds the work of one scene.
+MAX_BODIES = 10_000
+#: Service types a world can bind (``[[services]]``), by name: module and class, imported when first used.
+SERVICE_TYPES: dict[str, tuple[str, str]] = {
+    "DriveService": ("simrun.drive_service", "DriveService"),
+    "ArmService": ("simrun.arm", "ArmService"),
+}
+
+
+def service_class(kind: str) -> Any:
+    """The class of a service type of :data:`SERVICE_TYPES`.
+
+    Raises:
+        EntityError: An unknown service type.
+    """
+    if kind not in SERVICE_TYPES:
+        raise EntityError(f"unknown service type {kind!r} (known: {', '.join(SERVICE_TYPES)})")
+    module, name = SERVICE_TYPES[kind]
+    return getattr(importlib.import_module(module), name)
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,12 +68,12 @@ class WorldOptions:
     integrator: str = "implicitfast"
 
     def __post_init__(self) -> None:
-        if not self.timestep > 0:
-            raise EntityError(f"timestep must be positive, got {self.timestep}")
+        if not MIN_TIMESTEP <= self.timestep <= MAX_TIMESTEP:
+            raise EntityError(f"timestep must be in [{MIN_TIMESTEP:g}, {MAX_TIMESTEP:g}] seconds, got {self.timestep}")
         if self.integrator not in INTEGRATORS:
             raise EntityError(f"integrator must be one of {', '.join(INTEGRATORS)}")
-        if len(self.gravity) != 3:
-            raise EntityError("gravity needs 3 numbers")
+        if len(self.gravity) != 3 or not all(math.isfinite(g) for g in self.gravity):
+            raise EntityError("gravity needs 3 finite numbers")
 
 
 class World:
@@ -80,6 +102,9 @@ class World:
         self.sensor_specs: list[dict[str, Any]] = []
         #: Asset names (used by ``MeshEntity.asset``) to ``.mbin`` paths relative to ``base_dir``.
         self.assets: dict[str, str] = {}
+        #: Where each entity (by full name), service (``services:TYPE:ENTITY``) and sensor (``sensors:NAME``)
+        #: came from, e.g. ``scene.toml:12: entities[3] 'box'`` (set by ``load_scene``), for later errors.
+        self.origins: dict[str, str] = {}
 
     # -- entities ------------------------------------------------------------------------------------------
 
@@ -162,23 +187,41 @@ class World:
         assets = AssetLibrary(spec, files=self._assets.files, images=self._assets.images)
         bodies: dict[str, Any] = {}
         for full, entity in self._entities.items():
-            parent = bodies[entity.parent] if entity.parent else spec.worldbody
-            ctx = BuildContext(spec, full, assets, self.base_dir, self.assets)
-            if not entity.HAS_BODY:
-                entity.build(None, ctx)
-                continue
-            pose = entity.body_pose()
-            body = parent.add_body(name=full, pos=list(pose.position), quat=list(pose.orientation))
-            body.mocap = entity.kinematic
-            if entity.free:
-                body.add_freejoint(name=f"{full}/free")
-            entity.build(body, ctx)
-            bodies[full] = body
+            try:
+                self._build_entity(spec, full, entity, assets, bodies)
+            except (EntityError, ValueError) as exc:
+                raise self._located(full, entity, exc) from None
+        if len(spec.bodies) - 1 > MAX_BODIES:
+            raise EntityError(f"the world has {len(spec.bodies) - 1} bodies, over the limit of {MAX_BODIES}")
         spec.assets = dict(assets.vfs)
         main = [full for full, e in self._entities.items() if isinstance(e, Camera) and e.main]
         if len(main) > 1:
             raise EntityError(f"more than one main camera: {', '.join(main)}")
         return spec
+
+    def _build_entity(
+        self, spec: mujoco.MjSpec, full: str, entity: Entity, assets: AssetLibrary, bodies: dict[str, Any]
+    ) -> None:
+        parent = bodies[entity.parent] if entity.parent else spec.worldbody
+        ctx = BuildContext(spec, full, assets, self.base_dir, self.assets)
+        if not entity.HAS_BODY:
+            entity.build(None, ctx)
+            return
+        pose = entity.body_pose()
+        body = parent.add_body(name=full, pos=list(pose.position), quat=list(pose.orientation))
+        body.mocap = entity.kinematic
+        if entity.free:
+            body.add_freejoint(name=f"{full}/free")
+        entity.build(body, ctx)
+        bodies[full] = body
+
+    def _located(self, full: str, entity: Entity, exc: Exception) -> EntityError:
+        """An entity's build error, prefixed with where the entity came from (its scene file and line)."""
+        message = str(exc)
+        for prefix in (f"{entity.TYPE} {entity.name!r}: ", f"{entity.TYPE} {full!r}: "):
+            message = message.removeprefix(prefix)
+        origin = self.origins.get(full) or f"{entity.TYPE} {full!r}"
+        return EntityError(f"{origin}: {message}")
 
     def compile(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
         """Build and compile (done lazily by :attr:`model` and :attr:`data`).
@@ -272,13 +315,7 @@ class World:
             raise EntityError(f"no {kind} is bound to {entity!r}; add it under [[services]] or create it in code")
         key = (kind, entity)
         if key not in self._bound:
-            from simrun.arm import ArmService
-            from simrun.drive_service import DriveService
-
-            factories: dict[str, Any] = {"DriveService": DriveService, "ArmService": ArmService}
-            if kind not in factories:
-                raise EntityError(f"unknown service type {kind!r} (known: {', '.join(factories)})")
-            self._bound[key] = factories[kind](self, entity)
+            self._bound[key] = service_class(kind)(self, entity)
         return self._bound[key]
 
     def add_sensor(self, spec: dict[str, Any]) -> Any:
@@ -319,6 +356,37 @@ class World:
         self.sensors[name] = sensor
         self.sensor_specs.append(dict(spec))
         return sensor
+
+    def check_bindings(self) -> None:
+        """Create every bound service and take one trial reading of every sensor, then restore the sensors.
+
+        ``simrun check`` and ``simrun play`` call it so that a service bound to the wrong kind of entity or a
+        sensor that cannot read its entity (a missing geom or joint) fails before the run, with the scene
+        file and line of the binding. The trial readings leave no trace: each sensor's snapshot (clock,
+        sample count, noise generator) is restored afterwards.
+
+        Raises:
+            EntityError: A binding that does not fit, prefixed with where it came from.
+        """
+        model, data = self.model, self.data
+        for binding in self.services:
+            kind, entity = binding["type"], binding["entity"]
+            try:
+                self.service(kind, entity)
+            except EntityError as exc:
+                origin = self.origins.get(f"services:{kind}:{entity}", f"service {kind} of {entity!r}")
+                raise EntityError(f"{origin}: {exc}") from None
+        for name, sensor in self.sensors.items():
+            state, reading = sensor.snapshot(), sensor.reading
+            try:
+                sensor.sample(model, data)
+            except (EntityError, KeyError, IndexError, ValueError) as exc:
+                origin = self.origins.get(f"sensors:{name}", f"sensor {name!r}")
+                reason = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+                raise EntityError(f"{origin}: cannot read {sensor.entity!r}: {reason}") from None
+            finally:
+                sensor.restore(state)
+                sensor.reading = reading
 
     def run_until(self, done: Any, timeout: float) -> bool:
         """Step until ``done()`` is true or ``timeout`` simulated seconds pass; returns ``done()``."""

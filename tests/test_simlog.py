@@ -69,11 +69,11 @@ def test_reader_rejects_corrupt_and_newer_files(tmp_path):
     with pytest.raises(SimlogError, match="bad magic"):
         Simlog(tmp_path / "magic.simlog")
     (tmp_path / "newer.simlog").write_bytes(data[:8] + struct.pack("<H", 2) + data[10:])
-    with pytest.raises(SimlogError, match=r"version 2\.0 is newer than this reader"):
+    with pytest.raises(SimlogError, match=r"version 2\.1 is newer than this reader"):
         Simlog(tmp_path / "newer.simlog")
     (tmp_path / "cut.simlog").write_bytes(data[:-7])
     log = Simlog(tmp_path / "cut.simlog")
-    with pytest.raises(SimlogError, match="truncated record at byte"):
+    with pytest.raises(SimlogError, match=r"byte \d+: record of 784 bytes runs past the end of the file"):
         list(log.records())
     result = CliRunner().invoke(main, ["resim", str(tmp_path / "newer.simlog")])
     assert result.exit_code == 1 and result.stderr.startswith("error: ")
@@ -139,7 +139,7 @@ def test_python_controller_module_drives_and_resimulates(tmp_path):
     import json
 
     assert json.loads(result.stdout)["distances_m"]["boebot"] > 0.3
-    result = CliRunner().invoke(main, ["resim", str(path), "--from", "2.5"])
+    result = CliRunner().invoke(main, ["resim", str(path), "--from", "2.5", "--controller", str(module)])
     assert result.exit_code == 0 and "bit-identical" in result.stdout
     broken = tmp_path / "broken.py"
     broken.write_text("x = 1/0\n")

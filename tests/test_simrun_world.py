@@ -181,21 +181,26 @@ DIMENSIONS = "dimensions = [0.2, 0.2, 0.2]"
     ("old", "new", "message"),
     [
         (POSE, POSE, None),
-        (POSE, "pose = { position = [0.0, 0.1] }", "entities[3].pose.position: expected 3 numbers, got 2"),
-        (POSE, "colour = [1.0, 0.0, 0.0, 1.0]", "entities[3].colour: unknown key"),
-        (POSE, 'density = "heavy"', "entities[3].density: expected a number, got 'heavy'"),
-        (DIMENSIONS, "dimensions = [0.2, 0.2]", "entities[3].dimensions: expected 3 numbers, got 2"),
-        (POSE, "material = { restitution = 0.95 }", "entities[3].material: restitution must be in [0, 0.65]"),
+        (POSE, "pose = { position = [0.0, 0.1] }", "26: entities[3] 'box': pose.position: expected 3 numbers, got 2"),
+        (POSE, "colour = [1.0, 0.0, 0.0, 1.0]", "26: entities[3] 'box': colour: unknown key"),
+        (POSE, 'density = "heavy"', "26: entities[3] 'box': density: expected a finite number, got 'heavy'"),
+        (DIMENSIONS, "dimensions = [0.2, 0.2]", "24: entities[3] 'box': dimensions: expected 3 numbers, got 2"),
+        (
+            POSE,
+            "material = { restitution = 0.95 }",
+            "26: entities[3] 'box': material: restitution must be in [0, 0.65]",
+        ),
         (
             POSE,
             "pose = { position = [0.0, 0.0, 0.1], orientation = [1.0, 1.0, 0.0, 0.0] }",
-            "entities[3].pose: orientation must be a unit quaternion",
+            "26: entities[3] 'box': pose: orientation must be a unit quaternion",
         ),
     ],
 )
 def test_scene_errors_name_file_and_key(tmp_path, old, new, message):
     text = (SCENES / "basic.toml").read_text()
     assert old in text
+    shutil.copy(SCENES / "globe.png", tmp_path / "globe.png")
     path = tmp_path / "bad.toml"
     path.write_text(text.replace(old, new))
     if message is None:
@@ -203,7 +208,7 @@ def test_scene_errors_name_file_and_key(tmp_path, old, new, message):
         return
     with pytest.raises(SceneError) as info:
         load_scene(path)
-    assert str(info.value).startswith(f"{path}: {message}")
+    assert str(info.value).startswith(f"{path}:{message}")
 
 
 SERVICE = '[[entities]]\ntype = "Box"\nname = "b"\n[[services]]\ntype = "DriveService"\nentity = "robot"\n'
@@ -211,11 +216,11 @@ SERVICE = '[[entities]]\ntype = "Box"\nname = "b"\n[[services]]\ntype = "DriveSe
 
 def test_scene_structure_errors(tmp_path):
     cases = {
-        "[wrold]\ntimestep = 1\n": "wrold: unknown key",
-        '[[entities]]\ntype = "Teapot"\nname = "t"\n': "entities[0].type: unknown entity type 'Teapot'",
-        SERVICE: "services[0].entity: no entity named 'robot'",
-        "[world]\ntimestep = -1\n": "world.timestep: expected a positive number",
-        "not toml at all [": "not valid TOML",
+        "[wrold]\ntimestep = 1\n": ":1: wrold: unknown key",
+        '[[entities]]\ntype = "Teapot"\nname = "t"\n': ":2: entities[0] 't': type: unknown entity type 'Teapot'",
+        SERVICE: ":6: services[0] 'DriveService': entity: no entity named 'robot'",
+        "[world]\ntimestep = -1\n": ":2: world.timestep: must be in [1e-05, 0.1] seconds",
+        "not toml at all [": ":1: not valid TOML",
     }
     for k, (text, message) in enumerate(cases.items()):
         path = tmp_path / f"s{k}.toml"

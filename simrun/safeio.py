@@ -1,0 +1,85 @@
+"""Reading user files safely: regular files only (never a FIFO, device or socket), with a size limit.
+
+A FIFO named as a texture would block a reader forever and a device such as ``/dev/zero`` never ends, so
+every file simrun reads is opened with ``O_NONBLOCK`` (opening a FIFO then returns at once), checked with
+``fstat`` on the opened descriptor (no second lookup by name, so no race), and read up to a limit.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+from typing import BinaryIO
+
+from simrun.errors import SimrunError
+
+#: Default largest file simrun reads whole (scenes, commands, textures, height-field images), bytes.
+MAX_FILE_BYTES = 256 * 1024 * 1024
+
+
+class FileReadError(SimrunError, OSError):
+    """A file cannot be read: missing, not a regular file, too large, or an OS error."""
+
+
+def open_regular(path: Path, what: str = "file") -> BinaryIO:
+    """Open ``path`` for reading in binary, refusing anything that is not a regular file.
+
+    Args:
+        path: The file.
+        what: What it is, for the message (``texture``, ``scene``...).
+
+    Raises:
+        FileReadError: It cannot be opened, or it is a folder, FIFO, device or socket.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except OSError as exc:
+        raise FileReadError(f"{path}: {what} cannot be read: {exc.strerror}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            kind = _kind(mode)
+            raise FileReadError(f"{path}: {what} is a {kind}, not a regular file; name a file")
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_regular(path: Path, what: str = "file", limit: int = MAX_FILE_BYTES) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes.
+
+    Raises:
+        FileReadError: As :func:`open_regular`, or the file is larger than ``limit``.
+    """
+    with open_regular(path, what) as file:
+        size = os.fstat(file.fileno()).st_size
+        if size > limit:
+            raise FileReadError(f"{path}: {what} is {size} bytes, over the limit of {limit} bytes")
+        try:
+            data = file.read(limit + 1)
+        except OSError as exc:
+            raise FileReadError(f"{path}: {what} cannot be read: {exc.strerror}") from None
+    if len(data) > limit:
+        raise FileReadError(f"{path}: {what} grew past the limit of {limit} bytes while being read")
+    return data
+
+
+def check_regular(path: Path, what: str = "file") -> None:
+    """Refuse a path that does not name a readable regular file (opens it, never reads it)."""
+    open_regular(path, what).close()
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "folder"
+    if stat.S_ISFIFO(mode):
+        return "FIFO (named pipe)"
+    if stat.S_ISSOCK(mode):
+        return "socket"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "device"
+    return "special file"
