@@ -17,7 +17,7 @@ import numpy.typing as npt
 from meshtool.errors import ObjParseError
 from meshtool.findings import Finding, info, warning
 from meshtool.obj.parse import ObjData
-from meshtool.obj.triangulate import triangulate_polygons
+from meshtool.obj.triangulate import EARCUT_BUDGET, EARCUT_FREE, EARCUT_SMALL, triangulate_polygons
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -103,6 +103,28 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
     findings: list[Finding] = []
     path = obj.path
     tri = triangulate_polygons(obj.positions, obj.face_sizes, obj.corner_v)
+    if tri.fanned.size:
+        findings.append(
+            warning(
+                "polygon-fanned",
+                f"{tri.fanned.size} face(s) of more than {EARCUT_FREE} corners overlap themselves (a corner "
+                "visited twice, or edges that cross): fan-triangulated, repeated triangles dropped; "
+                "the triangles may overlap",
+                path,
+                int(obj.face_lines[tri.fanned[0]]),
+            )
+        )
+    if tri.over_budget.size:
+        findings.append(
+            warning(
+                "polygon-budget",
+                f"{tri.over_budget.size} large concave face(s) fan-triangulated: ear clipping all of them would take "
+                f"too long (more than {EARCUT_BUDGET:,} squared corners in faces of over {EARCUT_SMALL} corners); "
+                "the triangles may overlap",
+                path,
+                int(obj.face_lines[tri.over_budget[0]]),
+            )
+        )
     if tri.identity:  # all triangles: views instead of gathers
         faces = obj.corner_v.reshape(-1, 3)
         uv = obj.corner_vt.reshape(-1, 3).copy()

@@ -1,12 +1,27 @@
-"""Face statements: corner parsing (vectorised, with a line-by-line fallback) and index resolution."""
+"""Face statements: corner parsing (vectorised, with a line-by-line fallback) and index resolution.
+
+Limits: a face may have at most :data:`MAX_FACE_CORNERS` corners, and an index is ``[+-]?digits`` (ASCII)
+of at most :data:`MAX_INDEX` in magnitude; anything else is an error naming the line.
+"""
 
 from __future__ import annotations
 
+import re
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from meshtool.errors import ObjParseError
 from meshtool.findings import Finding, info, warning
 from meshtool.obj.lines import F, IntArray, Lines, gather, numbers, strip_comment, token_counts, tokens
+
+#: Most corners one ``f`` statement may have (a polygon is triangulated in one piece; larger ones are refused).
+MAX_FACE_CORNERS = 65_536
+#: Largest index magnitude (no file can define more elements than this and still be read).
+MAX_INDEX = 2**31 - 1
+# What an OBJ index is. Python's int() also reads "1_0" (as 10), " 1" and non-ASCII digits.
+_INDEX = re.compile(r"[+-]?[0-9]+")
 
 
 def read_faces(
@@ -21,6 +36,15 @@ def read_faces(
     if parsed is None:
         parsed = _slow_faces(lines, line_numbers, path)
     sizes, cv, cvt, cvn = parsed
+    huge = np.flatnonzero(sizes > MAX_FACE_CORNERS)
+    if huge.size:
+        raise ObjParseError(
+            f"face has {int(sizes[huge[0]])} corners, more than the limit of {MAX_FACE_CORNERS}",
+            path=path,
+            line=int(line_numbers[huge[0]]),
+            hint="split the polygon into smaller faces (or triangulate it) in the exporter",
+            code="limit-face-corners",
+        )
     small = sizes < 3
     if small.any():
         bad = np.flatnonzero(small)
@@ -45,8 +69,8 @@ def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] |
         if values is None or values.size != int(sizes.sum()):
             return None
         cv = values.astype(np.int64, copy=False)
-        if (cv == 0).any():
-            return None  # an explicit index 0: the line-by-line path reports its line
+        if (cv == 0).any() or _out_of_range(cv):
+            return None  # an explicit index 0 or a huge one: the line-by-line path reports its line
         zeros = np.zeros_like(cv)
         return sizes, cv, zeros, zeros
     a, tstart, first, counts = tokens(block)
@@ -64,7 +88,7 @@ def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] |
         return None
     per_corner = 1 + n_slash - n_double
     values = numbers(block, b"f", np.int64, blank_slashes=True)
-    if values is None or values.size != int(per_corner.sum()):
+    if values is None or values.size != int(per_corner.sum()) or _out_of_range(values):
         return None
     offsets = np.cumsum(per_corner) - per_corner
     last = max(values.size - 1, 0)
@@ -78,6 +102,20 @@ def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] |
     return sizes, cv.astype(np.int64, copy=False), cvt.astype(np.int64, copy=False), cvn.astype(np.int64, copy=False)
 
 
+def _out_of_range(values: npt.NDArray[Any]) -> bool:
+    """Whether an index is beyond :data:`MAX_INDEX` (numpy saturates overflowing text at the int64 limits)."""
+    return bool(((values > MAX_INDEX) | (values < -MAX_INDEX)).any())
+
+
+def _index(part: str) -> int:
+    """One OBJ index (``0`` for an empty field); ``ValueError`` for anything but ``[+-]?digits``."""
+    if not part:
+        return 0
+    if not _INDEX.fullmatch(part):
+        raise ValueError(part)
+    return int(part)
+
+
 def _slow_faces(lines: Lines, line_numbers: IntArray, path: str) -> tuple[IntArray, IntArray, IntArray, IntArray]:
     sizes = np.zeros(line_numbers.size, dtype=np.int64)
     corners: list[tuple[int, int, int]] = []
@@ -88,13 +126,8 @@ def _slow_faces(lines: Lines, line_numbers: IntArray, path: str) -> tuple[IntArr
             try:
                 if len(parts) > 3 or not parts[0]:
                     raise ValueError(word)
-                corners.append(
-                    (
-                        int(parts[0]),
-                        int(parts[1]) if len(parts) > 1 and parts[1] else 0,
-                        int(parts[2]) if len(parts) > 2 and parts[2] else 0,
-                    )
-                )
+                parts += [""] * (3 - len(parts))
+                corner = (_index(parts[0]), _index(parts[1]), _index(parts[2]))
             except ValueError:
                 raise ObjParseError(
                     f"malformed face corner {word[:30]!r} (expected v, v/vt, v//vn or v/vt/vn)",
@@ -102,8 +135,16 @@ def _slow_faces(lines: Lines, line_numbers: IntArray, path: str) -> tuple[IntArr
                     line=line_no,
                     hint="fix or remove the line",
                 ) from None
-            if any(p.strip() in ("0", "+0", "-0") for p in parts):
+            if any(abs(i) > MAX_INDEX for i in corner):
+                raise ObjParseError(
+                    f"face index in {word[:30]!r} is beyond the largest possible index {MAX_INDEX}",
+                    path=path,
+                    line=line_no,
+                    hint="the file is corrupt; fix or remove the line",
+                )
+            if corner[0] == 0 or any(p and i == 0 for p, i in zip(parts[1:], corner[1:], strict=True)):
                 _zero_index(path, line_no)
+            corners.append(corner)
         sizes[k] = len(words)
     arr = np.asarray(corners, dtype=np.int64).reshape(-1, 3)
     return sizes, arr[:, 0], arr[:, 1], arr[:, 2]

@@ -25,6 +25,8 @@ OTHER, V, VT, VN, F, SKIP = range(6)
 _LEADING_WS = re.compile(rb"^[ \t\f\v]+", re.MULTILINE)
 _COMMENT = re.compile(r"(?:^|\s)#")
 _MSVC_SPECIAL = re.compile(r"^[+-]?1\.#(INF|IND|QNAN|SNAN)\d*$", re.IGNORECASE)
+# Bytes that never occur in a text OBJ (tab, LF, VT, FF are allowed; CR was converted by the decoder).
+_CONTROL = re.compile(rb"[\x00-\x08\x0e-\x1f]")
 
 
 @dataclass(slots=True)
@@ -39,6 +41,29 @@ class Lines:
     def text(self, i: int) -> str:
         """Line ``i`` (0-based) as text, without its newline."""
         return self.raw[int(self.starts[i]) : int(self.ends[i])].decode("utf-8")
+
+
+def reject_control_bytes(raw: bytes, path: str) -> None:
+    """Refuse decoded text that holds a NUL or another binary control byte anywhere, naming its line.
+
+    The decoder looks for binary data at the start of a file only; this scans all of it (one C-level
+    regular-expression search), so a NUL after the first 64 KiB is an error with ``path:line`` instead of
+    text that flows on into names and numbers.
+
+    Raises:
+        ObjParseError: At the first control byte.
+    """
+    match = _CONTROL.search(raw)
+    if match is None:
+        return
+    at = match.start()
+    column = at - raw.rfind(b"\n", 0, at)
+    raise ObjParseError(
+        f"binary byte 0x{raw[at]:02x} in the text (column {column}): not a text OBJ file",
+        path=path,
+        line=raw.count(b"\n", 0, at) + 1,
+        hint="remove the byte or export the file again as text",
+    )
 
 
 def classify(raw: bytes) -> Lines:
@@ -133,7 +158,7 @@ def numbers(
     block: bytes, keyword: bytes, dtype: type[np.generic], blank_slashes: bool = False
 ) -> npt.NDArray[np.generic] | None:
     """Every number of a block in order, or ``None`` when the block needs the line-by-line path."""
-    if b"#" in block:  # an inline comment: the line-by-line path strips it
+    if b"#" in block or not block.isascii():  # an inline comment, or non-ASCII digits: the line-by-line path
         return None
     blank = b" " * len(keyword)
     text = blank + block[len(keyword) :].replace(b"\n" + keyword, b"\n" + blank)
@@ -177,7 +202,13 @@ def strip_comment(line: str) -> str:
 
 
 def parse_float(word: str) -> float:
-    """``float`` that also reads the MSVC spellings ``1.#IND``, ``-1.#INF``, ``1.#QNAN``."""
+    """``float`` that also reads the MSVC spellings ``1.#IND``, ``-1.#INF``, ``1.#QNAN``.
+
+    Python's own ``float`` is more lenient than OBJ: it reads ``1_0`` as 10 and non-ASCII digits; both are
+    refused here (``ValueError``). ``nan`` and ``inf`` are read; callers decide what non-finite values mean.
+    """
+    if "_" in word or not word.isascii():
+        raise ValueError(word)
     try:
         return float(word)
     except ValueError:

@@ -35,6 +35,7 @@ from meshtool.obj.lines import (
     V,
     classify,
     columns,
+    reject_control_bytes,
     vector_block,
 )
 from meshtool.textio import decode_text
@@ -42,6 +43,9 @@ from meshtool.textio import decode_text
 BoolArray = npt.NDArray[np.bool_]
 
 DEFAULT_PART = "default"
+#: Most MTL files one OBJ may name (over all its ``mtllib`` statements); further names are ignored with a
+#: warning. Each name costs a file-system search, so a line of 100,000 names must not mean 100,000 of them.
+MAX_MTLLIBS = 256
 
 _FREEFORM = frozenset(
     (
@@ -130,6 +134,7 @@ class _State:
     part_ids: list[int] = field(default_factory=lambda: [0])
     part_names: list[str] = field(default_factory=lambda: [DEFAULT_PART])
     mtllibs: list[MtllibRef] = field(default_factory=list)
+    mtllibs_capped: bool = False
     skipped: Counter[str] = field(default_factory=Counter)
     first_line: dict[str, int] = field(default_factory=dict)
     recognised: int = 0
@@ -152,6 +157,7 @@ def parse_obj(data: bytes | str, path: str = "<obj>") -> ObjData:
     raw_bytes = data.encode("utf-8") if isinstance(data, str) else data
     decoded = decode_text(raw_bytes, path, ObjParseError)
     findings = list(decoded.findings)
+    reject_control_bytes(decoded.data, path)
     lines = classify(decoded.data)
     state = _State()
     _read_statements(lines, state, path, findings)
@@ -270,7 +276,19 @@ def _read_statements(lines: Lines, state: _State, path: str, findings: list[Find
             names = parse_mtllib_names(rest)
             if not names:
                 findings.append(warning("mtllib-empty", "'mtllib' without a file name ignored", path, line_no))
-            state.mtllibs.extend(MtllibRef(n, line_no) for n in names)
+            room = MAX_MTLLIBS - len(state.mtllibs)
+            if len(names) > room and not state.mtllibs_capped:
+                state.mtllibs_capped = True
+                findings.append(
+                    warning(
+                        "mtllib-too-many",
+                        f"more than {MAX_MTLLIBS} MTL file names (this statement names {len(names)}): "
+                        f"the names past the first {MAX_MTLLIBS} are ignored",
+                        path,
+                        line_no,
+                    )
+                )
+            state.mtllibs.extend(MtllibRef(n, line_no) for n in names[: max(room, 0)])
         elif keyword == "s":
             state.recognised += 1
         else:
