@@ -1,12 +1,17 @@
-"""USD export of a whole world from its compiled MuJoCo model, with UsdPhysics schemas.
+"""USD export of a whole world from its compiled MuJoCo model, with UsdPhysics schemas physics tools read.
 
-Bodies become nested ``Xform`` prims under ``/World`` following the kinematic tree, each prim named by the
-last part of its body name and carrying the full name (``robot/wheel``) in a ``simrun:name`` string
-attribute, placed by their local pose; geoms become ``Cube``/``Sphere``/``Capsule``/
-``Cylinder``/``Mesh`` prims (planes a thin ``Cube``); colliding geoms get ``CollisionAPI`` (meshes with a
-``convexHull`` approximation); bodies with a free joint get ``RigidBodyAPI`` and ``MassAPI``; hinge and
-slide joints become ``RevoluteJoint``/``PrismaticJoint`` with their limits. Z-up, metres, a physics scene
-with the world's gravity.
+Layout: ``/World/TREE/BODY`` for every body (one ``Xform`` per kinematic tree hanging from the world, its
+bodies flat under it at their world poses at ``qpos0``, full names in a ``simrun:name`` attribute; prim
+names sanitised to ``[A-Za-z0-9_]``, never starting with a digit, clashes numbered). Each body is a
+``RigidBodyAPI`` with ``MassAPI`` (MuJoCo's mass, centre of mass, principal moments and axes; massless
+bodies author the mass only); mocap bodies are kinematic. Hinge and slide joints become
+``RevoluteJoint``/``PrismaticJoint`` (ball joints ``SphericalJoint``) in ``TREE/joints`` from the parent
+body (none: the world) to the child, frames rotated so X is MuJoCo's axis, limits in degrees/metres;
+bodies without joints are held by a ``FixedJoint``; free bodies have none. A tree with a moving joint gets
+``ArticulationRootAPI``. Geoms become ``Cube``/``Sphere``/``Capsule``/``Cylinder``/``Mesh`` prims
+(planes a thin ``Cube``, ellipsoids meshes) under the body's ``collisions`` scope (``CollisionAPI``; meshes
+with a ``convexHull`` approximation; collision-only group-3 geoms such as hulls with purpose ``guide``)
+or its ``visuals`` scope (purpose ``render``). Z-up, metres, a physics scene with the world's gravity.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from typing import Any
 
 import mujoco
 import numpy as np
+import trimesh
 
 from simrun.compiled_mesh import compiled_mesh
 from simrun.errors import SimrunError
@@ -29,6 +35,7 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9_]")
 
 
 def _ident(name: str, fallback: str) -> str:
+    """A valid prim name: ``[A-Za-z0-9_]``, not starting with a digit."""
     text = _UNSAFE.sub("_", name) or fallback
     return text if not text[0].isdigit() else f"_{text}"
 
@@ -57,28 +64,38 @@ def export_world_usd(world: World, out: Path) -> None:
         if magnitude > 0:
             scene.CreateGravityDirectionAttr(Gf.Vec3f(*(gravity / magnitude).tolist()))
         scene.CreateGravityMagnitudeAttr(magnitude)
-        paths = {0: "/World"}
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)  # body poses at qpos0, the frame the joints are defined in
+        names = _Names()
+        paths: dict[int, str] = {0: "/World"}
+        trees: dict[int, str] = {}
         for b in range(1, model.nbody):
+            root_body = int(model.body_rootid[b])
+            if root_body not in trees:
+                trees[root_body] = names.claim("/World", model.body(root_body).name or f"body{root_body}")
+                tree = UsdGeom.Xform.Define(stage, trees[root_body])
+                if _articulated(model, root_body):
+                    UsdPhysics.ArticulationRootAPI.Apply(tree.GetPrim())
             name = model.body(b).name or f"body{b}"
-            parent = int(model.body_parentid[b])
-            path = f"{paths[parent]}/{_ident(name.rsplit('/', 1)[-1], f'body{b}')}"
-            while stage.GetPrimAtPath(path):
-                path += "_"
-            paths[b] = path
-            xform = UsdGeom.Xform.Define(stage, path)
-            # Prim paths follow the kinematic tree; the full entity/body name travels as an attribute.
+            paths[b] = names.claim(trees[root_body], name)
+            xform = UsdGeom.Xform.Define(stage, paths[b])
+            # Bodies are flat under their tree, at their world pose; the full name travels as an attribute.
             xform.GetPrim().CreateAttribute("simrun:name", Sdf.ValueTypeNames.String).Set(name)
-            _place(xform, model.body_pos[b], model.body_quat[b], Gf)
-            free = any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for j in _joints(model, b))
-            if free or model.body_mocapid[b] >= 0:
-                rigid = UsdPhysics.RigidBodyAPI.Apply(xform.GetPrim())
-                if model.body_mocapid[b] >= 0:
-                    rigid.CreateKinematicEnabledAttr(True)
-                UsdPhysics.MassAPI.Apply(xform.GetPrim()).CreateMassAttr(float(model.body_subtreemass[b]))
-            for j in _joints(model, b):
-                _joint(stage, model, j, paths[parent], path, UsdPhysics, Gf)
+            _place(xform, data.xpos[b], data.xquat[b], Gf)
+            _rigid_body(xform.GetPrim(), model, b, UsdPhysics, Gf)
+            joints = [j for j in _joints(model, b) if int(model.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_FREE)]
+            free = len(joints) != len(_joints(model, b))
+            parent = int(model.body_parentid[b])
+            if not joints and not free and model.body_mocapid[b] < 0:
+                # welded to its parent (or to the world): a fixed joint keeps it there
+                path = names.claim(f"{trees[root_body]}/joints", f"{name}_fixed")
+                fixed = UsdPhysics.FixedJoint.Define(stage, path)
+                _fixed_frames(fixed, model, b, paths[parent] if parent else None, paths[b], data, Gf)
+            for j in joints:
+                _joint(stage, model, j, (paths[parent] if parent else None, paths[b]), data, names, trees[root_body])
         for g in range(model.ngeom):
-            _geom(stage, model, g, paths[int(model.geom_bodyid[g])], UsdGeom, UsdPhysics, Gf, Vt, Sdf)
+            body = int(model.geom_bodyid[g])
+            _geom(stage, model, g, paths[body], names, UsdGeom, UsdPhysics, Gf, Vt, Sdf)
         stamp_usd(stage.GetRootLayer())  # how a later export knows this file is simrun's to replace
         stage.GetRootLayer().Save()
         try:
@@ -99,35 +116,107 @@ def _place(xform: Any, pos: Any, quat: Any, Gf: Any) -> None:
     xform.AddOrientOp().Set(Gf.Quatf(w, x, y, z))
 
 
-def _joint(stage: Any, model: mujoco.MjModel, j: int, parent: str, child: str, UsdPhysics: Any, Gf: Any) -> None:
-    kind = int(model.jnt_type[j])  # plain ints: `in` on numpy ints vs. the enum tuple is unreliable
-    if kind not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-        return
-    path = f"{child}/joint_{_ident(model.joint(j).name.rsplit('/', 1)[-1], str(j))}"
-    body = int(model.jnt_bodyid[j])
-    if kind == mujoco.mjtJoint.mjJNT_HINGE:
-        joint = UsdPhysics.RevoluteJoint.Define(stage, path)
+class _Names:
+    """Unique, valid prim paths: names sanitised (``[A-Za-z0-9_]``, no leading digit), clashes numbered."""
+
+    def __init__(self) -> None:
+        self.taken: set[str] = set()
+
+    def claim(self, parent: str, name: str) -> str:
+        base = _ident(name, "prim")
+        path, n = f"{parent}/{base}", 1
+        while path in self.taken:
+            n += 1
+            path = f"{parent}/{base}_{n}"
+        self.taken.add(path)
+        return path
+
+
+def _articulated(model: mujoco.MjModel, root: int) -> bool:
+    """Whether the tree under ``root`` has a hinge, slide or ball joint (an articulation)."""
+    moving = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_BALL))
+    return any(
+        int(model.body_rootid[model.jnt_bodyid[j]]) == root and int(model.jnt_type[j]) in moving
+        for j in range(model.njnt)
+    )
+
+
+def _rigid_body(prim: Any, model: mujoco.MjModel, b: int, UsdPhysics: Any, Gf: Any) -> None:
+    """RigidBodyAPI and MassAPI with MuJoCo's mass, centre of mass, principal moments and axes."""
+    rigid = UsdPhysics.RigidBodyAPI.Apply(prim)
+    if model.body_mocapid[b] >= 0:
+        rigid.CreateKinematicEnabledAttr(True)
+    mass = UsdPhysics.MassAPI.Apply(prim)
+    mass.CreateMassAttr(float(model.body_mass[b]))
+    mass.CreateCenterOfMassAttr(Gf.Vec3f(*(float(v) for v in model.body_ipos[b])))
+    if np.all(np.asarray(model.body_inertia[b]) > 0):  # massless bodies: neither inertia nor axes (USD's rule)
+        mass.CreateDiagonalInertiaAttr(Gf.Vec3f(*(float(v) for v in model.body_inertia[b])))
+        w, x, y, z = (float(v) for v in model.body_iquat[b])
+        mass.CreatePrincipalAxesAttr(Gf.Quatf(w, x, y, z))
+
+
+def _fixed_frames(
+    joint: Any, model: mujoco.MjModel, b: int, parent: str | None, child: str, data: mujoco.MjData, Gf: Any
+) -> None:
+    """A fixed joint at the child's origin: its pose in the parent's frame (the world's when ``parent`` is None)."""
+    if parent is not None:
+        joint.CreateBody0Rel().SetTargets([parent])
+        pos, quat = model.body_pos[b], model.body_quat[b]
     else:
+        pos, quat = data.xpos[b], data.xquat[b]
+    joint.CreateBody1Rel().SetTargets([child])
+    joint.CreateLocalPos0Attr(Gf.Vec3f(*(float(v) for v in pos)))
+    joint.CreateLocalRot0Attr(Gf.Quatf(*(float(v) for v in quat)))
+    joint.CreateLocalPos1Attr(Gf.Vec3f(0.0, 0.0, 0.0))
+    joint.CreateLocalRot1Attr(Gf.Quatf(1.0, 0.0, 0.0, 0.0))
+
+
+def _joint(
+    stage: Any,
+    model: mujoco.MjModel,
+    j: int,
+    bodies: tuple[str | None, str],
+    data: mujoco.MjData,
+    names: _Names,
+    tree: str,
+) -> None:
+    """A revolute, prismatic or spherical joint from the parent body (the world when None) to the child."""
+    from pxr import Gf, Sdf, UsdPhysics
+
+    parent, child = bodies
+    kind = int(model.jnt_type[j])  # plain ints: `in` on numpy ints vs. the enum tuple is unreliable
+    path = names.claim(f"{tree}/joints", model.joint(j).name or f"joint{j}")
+    body = int(model.jnt_bodyid[j])
+    if kind == int(mujoco.mjtJoint.mjJNT_HINGE):
+        joint = UsdPhysics.RevoluteJoint.Define(stage, path)
+    elif kind == int(mujoco.mjtJoint.mjJNT_SLIDE):
         joint = UsdPhysics.PrismaticJoint.Define(stage, path)
+    else:
+        joint = UsdPhysics.SphericalJoint.Define(stage, path)
     axis = np.asarray(model.jnt_axis[j], dtype=float)
     # USD joints turn about X of their joint frames; rotate those frames so X is MuJoCo's axis.
     joint.CreateAxisAttr("X")
     to_axis = _x_to(axis / np.linalg.norm(axis))
-    in_parent_rot = np.zeros(4)
-    mujoco.mju_mulQuat(in_parent_rot, np.asarray(model.body_quat[body], dtype=float), to_axis)
-    joint.CreateBody0Rel().SetTargets([parent])
+    if parent is not None:
+        joint.CreateBody0Rel().SetTargets([parent])
+        frame_pos, frame_quat = np.asarray(model.body_pos[body], float), np.asarray(model.body_quat[body], float)
+    else:
+        frame_pos, frame_quat = np.asarray(data.xpos[body], float), np.asarray(data.xquat[body], float)
     joint.CreateBody1Rel().SetTargets([child])
     anchor = np.asarray(model.jnt_pos[j], dtype=float)  # in the child body's frame
     rotation = np.zeros(9)
-    mujoco.mju_quat2Mat(rotation, np.asarray(model.body_quat[body], dtype=float))
-    in_parent = np.asarray(model.body_pos[body], dtype=float) + rotation.reshape(3, 3) @ anchor
+    mujoco.mju_quat2Mat(rotation, frame_quat)
+    in_parent = frame_pos + rotation.reshape(3, 3) @ anchor
+    in_parent_rot = np.zeros(4)
+    mujoco.mju_mulQuat(in_parent_rot, frame_quat, to_axis)
     joint.CreateLocalPos0Attr(Gf.Vec3f(*(float(v) for v in in_parent)))
     joint.CreateLocalPos1Attr(Gf.Vec3f(*(float(v) for v in anchor)))
     joint.CreateLocalRot0Attr(Gf.Quatf(*(float(v) for v in in_parent_rot)))
     joint.CreateLocalRot1Attr(Gf.Quatf(*(float(v) for v in to_axis)))
-    if model.jnt_limited[j]:
+    joint.GetPrim().CreateAttribute("simrun:name", Sdf.ValueTypeNames.String).Set(model.joint(j).name)
+    if model.jnt_limited[j] and kind != int(mujoco.mjtJoint.mjJNT_BALL):
         low, high = (float(v) for v in model.jnt_range[j])
-        if kind == mujoco.mjtJoint.mjJNT_HINGE:
+        if kind == int(mujoco.mjtJoint.mjJNT_HINGE):
             low, high = math.degrees(low), math.degrees(high)
         joint.CreateLowerLimitAttr(low)
         joint.CreateUpperLimitAttr(high)
@@ -149,16 +238,19 @@ def _geom(
     model: mujoco.MjModel,
     g: int,
     body_path: str,
+    names: _Names,
     UsdGeom: Any,
     UsdPhysics: Any,
     Gf: Any,
     Vt: Any,
     Sdf: Any,
 ) -> None:
-    name = _ident(model.geom(g).name.rsplit("/", 1)[-1] or f"geom{g}", f"geom{g}")
-    path = f"{body_path}/{name}"
-    while stage.GetPrimAtPath(path):
-        path += "_"
+    """The geom as a gprim under the body's ``collisions`` scope (colliding) or ``visuals`` scope (not)."""
+    colliding = bool(model.geom_contype[g] or model.geom_conaffinity[g])
+    scope = f"{body_path}/{'collisions' if colliding else 'visuals'}"
+    if not stage.GetPrimAtPath(scope):
+        UsdGeom.Scope.Define(stage, scope)
+    path = names.claim(scope, model.geom(g).name.rsplit("/", 1)[-1] or f"geom{g}")
     kind, size = int(model.geom_type[g]), np.asarray(model.geom_size[g], dtype=float)
     if kind == mujoco.mjtGeom.mjGEOM_BOX:
         prim = UsdGeom.Cube.Define(stage, path)
@@ -172,6 +264,15 @@ def _geom(
     elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
         prim = UsdGeom.Sphere.Define(stage, path)
         prim.CreateRadiusAttr(float(size[0]))
+        scale = None
+    elif kind == mujoco.mjtGeom.mjGEOM_ELLIPSOID:  # a mesh: USD physics has no scaled-sphere collider
+        sphere = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+        vertices = np.asarray(sphere.vertices, dtype=float) * size
+        prim = UsdGeom.Mesh.Define(stage, path)
+        prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(vertices.astype(np.float32)))
+        prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(sphere.faces)))
+        prim.CreateFaceVertexIndicesAttr(Vt.IntArray(np.asarray(sphere.faces).ravel().tolist()))
+        prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         scale = None
     elif kind in (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER)):
         cls = UsdGeom.Capsule if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else UsdGeom.Cylinder
@@ -198,10 +299,11 @@ def _geom(
         xform.AddScaleOp().Set(Gf.Vec3f(*scale))
     rgba = [float(c) for c in model.geom_rgba[g]]
     UsdGeom.Gprim(prim).CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*rgba[:3])]))
-    colliding = bool(model.geom_contype[g] or model.geom_conaffinity[g])
     if colliding:
+        if int(model.geom_group[g]) >= 3:  # collision-only geometry (hulls): not rendered, like MuJoCo's viewer
+            UsdGeom.Imageable(prim).CreatePurposeAttr(UsdGeom.Tokens.guide)
         UsdPhysics.CollisionAPI.Apply(prim.GetPrim())
-        if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        if kind in (int(mujoco.mjtGeom.mjGEOM_MESH), int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)):
             api = UsdPhysics.MeshCollisionAPI.Apply(prim.GetPrim())
             api.CreateApproximationAttr(UsdPhysics.Tokens.convexHull)
     else:

@@ -31,8 +31,8 @@ def test_every_body_and_geom_becomes_a_prim(tmp_path: Path) -> None:
     model, stage = _export("pioneer_room.toml", tmp_path / "room.usda")
     assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
     assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
-    xforms = [p for p in stage.Traverse() if p.GetTypeName() == "Xform" and p.GetPath() != "/World"]
-    assert len(xforms) == model.nbody - 1
+    bodies = [p for p in stage.Traverse() if p.HasAPI(UsdPhysics.RigidBodyAPI)]
+    assert len(bodies) == model.nbody - 1
     gprims = [p for p in stage.Traverse() if p.IsA(UsdGeom.Gprim)]
     supported = sum(int(t) != int(mujoco.mjtGeom.mjGEOM_HFIELD) for t in model.geom_type)
     assert len(gprims) == supported
@@ -47,25 +47,28 @@ def test_joints_and_rigid_bodies_match_the_model(tmp_path: Path) -> None:
     revolute = [p for p in stage.Traverse() if p.IsA(UsdPhysics.RevoluteJoint)]
     hinges = int(np.count_nonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE))
     assert hinges > 0 and len(revolute) == hinges
+    names = {
+        str(p.GetAttribute("simrun:name").Get()): p.GetPath()
+        for p in stage.Traverse()
+        if p.HasAPI(UsdPhysics.RigidBodyAPI)
+    }
     for prim in revolute:
         joint = UsdPhysics.RevoluteJoint(prim)
+        j = model.joint(str(prim.GetAttribute("simrun:name").Get())).id
         (child,) = joint.GetBody1Rel().GetTargets()
-        assert child == prim.GetParent().GetPath()
-        assert stage.GetPrimAtPath(joint.GetBody0Rel().GetTargets()[0]).IsValid()
+        assert child == names[model.body(int(model.jnt_bodyid[j])).name]
+        parent = int(model.body_parentid[model.jnt_bodyid[j]])
+        assert list(joint.GetBody0Rel().GetTargets()) == ([names[model.body(parent).name]] if parent else [])
         # the joint frame's X, seen from the child, is MuJoCo's joint axis
-        j = next(j for j in range(model.njnt) if model.joint(j).name.endswith(prim.GetName()[len("joint_") :]))
         rot = joint.GetLocalRot1Attr().Get()
         quat = np.array([rot.GetReal(), *rot.GetImaginary()], dtype=float)
         x_axis = np.zeros(3)
         mujoco.mju_rotVecQuat(x_axis, np.array([1.0, 0.0, 0.0]), quat)
         assert joint.GetAxisAttr().Get() == "X"
         np.testing.assert_allclose(x_axis, model.jnt_axis[j], atol=1e-6)
-    free = int(mujoco.mjtJoint.mjJNT_FREE)
-    free_bodies = {int(model.jnt_bodyid[j]) for j in range(model.njnt) if int(model.jnt_type[j]) == free}
     rigid = [p for p in stage.Traverse() if p.HasAPI(UsdPhysics.RigidBodyAPI)]
-    assert len(rigid) == len(free_bodies | {b for b in range(model.nbody) if model.body_mocapid[b] >= 0})
-    masses = sorted(UsdPhysics.MassAPI(p).GetMassAttr().Get() for p in rigid)
-    assert masses == pytest.approx(sorted(float(model.body_subtreemass[b]) for b in free_bodies), rel=1e-6)
+    masses = {str(p.GetAttribute("simrun:name").Get()): UsdPhysics.MassAPI(p).GetMassAttr().Get() for p in rigid}
+    assert masses == pytest.approx({model.body(b).name: float(model.body_mass[b]) for b in range(1, model.nbody)})
 
 
 def test_mesh_points_and_world_pose_round_trip(tmp_path: Path) -> None:
@@ -124,7 +127,11 @@ def test_entity_names_and_body_poses_round_trip(tmp_path: Path) -> None:
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     cache = UsdGeom.XformCache()
-    named = {str(p.GetAttribute("simrun:name").Get()): p for p in stage.Traverse() if p.HasAttribute("simrun:name")}
+    named = {
+        str(p.GetAttribute("simrun:name").Get()): p
+        for p in stage.Traverse()
+        if p.HasAttribute("simrun:name") and not p.IsA(UsdPhysics.Joint)
+    }
     assert {model.body(b).name for b in range(1, model.nbody)} <= set(named)
     assert {model.geom(g).name for g in range(model.ngeom) if model.geom(g).name} <= set(named)
     for b in range(1, model.nbody):
