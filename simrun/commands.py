@@ -61,7 +61,7 @@ class Command:
         try:
             method(*self.args)
         except SimrunError as exc:
-            raise SimrunError(f"{self._where()}{self.call}: {exc}") from None
+            raise SimrunError(f"{self._where()}{exc}") from None
         except (TypeError, ValueError) as exc:
             raise SimrunError(f"{self._where()}{self.call}{self.args!r} refused: {exc}") from None
 

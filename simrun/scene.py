@@ -200,6 +200,8 @@ class _Loader:
         entities = dict(world)
         for k, service in enumerate(services):
             where: KeyPath = ("services", k)
+            if isinstance(service, dict) and isinstance(service.get("type"), str):
+                self.labels[where] = service["type"]
             _known(service, ("type", "entity"), self, where)
             kind = service.get("type")
             if not isinstance(kind, str):
@@ -377,7 +379,8 @@ def _check_camera(values: dict[str, Any], loader: _Loader, where: KeyPath) -> No
     if (eye is None) != (target is None):
         raise loader.error("give both eye and target (or neither, and a pose)", (*where, "eye" if eye else "target"))
     if eye is not None and target is not None and math.dist(eye, target) < 1e-9:
-        raise loader.error(f"eye and target are the same point {list(eye)}; the camera would look nowhere", where)
+        message = f"eye and target are the same point {list(eye)}; the camera would look nowhere"
+        raise loader.error(message, (*where, "target"))
 
 
 def _convert(value: Any, hint: Any, loader: _Loader, where: KeyPath) -> Any:
