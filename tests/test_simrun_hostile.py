@@ -193,7 +193,7 @@ def recording(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("rec")
     shutil.copy(SCENES / "boebot.toml", folder / "boebot.toml")
     (folder / "ctl.py").write_text("def step(world):\n    world.service('DriveService', 'boebot').cmd_vel(0.1, 0.2)\n")
-    code, out, err = run(
+    code, _out, err = run(
         [
             "play",
             str(folder / "boebot.toml"),
@@ -233,7 +233,7 @@ def with_header(**changes):
 
 
 def nan_checkpoint(data: bytes, folder: Path) -> bytes:
-    header, records = split(data)
+    _header, records = split(data)
     start = len(data) - len(records)
     out = bytearray(data)
     out[start + 5 + 8 : start + 5 + 16] = struct.pack("<d", float("nan"))  # the first record is a checkpoint
@@ -244,7 +244,7 @@ def far_future_frame(data: bytes, folder: Path) -> bytes:
     header, records = split(data)
     start = len(data) - len(records)
     size = 8 + 8 * header["state_size"]
-    kind, length = struct.unpack("<BI", data[start : start + 5])
+    _kind, length = struct.unpack("<BI", data[start : start + 5])
     second = start + 5 + length
     out = bytearray(data)
     out[second + 5 : second + 13] = struct.pack("<d", 1e9)  # a frame a billion seconds on: resim would never end
