@@ -1,9 +1,12 @@
 """The result cache of ``meshtool validate``: unchanged assets are not checked again.
 
-An entry is keyed by the asset's path and content hash (SHA-256), the rule-set version, the meshtool version
-and the options that change raw findings (the limits). It holds the raw result and the SHA-256 of every
-file the check read (MTLs, textures, a pack's sources), plus the digest of the folder listing for assets
-with unresolved references; it is used only while all of them still match. Entries live in
+An entry is keyed by the asset's path and content hash (SHA-256), the rule-set version, the meshtool version,
+the options that change raw findings (the limits, the source roots) and the environment (the physics
+plugin and the versions of the libraries the rules compute with). It holds the raw result, the SHA-256 of
+every file the check read or looked for (MTLs, textures, a pack's sources; ``None`` for absent), and the
+digest of everything under the asset's folder (:mod:`meshtool.validate.snapshot`: every name with its
+case, kind, permissions and link target), since any of it can change how a reference resolves. The entry
+is used only while all of them still match. Entries live in
 ``CACHE/ab/abcdef....json`` (written atomically); a damaged entry counts as a miss.
 """
 
@@ -13,6 +16,7 @@ import base64
 import contextlib
 import hashlib
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +25,9 @@ from meshtool.errors import OutputError
 from meshtool.findings import Finding, Severity
 from meshtool.outdir import write_file
 from meshtool.resolve import file_sha256, read_cache
-from meshtool.validate.task import RULESET_VERSION, AssetResult, AssetTask, listing_digest
+from meshtool.validate.plugins import environment
+from meshtool.validate.snapshot import dependency_listings, listing_digest
+from meshtool.validate.task import RULESET_VERSION, AssetResult, AssetTask
 
 
 class ResultCache:
@@ -34,8 +40,10 @@ class ResultCache:
 
     def __init__(self, folder: Path | None, fingerprint: dict[str, Any]) -> None:
         self.folder = folder
+        self.exclude = Path(os.path.realpath(folder)) if folder is not None else None
         self.salt = json.dumps(
-            {"meshtool": __version__, "rules": RULESET_VERSION, "options": fingerprint}, sort_keys=True
+            {"meshtool": __version__, "rules": RULESET_VERSION, "options": fingerprint, "environment": environment()},
+            sort_keys=True,
         )
 
     def key(self, task: AssetTask, content_sha256: str) -> str:
@@ -61,8 +69,8 @@ class ResultCache:
             for path, sha in entry["deps"].items():
                 if path != own and file_sha256(Path(path)) != sha:
                     return None
-            for folder, listing in entry["listings"].items():
-                if listing_digest(Path(folder)) != listing:
+            for key, listing in entry["listings"].items():
+                if listing is None or listing_digest(key, self.exclude) != listing:
                     return None
             result = _from_json(entry["result"])
         except (ValueError, KeyError, TypeError):
@@ -71,9 +79,17 @@ class ResultCache:
         result.cached = True
         return result
 
+    def listings(self, task: AssetTask) -> dict[str, str | None]:
+        """The listings a fresh result of ``task`` will be stored with (taken before the check reads anything)."""
+        if self.folder is None or task.kind == "mbin":  # a pack's sources are looked up by exact path (deps)
+            return {}
+        return dependency_listings(task.path, self.exclude)
+
     def store(self, task: AssetTask, result: AssetResult) -> None:
         """Remember a fresh result (results with an internal error or a timeout are not cached)."""
         if self.folder is None or any(f.code in ("X001", "X002") for f in result.findings):
+            return
+        if any(listing is None for listing in result.listings.values()):  # a folder too big to list
             return
         digest = result.deps.get(str(task.path.resolve()))
         if digest is None:

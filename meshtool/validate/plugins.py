@@ -10,12 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cache
-from importlib.metadata import entry_points
+from importlib.metadata import PackageNotFoundError, entry_points, version
 from typing import Any, Protocol
 
 from meshtool.findings import Finding
 
 GROUP = "meshtool.validate"
+#: Libraries whose versions change what rules compute (hulls, volumes, decoding, simulation).
+COMPUTED_WITH = ("numpy", "scipy", "trimesh", "Pillow", "mujoco")
 
 
 @dataclass(slots=True)
@@ -57,3 +59,23 @@ def physics_plugin() -> PhysicsCheck | None:
         loaded: PhysicsCheck = point.load()
         return loaded
     return None
+
+
+def environment() -> dict[str, Any]:
+    """What the results depend on besides the files and options: the physics plugin and library versions.
+
+    Part of the cache key: installing or removing the plugin, or upgrading MuJoCo or trimesh, re-checks
+    every asset. Read from the installed distributions' metadata (nothing is imported).
+    """
+    plugin = None
+    for point in entry_points(group=GROUP, name="physics"):
+        dist = point.dist
+        plugin = f"{point.value} ({dist.name} {dist.version})" if dist is not None else point.value
+        break
+    versions: dict[str, str | None] = {}
+    for name in COMPUTED_WITH:
+        try:
+            versions[name] = version(name)
+        except PackageNotFoundError:
+            versions[name] = None
+    return {"plugin": plugin, "versions": versions}

@@ -200,8 +200,10 @@ def validate(
         if progress:
             progress(cached, len(results), len(tasks))
     by_display = {t.display: t for t in todo}
+    listings = {t.display: cache.listings(t) for t in todo}  # before the checks read: a later change is news
     runner = _run_dask if options.executor == "dask" else _run_local
     for result in runner(todo, options):
+        result.listings = listings[result.path]
         cache.store(by_display[result.path], result)
         results[result.path] = result
         if progress:

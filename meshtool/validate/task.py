@@ -24,7 +24,7 @@ from meshtool.findings import Finding, Severity
 from meshtool.hulls import Hull, HullOptions, compute_hulls
 from meshtool.normalise import NormaliseOptions, prepare
 from meshtool.packfile import pack, parse
-from meshtool.resolve import Resolver, file_sha256, list_names
+from meshtool.resolve import Resolver, file_sha256
 from meshtool.units import scale_findings
 from meshtool.validate.collision import collision_findings
 from meshtool.validate.config import Limits
@@ -34,7 +34,7 @@ from meshtool.validate.rules import RULES, hit
 from meshtool.validate.source import encoding_findings, from_normaliser, name_findings, reference_findings
 
 #: Bumped whenever a rule changes what it reports: cached results of older rules are not reused.
-RULESET_VERSION = 2
+RULESET_VERSION = 3
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,8 +74,9 @@ class AssetResult:
         findings: Raw findings (default severities), sorted by rule, file and line; their paths are relative
             to the asset's folder until :func:`meshtool.validate.runner.validate` makes them display paths.
         deps: Absolute path -> SHA-256 of every file read (``None``: looked for and absent).
-        listings: Folder -> digest of its file names, for assets with unresolved references (a file added
-            later could resolve them).
+        listings: Listing key -> digest (:func:`meshtool.validate.snapshot.dependency_listings`) of the
+            folders the check could look into, taken before the check by the runner when it caches
+            (``None``: too many entries, the result is not cached).
         stats: Numbers for reports (triangles, volume, hull fit, mass, ...).
         thumbnail: PNG bytes, or ``None``.
         notes: Checks not done and why, one line each.
@@ -86,7 +87,7 @@ class AssetResult:
     kind: str
     findings: list[Finding] = field(default_factory=list)
     deps: dict[str, str | None] = field(default_factory=dict)
-    listings: dict[str, str] = field(default_factory=dict)
+    listings: dict[str, str | None] = field(default_factory=dict)
     stats: dict[str, Any] = field(default_factory=dict)
     thumbnail: bytes | None = None
     notes: list[str] = field(default_factory=list)
@@ -131,11 +132,6 @@ def _special_file(path: Path) -> str | None:
     return next((what for test, what in kinds.items() if test(mode)), None)
 
 
-def listing_digest(folder: Path) -> str:
-    """SHA-256 of a folder's sorted file names (empty when it cannot be listed)."""
-    return hashlib.sha256("\n".join(list_names(folder)).encode("utf-8")).hexdigest()
-
-
 def _check_obj(task: AssetTask, result: AssetResult) -> None:
     src = task.path
     name = src.name
@@ -153,8 +149,6 @@ def _check_obj(task: AssetTask, result: AssetResult) -> None:
     manifest = asset.manifest
     for source in manifest["sources"]:
         result.deps[str((src.parent / source["path"]).resolve())] = source["sha256"]
-    if any(r["found"] is None for r in manifest["resolutions"]):
-        result.listings[str(src.parent.resolve())] = listing_digest(src.parent)
     result.findings.extend(from_normaliser(asset.findings))
     result.findings.extend(reference_findings(manifest["resolutions"]))
     result.findings.extend(name_findings(s["path"] for s in manifest["sources"]))
@@ -225,14 +219,14 @@ def _staleness(task: AssetTask, result: AssetResult, sources: list[dict[str, Any
     for base in candidates:
         first = base / obj
         digest = file_sha256(first)
-        result.deps[str(first.resolve())] = digest
+        result.deps[str(first.absolute())] = digest  # not resolved: a link retargeted later is looked up anew
         if digest is None:
             continue
         changed, missing = [], []
         for source in sources:
             p = base / str(source["path"])
             now = file_sha256(p)
-            result.deps[str(p.resolve())] = now
+            result.deps[str(p.absolute())] = now
             if now is None:
                 missing.append(str(source["path"]))
             elif now != source["sha256"]:
