@@ -107,7 +107,9 @@ def to_png(data: bytes, name: str, max_side: int = MAX_SIDE, max_pixels: int = M
     except TextureError:
         raise
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError, MemoryError) as exc:
-        raise TextureError(f"not a readable image ({exc})", path=name, hint=hint) from None
+        # Pillow's "cannot identify" message names a memory address: the same input must give the same message
+        why = "unknown image format" if isinstance(exc, UnidentifiedImageError) else str(exc)
+        raise TextureError(f"not a readable image ({why})", path=name, hint=hint) from None
     fmt = image.format or "unknown"
     source_mode = image.mode
     if fmt == "PNG" and source_mode in _PASS_MODES and _is_8bit_png(data):
