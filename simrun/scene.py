@@ -63,6 +63,8 @@ MAX_SCENE_BYTES = 16 * 1024 * 1024
 MAX_ENTITIES = 10_000
 #: Largest magnitude of any number in a scene (metres, kg, seconds...); larger values are typing mistakes.
 MAX_MAGNITUDE = 1e6
+#: Highest sensor sampling rate accepted from a scene, Hz.
+MAX_SENSOR_RATE = 10_000.0
 #: Most cells of a height field given as numbers.
 MAX_HEIGHT_CELLS = 1024 * 1024
 #: Entity parameters that name a file (relative to the scene's folder), checked at load.
@@ -230,7 +232,9 @@ class _Loader:
             if isinstance(spec.get("name"), str):
                 self.labels[where] = spec["name"]
             for key, value in spec.items():
-                problem = _bad_value(value)
+                problem = _bad_value(value, 2**63 if key == "seed" else MAX_MAGNITUDE)
+                if key == "rate" and isinstance(value, int | float) and value > MAX_SENSOR_RATE:
+                    problem = f"must be at most {MAX_SENSOR_RATE:g} Hz, got {value!r}"
                 if problem:
                     raise self.error(problem, (*where, key))
             target_key = "camera" if spec.get("type") == "Webcam" else "entity"
@@ -313,16 +317,16 @@ def _key_text(path: KeyPath) -> str:
     return text
 
 
-def _bad_value(value: Any) -> str | None:
-    """Why a sensor parameter is refused (a non-finite or huge number anywhere in it), or ``None``."""
+def _bad_value(value: Any, limit: float) -> str | None:
+    """Why a sensor parameter is refused (a non-finite number or one over ``limit`` anywhere in it), or ``None``."""
     if isinstance(value, float) and not math.isfinite(value):
         return f"expected a finite number, got {value!r}"
-    if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > 2**63:
-        return f"number out of range: {value!r}"
+    if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > limit:
+        return f"must be at most {limit:g} in magnitude, got {value!r}"
     if isinstance(value, list):
-        return next((p for p in map(_bad_value, value) if p), None)
+        return next((p for p in (_bad_value(v, limit) for v in value) if p), None)
     if isinstance(value, dict):
-        return next((p for p in map(_bad_value, value.values()) if p), None)
+        return next((p for p in (_bad_value(v, limit) for v in value.values()) if p), None)
     return None
 
 

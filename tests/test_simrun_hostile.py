@@ -96,6 +96,12 @@ SCENE_CASES = [
         "sensors[0] 'gps': noise: expected a finite number",
     ),
     (
+        "sensor_absurd_rate",
+        BOEBOT + '[[sensors]]\ntype = "IMU"\nname = "imu"\nentity = "bot"\nrate = 1e300\n',
+        8,
+        "sensors[0] 'imu': rate: must be at most",
+    ),
+    (
         "sensor_unknown_entity",
         BOEBOT + '[[sensors]]\ntype = "IMU"\nname = "imu"\nentity = "robot"\n',
         7,
