@@ -5,7 +5,7 @@ and all) into a model description, built into a child spec by :func:`simrun.mjcf
 (meshes from arrays, PNG textures in the world's virtual file system under names unique to the entity)
 and attached under the entity's body with the ``NAME/`` prefix: ``arm/shoulder`` is the joint
 ``shoulder`` of the entity ``arm``. The root link sits at the entity's pose; ``free=True`` makes it a
-mobile robot. A URDF ``world`` link becomes a body ``NAME/world`` fixed to the entity's body.
+mobile robot. A URDF ``world`` link becomes a body ``NAME/world_link`` fixed to the entity's body.
 """
 
 from __future__ import annotations
@@ -51,8 +51,8 @@ class UrdfRobot(Entity):
         try:
             result = import_urdf(ctx.base_dir / self.urdf, options)
             model = result.model
-            if model.world_geoms:  # a URDF 'world' link: a body fixed to the entity's body, named 'world'
-                world = BodyDesc("world", geoms=model.world_geoms, children=model.bodies)
+            if model.world_geoms:  # a URDF 'world' link: a body fixed to the entity's body, named 'world_link'
+                world = BodyDesc("world_link", geoms=model.world_geoms, children=model.bodies)
                 model = dataclasses.replace(model, world_geoms=[], bodies=[world])
             tag = "".join(c if c.isalnum() else "_" for c in ctx.full_name)
             child, files = spec_from_model(model, texture_prefix=f"urdf_{tag}_")

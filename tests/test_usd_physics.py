@@ -76,7 +76,7 @@ def test_fixture_scenes_parse_as_physics(scene: Path, tmp_path: Path) -> None:
     _check(load_scene(scene), tmp_path / f"{scene.stem}.usda")
 
 
-@pytest.mark.parametrize("urdf", ["tiny_arm_description/urdf/tiny_arm.urdf", "quirks/robot/urdf/quirks.urdf"])
+@pytest.mark.parametrize("urdf", ["tiny_arm_description/urdf/tiny_arm.urdf", "quirks/quirks_robot/urdf/quirks.urdf"])
 def test_urdf_robots_parse_as_physics(urdf: str, tmp_path: Path) -> None:
     world = World(base_dir=FIXTURES / "urdf")
     world.insert(UrdfRobot(name="robot", urdf=urdf))
