@@ -258,7 +258,12 @@ def _open(path: Path, shown: str) -> int:
     if "\x00" in os.fspath(path):
         raise ResolveError("the file name contains a NUL byte", path=shown, hint="fix the name")
     try:
-        return os.open(path, _READ)
+        mode = os.stat(path).st_mode  # devices and FIFOs are refused before any open(2)...
+        if not stat.S_ISREG(mode):
+            raise _not_regular(mode, shown)
+        return os.open(path, _READ)  # ...and fstat after it catches one swapped in between
+    except ResolveError:
+        raise
     except OSError as exc:
         raise error_from(exc, shown) from None
 

@@ -10,6 +10,7 @@ import os
 import socket
 import stat
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -201,11 +202,36 @@ def test_read_of_a_path_outside_is_refused(arena):
 # -- 2. FIFOs, sockets and devices -------------------------------------------------------------------------
 
 
+class FifoWriter(threading.Thread):
+    """Opens a FIFO for writing, which blocks until some reader opens it: proof of whether one did."""
+
+    def __init__(self, fifo: Path) -> None:
+        super().__init__(daemon=True)
+        self.fifo = fifo
+
+    def run(self) -> None:
+        with open(self.fifo, "wb"):
+            pass
+
+    def __enter__(self) -> "FifoWriter":
+        self.start()
+        time.sleep(0.2)  # let it reach open(2) (synchronisation only; nothing is timed)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.join(0.5)  # returns at once if a reader released the writer
+        opened_by_meshtool = not self.is_alive()
+        fd = os.open(self.fifo, os.O_RDONLY | os.O_NONBLOCK)  # release the writer
+        self.join(10)
+        os.close(fd)
+        assert not opened_by_meshtool, "the FIFO was opened for reading"
+
+
 def test_fifo_obj_is_refused_without_blocking(tmp_path):
     obj = write_asset(tmp_path / "a")
     obj.unlink()
     os.mkfifo(obj)
-    with pytest.raises(ResolveError, match="is a FIFO"):
+    with FifoWriter(obj), pytest.raises(ResolveError, match="is a FIFO"):
         finishes(lambda: prepare(obj))
 
 
@@ -214,7 +240,8 @@ def test_fifo_mtl_or_texture_becomes_a_finding(tmp_path, name, code):
     obj = write_asset(tmp_path / "a")
     (obj.parent / name).unlink()
     os.mkfifo(obj.parent / name)
-    asset = finishes(lambda: prepare(obj))
+    with FifoWriter(obj.parent / name):
+        asset = finishes(lambda: prepare(obj))
     found = [f for f in asset.findings if f.code == code]
     assert len(found) == 1 and "FIFO" in found[0].message and found[0].line is not None
 
