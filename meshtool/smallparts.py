@@ -1,12 +1,15 @@
-"""Visual meshes MuJoCo refuses: submeshes with fewer than 4 distinct vertices, and flat ones.
+"""Visual meshes MuJoCo refuses: submeshes with fewer than 4 distinct vertices.
 
 Every run of one material and one part becomes its own visual mesh in MJCF, and MuJoCo refuses a mesh
 with fewer than 4 vertices ("at least 4 vertices required"). Such a submesh is merged into the nearest
 submesh of the same material in another part; when there is none, it is padded with one vertex just off
-its first triangle (0.01 % of its size) and one sliver triangle, so it keeps its look and loads. A flat
-submesh (all vertices in one plane) loads with ``inertia="shell"`` (which meshtool writes for visual
-meshes) but is merged into a same-material neighbour too, when there is one, so it cannot become a
-separate flat mesh elsewhere. Each change is a ``part-merged`` or ``part-padded`` warning.
+its first triangle (0.01 % of its size) and one sliver triangle, so it keeps its look and loads. Each
+change is a ``part-merged`` or ``part-padded`` warning.
+
+Flat submeshes (all vertices in one plane, at least 4 of them) are left alone: MuJoCo loads them as
+visual meshes with ``inertia="shell"``, which meshtool and simrun write for every visual mesh (only the
+``legacy``/``exact`` inertia and convex hulls need volume; hulls are thickened in :mod:`meshtool.hulls`).
+Merging them would only lose the part structure (a Cornell box's walls would join a block).
 """
 
 from __future__ import annotations
@@ -25,8 +28,6 @@ MIN_VERTICES = 4
 #: Offset of the padding vertex, relative to the submesh's size, and its least value (metres).
 PAD_RELATIVE = 1e-4
 PAD_MIN_M = 1e-6
-#: Singular value ratio below which a submesh counts as flat.
-FLAT_RATIO = 1e-9
 
 
 def fix_small_parts(mesh: TriMesh, path: str | None = None) -> list[Finding]:
@@ -66,11 +67,12 @@ def fix_small_parts(mesh: TriMesh, path: str | None = None) -> list[Finding]:
     if merged:
         _regroup(mesh)
         groups = _groups(mesh)
-    for (material, part), faces in groups.items():
+    padded: list[Finding] = []
+    for (material, part), faces in sorted(groups.items(), key=lambda item: -int(item[1][0])):
         if _distinct(mesh, faces) >= MIN_VERTICES:
             continue
-        _pad(mesh, faces)
-        findings.append(
+        _pad(mesh, faces)  # from the last run backwards: inserting after a run leaves earlier runs in place
+        padded.append(
             warning(
                 "part-padded",
                 f"part {mesh.part_names[part]!r} (material {mesh.material_names[material]!r}) has fewer than "
@@ -78,8 +80,7 @@ def fix_small_parts(mesh: TriMesh, path: str | None = None) -> list[Finding]:
                 path,
             )
         )
-        groups = _groups(mesh)  # indices moved
-    return findings
+    return findings + padded[::-1]
 
 
 def _groups(mesh: TriMesh) -> dict[tuple[int, int], IntArray]:
@@ -99,13 +100,10 @@ def _distinct(mesh: TriMesh, faces: IntArray) -> int:
 
 
 def _verdict(mesh: TriMesh, faces: IntArray) -> str | None:
-    """``too few vertices``, ``flat`` or ``None`` for a submesh MuJoCo loads as it is."""
+    """``N distinct vertices`` for a submesh MuJoCo refuses, ``None`` for one it loads as it is."""
     points = np.unique(mesh.positions[np.unique(mesh.faces[faces])], axis=0)
     if points.shape[0] < MIN_VERTICES:
         return f"{points.shape[0]} distinct vertices"
-    singular = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    if singular[0] > 0 and singular[2] <= FLAT_RATIO * singular[0]:
-        return "flat"
     return None
 
 
@@ -118,10 +116,11 @@ def _gap(mesh: TriMesh, a: IntArray, b: IntArray) -> float:
 
 
 def _regroup(mesh: TriMesh) -> None:
-    """Reorder triangles so each (material, part) run is contiguous again, keeping the order otherwise."""
-    keys = mesh.face_material.astype(np.int64) * (len(mesh.part_names) + 1) + mesh.face_part
-    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-    order = np.argsort(first[inverse], kind="stable")
+    """Reorder triangles by material, then part name (as :func:`meshtool.mesh.build_mesh` orders them), stably."""
+    names = np.asarray(mesh.part_names, dtype=object)
+    rank = np.empty(len(names), dtype=np.int64)
+    rank[np.argsort(names, kind="stable")] = np.arange(len(names))
+    order = np.lexsort((rank[mesh.face_part], mesh.face_material))
     for name in ("faces", "face_uv", "face_normal", "face_material", "face_part", "face_lines"):
         setattr(mesh, name, getattr(mesh, name)[order])
 

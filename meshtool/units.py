@@ -144,9 +144,8 @@ def evidence_findings(evidence: UnitEvidence | None, units: str, scale: float, p
     """
     if evidence is None:
         return []
-    agrees = (evidence.unit == units and scale == 1.0) or (
-        evidence.unit is None and evidence.scale is not None and units == "m" and math.isclose(scale, evidence.scale)
-    )
+    wanted = unit_scale(evidence.unit) if evidence.unit is not None else evidence.scale
+    agrees = wanted is not None and math.isclose(unit_scale(units) * scale, wanted, rel_tol=1e-9)
     if agrees:
         return [info("units-evidence", f"units agree with the evidence: {evidence.describe()}", path)]
     if evidence.source == "consumer" and (evidence.unit is not None or evidence.scale is not None):
