@@ -17,7 +17,7 @@ from typing import Any
 
 import tomli_w
 
-from simrun.arm import KukaLBR3, LynxL6
+from simrun.arm import ArticulatedArm, KukaLBR3, LynxL6
 from simrun.commands import toml_error_line
 from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
 from simrun.entity import Entity, Material
@@ -50,6 +50,7 @@ ENTITY_TYPES: dict[str, type[Entity]] = {
         Pioneer3DX,
         IRobotCreate,
         LegoNxtTribot,
+        ArticulatedArm,
         KukaLBR3,
         LynxL6,
         UrdfRobot,
@@ -122,12 +123,15 @@ class _Loader:
                 self.labels[where] = table["name"]
             entity = _entity(table, self, where)
             self.files(entity, world, where)
+            full = world.full_name(entity)
             try:
                 world.insert(entity)
             except EntityError as exc:
-                raise self.error(str(exc), where) from None
-            line = line_of(self.lines, where)
-            world.origins[world.full_name(entity)] = f"{self.name}:{line}: entities[{k}] {entity.name!r}"
+                raise self.error(str(exc).removeprefix(f"{full!r}: "), where) from None
+            label = f"entities[{k}] {entity.name!r}"
+            world.origins[full] = f"{self.name}:{line_of(self.lines, where)}: {label}"
+            for key in table:  # build errors that start with a parameter's name point at its line
+                world.origins[f"{full}#{key}"] = f"{self.name}:{line_of(self.lines, (*where, key))}: {label}"
         self.services(doc.get("services", []), world)
         self.sensors(doc.get("sensors", []), world)
         return world
@@ -300,6 +304,8 @@ def save_scene(world: World, path: str | Path) -> None:
 
 
 def _plain(value: Any) -> Any:
+    if hasattr(value, "to_scene"):  # a value that writes itself (an arm's segments)
+        return value.to_scene()
     if isinstance(value, Material):
         return dataclasses.asdict(value)
     if isinstance(value, tuple):
@@ -393,6 +399,11 @@ def _convert(value: Any, hint: Any, loader: _Loader, where: KeyPath) -> Any:
     if origin in (types.UnionType, typing.Union):
         options = [a for a in args if a is not type(None)]
         return _convert(value, options[0], loader, where)
+    if isinstance(hint, type) and hasattr(hint, "from_scene"):  # a value that reads itself (an arm's segments)
+        try:
+            return hint.from_scene(value, "")
+        except EntityError as exc:
+            raise loader.error(str(exc), where) from None
     if hint is Material:
         _known(value, ("restitution", "dynamic_friction", "static_friction"), loader, where)
         coefficients = {k: _number(v, loader, (*where, k)) for k, v in value.items()}

@@ -103,7 +103,8 @@ class World:
         #: Asset names (used by ``MeshEntity.asset``) to ``.mbin`` paths relative to ``base_dir``.
         self.assets: dict[str, str] = {}
         #: Where each entity (by full name), service (``services:TYPE:ENTITY``) and sensor (``sensors:NAME``)
-        #: came from, e.g. ``scene.toml:12: entities[3] 'box'`` (set by ``load_scene``), for later errors.
+        #: came from, e.g. ``scene.toml:12: entities[3] 'box'`` (set by ``load_scene``), for later errors;
+        #: ``NAME#PARAM`` keys hold the line of one parameter (a build error starting with ``mass`` points there).
         self.origins: dict[str, str] = {}
 
     # -- entities ------------------------------------------------------------------------------------------
@@ -220,7 +221,8 @@ class World:
         message = str(exc)
         for prefix in (f"{entity.TYPE} {entity.name!r}: ", f"{entity.TYPE} {full!r}: "):
             message = message.removeprefix(prefix)
-        origin = self.origins.get(full) or f"{entity.TYPE} {full!r}"
+        field = message.split(" ", 1)[0].split("[", 1)[0].rstrip(":")
+        origin = self.origins.get(f"{full}#{field}") or self.origins.get(full) or f"{entity.TYPE} {full!r}"
         return EntityError(f"{origin}: {message}")
 
     def compile(self) -> tuple[mujoco.MjModel, mujoco.MjData]:

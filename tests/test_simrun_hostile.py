@@ -49,7 +49,7 @@ SCENE_CASES = [
     ("nan_mass", BOX + "mass = nan\n", 4, "mass: expected a finite number, got nan"),
     ("inf_position", BOX + "pose = { position = [0.0,\n inf, 0.0] }\n", 5, "pose.position[1]: expected a finite"),
     ("nan_gravity", "[world]\ngravity = [0.0, 0.0, -nan]\n", 2, "world.gravity[2]"),
-    ("negative_mass", BOX + "free = true\nmass = -100.0\n", 1, "entities[0] 'box': mass must be a positive number"),
+    ("negative_mass", BOX + "free = true\nmass = -100.0\n", 5, "entities[0] 'box': mass must be a positive number"),
     (
         "camera_eye_is_target",
         '[[entities]]\ntype = "Camera"\nname = "view"\neye = [1.0, 2.0, 3.0]\ntarget = [1.0, 2.0, 3.0]\n',
