@@ -37,3 +37,19 @@ def test_mbin_to_usd_keeps_points_faces_texture_and_hulls(tmp_path):
         png = textures[0].GetAttribute("inputs:file").Get().path
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert CliRunner().invoke(main, ["export", str(source), "--usd", str(tmp_path / "x.obj")]).exit_code == 1
+
+
+def test_name_starting_with_a_digit_exports_and_validates(tmp_path):
+    from pxr import Sdf, UsdValidation
+
+    source = tmp_path / "3d head.mbin"
+    source.write_bytes((SCENES / "head.mbin").read_bytes())
+    out = tmp_path / "head.usda"
+    result = CliRunner().invoke(main, ["export", str(source), "--usd", str(out)])
+    assert result.exit_code == 0, result.output
+    stage = Usd.Stage.Open(str(out))
+    assert str(stage.GetDefaultPrim().GetPath()) == "/_3d_head"
+    found = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators()).Validate(stage)
+    assert [e.GetMessage() for e in found if e.GetType() == UsdValidation.ValidationErrorType.Error] == []
+    (reader,) = [p for p in stage.Traverse() if p.GetName() == "stReader"]
+    assert reader.GetAttribute("inputs:varname").GetTypeName() == Sdf.ValueTypeNames.String

@@ -128,7 +128,9 @@ def to_glb(packed: PackedMesh) -> bytes:
         if texture is not None and packed.uvs is not None:
             index = int(texture["texture"])
             if index not in images:
-                images[index] = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
+                image = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
+                image.info.clear()  # no iCCP/gAMA/cHRM/sRGB chunks: glTF images are sRGB by definition
+                images[index] = image
             image = images[index]
         pbr = trimesh.visual.material.PBRMaterial(  # type: ignore[no-untyped-call]
             name=spec.get("name", f"material_{material}"),

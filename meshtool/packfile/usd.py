@@ -35,7 +35,7 @@ def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:
 
     if out.suffix.lower() not in (".usda", ".usdc", ".usd"):
         raise OutputError("USD output must end in .usda, .usdc or .usd", path=str(out))
-    root = "/" + safe_identifier(name, "asset").replace(".", "_").replace("-", "_")
+    root = "/" + _prim_name(name, "asset")
     written: list[Path] = []
     textures = list(packed.meta.get("textures", []))
     for k, data in enumerate(packed.textures):
@@ -92,7 +92,7 @@ def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:
 
 def _material(stage: Any, scope: str, spec: dict[str, Any], textures: list[str], Sdf: Any, UsdShade: Any) -> Any:
     """A UsdPreviewSurface material (diffuse colour or texture, opacity, roughness from Ns)."""
-    name = safe_identifier(str(spec.get("name", "material")), "material").replace(".", "_").replace("-", "_")
+    name = _prim_name(str(spec.get("name", "material")), "material")
     material = UsdShade.Material.Define(stage, f"{scope}/{name}")
     shader = UsdShade.Shader.Define(stage, f"{scope}/{name}/PreviewSurface")
     shader.CreateIdAttr("UsdPreviewSurface")
@@ -106,7 +106,7 @@ def _material(stage: Any, scope: str, spec: dict[str, Any], textures: list[str],
     if texture is not None:
         reader = UsdShade.Shader.Define(stage, f"{scope}/{name}/stReader")
         reader.CreateIdAttr("UsdPrimvarReader_float2")
-        reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("st")
+        reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")  # UsdPreviewSurface: a string
         image = UsdShade.Shader.Define(stage, f"{scope}/{name}/DiffuseTexture")
         image.CreateIdAttr("UsdUVTexture")
         image.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(textures[int(texture["texture"])])
@@ -115,3 +115,9 @@ def _material(stage: Any, scope: str, spec: dict[str, Any], textures: list[str],
         diffuse.ConnectToSource(image.ConnectableAPI(), "rgb")
     material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
     return material
+
+
+def _prim_name(name: str, fallback: str) -> str:
+    """A valid USD prim name: ``[A-Za-z0-9_]``, not starting with a digit."""
+    text = safe_identifier(name, fallback).replace(".", "_").replace("-", "_")
+    return f"_{text}" if text[:1].isdigit() else text
