@@ -29,7 +29,7 @@ from meshtool.changes import split_findings
 from meshtool.cli_common import exit_on_bug
 from meshtool.cli_validate import validate_command
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
-from meshtool.errors import MeshtoolError, OptionsError
+from meshtool.errors import MeshtoolError, OptionsError, PackFormatError
 from meshtool.findings import Finding, Severity
 from meshtool.hulls import MODES, PRESETS, HullOptions, compute_hulls, quality
 from meshtool.mesh import safe_identifier
@@ -410,7 +410,7 @@ def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, for
     with _guard(False), load(file, verify=True) as packed:
         for path, kind, make in ((glb, "glb", to_glb), (msh, "msh", to_msh)):
             if path is not None:
-                data = make(packed)
+                data = _made(make, packed, file)
                 write_output(path, data, kind, force=force, inputs=[file])
                 click.echo(f"wrote {path} ({len(data)} bytes)")
         if usd is not None:
@@ -420,6 +420,23 @@ def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, for
                 check_output(usd.parent / name, None, force=force, inputs=[file], data=bytes(texture))
             written = export_usd(packed, usd, safe_file_stem(file.stem) or "asset")
             click.echo(f"wrote {', '.join(str(p) for p in written)}")
+
+
+def _made(make: Callable[[Any], bytes], packed: Any, file: Path) -> bytes:
+    """``make(packed)``, with a texture Pillow cannot decode reported as an input error (exit 1).
+
+    Loading verifies a texture's PNG signature only; decoding it is the exporter's first touch of the image.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        return make(packed)
+    except (UnidentifiedImageError, Image.DecompressionBombError, OSError) as exc:
+        raise PackFormatError(
+            f"a texture cannot be decoded as an image ({type(exc).__name__}: {exc})",
+            path=str(file),
+            hint="re-pack the asset from a valid image",
+        ) from None
 
 
 @main.command("mjcf")

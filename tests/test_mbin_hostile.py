@@ -309,3 +309,16 @@ def test_simrun_refuses_a_hostile_asset(bases, tmp_path):
         assert result.exit_code == 1, (case, result.output)
         lines = result.stderr.splitlines()
         assert len(lines) == 1 and lines[0].startswith("error: ") and "bad.mbin" in lines[0], (case, lines)
+
+
+def test_a_texture_with_a_png_signature_that_does_not_decode_is_an_input_error(bases, tmp_path):
+    """The reader checks the signature only; `export --glb` reports the undecodable image with exit 1."""
+    from meshtool.cli import main
+
+    path = tmp_path / "bad_png.mbin"
+    path.write_bytes(hostile(bases, "lossless", replace_texture(b"\x89PNG\r\n\x1a\n" + bytes(64))))
+    parse(path.read_bytes())  # sound container
+    result = CliRunner().invoke(main, ["export", str(path), "--glb", str(tmp_path / "x.glb")])
+    assert result.exit_code == 1, result.output
+    assert result.stderr.startswith(f"error: {path}: a texture cannot be decoded") and "Traceback" not in result.output
+    assert not (tmp_path / "x.glb").exists()
