@@ -13,15 +13,17 @@ nothing the user made is destroyed:
   ``asset.generator``; USD: ``customLayerData.generator``; MSH, which has no room for a marker: its exact
   structure), or when its bytes are already exactly those to be written; ``force`` overrides;
 * an existing folder is replaced only when its ``asset.json`` carries meshtool's marker
-  (``"meshtool_output": {"version", "files"}``) and the folder holds exactly the files listed there (older
-  ``normalize`` folders without the marker qualify when ``asset.json`` names meshtool as its ``tool`` and
-  its ``files`` list every other file); ``force`` overrides, but never for a folder holding an input.
+  (``"meshtool_output": {"version", "files", "sha256"}``), the folder holds exactly the files listed there
+  and none of them changed since (older ``normalize`` folders without the marker qualify when
+  ``asset.json`` names meshtool as its ``tool`` and its ``files`` list every other file); ``force``
+  overrides, but never for a folder holding an input.
 """
 
 from __future__ import annotations
 
 import contextlib
 import contextvars
+import hashlib
 import json
 import os
 import re
@@ -312,7 +314,10 @@ def write_folder(
 
 
 def with_marker(files: dict[str, bytes]) -> bytes:
-    """``files["asset.json"]`` with meshtool's marker: its version and the sorted list of the folder's files.
+    """``files["asset.json"]`` with meshtool's marker: its version, the folder's files and their SHA-256.
+
+    The digests cover every file but ``asset.json`` itself, so a file the user edited in place after
+    meshtool wrote it is noticed (and not silently replaced).
 
     Raises:
         OutputError: ``asset.json`` is missing or not a JSON object (a bug in the caller).
@@ -323,7 +328,13 @@ def with_marker(files: dict[str, bytes]) -> bytes:
         manifest = None
     if not isinstance(manifest, dict):
         raise OutputError("an output folder needs an asset.json holding a JSON object", path=MARKER)
-    manifest[MARKER_KEY] = {"tool": "meshtool", "version": __version__, "files": sorted({*files, MARKER})}
+    digests = {n: hashlib.sha256(files[n]).hexdigest() for n in sorted(files) if n != MARKER}
+    manifest[MARKER_KEY] = {
+        "tool": "meshtool",
+        "version": __version__,
+        "files": sorted({*files, MARKER}),
+        "sha256": digests,
+    }
     return (json.dumps(manifest, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
 
 
@@ -346,8 +357,11 @@ def replaceable_folder(target: Path) -> str | None:
         return "exists and was not written by meshtool (no asset.json of meshtool's)"
     marker = manifest.get(MARKER_KEY)
     listed: set[str] | None = None
+    digests: dict[str, Any] = {}
     if isinstance(marker, dict) and isinstance(marker.get("files"), list):
         listed = {str(f) for f in marker["files"]}
+        recorded = marker.get("sha256")
+        digests = recorded if isinstance(recorded, dict) else {}
     elif isinstance(manifest.get("tool"), dict) and manifest["tool"].get("name") == "meshtool":
         legacy = manifest.get("files")
         if isinstance(legacy, dict):
@@ -365,7 +379,29 @@ def replaceable_folder(target: Path) -> str | None:
     odd = sorted(n for n, e in entries.items() if not e.is_file(follow_symlinks=False))
     if odd:
         return f"holds something other than a plain file ({', '.join(odd[:3])})"
+    changed = sorted(n for n, digest in digests.items() if n in entries and _sha256(target / n) != digest)
+    if changed:
+        return f"holds files changed since meshtool wrote them ({', '.join(changed[:3])})"
     return None
+
+
+def _sha256(path: Path) -> str | None:
+    """SHA-256 of a regular file, read in chunks without following a link; ``None`` when unreadable."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return None
+    digest = hashlib.sha256()
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        while chunk := os.read(fd, 1 << 20):
+            digest.update(chunk)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return digest.hexdigest()
 
 
 def _inside(path: Path, folder: Path) -> bool:

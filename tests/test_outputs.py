@@ -266,3 +266,12 @@ def test_simrun_export_and_play_refuse_foreign_files_and_inputs(fixtures, tmp_pa
     assert log.read_text() == "field notes"
     assert run(simrun, "play", scene, "--duration", "0.01", "--record", log, "--force").exit_code == 0
     assert run(simrun, "play", scene, "--duration", "0.01", "--record", log).exit_code == 0  # a .simlog now
+
+
+def test_a_meshtool_folder_with_a_file_edited_in_place_is_not_replaced(head, tmp_path):
+    assert run(main, "normalize", head, "-o", tmp_path, "--units", "cm").exit_code == 0
+    obj = tmp_path / "head_1" / "head_1.obj"
+    obj.write_text(obj.read_text() + "# my hand edit\n")
+    refused(run(main, "normalize", head, "-o", tmp_path), "changed since meshtool wrote them (head_1.obj)")
+    assert obj.read_text().endswith("# my hand edit\n")
+    assert run(main, "normalize", head, "-o", tmp_path, "--force").exit_code == 0
