@@ -1,14 +1,22 @@
 """Articulated arms (MSRS's articulated entities) and the arm service.
 
-An arm is a chain of segments; each segment is a capsule along its local +Z, joined to the previous one by
-a hinge (or, for gripper fingers, a slide) joint that is locked (no joint), free (passive), or driven by a
-position or velocity servo, with an optional spring and damper. Joints are named ``ARM/<segment>``.
+An arm is a tree of segments; each segment is a capsule along its local +Z, attached to the end of its parent
+segment (by default the one before it; the first to the arm's base) by a joint: one degree of freedom
+(:class:`ArmJoint`, a hinge or a slide) or up to six (:class:`SixDof`: three linear and three angular axes,
+each locked, free or limited, with its own drive and spring), as the seeds' joints. A degree of freedom is
+passive (``drive="none"``) or driven by a position or velocity servo. Joints are named ``ARM/<segment>``
+(``ARM/<segment>/<axis>`` for a :class:`SixDof`).
+
+Defaults that make an arm behave: a link never collides with its parent segment or the arm's base; gravity
+compensation is per joint (on for driven joints, off for passive ones, so a free joint swings); position
+servos are critically damped for the largest inertia their joint can see (no overshoot; settling time in
+:meth:`ArmService.servo_design`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, ClassVar
 
 import mujoco
@@ -19,6 +27,8 @@ from simrun.errors import EntityError
 from simrun.world import World
 
 DRIVES = ("position", "velocity", "none")
+AXES = ("x", "y", "z", "rx", "ry", "rz")
+_AXIS_VECTORS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,11 +42,20 @@ class ArmJoint:
         locked: Weld the segment to its parent (no joint).
         drive: ``position`` (servo with gain ``kp``), ``velocity`` (gain ``kv``) or ``none`` (passive).
         kp: Position gain, N m / rad (or N / m).
-        kv: Velocity gain, N m s / rad.
-        spring: Spring stiffness towards ``spring_ref``.
+        kv: Velocity gain of a velocity servo, N m s / rad (or N s / m). A position servo's damping is
+            derived (critical damping), unless ``damping_ratio`` is ``None``, when ``kv`` is used as is.
+        spring: Spring stiffness towards ``spring_ref``, N m / rad (or N / m).
         spring_ref: Spring rest position.
-        damping: Joint damping.
-        max_force: Actuator force limit.
+        damping: Passive joint damping, N m s / rad (or N s / m).
+        max_force: Actuator force limit, N m (or N).
+        armature: Rotor inertia added to the joint, kg m^2 (or kg).
+        gravity_compensation: Cancel gravity on the segment's body; ``None``: on for driven joints, off for
+            passive ones (so a free joint swings as a pendulum).
+        damping_ratio: Damping ratio of a position servo, 1 = critical; ``None`` uses ``kv``.
+        mimic: Name of another segment whose (single) joint this one follows, ``position = mimic_ratio * that
+            position`` (an equality constraint, as a gripper's second finger); it gets no actuator and is not
+            commanded.
+        mimic_ratio: See ``mimic``.
     """
 
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
@@ -50,37 +69,163 @@ class ArmJoint:
     spring_ref: float = 0.0
     damping: float = 2.0
     max_force: float = 50.0
+    armature: float = 0.01
+    gravity_compensation: bool | None = None
+    damping_ratio: float | None = 1.0
+    mimic: str | None = None
+    mimic_ratio: float = 1.0
+
+
+@dataclass(frozen=True, slots=True)
+class SixDof:
+    """A joint with up to six degrees of freedom: linear ``x``, ``y``, ``z`` and angular ``rx``, ``ry``, ``rz``.
+
+    Each axis (in the segment frame) is locked (``None``) or an :class:`ArmJoint` (its ``axis`` and ``kind``
+    are set by the axis): free (no limits) or limited, driven or passive, with a spring. MuJoCo gets one
+    slide or hinge per unlocked axis, in the order above, named ``ARM/<segment>/<axis>``.
+    """
+
+    x: ArmJoint | None = None
+    y: ArmJoint | None = None
+    z: ArmJoint | None = None
+    rx: ArmJoint | None = None
+    ry: ArmJoint | None = None
+    rz: ArmJoint | None = None
+
+    def axes(self) -> list[tuple[str, ArmJoint]]:
+        """The unlocked axes as (name, joint with the axis' kind and direction)."""
+        result = []
+        for name in AXES:
+            joint = getattr(self, name)
+            if joint is None or joint.locked:
+                continue
+            kind = "slide" if len(name) == 1 else "hinge"
+            result.append((name, _replace(joint, axis=_AXIS_VECTORS[name[-1]], kind=kind)))
+        return result
 
 
 @dataclass(frozen=True, slots=True)
 class Segment:
-    """One link: a capsule of ``length`` along +Z starting at the previous segment's end (+``offset``)."""
+    """One link: a capsule of ``length`` along +Z from the end of its parent segment (+``offset``).
+
+    Attributes:
+        name: Unique in the arm, without ``/``.
+        length: Metres.
+        radius: Metres.
+        mass: kg.
+        joint: How it is attached: one degree of freedom, or a :class:`SixDof`.
+        offset: Added to the attachment point, metres, in the parent segment's frame.
+        parent: Name of the segment it hangs from; ``None``: the one before it (the base for the first).
+    """
 
     name: str
     length: float
     radius: float = 0.03
     mass: float = 0.5
-    joint: ArmJoint = field(default_factory=ArmJoint)
+    joint: ArmJoint | SixDof = field(default_factory=ArmJoint)
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    parent: str | None = None
+
+    def dofs(self, prefix: str) -> list[tuple[str, ArmJoint]]:
+        """(full joint name, joint) of every unlocked degree of freedom."""
+        if isinstance(self.joint, SixDof):
+            return [(f"{prefix}/{self.name}/{axis}", joint) for axis, joint in self.joint.axes()]
+        return [] if self.joint.locked else [(f"{prefix}/{self.name}", self.joint)]
+
+    def to_scene(self) -> dict[str, Any]:
+        """The segment as a scene-file table (defaults left out)."""
+        table: dict[str, Any] = {"name": self.name, "length": self.length}
+        for key, default in (("radius", 0.03), ("mass", 0.5), ("parent", None)):
+            if getattr(self, key) != default:
+                table[key] = getattr(self, key)
+        if self.offset != (0.0, 0.0, 0.0):
+            table["offset"] = list(self.offset)
+        if isinstance(self.joint, SixDof):
+            table["joint"] = {a: _joint_table(j) for a in AXES if (j := getattr(self.joint, a)) is not None}
+        elif self.joint != ArmJoint():
+            table["joint"] = _joint_table(self.joint)
+        return table
+
+    @classmethod
+    def from_scene(cls, table: Any, where: str) -> Segment:
+        """A segment from a scene-file table; ``where`` names it in errors."""
+        if not isinstance(table, dict):
+            raise EntityError(f"{where}: expected a table")
+        known = {"name", "length", "radius", "mass", "joint", "offset", "parent"}
+        _known_keys(table, known, where)
+        if not isinstance(table.get("name"), str):
+            raise EntityError(f"{where}.name: every segment needs a name string")
+        values: dict[str, Any] = {"name": table["name"]}
+        for key in ("length", "radius", "mass"):
+            if key in table:
+                values[key] = _number(table[key], f"{where}.{key}")
+        if "offset" in table:
+            values["offset"] = _numbers(table["offset"], 3, f"{where}.offset")
+        if "parent" in table:
+            if not isinstance(table["parent"], str):
+                raise EntityError(f"{where}.parent: expected a segment name")
+            values["parent"] = table["parent"]
+        if "length" not in values:
+            raise EntityError(f"{where}.length: every segment needs a length")
+        joint = table.get("joint")
+        if joint is not None:
+            if not isinstance(joint, dict):
+                raise EntityError(f"{where}.joint: expected a table")
+            if set(joint) & set(AXES):
+                _known_keys(joint, set(AXES), f"{where}.joint")
+                axes = {a: _joint_from_table(joint[a], f"{where}.joint.{a}") for a in AXES if a in joint}
+                values["joint"] = SixDof(**axes)
+            else:
+                values["joint"] = _joint_from_table(joint, f"{where}.joint")
+        return cls(**values)
+
+
+class Segments(tuple[Segment, ...]):
+    """The segments of an arm (a tuple that scene files read and write as an array of tables)."""
+
+    __slots__ = ()
+
+    @classmethod
+    def from_scene(cls, value: Any, where: str) -> Segments:
+        """Segments from a scene file's array of tables."""
+        if not isinstance(value, list):
+            raise EntityError(f"{where}: expected an array of segment tables")
+        return cls(Segment.from_scene(table, f"{where}[{k}]") for k, table in enumerate(value))
+
+    def to_scene(self) -> list[dict[str, Any]]:
+        """The scene-file array of tables."""
+        return [segment.to_scene() for segment in self]
 
 
 @dataclass(kw_only=True)
 class ArticulatedArm(Entity):
-    """A serial arm from ``segments`` (base first), with a fixed base cylinder."""
+    """An arm from ``segments`` (base first), on a fixed base cylinder.
+
+    Attributes:
+        segments: The links; each hangs from its ``parent`` (default: the one before it).
+        base_radius: Metres.
+        base_height: Metres.
+        base_mass: kg.
+        color: RGBA of the links.
+    """
 
     TYPE: ClassVar[str] = "ArticulatedArm"
-    segments: tuple[Segment, ...] = ()
+    segments: Segments = field(default_factory=Segments)
     base_radius: float = 0.06
     base_height: float = 0.05
     base_mass: float = 1.0
     color: tuple[float, float, float, float] = (0.9, 0.5, 0.1, 1.0)
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.segments, Segments):
+            self.segments = Segments(self.segments)
+
     def joint_names(self, full_name: str) -> list[str]:
-        """Full names of the actuated or passive joints, base to tip."""
-        return [f"{full_name}/{s.name}" for s in self.segments if not s.joint.locked]
+        """Full names of the commanded (actuated or passive, not mimicking) joints, base to tip."""
+        return [name for s in self.segments for name, joint in s.dofs(full_name) if joint.mimic is None]
 
     def build(self, body: Any, ctx: BuildContext) -> None:
-        """The chain of bodies, joints and servo actuators."""
+        """The tree of bodies, joints, servo actuators, contact exclusions and gripper couplings."""
         if not self.segments:
             raise EntityError(f"{self.TYPE} {self.name!r}: no segments")
         check_positive(self, base_radius=self.base_radius, base_height=self.base_height, base_mass=self.base_mass)
@@ -92,20 +237,29 @@ class ArticulatedArm(Entity):
             mass=self.base_mass,
             rgba=[0.3, 0.3, 0.3, 1.0],
         )
-        parent, z = body, self.base_height
-        names = set()
-        for segment in self.segments:
-            if segment.name in names or "/" in segment.name:
-                raise EntityError(f"{self.TYPE} {self.name!r}: segment names must be unique, without '/'")
-            names.add(segment.name)
+        where = f"{self.TYPE} {self.name!r}"
+        names = [s.name for s in self.segments]
+        if len(set(names)) != len(names) or any("/" in n or not n for n in names):
+            raise EntityError(f"{where}: segment names must be unique, without '/'")
+        seen: set[str] = set()
+        for segment, parent_name in zip(self.segments, self.parents().values(), strict=True):
+            if parent_name is not None and parent_name not in seen:
+                raise EntityError(
+                    f"{where}: segment {segment.name!r} hangs from {parent_name!r}, not defined before it"
+                )
             check_positive(self, length=segment.length, radius=segment.radius, mass=segment.mass)
-            joint = segment.joint
-            if joint.drive not in DRIVES or joint.kind not in ("hinge", "slide"):
-                raise EntityError(f"{self.TYPE} {self.name!r}: joint of {segment.name!r} has a bad kind or drive")
+            for _, joint in segment.dofs(ctx.full_name):
+                _check_joint(joint, f"{where}: joint of {segment.name!r}")
+            seen.add(segment.name)
+        design = servo_design(self, ctx.full_name)
+        built: dict[str, tuple[Any, float, float]] = {}  # name -> (body, length, gravcomp)
+        for segment, parent_name in zip(self.segments, self.parents().values(), strict=True):
+            parent, z, inherited = built[parent_name] if parent_name else (body, self.base_height, 1.0)
+            dofs = segment.dofs(ctx.full_name)
             pos = [segment.offset[0], segment.offset[1], z + segment.offset[2]]
             child = parent.add_body(name=ctx.name(segment.name), pos=pos)
-            child.gravcomp = 1.0  # servos hold the arm against gravity (no steady-state sag)
-            child.add_geom(
+            child.gravcomp = _gravcomp([j for _, j in dofs], inherited)
+            link = child.add_geom(
                 name=ctx.name(f"{segment.name}/geom"),
                 type=mujoco.mjtGeom.mjGEOM_CAPSULE,
                 fromto=[0, 0, 0, 0, 0, segment.length],
@@ -113,13 +267,45 @@ class ArticulatedArm(Entity):
                 mass=segment.mass,
                 rgba=list(self.color),
             )
-            if not joint.locked:
-                self._joint(child, segment, ctx)
-            parent, z = child, segment.length
+            # hard links: stiff contacts whose friction does not creep, so a gripper's hold is a hold
+            link.solref, link.solimp, link.solmix = [0.005, 1.0], [0.99, 0.999, 0.001, 0.5, 2.0], 1000.0
+            for name, joint in dofs:
+                self._joint(child, name, joint, ctx, design)
+            # a link never touches its parent or the base (MuJoCo filters parent-child contacts only between
+            # moving bodies; an arm's base welded to the world would collide with the first link)
+            ctx.spec.add_exclude(bodyname1=ctx.name(segment.name), bodyname2=parent.name)
+            if parent.name != body.name:
+                ctx.spec.add_exclude(bodyname1=ctx.name(segment.name), bodyname2=body.name)
+            built[segment.name] = (child, segment.length, float(child.gravcomp))
+        self._couple(ctx, built)
 
-    def _joint(self, child: Any, segment: Segment, ctx: BuildContext) -> None:
-        joint = segment.joint
-        name = ctx.name(segment.name)
+    def _couple(self, ctx: BuildContext, built: dict[str, tuple[Any, float, float]]) -> None:
+        """Equality constraints of mimicking joints (a gripper's second finger); sibling fingers don't collide."""
+        for segment in self.segments:
+            for name, joint in segment.dofs(ctx.full_name):
+                if joint.mimic is None:
+                    continue
+                leader = next((s for s in self.segments if s.name == joint.mimic), None)
+                leading = leader.dofs(ctx.full_name) if leader is not None else []
+                if len(leading) != 1:
+                    raise EntityError(
+                        f"{self.TYPE} {self.name!r}: {segment.name!r} mimics {joint.mimic!r}, which must be a "
+                        "segment with one unlocked joint"
+                    )
+                eq = ctx.spec.add_equality(
+                    name=f"{name}/mimic",
+                    type=mujoco.mjtEq.mjEQ_JOINT,
+                    objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                    name1=name,
+                    name2=leading[0][0],
+                )
+                eq.data[:5] = [0.0, joint.mimic_ratio, 0.0, 0.0, 0.0]
+                eq.solref, eq.solimp = [0.005, 1.0], [0.99, 0.999, 0.001, 0.5, 2.0]  # a stiff linkage
+                ctx.spec.add_exclude(bodyname1=ctx.name(segment.name), bodyname2=ctx.name(joint.mimic))
+
+    def _joint(
+        self, child: Any, name: str, joint: ArmJoint, ctx: BuildContext, design: dict[str, dict[str, float]]
+    ) -> None:
         kind = mujoco.mjtJoint.mjJNT_HINGE if joint.kind == "hinge" else mujoco.mjtJoint.mjJNT_SLIDE
         j = child.add_joint(
             name=name,
@@ -128,16 +314,16 @@ class ArticulatedArm(Entity):
             damping=joint.damping,
             stiffness=joint.spring,
             springref=joint.spring_ref,
-            armature=0.01,
+            armature=joint.armature,
         )
         if joint.limits is not None:
             j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
             j.range = list(joint.limits)
-        if joint.drive == "none":
+        if joint.drive == "none" or joint.mimic is not None:
             return
         act = ctx.spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         if joint.drive == "position":
-            act.set_to_position(kp=joint.kp, kv=joint.kv * 0.2)
+            act.set_to_position(kp=joint.kp, kv=design[name]["kv"])  # critically damped (servo_design)
         else:
             act.set_to_velocity(kv=joint.kv)
         act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
@@ -146,10 +332,178 @@ class ArticulatedArm(Entity):
             act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
             act.ctrlrange = list(joint.limits)
 
+    def parents(self) -> dict[str, str | None]:
+        """Each segment's parent segment (``None``: the base)."""
+        result: dict[str, str | None] = {}
+        previous: str | None = None
+        for segment in self.segments:
+            result[segment.name] = segment.parent if segment.parent is not None else previous
+            previous = segment.name
+        return result
+
+
+def servo_design(arm: ArticulatedArm, full_name: str) -> dict[str, dict[str, float]]:
+    """The design of each position servo of an arm, by full joint name.
+
+    Each entry: ``kp``, ``kv`` (N m s / rad or N s / m), ``inertia`` (the largest the joint can see, kg m^2 or
+    kg), ``damping_ratio``, ``natural_frequency`` (rad/s) and ``settling_time`` (s, to 2 %).
+
+    The inertia bound comes from the segments' geometry: the joint's armature plus, for its segment and every
+    segment below it, the capsule's inertia about its centre (as a cylinder of length + 2 radius) plus its
+    mass times the square of the farthest its centre can be from the joint (the chain stretched out). With
+    ``kv = 2 zeta sqrt(kp I) - damping`` the servo is at least as damped as asked in every pose.
+    """
+    parents = arm.parents()
+    reach: dict[str, float] = {}  # distance from a segment's origin to the arm base, along the chain
+    for segment in arm.segments:
+        parent = parents[segment.name]
+        reach[segment.name] = (reach[parent] + _length(arm, parent) if parent else 0.0) + float(
+            np.linalg.norm(segment.offset)
+        )
+    result: dict[str, dict[str, float]] = {}
+    for segment in arm.segments:
+        below = [s for s in arm.segments if _descends(s.name, segment.name, parents)]
+        for name, joint in segment.dofs(full_name):
+            if joint.drive != "position" or joint.mimic is not None:
+                continue
+            inertia = joint.armature
+            for link in below:
+                if joint.kind == "slide":
+                    inertia += link.mass
+                    continue
+                span = link.length + 2 * link.radius
+                own = link.mass * (2 * (3 * link.radius**2 + span**2) / 12 + link.radius**2 / 2)
+                distance = reach[link.name] - reach[segment.name] + link.length / 2
+                inertia += own + link.mass * distance**2
+            kp, zeta = joint.kp, joint.damping_ratio
+            if zeta is None:
+                kv = joint.kv
+                zeta = (kv + joint.damping) / (2 * math.sqrt(kp * inertia))
+            else:
+                kv = max(0.0, 2 * zeta * math.sqrt(kp * inertia) - joint.damping)
+            wn = math.sqrt(kp / inertia)
+            result[name] = {
+                "kp": kp,
+                "kv": kv,
+                "inertia": inertia,
+                "damping_ratio": zeta,
+                "natural_frequency": wn,
+                "settling_time": _settling_time(zeta, wn),
+            }
+    return result
+
+
+def _length(arm: ArticulatedArm, name: str) -> float:
+    return next(s.length for s in arm.segments if s.name == name)
+
+
+def _descends(name: str, ancestor: str, parents: dict[str, str | None]) -> bool:
+    """Whether segment ``name`` is ``ancestor`` or below it."""
+    current: str | None = name
+    while current is not None:
+        if current == ancestor:
+            return True
+        current = parents.get(current)
+    return False
+
+
+def _settling_time(zeta: float, wn: float) -> float:
+    """2 % settling time of a second-order step response, s."""
+    if zeta < 1.0:
+        return 4.0 / (zeta * wn)
+    if zeta == 1.0:
+        return 5.83 / wn
+    slow = wn * (zeta - math.sqrt(zeta * zeta - 1.0))
+    return 4.0 / slow
+
+
+def _gravcomp(dofs: list[ArmJoint], inherited: float) -> float:
+    """Gravity compensation of a segment's body: explicit, else on when every degree of freedom is driven."""
+    if not dofs:
+        return inherited  # a locked segment is carried like its parent
+    explicit = [j.gravity_compensation for j in dofs if j.gravity_compensation is not None]
+    if explicit:
+        return 1.0 if all(explicit) else 0.0
+    return 1.0 if all(j.drive != "none" and j.mimic is None for j in dofs) or any(j.mimic for j in dofs) else 0.0
+
+
+def _check_joint(joint: ArmJoint, where: str) -> None:
+    if joint.drive not in DRIVES or joint.kind not in ("hinge", "slide"):
+        raise EntityError(f"{where}: kind must be hinge or slide, drive one of {', '.join(DRIVES)}")
+    if joint.limits is not None and not joint.limits[0] < joint.limits[1]:
+        raise EntityError(f"{where}: limits must be (low, high) with low < high")
+    for key in ("kp", "kv", "spring", "damping", "max_force", "armature"):
+        value = getattr(joint, key)
+        if not (math.isfinite(value) and value >= 0):
+            raise EntityError(f"{where}: {key} must be a finite number >= 0, got {value}")
+    if joint.drive == "position" and joint.kp <= 0:
+        raise EntityError(f"{where}: a position servo needs kp > 0")
+    if joint.damping_ratio is not None and not (math.isfinite(joint.damping_ratio) and joint.damping_ratio > 0):
+        raise EntityError(f"{where}: damping_ratio must be positive")
+
+
+def _replace(joint: ArmJoint, **changes: Any) -> ArmJoint:
+    values = {f.name: getattr(joint, f.name) for f in fields(joint)}
+    values.update(changes)
+    return ArmJoint(**values)
+
+
+def _joint_table(joint: ArmJoint) -> dict[str, Any]:
+    default = ArmJoint()
+    table = {}
+    for key, value in asdict(joint).items():
+        if value != getattr(default, key) and value is not None:
+            table[key] = list(value) if isinstance(value, tuple) else value
+    return table
+
+
+def _joint_from_table(table: Any, where: str) -> ArmJoint:
+    if not isinstance(table, dict):
+        raise EntityError(f"{where}: expected a table")
+    names = {f.name for f in fields(ArmJoint)}
+    _known_keys(table, names, where)
+    values: dict[str, Any] = {}
+    for key, value in table.items():
+        if key == "axis":
+            values[key] = _numbers(value, 3, f"{where}.axis")
+        elif key == "limits":
+            values[key] = _numbers(value, 2, f"{where}.limits")
+        elif key in ("kind", "drive", "mimic"):
+            if not isinstance(value, str):
+                raise EntityError(f"{where}.{key}: expected a string")
+            values[key] = value
+        elif key in ("locked", "gravity_compensation"):
+            if not isinstance(value, bool):
+                raise EntityError(f"{where}.{key}: expected true or false")
+            values[key] = value
+        else:
+            values[key] = _number(value, f"{where}.{key}")
+    joint = ArmJoint(**values)
+    _check_joint(joint, where)
+    return joint
+
+
+def _known_keys(table: dict[str, Any], known: set[str], where: str) -> None:
+    for key in table:
+        if key not in known:
+            raise EntityError(f"{where}.{key}: unknown key (known: {', '.join(sorted(known))})")
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise EntityError(f"{where}: expected a number, got {value!r}")
+    return float(value)
+
+
+def _numbers(value: Any, n: int, where: str) -> tuple[float, ...]:
+    if not isinstance(value, list | tuple) or len(value) != n:
+        raise EntityError(f"{where}: expected {n} numbers")
+    return tuple(_number(v, f"{where}[{k}]") for k, v in enumerate(value))
+
 
 def _hinge(axis: tuple[float, float, float], limit_deg: float, kp: float, force: float) -> ArmJoint:
     limit = math.radians(limit_deg)
-    return ArmJoint(axis=axis, limits=(-limit, limit), kp=kp, kv=kp / 10, damping=kp / 50, max_force=force)
+    return ArmJoint(axis=axis, limits=(-limit, limit), kp=kp, damping=kp / 50, max_force=force)
 
 
 @dataclass(kw_only=True)
@@ -157,38 +511,56 @@ class KukaLBR3(ArticulatedArm):
     """A KUKA LBR3-style 7-DOF arm (alternating roll and pitch axes, about 0.9 m reach)."""
 
     TYPE: ClassVar[str] = "KukaLBR3"
-    segments: tuple[Segment, ...] = (
-        Segment("link1", 0.20, 0.06, 2.0, _hinge((0, 0, 1), 170, 300, 150)),
-        Segment("link2", 0.20, 0.06, 2.0, _hinge((0, 1, 0), 120, 300, 150)),
-        Segment("link3", 0.20, 0.05, 1.5, _hinge((0, 0, 1), 170, 200, 100)),
-        Segment("link4", 0.20, 0.05, 1.5, _hinge((0, -1, 0), 120, 200, 100)),
-        Segment("link5", 0.19, 0.04, 1.0, _hinge((0, 0, 1), 170, 100, 40)),
-        Segment("link6", 0.08, 0.04, 0.5, _hinge((0, 1, 0), 120, 50, 30)),
-        Segment("link7", 0.05, 0.03, 0.2, _hinge((0, 0, 1), 170, 20, 20)),
+    segments: Segments = field(
+        default_factory=lambda: Segments(
+            (
+                Segment("link1", 0.20, 0.06, 2.0, _hinge((0, 0, 1), 170, 300, 150)),
+                Segment("link2", 0.20, 0.06, 2.0, _hinge((0, 1, 0), 120, 300, 150)),
+                Segment("link3", 0.20, 0.05, 1.5, _hinge((0, 0, 1), 170, 200, 100)),
+                Segment("link4", 0.20, 0.05, 1.5, _hinge((0, -1, 0), 120, 200, 100)),
+                Segment("link5", 0.19, 0.04, 1.0, _hinge((0, 0, 1), 170, 100, 40)),
+                Segment("link6", 0.08, 0.04, 0.5, _hinge((0, 1, 0), 120, 50, 30)),
+                Segment("link7", 0.05, 0.03, 0.2, _hinge((0, 0, 1), 170, 20, 20)),
+            )
+        )
     )
     base_radius: float = 0.1
     base_mass: float = 4.0
 
 
+#: Lynx gripper fingers: each slides 0 (closed, touching in the middle) to 0.015 m open.
+_FINGER = ArmJoint(axis=(0, 1, 0), kind="slide", limits=(0.0, 0.015), kp=300, damping=1.0, max_force=5, armature=0.001)
+
+
 @dataclass(kw_only=True)
 class LynxL6(ArticulatedArm):
-    """A Lynxmotion L6-style arm: base, shoulder, elbow, wrist pitch, wrist roll and a two-finger gripper."""
+    """A Lynxmotion L6-style arm: base, shoulder, elbow, wrist pitch, wrist roll and a two-finger gripper.
+
+    The gripper's fingers hang from the wrist roll on opposite sides and open symmetrically: one servo drives
+    ``finger_left`` (its target is the opening of each finger, 0 to 0.015 m), ``finger_right`` mirrors it.
+    """
 
     TYPE: ClassVar[str] = "LynxL6"
-    segments: tuple[Segment, ...] = (
-        Segment("base_rotate", 0.02, 0.03, 0.1, _hinge((0, 0, 1), 90, 5, 2)),
-        Segment("shoulder", 0.12, 0.015, 0.08, _hinge((0, 1, 0), 90, 5, 2)),
-        Segment("elbow", 0.12, 0.012, 0.06, _hinge((0, 1, 0), 135, 4, 1.5)),
-        Segment("wrist", 0.05, 0.01, 0.03, _hinge((0, 1, 0), 90, 2, 1)),
-        Segment("wrist_rotate", 0.02, 0.01, 0.02, _hinge((0, 0, 1), 90, 1, 0.5)),
-        Segment(
-            "finger_left",
-            0.04,
-            0.005,
-            0.01,
-            ArmJoint(axis=(0, 1, 0), kind="slide", limits=(0.0, 0.015), kp=20, kv=2, max_force=5),
-            offset=(0.0, 0.01, 0.0),
-        ),
+    segments: Segments = field(
+        default_factory=lambda: Segments(
+            (
+                Segment("base_rotate", 0.02, 0.03, 0.1, _hinge((0, 0, 1), 90, 5, 2)),
+                Segment("shoulder", 0.12, 0.015, 0.08, _hinge((0, 1, 0), 90, 5, 2)),
+                Segment("elbow", 0.12, 0.012, 0.06, _hinge((0, 1, 0), 135, 4, 1.5)),
+                Segment("wrist", 0.05, 0.01, 0.03, _hinge((0, 1, 0), 90, 2, 1)),
+                Segment("wrist_rotate", 0.02, 0.01, 0.02, _hinge((0, 0, 1), 90, 1, 0.5)),
+                Segment("finger_left", 0.04, 0.004, 0.01, _FINGER, offset=(0.0, 0.004, 0.0)),
+                Segment(
+                    "finger_right",
+                    0.04,
+                    0.004,
+                    0.01,
+                    _replace(_FINGER, axis=(0, -1, 0), mimic="finger_left"),
+                    offset=(0.0, -0.004, 0.0),
+                    parent="wrist_rotate",
+                ),
+            )
+        )
     )
     base_radius: float = 0.05
     base_height: float = 0.03
@@ -231,6 +603,10 @@ class ArmService:
         """Whether a ``move_to`` is in progress."""
         return self._move is not None
 
+    def servo_design(self) -> dict[str, dict[str, float]]:
+        """Each position servo's gains, inertia bound, damping ratio and 2 % settling time (:func:`servo_design`)."""
+        return servo_design(self.arm, self.name)
+
     def joint_states(self) -> JointStates:
         """Current joint positions and velocities."""
         data = self.world.data
@@ -242,7 +618,7 @@ class ArmService:
         )
 
     def set_joint_targets(self, targets: list[float] | tuple[float, ...]) -> None:
-        """Servo targets for every driven joint, base to tip (cancels a move)."""
+        """Servo targets for every commanded joint, base to tip (cancels a move); passive joints ignore theirs."""
         self._check(targets)
         self._move = None
         self._apply(np.asarray(targets, dtype=float))
@@ -250,8 +626,8 @@ class ArmService:
     def move_to(self, joint_positions: list[float] | tuple[float, ...], duration: float) -> None:
         """Move smoothly (cosine profile in joint space) to ``joint_positions`` over ``duration`` seconds."""
         self._check(joint_positions)
-        if duration <= 0:
-            raise EntityError("move duration must be positive")
+        if not (math.isfinite(duration) and duration > 0):
+            raise EntityError("move duration must be a positive number of seconds")
         start = np.asarray(self.joint_states().positions)
         t0 = float(self.world.data.time)
         self._move = (t0, duration, start, np.asarray(joint_positions, dtype=float))
@@ -290,14 +666,16 @@ class ArmService:
     def _check(self, values: Any) -> None:
         if len(values) != len(self.joints):
             raise EntityError(f"{self.name!r} has {len(self.joints)} joints, got {len(values)} values")
+        if not all(math.isfinite(float(v)) for v in values):
+            raise EntityError(f"{self.name!r}: joint targets must be finite numbers")
 
     def _apply(self, targets: Any, model: mujoco.MjModel | None = None, data: mujoco.MjData | None = None) -> None:
         model = model or self.world.model
         data = data or self.world.data
+        names = _actuator_names(model)
         for joint, target in zip(self.joints, targets, strict=True):
-            actuator = model.actuator(joint).id if joint in _actuator_names(model) else None
-            if actuator is not None:
-                data.ctrl[actuator] = target
+            if joint in names:
+                data.ctrl[model.actuator(joint).id] = target
 
 
 def _actuator_names(model: mujoco.MjModel) -> set[str]:

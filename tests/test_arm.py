@@ -1,10 +1,11 @@
 """Articulated arms and the arm service, including an arm on a driving mobile base."""
 
+import mujoco
 import numpy as np
 import pytest
 
-from simrun import EntityError, Ground, Pose, World
-from simrun.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment
+from simrun import Box, EntityError, Ground, Pose, World, WorldOptions
+from simrun.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment, SixDof
 from simrun.drive import Pioneer3DX
 from simrun.drive_service import DriveService
 
@@ -68,3 +69,231 @@ def test_arm_on_a_mobile_base_and_the_base_still_drives():
     assert world.model.body("base/arm").parentid[0] == world.model.body("base").id
     with pytest.raises(EntityError, match="not an articulated arm"):
         ArmService(world, "base")
+
+
+# -- issue 13: arms that behave like the real ones ---------------------------------------------------------------
+
+ARMS = [KukaLBR3, LynxL6]
+
+
+def joint_steps(arm_cls):
+    """(index, step) for every commanded joint of a ready arm: 0.4 rad for hinges, 0.01 m for slides."""
+    arm = arm_cls(name="a")
+    steps = []
+    for k, name in enumerate(arm.joint_names("a")):
+        segment = next(s for s in arm.segments if f"a/{s.name}" == name)
+        steps.append((k, 0.01 if segment.joint.kind == "slide" else 0.4))
+    return steps
+
+
+@pytest.mark.parametrize(
+    ("arm_cls", "index", "step"),
+    [(cls, k, step) for cls in ARMS for k, step in joint_steps(cls)],
+    ids=[f"{cls.TYPE}-{k}" for cls in ARMS for k, _ in joint_steps(cls)],
+)
+def test_each_joint_steps_to_its_target_with_at_most_five_percent_overshoot(arm_cls, index, step):
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(arm_cls(name="a"))
+    service = ArmService(world, "a")
+    name = service.joints[index]
+    settle = service.servo_design()[name]["settling_time"]
+    targets = [0.0] * len(service.joints)
+    targets[index] = step
+    service.set_joint_targets(targets)
+    path = []
+    for _ in range(round(max(1.5 * settle, 1.0) / 0.002)):
+        world.step()
+        path.append(float(world.data.joint(name).qpos[0]))  # the simulator's joint position
+    path = np.array(path)
+    assert path.max() <= step * 1.05  # overshoot <= 5 %
+    assert path[-1] == pytest.approx(step, rel=0.02)  # settled within 1.5x the stated settling time
+    assert world.warnings() == {}
+
+
+def test_servo_design_is_critically_damped_and_states_a_settling_time():
+    world = World()
+    world.insert(KukaLBR3(name="k"))
+    design = ArmService(world, "k").servo_design()
+    assert set(design) == {f"k/link{i}" for i in range(1, 8)}
+    for values in design.values():
+        assert values["damping_ratio"] == pytest.approx(1.0)
+        assert values["kv"] == pytest.approx(2 * np.sqrt(values["kp"] * values["inertia"]) - values["kp"] / 50)
+        assert 0 < values["settling_time"] < 2.0
+    # the base joint sees the whole stretched-out arm: more inertia than the wrist
+    assert design["k/link1"]["inertia"] > 10 * design["k/link7"]["inertia"]
+
+
+@pytest.mark.parametrize("arm_cls", ARMS)
+def test_top_level_arm_links_never_touch_their_base_or_parent(arm_cls):
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(arm_cls(name="a"))
+    service = ArmService(world, "a")
+    targets = [0.0] * len(service.joints)
+    targets[0] = 1.0  # the old bug: a top-level arm's first link rubbed on its base and stopped short
+    service.set_joint_targets(targets)
+    world.run(3.0)
+    assert world.data.joint(service.joints[0]).qpos[0] == pytest.approx(1.0, abs=0.005)
+    model, data = world.model, world.data
+    arm_bodies = {b for b in range(model.nbody) if model.body(b).name.startswith("a")}
+    for i in range(data.ncon):
+        c = data.contact[i]
+        pair = {model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]}
+        assert not pair <= arm_bodies, [model.geom(c.geom1).name, model.geom(c.geom2).name]
+
+
+def capsule_inertia_about_end(mass, length, radius):
+    """Moment of inertia of a uniform capsule about a transverse axis through one end of its cylinder."""
+    cylinder, spheres = np.pi * radius**2 * length, 4 / 3 * np.pi * radius**3
+    mc, ms = mass * cylinder / (cylinder + spheres), mass * spheres / (cylinder + spheres)
+    centre = mc * (length**2 / 12 + radius**2 / 4) + ms * (2 * radius**2 / 5 + length**2 / 4 + 3 * length * radius / 8)
+    return centre + mass * (length / 2) ** 2
+
+
+def test_a_passive_joint_swings_at_the_pendulum_period():
+    mass, length, radius = 0.5, 0.3, 0.02
+    arm = ArticulatedArm(
+        name="pendulum",
+        pose=Pose((0, 0, 1.0), (0.0, 1.0, 0.0, 0.0)),  # upside down: the link hangs from the base
+        segments=(
+            Segment("link", length, radius, mass, ArmJoint(axis=(0, 1, 0), drive="none", damping=0.0, armature=0.0)),
+        ),
+    )
+    world = World()
+    world.insert(arm)
+    model = world.model
+    assert model.body_gravcomp[model.body("pendulum/link").id] == 0.0  # off for a free joint
+    world.data.joint("pendulum/link").qpos[0] = 0.1
+    mujoco.mj_forward(model, world.data)
+    angles, times = [], []
+    for _ in range(2000):
+        world.step()
+        angles.append(float(world.data.joint("pendulum/link").qpos[0]))
+        times.append(float(world.data.time))
+    angles = np.array(angles)
+    crossings = [
+        times[k] - angles[k] * (times[k + 1] - times[k]) / (angles[k + 1] - angles[k])
+        for k in range(len(angles) - 1)
+        if angles[k] > 0 >= angles[k + 1]
+    ]
+    period = float(np.mean(np.diff(crossings)))
+    expected = 2 * np.pi * np.sqrt(capsule_inertia_about_end(mass, length, radius) / (mass * 9.81 * length / 2))
+    assert period == pytest.approx(expected, rel=0.01)
+    assert angles.max() == pytest.approx(0.1, abs=0.005)  # it swings (no gravity compensation holds it)
+
+
+def test_lynx_gripper_closes_both_fingers_and_holds_a_box_under_gravity():
+    world = World(WorldOptions(gravity=(0.0, 0.0, 0.0)))
+    world.insert(LynxL6(name="lynx"))
+    wrist_top = 0.03 + 0.02 + 0.12 + 0.12 + 0.05 + 0.02
+    world.insert(
+        Box(name="box", dimensions=(0.016, 0.016, 0.016), mass=0.02, free=True, pose=Pose((0, 0, wrist_top + 0.025)))
+    )
+    arm = ArmService(world, "lynx")
+    assert arm.joints[-1] == "lynx/finger_left" and len(arm.joints) == 6
+    data = world.data
+    for finger in ("finger_left", "finger_right"):
+        data.joint(f"lynx/{finger}").qpos[0] = 0.012  # open
+    mujoco.mj_forward(world.model, data)
+    arm.set_joint_targets([0, 0, 0, 0, 0, 0.012])
+    world.run(0.2)
+    arm.set_joint_targets([0, 0, 0, 0, 0, 0.004])  # close on the 16 mm box
+    world.run(1.0)
+    left, right = (float(data.joint(f"lynx/{f}").qpos[0]) for f in ("finger_left", "finger_right"))
+    assert left == pytest.approx(right, abs=2e-4)  # both fingers, mirrored
+    assert 0.006 < left < 0.008  # stopped by the box: its inner face at the opening, the box half-width 0.008
+
+    def in_hand():  # the box in the wrist frame (simulator poses)
+        wrist = world.body("lynx/wrist_rotate")
+        return wrist.xmat.reshape(3, 3).T @ (world.body("box").xpos - wrist.xpos)
+
+    held = in_hand()
+    world.model.opt.gravity[:] = (0.0, 0.0, -9.81)
+    world.run(1.0)
+    assert np.linalg.norm(in_hand() - held) < 0.001  # gravity on: it stays where the fingers hold it
+    arm.move_to([0.8, 0.3, 0.3, 0, 0.5, 0.004], duration=1.0)  # swing it around
+    world.run(1.5)
+    moved = in_hand()
+    assert np.linalg.norm(moved[:2]) < 0.001  # still centred between the fingers
+    assert 0.03 + 0.008 - 0.001 < moved[2] <= held[2] + 1e-4  # at most slid down onto the wrist, not out
+    box = world.body("box").xpos.copy()
+    arm.set_joint_targets([0.8, 0.3, 0.3, 0, 0.5, 0.015])  # open: it falls
+    world.run(0.5)
+    assert world.body("box").xpos[2] < box[2] - 0.05
+
+
+def test_six_dof_joint_axes_are_locked_free_or_limited_with_drives_and_springs():
+    joint = SixDof(
+        x=ArmJoint(limits=(-0.05, 0.05), kp=400.0, max_force=100.0),  # driven slide, limited
+        z=ArmJoint(drive="none", spring=200.0, spring_ref=0.02, damping=5.0),  # free slide with a spring
+        rz=ArmJoint(drive="position", kp=20.0, limits=(-1.0, 1.0)),  # driven hinge
+        ry=ArmJoint(drive="none", damping=0.5, limits=(-0.3, 0.3)),  # passive, limited
+    )
+    arm = ArticulatedArm(
+        name="six",
+        segments=(Segment("link", 0.2, 0.03, 1.0, joint),),
+    )
+    world = World(WorldOptions(gravity=(0.0, 0.0, 0.0)))
+    world.insert(arm)
+    service = ArmService(world, "six")
+    assert service.joints == ["six/link/x", "six/link/z", "six/link/ry", "six/link/rz"]
+    model = world.model
+    assert model.njnt == 4 and model.nu == 2  # y and rx locked; two servos
+    service.set_joint_targets([0.2, 0.0, 0.0, 0.5])  # x beyond its limit
+    world.run(3.0)
+    x, z, ry, rz = service.joint_states().positions
+    assert x == pytest.approx(0.05, abs=0.002)  # clamped by its limit
+    assert z == pytest.approx(0.02, abs=0.001)  # the spring's rest position
+    assert rz == pytest.approx(0.5, abs=0.01)
+    assert abs(ry) < 0.01  # passive, nothing drives it (no gravity)
+    body = world.body("six/link")
+    np.testing.assert_allclose(body.xpos, [0.05, 0.0, 0.05 + 0.02], atol=0.003)  # ground truth: the body moved
+
+
+def test_custom_arm_with_six_dof_and_gripper_round_trips_through_a_scene(tmp_path):
+    from simrun import SceneError, load_scene, save_scene, scene_text
+
+    path = tmp_path / "arm.toml"
+    path.write_text(
+        """
+[[entities]]
+type = "ArticulatedArm"
+name = "arm"
+
+[[entities.segments]]
+name = "turret"
+length = 0.1
+joint = { axis = [0.0, 0.0, 1.0], limits = [-1.0, 1.0], kp = 30.0 }
+
+[[entities.segments]]
+name = "slider"
+length = 0.2
+joint = { x = { limits = [-0.05, 0.05], kp = 200.0 }, rz = { drive = "none", spring = 5.0 } }
+
+[[entities.segments]]
+name = "finger_a"
+length = 0.03
+radius = 0.005
+mass = 0.01
+joint = { axis = [0.0, 1.0, 0.0], kind = "slide", limits = [0.0, 0.02], kp = 100.0 }
+
+[[entities.segments]]
+name = "finger_b"
+length = 0.03
+radius = 0.005
+mass = 0.01
+parent = "slider"
+joint = { axis = [0.0, -1.0, 0.0], kind = "slide", limits = [0.0, 0.02], mimic = "finger_a" }
+"""
+    )
+    world = load_scene(path)
+    service = ArmService(world, "arm")
+    assert service.joints == ["arm/turret", "arm/slider/x", "arm/slider/rz", "arm/finger_a"]
+    assert world.model.body("arm/finger_b").parentid[0] == world.model.body("arm/slider").id
+    saved = tmp_path / "saved.toml"
+    save_scene(world, saved)
+    assert scene_text(load_scene(saved)) == saved.read_text()
+    path.write_text(path.read_text().replace("kp = 200.0", "kp = -1.0"))
+    with pytest.raises(SceneError, match=r"segments.*kp must be a finite number >= 0"):
+        load_scene(path)
