@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import tomllib
 import types
 import typing
@@ -22,15 +23,16 @@ from simrun.commands import toml_error_line
 from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
 from simrun.entity import Entity, Material
 from simrun.environment import Camera, Ground, HeightField, Light, Sky
-from simrun.errors import EntityError, SceneError
+from simrun.errors import EntityError, SceneError, SimrunError
 from simrun.mesh_entity import MeshEntity
 from simrun.outfile import write_text
 from simrun.pose import Pose
 from simrun.safeio import FileReadError, check_regular, read_regular
+from simrun.scene_state import KEYS, apply_state, state_table
 from simrun.shapes import Box, Capsule, Cylinder, Sphere
 from simrun.tomlpos import KeyPath, key_lines, line_of
 from simrun.urdf_robot import UrdfRobot
-from simrun.world import MAX_TIMESTEP, MIN_TIMESTEP, SERVICE_TYPES, World, WorldOptions
+from simrun.world import MAX_TIMESTEP, MIN_TIMESTEP, SERVICE_TYPES, World, WorldOptions, service_class
 
 ENTITY_TYPES: dict[str, type[Entity]] = {
     cls.TYPE: cls
@@ -56,7 +58,7 @@ ENTITY_TYPES: dict[str, type[Entity]] = {
         UrdfRobot,
     )
 }
-_TOP = ("world", "assets", "entities", "services", "sensors")
+_TOP = ("world", "assets", "entities", "services", "sensors", "state")
 _BASE = ("type", "name", "parent", "pose", "free", "kinematic")
 #: Largest scene file read, bytes.
 MAX_SCENE_BYTES = 16 * 1024 * 1024
@@ -134,6 +136,12 @@ class _Loader:
                 world.origins[f"{full}#{key}"] = f"{self.name}:{line_of(self.lines, (*where, key))}: {label}"
         self.services(doc.get("services", []), world)
         self.sensors(doc.get("sensors", []), world)
+        if "state" in doc:
+            _known(doc["state"], KEYS, self, ("state",))
+            try:
+                apply_state(world, doc["state"], lambda message, key: self.error(message, ("state", key)))
+            except EntityError as exc:
+                raise self.error(str(exc), ("state",)) from None
         return world
 
     def read(self) -> dict[str, Any]:
@@ -258,8 +266,23 @@ class _Loader:
         return f"{head}: {where[0]}[{where[1]}]" + (f" {label!r}" if label else "")
 
 
-def scene_text(world: World) -> str:
-    """The canonical TOML text of a world (what :func:`save_scene` writes)."""
+def scene_text(world: World, state: str = "initial", folder: str | Path | None = None) -> str:
+    """The canonical TOML text of a world (what :func:`save_scene` writes).
+
+    Args:
+        world: The world.
+        state: ``initial`` (the entities as inserted) or ``current`` (also a ``[state]`` table: the full
+            integration state and every service's and sensor's snapshot, so a reloaded world continues).
+        folder: The folder the text will be saved in: relative file paths (assets, textures, images,
+            URDFs, package folders) are rewritten relative to it; ``None`` keeps them as they are.
+
+    Raises:
+        SimrunError: An unknown ``state``, or a sensor constructed directly (not with ``World.add_sensor``),
+            whose parameters a scene cannot hold.
+    """
+    if state not in ("initial", "current"):
+        raise SimrunError(f"state must be 'initial' or 'current', got {state!r}")
+    move = _mover(world.base_dir, Path(folder) if folder is not None else None)
     doc: dict[str, Any] = {
         "world": {
             "timestep": world.options.timestep,
@@ -268,7 +291,7 @@ def scene_text(world: World) -> str:
         }
     }
     if world.assets:
-        doc["assets"] = dict(sorted(world.assets.items()))
+        doc["assets"] = {name: move(file) for name, file in sorted(world.assets.items())}
     entities = []
     for _, entity in world:
         table: dict[str, Any] = {"type": entity.TYPE, "name": entity.name}
@@ -287,20 +310,79 @@ def scene_text(world: World) -> str:
             default = factory() if callable(factory) else spec.default
             if value is None or value == default:
                 continue
+            named_asset = key in ("asset", "visual_mesh") and value in world.assets
+            if key in _FILE_FIELDS and isinstance(value, str) and not named_asset:
+                value = move(value)
+            elif key == "package_dirs" and isinstance(value, dict):
+                value = {package: move(path) for package, path in value.items()}
             table[key] = _plain(value)
         entities.append(table)
     if entities:
         doc["entities"] = entities
-    if world.services:
-        doc["services"] = [dict(s) for s in world.services]
+    services = _services(world)
+    if services:
+        doc["services"] = services
+    _refuse_unsaved_sensors(world)
     if world.sensor_specs:
         doc["sensors"] = [dict(s) for s in world.sensor_specs]
+    if state == "current":
+        doc["state"] = state_table(world)
     return tomli_w.dumps(doc)
 
 
-def save_scene(world: World, path: str | Path) -> None:
-    """Write the world as a scene file (atomically)."""
-    write_text(Path(path), scene_text(world))
+def save_scene(world: World, path: str | Path, state: str = "initial") -> None:
+    """Write the world as a scene file (atomically), its relative paths rewritten for the file's folder.
+
+    Args:
+        world: The world.
+        path: The scene file to write.
+        state: ``initial`` or ``current`` (see :func:`scene_text`): with ``current`` a reloaded world
+            continues the motion bit for bit (the services and sensors of the scene are bound and restored).
+    """
+    path = Path(path)
+    write_text(path, scene_text(world, state, path.parent))
+
+
+def _mover(base: Path, folder: Path | None) -> Any:
+    """A function rewriting a path relative to ``base`` into one relative to ``folder`` (absolute stay)."""
+
+    def move(value: str) -> str:
+        if folder is None or Path(value).is_absolute():
+            return value
+        target = (base / value).resolve()
+        try:
+            return Path(os.path.relpath(target, folder.resolve())).as_posix()
+        except ValueError:  # another drive (Windows)
+            return target.as_posix()
+
+    return move
+
+
+def _services(world: World) -> list[dict[str, Any]]:
+    """The scene's bindings, then services created in code (constructed directly), in creation order."""
+    services = [dict(s) for s in world.services]
+    bound = {(s.get("type"), s.get("entity")) for s in services}
+    classes = {kind: service_class(kind) for kind in SERVICE_TYPES}
+    for controller in world.controllers:
+        for kind, cls in classes.items():
+            entity = getattr(controller, "name", None)
+            if isinstance(controller, cls) and (kind, entity) not in bound:
+                services.append({"type": kind, "entity": entity})
+                bound.add((kind, entity))
+    return services
+
+
+def _refuse_unsaved_sensors(world: World) -> None:
+    from simrun.sensors import Sensor
+
+    named = {id(s) for s in world.sensors.values()}
+    for controller in world.controllers:
+        if isinstance(controller, Sensor) and id(controller) not in named:
+            kind = type(controller).__name__
+            raise SimrunError(
+                f"a {kind} sensor on {controller.entity!r} was constructed directly, so its parameters are unknown; "
+                f"create it with world.add_sensor({{'type': '{kind}', 'name': ..., 'entity': ...}}) to save it"
+            )
 
 
 def _plain(value: Any) -> Any:
