@@ -10,7 +10,8 @@ Hostile images are bounded before they are decoded:
   from the header, before any pixel is decoded; Pillow's own decompression-bomb guard becomes the same
   error). The file size is bounded by the reader (:class:`meshtool.safeopen.ReadLimits`).
 - **Trailing bytes**: a PNG passed through is cut at the end of its ``IEND`` chunk; the bytes after it are
-  dropped with a ``texture-trailing-data`` finding.
+  dropped with a ``texture-trailing-data`` finding. A PNG larger than its raw pixels (plus 1 % and 64 KiB)
+  is re-encoded instead of passed through, so bulky ancillary chunks never reach the output.
 - **Truncated JPEG**: Huffman-coded JPEG needs at least one bit per 8x8 block; a file too short for the
   size its header declares (libjpeg would silently fill the rest with grey) is refused.
 """
@@ -35,6 +36,7 @@ MAX_PIXELS = 1 << 27
 """Most pixels in a texture (134,217,728: 512 MiB as 8-bit RGBA, e.g. 16384 x 8192)."""
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_OVERHEAD = 1 << 16  # bytes a passed-through PNG may hold beyond its raw pixels (chunks, zlib framing)
 _PNG_MAX_CHUNKS = 100_000  # a PNG with more chunks than this is re-encoded instead of walked further
 _JPEG_HUFFMAN_SOF = frozenset({0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7})
 _JPEG_LOSSLESS_SOF = frozenset({0xC3, 0xC7})
@@ -114,6 +116,10 @@ def to_png(data: bytes, name: str, max_side: int = MAX_SIDE, max_pixels: int = M
     source_mode = image.mode
     if fmt == "PNG" and source_mode in _PASS_MODES and _is_8bit_png(data):
         end = _png_end(data)
+        width, height = image.size
+        channels = len(source_mode)
+        if end is not None and end > width * height * channels * 1.01 + height + _PNG_OVERHEAD:
+            end = None  # bulky ancillary chunks (text, ICC, APNG frames): re-encoded below, pixels only
         if end == len(data):
             return PngTexture(data, fmt, source_mode, source_mode, image.size, False)
         if end is not None:

@@ -146,3 +146,12 @@ def test_small_but_complete_jpegs_still_convert(options):
     data = encode(flat, "JPEG", **options)
     png = to_png(data, "flat.jpg")
     assert png.size == (2048, 2048) and png.converted
+
+
+def test_bulky_ancillary_chunks_are_not_passed_through():
+    png = encode(Image.fromarray(RGB, "RGB"), "PNG")
+    iend = png.rindex(b"IEND") - 4
+    bulky = png[:iend] + png_chunk(b"tEXt", b"Comment\0" + b"z" * 1_000_000) + png[iend:]
+    out = to_png(bulky, "bulky.png")
+    assert out.converted and len(out.data) < 10_000
+    np.testing.assert_array_equal(np.asarray(decode(out.data)), RGB)
