@@ -351,3 +351,19 @@ def test_internal_error_is_one_line_exit_3_and_traceback_only_on_request(monkeyp
     monkeypatch.setenv("SIMRUN_DEBUG", "1")
     result = CliRunner().invoke(main, ["check", str(SCENES / "basic.toml")])
     assert isinstance(result.exception, RuntimeError)
+
+
+def test_urdf_robot_with_package_dirs_loads(tmp_path):
+    """The attack campaign's `UrdfRobot` with `package_dirs` crashed the scene reader (a parameterised generic)."""
+    urdf = SCENES.parent / "urdf" / "tiny_arm_description"
+    path = tmp_path / "arm.toml"
+    path.write_text(
+        '[[entities]]\ntype = "UrdfRobot"\nname = "arm"\n'
+        f'urdf = "{(urdf / "urdf" / "tiny_arm.urdf").as_posix()}"\n'
+        f'package_dirs = {{ tiny_arm_description = "{urdf.as_posix()}" }}\n'
+    )
+    code, out, err = run(["check", str(path), "--seconds", "0.1"])
+    assert code == 0 and "Traceback" not in out + err, err
+    path.write_text(path.read_text().replace("package_dirs = {", "package_dirs = { other = 3, "))
+    message = assert_one_error(*run(["check", str(path)]), str(path), 5)
+    assert "package_dirs.other: expected str, got int 3" in message
