@@ -90,8 +90,12 @@ def describe_mode(mode: int) -> str:
     return "not a regular file"
 
 
-def error_from(exc: OSError, shown: str) -> ResolveError:
-    """A one-line :class:`ResolveError` for an ``OSError`` raised while opening or reading ``shown``."""
+def error_from(exc: OSError, shown: str, beneath: bool = False) -> ResolveError:
+    """A one-line :class:`ResolveError` for an ``OSError`` raised while opening or reading ``shown``.
+
+    ``beneath``: the error came from :func:`read_beneath`, where ``ELOOP``/``ENOTDIR`` mean a component
+    became a symbolic link (or a file) after the path was resolved.
+    """
     code = exc.errno
     if code == errno.ENOENT:
         return ResolveError("does not exist", path=shown, hint="check the path")
@@ -99,7 +103,9 @@ def error_from(exc: OSError, shown: str) -> ResolveError:
         return ResolveError("cannot be read: the file name is too long", path=shown, hint="shorten the name")
     if code == errno.EISDIR:
         return ResolveError("is a folder, not a file", path=shown, hint="name a file")
-    if code in (errno.ELOOP, errno.ENOTDIR):
+    if code == errno.ENOTDIR and not beneath:
+        return ResolveError("does not exist (a part of its path is not a folder)", path=shown, hint="check the path")
+    if code in (errno.ELOOP, errno.ENOTDIR) and beneath:
         return ResolveError(
             "changed while it was being read (a symbolic link or file appeared in its path); not read",
             path=shown,
@@ -153,10 +159,10 @@ def read_beneath(root: Path, parts: Sequence[str], limit: int, shown: str) -> by
         if not stat.S_ISREG(before.st_mode):
             raise _not_regular(before.st_mode, shown)
         fd = os.open(parts[-1], _READ | os.O_NOFOLLOW, dir_fd=dir_fd)
-    except ResolveError:
+    except ResolveError:  # a FileNotFoundError, hence an OSError: let it through unchanged
         raise
     except OSError as exc:
-        raise error_from(exc, shown) from None
+        raise error_from(exc, shown, beneath=True) from None
     finally:
         os.close(dir_fd)
     return read_fd(fd, limit, shown)
