@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 import trimesh
 
-from meshtool.errors import OptionsError
+from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, info, warning
 from meshtool.mesh import TriMesh
 
@@ -23,6 +23,9 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 MODES = ("none", "convex", "decompose", "objects")
+#: Largest coordinate magnitude hulled, metres. The normaliser refuses more than 1e6 m; far beyond that
+#: qhull's arithmetic overflows (at 1e308 it fails with an internal error).
+MAX_HULL_COORDINATE = 1e9
 #: Preset budgets: (max hulls, max vertices per hull).
 PRESETS: dict[str, tuple[int, int]] = {"mujoco": (32, 64), "mjx": (8, 32), "physx-gpu": (16, 64)}
 
@@ -113,22 +116,57 @@ class HullSet:
 def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, IntArray, list[str]]:
     """A valid convex hull of ``points`` within the options' vertex budget and minimum thickness.
 
+    qhull never fails the caller: when it refuses the points (precision trouble), they are hulled again
+    with joggled input (``QJ``); when that fails too, their thickened bounding box is the hull (note
+    ``boxed``).
+
     Returns:
-        Vertices, faces and notes (``thickened``, ``reduced``) about what was changed.
+        Vertices, faces and notes (``thickened``, ``reduced``, ``boxed``) about what was changed.
+
+    Raises:
+        MeshtoolError: When a coordinate is not finite or beyond :data:`MAX_HULL_COORDINATE` (code
+            ``hull-input``): no hull of such points exists in float64.
     """
+    from scipy.spatial import QhullError  # scipy loads on first use, as in _qhull_subset
+
     pts = np.unique(np.asarray(points, dtype=np.float64), axis=0)
+    if pts.size and not (np.abs(pts) <= MAX_HULL_COORDINATE).all():
+        raise MeshtoolError(
+            f"cannot make a collision hull of points that are not finite or beyond +-{MAX_HULL_COORDINATE:g} m",
+            hint="fix the coordinates or scale the mesh down (--units, --scale)",
+            code="hull-input",
+        )
     notes: list[str] = []
     extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
     thickness = min(options.min_thickness, 0.05 * extent) if extent > 0 else options.min_thickness
     thickness = max(thickness, 1e-6)
-    pts, thickened = _thicken(pts, thickness)
-    if thickened:
-        notes.append("thickened")
-    hull = trimesh.convex.convex_hull(pts)
-    if len(hull.vertices) > options.max_hull_vertices:
-        hull = trimesh.convex.convex_hull(_qhull_subset(np.asarray(hull.vertices), options.max_hull_vertices))
-        notes.append("reduced")
-    return np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64), notes
+    for qhull_options in ("QbB Pp Qt", "QJ Pp"):
+        try:
+            thick, thickened = _thicken(pts, thickness)
+            hull = trimesh.convex.convex_hull(thick, qhull_options=qhull_options)
+            if len(hull.vertices) > options.max_hull_vertices:
+                subset = _qhull_subset(np.asarray(hull.vertices), options.max_hull_vertices)
+                hull = trimesh.convex.convex_hull(subset, qhull_options=qhull_options)
+                notes.append("reduced")
+            vertices = np.asarray(hull.vertices, dtype=np.float64)
+            faces = np.asarray(hull.faces, dtype=np.int64)
+        except (QhullError, ValueError, IndexError, ZeroDivisionError, np.linalg.LinAlgError):
+            notes = []
+            continue
+        if len(vertices) >= 4 and len(faces) >= 4 and np.isfinite(vertices).all():
+            return vertices, faces, (["thickened"] if thickened else []) + notes
+        notes = []
+    vertices, faces = _box(pts, thickness)
+    return vertices, faces, ["boxed"]
+
+
+def _box(pts: FloatArray, thickness: float) -> tuple[FloatArray, IntArray]:
+    """The axis-aligned bounding box of ``pts``, each side at least ``thickness``: 8 vertices, 12 faces."""
+    lo = pts.min(axis=0) if len(pts) else np.zeros(3)
+    hi = pts.max(axis=0) if len(pts) else np.zeros(3)
+    centre, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, thickness / 2)
+    box = trimesh.creation.box(extents=2 * half)
+    return np.asarray(box.vertices, dtype=np.float64) + centre, np.asarray(box.faces, dtype=np.int64)
 
 
 def _thicken(pts: FloatArray, thickness: float) -> tuple[FloatArray, bool]:
@@ -229,10 +267,14 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
         else:
             pieces = [points if faces.shape[0] == 0 else points[np.unique(faces)]]
         for piece in pieces:
-            vertices, hull_faces, notes = convex_hull(piece, options)
+            try:
+                vertices, hull_faces, notes = convex_hull(piece, options)
+            except MeshtoolError as exc:
+                raise MeshtoolError(exc.message, path=name, hint=exc.hint, code=exc.code) from None
             result.hulls.append(Hull(vertices, hull_faces, part))
             for note in notes:
-                result.findings.append(info(f"hull-{note}", _NOTE[note].format(part=mesh.part_names[part]), name))
+                make = warning if note == "boxed" else info
+                result.findings.append(make(f"hull-{note}", _NOTE[note].format(part=mesh.part_names[part]), name))
     if over_budget:
         result.findings.append(
             warning(
@@ -256,6 +298,7 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
 _NOTE = {
     "thickened": "a hull of part {part} was flat or thin and was thickened to the minimum thickness",
     "reduced": "a hull of part {part} had too many vertices and was re-hulled within the vertex budget",
+    "boxed": "qhull could not hull part {part} (even with joggled input): its bounding box is the hull",
 }
 
 

@@ -27,7 +27,7 @@ from meshtool.frame import decide_frame
 from meshtool.mesh import DEFAULT_MATERIAL, TriMesh, build_mesh, unique_names
 from meshtool.modelroot import model_root_resolver
 from meshtool.obj.mtl import Material, TextureMap, format_mtl, opaque_if_invisible, parse_mtl
-from meshtool.obj.parse import parse_obj
+from meshtool.obj.parse import ObjData, parse_obj
 from meshtool.obj.write import format_obj
 from meshtool.outdir import write_folder
 from meshtool.resolve import Resolution, Resolver, printable
@@ -36,6 +36,10 @@ from meshtool.textures import to_png
 from meshtool.units import UNIT_FACTORS, apply_scale, rotation_matrix, scale_findings, to_z_up, unit_scale
 
 _MARKER = re.compile(r"^meshtool \S+ normalized OBJ: units=m up=z\b")
+#: Largest vertex coordinate magnitude, metres, after ``--units`` and ``--scale`` (1000 km). Beyond it the
+#: file is refused: such coordinates are a wrong unit or corrupt data, qhull cannot hull them, and float32
+#: (the ``.mbin`` positions) keeps less than a decimetre of precision there and overflows past 3.4e38.
+MAX_COORDINATE_M = 1e6
 _SAFE_FILE_CHARS = re.compile(r"[^a-z0-9_.-]+")
 
 
@@ -188,6 +192,8 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         for material in mtl.materials:
             library.setdefault(material.name, (material, res.found))
 
+    given = options.units if options.units in UNIT_FACTORS else None
+    check_coordinate_range(obj, given, options.scale)  # before any arithmetic on absurd values
     mesh, mesh_findings = build_mesh(obj)
     findings.extend(mesh_findings)
     if mesh.positions.shape[0] == 0:
@@ -213,6 +219,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         normalised_before,
     )
     units, up = frame.units, frame.up
+    check_coordinate_range(obj, units, frame.scale)
     findings.extend(frame.findings)
     mesh.positions = to_z_up(apply_scale(mesh.positions, units, frame.scale), up) + 0.0  # no -0.0
     mesh.normals = to_z_up(mesh.normals, up) + 0.0
@@ -278,6 +285,52 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         )
     textures_out = {n: files[n] for n in textures}
     return NormalisedAsset(name, files, manifest, findings, mesh, out_materials, textures_out)
+
+
+def check_coordinate_range(obj: ObjData, units: str | None, scale: float) -> None:
+    """Refuse vertex coordinates beyond :data:`MAX_COORDINATE_M` once converted to metres.
+
+    Only vertices that reach the output are checked (those faces use, or all of them when there are no
+    faces); non-finite ones are left to :func:`meshtool.mesh.build_mesh`, which names them.
+
+    Args:
+        obj: The parsed OBJ (coordinates in ``units``).
+        units: Unit of the coordinates (a key of :data:`meshtool.units.UNIT_FACTORS`), or ``None`` when it
+            is not decided yet: then only coordinates beyond the limit in every unit are refused.
+        scale: The extra uniform scale.
+
+    Raises:
+        ObjParseError: Naming the line of the first vertex out of range.
+    """
+    positions = obj.positions
+    if positions.shape[0] == 0:
+        return
+    factor = (unit_scale(units) if units else min(unit_scale(u) for u in UNIT_FACTORS)) * scale
+    with np.errstate(over="ignore", invalid="ignore"):
+        metres = np.abs(positions) * factor
+        beyond = (metres > MAX_COORDINATE_M) & np.isfinite(positions)
+    rows = beyond.any(axis=1)
+    if obj.corner_v.size:
+        used = np.zeros(positions.shape[0], dtype=bool)
+        used[obj.corner_v] = True
+        rows &= used
+    if not rows.any():
+        return
+    k = int(np.flatnonzero(rows)[0])
+    value = float(positions[k][beyond[k]][0])
+    if units is None:
+        shown = " in any unit"
+    elif units != "m" or scale != 1.0:
+        shown = f" ({float(metres[k][beyond[k]][0]):.4g} m in {units}, scale {scale:g})"
+    else:
+        shown = ""
+    raise ObjParseError(
+        f"vertex {k + 1} has the coordinate {value:.6g}{shown}, beyond the limit of +-{MAX_COORDINATE_M:g} m",
+        path=obj.path,
+        line=int(obj.vertex_lines[k]),
+        hint="pass the right --units or a smaller --scale, or fix the coordinate; recentre georeferenced models",
+        code="coordinate-range",
+    )
 
 
 def write_asset(asset: NormalisedAsset, out_dir: Path, src: Path | None = None) -> Path:

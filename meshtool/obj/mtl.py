@@ -261,7 +261,7 @@ def _statement(material: Material, keyword: str, rest: str, line_no: int) -> str
     if keyword in COLOR_KEYS:
         values = _floats(rest)
         if values is None or not 1 <= len(values) <= 3:
-            return f"'{keyword}' needs 1 to 3 numbers (spectral/xyz forms are not supported): {rest[:40]!r}"
+            return f"'{keyword}' needs 1 to 3 finite numbers (spectral/xyz forms are not supported): {rest[:40]!r}"
         r = values[0]
         material.colors[keyword] = (
             r,
@@ -272,7 +272,7 @@ def _statement(material: Material, keyword: str, rest: str, line_no: int) -> str
     if keyword in (*SCALAR_KEYS, "Tr"):
         values = _floats(rest)
         if values is None or len(values) != 1:
-            return f"'{keyword}' needs one number: {rest[:40]!r}"
+            return f"'{keyword}' needs one finite number: {rest[:40]!r}"
         material.scalars[keyword] = values[0]
         return None
     if keyword == "illum":
@@ -292,10 +292,15 @@ def _statement(material: Material, keyword: str, rest: str, line_no: int) -> str
 
 
 def _floats(text: str) -> list[float] | None:
+    """The numbers of ``text``; ``None`` unless all are finite, within +-1e6 and plain ASCII without ``_``."""
+    words = text.split()
+    if any("_" in w or not w.isascii() for w in words):  # float() reads "1_0" as 10
+        return None
     try:
-        return [float(w) for w in text.split()]
+        values = [float(w) for w in words]
     except ValueError:
         return None
+    return values if all(abs(v) <= 1e6 for v in values) else None  # False for NaN and infinities
 
 
 def parse_map_statement(rest: str) -> tuple[str, dict[str, tuple[str, ...]]] | None:
@@ -343,10 +348,10 @@ def _take_options(tokens: list[tuple[str, int, int]], i: int, options: dict[str,
         while k < len(tokens) and len(args) < most:
             word = tokens[k][0]
             if option in _NUMERIC_OPTIONS:
-                try:
-                    args.append(repr(float(word)))
-                except ValueError:
+                number = _floats(word)
+                if number is None or len(number) != 1:
                     break
+                args.append(repr(number[0]))
             else:
                 if word in MAP_OPTIONS:
                     break

@@ -46,6 +46,10 @@ DEFAULT_PART = "default"
 #: Most MTL files one OBJ may name (over all its ``mtllib`` statements); further names are ignored with a
 #: warning. Each name costs a file-system search, so a line of 100,000 names must not mean 100,000 of them.
 MAX_MTLLIBS = 256
+#: Largest magnitude of a texture coordinate, a normal component or a vertex colour value. Larger (or
+#: non-finite) values are dropped with a warning: they mean nothing, and past 3.4e38 they turn into
+#: infinities in float32 outputs. Vertex positions are limited after unit conversion (see normalise).
+MAX_ATTRIBUTE = 1e6
 
 _FREEFORM = frozenset(
     (
@@ -186,6 +190,8 @@ def parse_obj(data: bytes | str, path: str = "<obj>") -> ObjData:
     vn_lines = np.flatnonzero(lines.kinds == VN) + 1
     corner_vt = resolve_attr_index(corner_vt, corner_lines, vt_lines, "vt", "texture coordinates", path, findings)
     corner_vn = resolve_attr_index(corner_vn, corner_lines, vn_lines, "vn", "normals", path, findings)
+    corner_vt = _drop_invalid(corner_vt, texcoords, vt_lines, "vt", "texture coordinates", path, findings)
+    corner_vn = _drop_invalid(corner_vn, normals, vn_lines, "vn", "normals", path, findings)
 
     face_material = _events_at(face_lines, state.material_lines, state.material_ids, -1)
     face_part = _events_at(face_lines, state.part_lines, state.part_ids, 0)
@@ -388,18 +394,57 @@ def _read_vertices(lines: Lines, path: str, findings: list[Finding]) -> tuple[Fl
                     int(line_numbers[missing[0]]),
                 )
             )
-    if colors is not None and not np.isfinite(colors).all():
-        bad = np.flatnonzero(~np.isfinite(colors).all(axis=1))
+    if colors is not None and not _valid_rows(colors).all():
+        bad = np.flatnonzero(~_valid_rows(colors))
         colors[bad] = 1.0
         findings.append(
             warning(
                 "vertex-colors-invalid",
-                f"{bad.size} vertex colour(s) are not finite numbers: white used",
+                f"{bad.size} vertex colour(s) are not finite numbers or beyond +-{MAX_ATTRIBUTE:g}: white used",
                 path,
                 int(line_numbers[bad[0]]),
             )
         )
     return positions, colors, line_numbers
+
+
+def _valid_rows(values: FloatArray) -> BoolArray:
+    """Rows whose values are all finite and within :data:`MAX_ATTRIBUTE`."""
+    with np.errstate(invalid="ignore"):
+        within = np.abs(values) <= MAX_ATTRIBUTE
+    result: BoolArray = np.all(within, axis=1)
+    return result
+
+
+def _drop_invalid(
+    index: IntArray,
+    values: FloatArray,
+    element_lines: IntArray,
+    keyword: str,
+    what: str,
+    path: str,
+    findings: list[Finding],
+) -> IntArray:
+    """Corners lose a texcoord/normal that is not finite or beyond :data:`MAX_ATTRIBUTE` (-1), with a warning."""
+    if values.shape[0] == 0:
+        return index
+    invalid = ~_valid_rows(values)
+    if not invalid.any():
+        return index
+    hit = (index >= 0) & invalid[np.maximum(index, 0)]
+    if not hit.any():
+        return index  # unused: dropped with the other unused ones
+    first = int(element_lines[int(index[np.flatnonzero(hit)[0]])])
+    findings.append(
+        warning(
+            f"{keyword}-invalid",
+            f"{int(invalid.sum())} '{keyword}' statement(s) hold values that are not finite or beyond "
+            f"+-{MAX_ATTRIBUTE:g}: the {int(hit.sum())} face corner(s) using them lose their {what}",
+            path,
+            first,
+        )
+    )
+    return np.where(hit, -1, index)
 
 
 def _read_vectors(
