@@ -73,6 +73,10 @@ class FrameRenderer:
     ) -> None:
         if mode == "none":
             raise SimrunError("render mode 'none' draws nothing")
+        if camera is not None:
+            names = [model.camera(k).name for k in range(model.ncam)]
+            if camera not in names:
+                raise SimrunError(f"no camera named {camera!r} (cameras: {', '.join(names) or 'none'})")
         self.model, self.mode, self.option = model, mode, scene_option(mode)
         model.vis.quality.offsamples = 0  # no multisampling: CPU rendering stays fast
         model.vis.quality.shadowsize = 1024
