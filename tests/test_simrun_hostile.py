@@ -367,3 +367,9 @@ def test_urdf_robot_with_package_dirs_loads(tmp_path):
     path.write_text(path.read_text().replace("package_dirs = {", "package_dirs = { other = 3, "))
     message = assert_one_error(*run(["check", str(path)]), str(path), 5)
     assert "package_dirs.other: expected str, got int 3" in message
+
+
+def test_unknown_camera_is_one_error_line(tmp_path):
+    code, out, err = run(["snapshot", str(SCENES / "basic.toml"), "-o", str(tmp_path / "x.png"), "--camera", "nosuch"])
+    assert code == 1 and "Traceback" not in out + err
+    assert err.strip() == "error: no camera named 'nosuch' (cameras: view)"
