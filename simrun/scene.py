@@ -98,9 +98,9 @@ class _Loader:
         self.lines: dict[KeyPath, int] = {}
         self.labels: dict[KeyPath, str] = {}
 
-    def error(self, message: str, where: KeyPath = ()) -> SceneError:
-        """A :class:`SceneError` at a key path (``("entities", 3, "mass")``) with its line."""
-        line = line_of(self.lines, where) if where else None
+    def error(self, message: str, where: KeyPath = (), line_at: KeyPath | None = None) -> SceneError:
+        """A :class:`SceneError` at a key path (``("entities", 3, "mass")``) with its line (or ``line_at``'s)."""
+        line = line_of(self.lines, line_at or where) if (line_at or where) else None
         if len(where) >= 2 and where[0] in _GROUPS and isinstance(where[1], int):
             rest = _key_text(where[2:])
             text = f"{rest}: {message}" if rest else message
@@ -483,9 +483,9 @@ def _convert(value: Any, hint: Any, loader: _Loader, where: KeyPath) -> Any:
         return _convert(value, options[0], loader, where)
     if isinstance(hint, type) and hasattr(hint, "from_scene"):  # a value that reads itself (an arm's segments)
         try:
-            return hint.from_scene(value, "")
-        except EntityError as exc:
-            raise loader.error(str(exc), where) from None
+            return hint.from_scene(value, _key_text(where[2:]))
+        except EntityError as exc:  # its message starts with the key path (``segments[1].length: ...``)
+            raise loader.error(str(exc), where[:2], line_at=where) from None
     if hint is Material:
         _known(value, ("restitution", "dynamic_friction", "static_friction"), loader, where)
         coefficients = {k: _number(v, loader, (*where, k)) for k, v in value.items()}
