@@ -2,6 +2,7 @@
 
 Exit codes: 0 no errors (warnings allowed unless ``--strict``); 1 errors (or warnings with ``--strict``);
 2 usage (bad options, paths or configuration); 3 meshtool itself failed (an X001 finding, or the executor).
+An unreachable Dask scheduler is exit 1 (one ``error:`` line with a hint).
 """
 
 from __future__ import annotations
@@ -45,6 +46,14 @@ def default_jobs() -> int:
 @click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True)
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); needs dask.")
 @click.option(
+    "--scheduler-timeout",
+    type=click.FloatRange(0, min_open=True),
+    default=30.0,
+    show_default=True,
+    metavar="SECONDS",
+    help="How long to try reaching --scheduler.",
+)
+@click.option(
     "--timeout",
     type=click.FloatRange(0, max_open=False),
     default=None,
@@ -72,6 +81,7 @@ def validate_command(
     jobs: int | None,
     executor: str,
     scheduler: str | None,
+    scheduler_timeout: float,
     timeout: float | None,
     strict: bool,
     changed_only: bool,
@@ -99,6 +109,7 @@ def validate_command(
             changed_only=changed_only,
             thumbnails=want_thumbnails,
             timeout=timeout,
+            connect_timeout=scheduler_timeout,
         )
         report = run_validate(list(paths), options, _progress_bar())
         text = (
@@ -114,7 +125,7 @@ def validate_command(
         if exc.usage:
             _usage(exc.one_line())
         click.echo(f"error: {exc.one_line()}", err=True)
-        sys.exit(EXIT_INTERNAL)
+        sys.exit(exc.exit_code)
     except MeshtoolError as exc:
         click.echo(f"error: {exc.one_line()}", err=True)
         sys.exit(EXIT_INTERNAL)

@@ -31,7 +31,7 @@ from typing import Any
 
 from meshtool.validate.plugins import physics_plugin
 from meshtool.validate.rules import hit
-from meshtool.validate.task import AssetResult, AssetTask, check_asset
+from meshtool.validate.task import AssetResult, AssetTask, ReadAsset, check_asset, judge_asset, read_asset
 
 #: Linux ``prctl`` option: the signal a process gets when its parent thread exits.
 PR_SET_PDEATHSIG = 1
@@ -211,14 +211,28 @@ def run_here(tasks: list[AssetTask], timeout: float | None, check: Check = check
         yield result
 
 
-def run_in_thread(task: AssetTask, timeout: float | None, check: Check = check_asset) -> AssetResult:
-    """Check one task in a daemon thread and stop waiting at the deadline (for executors that own the process).
+def read_with_deadline(task: AssetTask, timeout: float | None) -> ReadAsset:
+    """:func:`read_asset` under a SIGALRM deadline where possible (a read past it is an X002 result)."""
+    box: list[ReadAsset] = []
+    for result in run_here([task], timeout, lambda t: _keep(box, read_asset(t))):
+        if not box:  # stopped at the deadline
+            return ReadAsset(task, result, done=True)
+    return box[0]
+
+
+def _keep(box: list[ReadAsset], read: ReadAsset) -> AssetResult:
+    box.append(read)
+    return read.result
+
+
+def judge_in_thread(read: ReadAsset, timeout: float | None) -> AssetResult:
+    """:func:`judge_asset` in a daemon thread, waiting at most ``timeout`` (for executors that own the process).
 
     A check past the deadline is abandoned, not stopped: its thread runs on until the process ends (a
     Dask LocalCluster's workers end with the run).
     """
     box: list[AssetResult] = []
-    thread = threading.Thread(target=lambda: box.append(check(task)), name=f"check {task.display}", daemon=True)
+    thread = threading.Thread(target=lambda: box.append(judge_asset(read)), name="check", daemon=True)
     thread.start()
     thread.join(timeout)
-    return box[0] if box else timed_out(task, timeout or 0.0)
+    return box[0] if box else timed_out(read.task, timeout or 0.0)

@@ -1,26 +1,25 @@
 """Run the per-asset task over many assets: discovery, cache, executors (local processes or Dask).
 
-The executor only decides where :func:`meshtool.validate.task.check_asset` runs; results are sorted by
-asset path afterwards, so reports are identical whatever the executor and the number of workers.
+The executor only decides where the checks run (:mod:`meshtool.validate.pool` locally,
+:mod:`meshtool.validate.remote` on Dask); results are sorted by asset path afterwards, so reports are
+identical whatever the executor and the number of workers.
 """
 
 from __future__ import annotations
 
-import importlib
-import logging
 import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Severity
 from meshtool.validate.cache import ResultCache
 from meshtool.validate.config import ValidateConfig
 from meshtool.validate.pool import run_here, run_workers
-from meshtool.validate.task import AssetResult, AssetTask, check_asset
+from meshtool.validate.remote import SchedulerError, run_dask
+from meshtool.validate.task import AssetResult, AssetTask
 
 EXECUTORS = ("local", "dask")
 SUFFIXES = (".obj", ".mbin")
@@ -30,11 +29,18 @@ Progress = Callable[[AssetResult, int, int], None]
 
 
 class ValidateError(MeshtoolError, RuntimeError):
-    """The validation could not run (bad paths are ``usage``; executor failures are not)."""
+    """The validation could not run (bad paths are ``usage``; executor failures are not).
 
-    def __init__(self, message: str, *, usage: bool = False, **kwargs: str | None) -> None:
+    Attributes:
+        usage: A usage error (exit 2).
+        exit_code: The exit code otherwise: 1 for an unreachable scheduler (the user's setup), 3 for a failure
+            of meshtool itself.
+    """
+
+    def __init__(self, message: str, *, usage: bool = False, exit_code: int = 3, **kwargs: str | None) -> None:
         super().__init__(message, **kwargs)  # type: ignore[arg-type]
         self.usage = usage
+        self.exit_code = exit_code
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,6 +57,7 @@ class ValidateOptions:
         thumbnails: Render a thumbnail per asset (the HTML report shows them).
         timeout: Seconds one asset's check may take (X002 past it; 0: no limit); ``None``: the
             configuration's ``timeout`` (default :data:`meshtool.validate.config.DEFAULT_TIMEOUT`).
+        connect_timeout: Seconds to wait for the Dask scheduler.
     """
 
     config: ValidateConfig = field(default_factory=ValidateConfig)
@@ -61,6 +68,7 @@ class ValidateOptions:
     changed_only: bool = False
     thumbnails: bool = False
     timeout: float | None = None
+    connect_timeout: float = 30.0
 
     def __post_init__(self) -> None:
         if self.executor not in EXECUTORS:
@@ -87,8 +95,10 @@ class ValidationReport:
         unchanged_skipped: Unchanged assets left out of ``assets`` (``changed_only``).
         seconds: Wall time of the run.
         executor: ``local`` or ``dask``.
-        jobs: Workers used.
+        jobs: Workers asked for.
         config_file: The configuration file, or ``None``.
+        where: Assets checked in this run per place (``this process``, ``2 local worker processes``, a Dask
+            worker's address); empty when every result came from the cache.
     """
 
     assets: list[AssetResult]
@@ -99,6 +109,7 @@ class ValidationReport:
     executor: str = "local"
     jobs: int = 1
     config_file: str | None = None
+    where: dict[str, int] = field(default_factory=dict)
 
     def counts(self) -> dict[str, int]:
         """Findings per severity over all assets."""
@@ -202,7 +213,9 @@ def validate(
     by_display = {t.display: t for t in todo}
     listings = {t.display: cache.listings(t) for t in todo}  # before the checks read: a later change is news
     runner = _run_dask if options.executor == "dask" else _run_local
-    for result in runner(todo, options):
+    where: dict[str, int] = {}
+    for result, place in runner(todo, options):
+        where[place] = where.get(place, 0) + 1
         result.listings = listings[result.path]
         cache.store(by_display[result.path], result)
         results[result.path] = result
@@ -215,6 +228,7 @@ def validate(
         executor=options.executor,
         jobs=options.jobs,
         config_file=config.file,
+        where=dict(sorted(where.items())),
     )
     for task in tasks:
         result = results[task.display]
@@ -231,43 +245,31 @@ def validate(
     return report
 
 
-def _run_local(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[AssetResult]:
+def _run_local(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[tuple[AssetResult, str]]:
     timeout = options.effective_timeout()
     if options.jobs == 1 or (len(tasks) <= 1 and timeout is None):
-        yield from run_here(tasks, timeout)
+        for result in run_here(tasks, timeout):
+            yield result, "this process"
     else:  # a single task with a deadline also goes to a worker: only a process can be stopped for sure
-        yield from run_workers(tasks, options.jobs, timeout)
+        workers = min(options.jobs, len(tasks))
+        for result in run_workers(tasks, workers, timeout):
+            yield result, f"{workers} local worker process{'es' if workers > 1 else ''}"
 
 
-def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[AssetResult]:
-    if not tasks:  # everything came from the cache: no cluster to start
-        return
+def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[tuple[AssetResult, str]]:
     try:
-        distributed: Any = importlib.import_module("distributed")
+        yield from run_dask(
+            tasks, options.scheduler, options.jobs, options.effective_timeout(), options.connect_timeout
+        )
     except ImportError:
         raise ValidateError(
             "the Dask executor needs dask.distributed", hint="pip install 'meshtool-simrun[dask]'"
         ) from None
-    cluster = None
-    try:
-        if options.scheduler:
-            client = distributed.Client(options.scheduler, timeout="30s")
-        else:
-            cluster = distributed.LocalCluster(
-                n_workers=options.jobs,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                silence_logs=logging.ERROR,
-            )
-            client = distributed.Client(cluster)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ValidateError(f"cannot reach the Dask scheduler: {exc}", path=options.scheduler) from None
-    try:
-        futures = client.map(check_asset, tasks, pure=False)
-        for future in distributed.as_completed(futures):
-            yield future.result()
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    except SchedulerError as exc:
+        where = options.scheduler or "a new local cluster"
+        raise ValidateError(
+            f"cannot reach the Dask scheduler at {where}: {exc}",
+            hint="start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
+            "or run without --executor dask",
+            exit_code=1,
+        ) from None

@@ -12,6 +12,7 @@ import contextlib
 import hashlib
 import stat
 import traceback
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,7 @@ from meshtool.convert import ConvertOptions
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, Severity
 from meshtool.hulls import Hull, HullOptions, compute_hulls
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
 from meshtool.packfile import pack, parse
 from meshtool.resolve import Resolver, file_sha256
 from meshtool.units import scale_findings
@@ -94,27 +95,75 @@ class AssetResult:
     cached: bool = False
 
 
+@dataclass(slots=True)
+class ReadAsset:
+    """An asset after the phase that reads files (the judging phase needs no file system).
+
+    Attributes:
+        task: The asset.
+        result: Findings, deps and stats of the reading phase.
+        asset: An OBJ as :func:`meshtool.normalise.prepare` read it (MTLs and textures included).
+        mbin: A pack's bytes.
+        done: Nothing left to judge (the file could not be read, or the check failed).
+    """
+
+    task: AssetTask
+    result: AssetResult
+    asset: NormalisedAsset | None = None
+    mbin: bytes | None = None
+    done: bool = False
+
+
 def check_asset(task: AssetTask) -> AssetResult:
     """Run every rule on one asset. Never raises: a failure of meshtool itself becomes an X001 finding."""
-    result = AssetResult(task.display, task.kind)
+    return judge_asset(read_asset(task))
+
+
+def read_asset(task: AssetTask) -> ReadAsset:
+    """The phase that touches files: read the asset and everything it references, resolve, decode, hash.
+
+    Executors that run checks away from the files (Dask) run this where the files are and ship the result
+    to :func:`judge_asset`. Never raises.
+    """
+    read = ReadAsset(task, AssetResult(task.display, task.kind))
     special = _special_file(task.path)
     if special:  # never opened: a FIFO blocks the reader, a device never ends
         rule = "K001" if task.kind == "mbin" else "S001"
-        result.findings.append(hit(rule, f"is {special}, not a regular file: not read", task.path.name))
-        return result
-    try:
-        with np.errstate(all="ignore"):  # degenerate input makes trimesh divide by zero; rules judge the results
-            if task.kind == "mbin":
-                _check_mbin(task, result)
+        read.result.findings.append(hit(rule, f"is {special}, not a regular file: not read", task.path.name))
+        read.done = True
+        return read
+    with _internal_errors(read):
+        if task.kind == "mbin":
+            _read_mbin(read)
+        else:
+            _read_obj(read)
+    return read
+
+
+def judge_asset(read: ReadAsset) -> AssetResult:
+    """The phase that computes: geometry, hulls, collision and physics rules on what :func:`read_asset` read."""
+    if not read.done:
+        with _internal_errors(read):
+            if read.task.kind == "mbin":
+                _judge_mbin(read)
             else:
-                _check_obj(task, result)
-    except Exception as exc:
-        where = traceback.extract_tb(exc.__traceback__)[-1]
-        result.findings.append(
-            hit("X001", f"{type(exc).__name__}: {exc} (at {Path(where.filename).name}:{where.lineno})", task.path.name)
-        )
+                _judge_obj(read)
+    result = read.result
     result.findings.sort(key=lambda f: (f.code, f.path or "", f.line or 0, f.message))
     return result
+
+
+@contextlib.contextmanager
+def _internal_errors(read: ReadAsset) -> Iterator[None]:
+    """Any exception becomes an X001 finding (a bug in meshtool or a library, not in the asset)."""
+    try:
+        with np.errstate(all="ignore"):  # degenerate input makes trimesh divide by zero; rules judge the results
+            yield
+    except Exception as exc:
+        where = traceback.extract_tb(exc.__traceback__)[-1]
+        message = f"{type(exc).__name__}: {exc} (at {Path(where.filename).name}:{where.lineno})"
+        read.result.findings.append(hit("X001", message, read.task.path.name))
+        read.done = True
 
 
 def _special_file(path: Path) -> str | None:
@@ -132,7 +181,8 @@ def _special_file(path: Path) -> str | None:
     return next((what for test, what in kinds.items() if test(mode)), None)
 
 
-def _check_obj(task: AssetTask, result: AssetResult) -> None:
+def _read_obj(read: ReadAsset) -> None:
+    task, result = read.task, read.result
     src = task.path
     name = src.name
     resolver = Resolver(src.parent)
@@ -145,7 +195,9 @@ def _check_obj(task: AssetTask, result: AssetResult) -> None:
         rule = "G001" if exc.code == "non-finite" else "S001"
         result.findings.append(hit(rule, exc.message, exc.path or name, exc.line))
         result.findings.extend(name_findings([name]))
+        read.done = True
         return
+    read.asset = asset
     manifest = asset.manifest
     for source in manifest["sources"]:
         result.deps[str((src.parent / source["path"]).resolve())] = source["sha256"]
@@ -155,6 +207,12 @@ def _check_obj(task: AssetTask, result: AssetResult) -> None:
     for source in manifest["sources"][1:]:
         if source["role"] == "mtl":
             result.findings.extend(encoding_findings(source["path"], resolver.read(src.parent / source["path"])))
+
+
+def _judge_obj(read: ReadAsset) -> None:
+    task, result, asset = read.task, read.result, read.asset
+    assert asset is not None
+    name = task.path.name
     mesh = asset.mesh
     result.stats.update(asset.stats)
     result.findings.extend(geometry_findings(mesh.positions, mesh.faces, name, task.limits))
@@ -171,7 +229,8 @@ def _check_obj(task: AssetTask, result: AssetResult) -> None:
     _physics(task, result, packed)
 
 
-def _check_mbin(task: AssetTask, result: AssetResult) -> None:
+def _read_mbin(read: ReadAsset) -> None:
+    task, result = read.task, read.result
     path = task.path
     name = path.name
     data = Resolver(path.parent).read_source(path)
@@ -181,9 +240,19 @@ def _check_mbin(task: AssetTask, result: AssetResult) -> None:
     except MeshtoolError as exc:
         rule = "K002" if exc.code == "pack-version" else "K001"
         result.findings.append(hit(rule, exc.one_line().removeprefix(f"{name}: "), name))
+        read.done = True
         return
+    _staleness(task, result, packed.meta.get("sources", []))  # looks for the sources: where the files are
+    packed.close()
+    read.mbin = data
+
+
+def _judge_mbin(read: ReadAsset) -> None:
+    task, result, data = read.task, read.result, read.mbin
+    assert data is not None
+    name = task.path.name
+    packed = parse(data, name, verify=False)  # verified when read
     meta = packed.meta
-    _staleness(task, result, meta.get("sources", []))
     positions = np.asarray(packed.positions, dtype=np.float64)
     faces = np.asarray(packed.indices, dtype=np.int64)
     result.stats.update(dict(meta.get("stats", {})))

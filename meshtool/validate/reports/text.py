@@ -58,8 +58,9 @@ def summary_lines(report: ValidationReport, strict: bool = False, colour: bool =
         f"{counts['error']} errors, {counts['warning']} warnings, {counts['info']} infos"
         f"{' (strict: warnings fail)' if strict else ''}"
     )
-    run = f"checked {report.checked}, {report.cache_hits} from cache"
+    places = ", ".join(f"{n} in {where}" if " " in where else f"{n} on {where}" for where, n in report.where.items())
+    run = f"checked {report.checked}{f' ({places})' if places else ''}, {report.cache_hits} from cache"
     if report.unchanged_skipped:
         run += f", {report.unchanged_skipped} unchanged not shown (--changed-only)"
-    run += f"; {report.executor} executor, {report.jobs} worker(s), {report.seconds:.2f} s"
+    run += f"; {report.executor} executor, {report.seconds:.2f} s"
     return [summary, run]
