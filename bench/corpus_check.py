@@ -242,6 +242,49 @@ def totals(rows: list[Row], consumer_rows: list[Row]) -> dict[str, Any]:
     }
 
 
+def exceptions(rows: list[Row], consumer_rows: list[Row]) -> list[str]:
+    """One bullet per kind of exception, with the assets and the reason."""
+    out = []
+    rejected = [r for r in rows if r["status"] == "rejected"]
+    if rejected:
+        out.append(
+            f"- {len(rejected)} rejected, each with a one-line error naming file and line (corrupt or empty input "
+            f"the test suites of tinyobjloader/trimesh ship on purpose): {', '.join(r['id'] for r in rejected)}."
+        )
+    shipped: dict[str, list[str]] = {}
+    for r in consumer_rows:
+        shipped.setdefault(r["shipped_up"], []).append(r["id"])
+    kept = sum(len(ids) for up, ids in shipped.items() if up.startswith("z"))
+    out.append(
+        f"- Orientation as shipped: {kept} of {len(consumer_rows)} meshes that a consumer file uses come out "
+        "unrotated without that file. The corpus holds only the meshes, so the evidence `--up auto` uses for "
+        "them (the consumer file beside the mesh or up to its model root) is not there; what it decided "
+        "instead: " + "; ".join(f"{up}: {len(ids)}" for up, ids in sorted(shipped.items())) + ". With the "
+        "consumer file at its path (stand-in), every one is kept."
+    )
+    for r in consumer_rows:
+        if r.get("expected_unit") is not None and r.get("unit") != r["expected_unit"]:
+            out.append(
+                f"- Units of {r['id']}: `--units auto` read {r.get('unit')} ({r.get('note')}), the manifest says "
+                f"{r['expected_unit']}: the consumer files disagree ({r['consumers']}); meshtool takes the first "
+                "file in the nearest folder, the manifest's guess the one with a scale."
+            )
+    wrong = [r for r in consumer_rows if r.get("expected_unit") is not None and r["shipped_unit"] != r["expected_unit"]]
+    out.append(
+        f"- Units as shipped: the size-based suggestion matches the manifest for "
+        f"{len([r for r in consumer_rows if r.get('expected_unit') is not None]) - len(wrong)} of "
+        f"{len([r for r in consumer_rows if r.get('expected_unit') is not None])}; without a consumer file the "
+        f"only evidence is the size (wrong for {', '.join(r['id'] for r in wrong) or 'none'})."
+    )
+    lost = [r for r in rows if r.get("kept", 0) < r["present"]]
+    out.append(
+        "- Textures present on disk but not kept: " + (", ".join(r["id"] for r in lost) if lost else "none") + "."
+    )
+    failed = [r for r in rows if r["status"] in ("ok", "ok-with-findings") and r.get("mujoco") != "ok"]
+    out.append("- Written MJCF that MuJoCo refuses: " + (", ".join(r["id"] for r in failed) or "none") + ".")
+    return out
+
+
 def _cell(value: object) -> str:
     return str(value).replace("|", "\\|").replace("\n", " ")
 
@@ -261,6 +304,10 @@ def render(rows: list[Row], consumer_rows: list[Row], total: dict[str, Any], cor
         "| totals | count |",
         "|---|---|",
         *[f"| {k} | {v} |" for k, v in total.items()],
+        "",
+        "## Exceptions and why",
+        "",
+        *exceptions(rows, consumer_rows),
         "",
         "## MuJoCo compiles the written MJCF",
         "",

@@ -17,6 +17,7 @@ import numpy as np
 from meshtool.consumers import ConsumerRef, find_consumers
 from meshtool.findings import Finding, info, warning
 from meshtool.modelroot import ModelRoot
+from meshtool.resolve import file_sha256
 from meshtool.safeopen import printable
 from meshtool.units import UnitEvidence, apply_scale, evidence_findings, unit_evidence
 from meshtool.upaxis import FloatArray, UpDecision, decide_up
@@ -43,6 +44,19 @@ class Frame:
     evidence: UnitEvidence | None
     consumers: list[ConsumerRef] = field(default_factory=list)
     findings: list[Finding] = field(default_factory=list)
+
+    def sources(self, obj_dir: Path) -> list[dict[str, str]]:
+        """The consumer files read, as ``asset.json`` source entries (role ``consumer``, path, SHA-256).
+
+        Args:
+            obj_dir: The OBJ's folder (consumer paths are relative to it).
+        """
+        out: list[dict[str, str]] = []
+        for file in dict.fromkeys(c.file for c in self.consumers):
+            digest = file_sha256(obj_dir / file)
+            if digest is not None:
+                out.append({"role": "consumer", "path": file, "sha256": digest})
+        return out
 
     def record(self) -> dict[str, Any]:
         """The decision for ``asset.json``'s ``transform``: rules, evidence and consumer files."""

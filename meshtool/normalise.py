@@ -221,6 +221,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
     units, up = frame.units, frame.up
     check_coordinate_range(obj, units, frame.scale)
     findings.extend(frame.findings)
+    sources.extend(frame.sources(src.parent))
     mesh.positions = to_z_up(apply_scale(mesh.positions, units, frame.scale), up) + 0.0  # no -0.0
     mesh.normals = to_z_up(mesh.normals, up) + 0.0
     findings.extend(fix_small_parts(mesh, source_name))

@@ -307,3 +307,20 @@ def test_cli_up_and_units_auto(tmp_path):
     assert report["stats"]["bbox"]["extent"] == pytest.approx([0.5, 0.4, 0.3])
     manifest = json.loads((tmp_path / "crate" / "asset.json").read_text())
     assert manifest["transform"]["up_rule"] == "consumer" and manifest["transform"]["units"] == "cm"
+
+
+def test_a_changed_consumer_file_makes_the_mbin_stale(tmp_path):
+    from meshtool.convert import is_unchanged
+
+    model = tmp_path / "crate"
+    shutil.copytree(RW / "gazebo_model" / "crate", model)
+    options = ConvertOptions(NormaliseOptions(units="auto"))
+    src, out = model / "meshes" / "crate.obj", tmp_path / "crate.mbin"
+    convert(src, out, options)
+    assert is_unchanged(src, out, options)
+    sdf = model / "model.sdf"
+    sdf.write_text(sdf.read_text().replace("0.01 0.01 0.01", "0.001 0.001 0.001"))
+    assert not is_unchanged(src, out, options)
+    with load(out) as packed:
+        consumers = [(s["role"], s["path"]) for s in packed.meta["sources"] if s["role"] == "consumer"]
+        assert consumers == [("consumer", "../model.sdf")]
