@@ -1,9 +1,11 @@
 """Which findings changed or dropped data: what the CLI shows by default and what ``--strict`` refuses.
 
 Every warning counts. Of the info findings, those that record a change to the data count too (triangles,
-statements, materials or attributes dropped; values reinterpreted or filled in; collision hulls altered);
+statements, materials or attributes dropped; values reinterpreted or filled in);
 notes that only explain how something was found or read (a repaired reference, the model root, the up axis
-chosen, the encoding) do not. ``docs/findings.md`` marks each code.
+chosen, the encoding) do not, and neither do the collision-hull notes (``hull-thickened``, ``hull-reduced``:
+the hulls are made within the budgets asked for, the asset's data is untouched). ``docs/findings.md``
+marks each code.
 """
 
 from __future__ import annotations
@@ -25,8 +27,6 @@ DATA_CHANGING_INFO = frozenset(
         "mtl-tr-converted",
         "mtl-statement-unsupported",
         "materials-unused",
-        "hull-thickened",
-        "hull-reduced",
     }
 )
 
