@@ -221,3 +221,71 @@ def mutated_pack(draw: Any, seed: bytes) -> bytes:
             rows[k][1] = draw(st.integers(0, 6))
         del kind
     return join_pack(header, rows, payloads)
+
+
+# -- structured documents: TOML scenes, the .simlog JSON header -----------------------------------------------
+
+TOML_VALUES: list[Any] = [
+    True, 0, -1, 1, 2**63 - 1, -(2**63), 1e200, -1e200, 1e-12, 0.0, -0.0, float("nan"), float("inf"),
+    float("-inf"), "", "x", "../../../etc/passwd", "/dev/zero", "a" * 300, "\u00e9\u0000", [], [0.0, 0.0, 0.0],
+    [float("nan")] * 3, [1e200] * 3, [0, 0], [[0, 0], [0]], {}, {"type": "box"}, [{"type": "box"}],
+]  # fmt: skip
+
+
+def _mutate_document(draw: Any, value: Any, values: list[Any], depth: int = 0) -> Any:
+    """One value somewhere inside a JSON/TOML document replaced, dropped, duplicated or added."""
+    if isinstance(value, dict) and value and depth < 8 and draw(st.integers(0, 4)):
+        out = dict(value)
+        key = draw(st.sampled_from(sorted(value)))
+        op = draw(st.integers(0, 9))
+        if op == 0:
+            out.pop(key)
+        elif op == 1:
+            out[draw(st.sampled_from(["x", "type", "name", "scale", "size", "pose", key + "_"]))] = draw(
+                st.sampled_from(values)
+            )
+        else:
+            out[key] = _mutate_document(draw, value[key], values, depth + 1)
+        return out
+    if isinstance(value, list) and value and depth < 8 and draw(st.integers(0, 4)):
+        out_list = list(value)
+        k = draw(st.integers(0, len(value) - 1))
+        op = draw(st.integers(0, 9))
+        if op == 0:
+            del out_list[k]
+        elif op == 1:
+            out_list.append(value[k])
+        else:
+            out_list[k] = _mutate_document(draw, value[k], values, depth + 1)
+        return out_list
+    return draw(st.sampled_from(values))
+
+
+@st.composite
+def mutated_toml(draw: Any, seed: bytes) -> bytes:
+    """A TOML document with 1-4 values changed structurally (parsed, changed, written back)."""
+    import tomllib
+
+    import tomli_w
+
+    try:
+        document = tomllib.loads(seed.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return seed
+    for _ in range(draw(st.integers(1, 4))):
+        document = _mutate_document(draw, document, TOML_VALUES)
+    try:
+        return tomli_w.dumps(document).encode("utf-8")
+    except Exception:  # a shape TOML cannot write (a table inside an inline array, ...): keep the seed
+        return seed
+
+
+def mutated_json(draw: Any, seed: bytes) -> bytes:
+    """A JSON document with 1-4 values changed structurally (NaN and infinities written as JSON allows)."""
+    try:
+        document = json.loads(seed)
+    except ValueError:
+        return seed
+    for _ in range(draw(st.integers(1, 4))):
+        document = _mutate_document(draw, document, JSON_VALUES + TOML_VALUES)
+    return json.dumps(document).encode("utf-8")

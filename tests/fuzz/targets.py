@@ -27,7 +27,16 @@ from pathlib import Path
 from typing import Any
 
 from hypothesis import strategies as st
-from mutate import MTL_TOKENS, OBJ_TOKENS, SIMLOG_TOKENS, TOML_TOKENS, mutated_bytes, mutated_pack
+from mutate import (
+    MTL_TOKENS,
+    OBJ_TOKENS,
+    SIMLOG_TOKENS,
+    TOML_TOKENS,
+    mutated_bytes,
+    mutated_json,
+    mutated_pack,
+    mutated_toml,
+)
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures"
@@ -157,6 +166,8 @@ def _scene_strategy(seeds: list[Files]) -> Any:
     @st.composite
     def inputs(draw: Any) -> Files:
         name, data = next(iter(draw(st.sampled_from(seeds)).items()))
+        if draw(st.booleans()):  # values changed in a document that still parses: reaches the loader's checks
+            return {f"scenes/{name}": draw(mutated_toml(data))}
         return {f"scenes/{name}": draw(mutated_bytes(data, TOML_TOKENS))}
 
     return inputs()
@@ -202,10 +213,12 @@ def _simlog_strategy(seeds: list[Files]) -> Any:
     def inputs(draw: Any) -> Files:
         data = draw(st.sampled_from(seeds))["run.simlog"]
         # the header is JSON after 16 bytes: mutate it as text half of the time, the records otherwise
-        if len(data) > 16 and draw(st.booleans()):
+        if len(data) > 16 and draw(st.integers(0, 2)):
             length = int.from_bytes(data[12:16], "little")
-            header = draw(mutated_bytes(data[16 : 16 + length], SIMLOG_TOKENS, 4))
-            fix = draw(st.booleans())
+            original = data[16 : 16 + length]
+            structured = draw(st.booleans())
+            header = mutated_json(draw, original) if structured else draw(mutated_bytes(original, SIMLOG_TOKENS, 4))
+            fix = structured or draw(st.booleans())
             size = len(header).to_bytes(4, "little") if fix else data[12:16]
             return {"run.simlog": data[:12] + size + header + data[16 + length :]}
         return {"run.simlog": draw(mutated_bytes(data, SIMLOG_TOKENS, 6))}
