@@ -8,13 +8,13 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import trimesh
-from PIL import Image
 
 from meshtool import __version__
+from meshtool.errors import PackFormatError
 from meshtool.obj.mtl import Material, TextureMap, format_mtl
 from meshtool.outdir import stamp_glb
 from meshtool.packfile.read import PackedMesh
+
 
 
 def _floats(values: npt.NDArray[np.float32]) -> list[str]:
@@ -112,6 +112,9 @@ def to_glb(packed: PackedMesh) -> bytes:
     Vertex data stays in metres, Z-up, exactly as packed; each node carries :data:`Z_UP_TO_Y_UP`, so
     viewers that follow glTF's +Y-up show the asset standing upright.
     """
+    import trimesh  # trimesh and Pillow load on first use (meshtool's start-up stays light)
+    from PIL import Image, UnidentifiedImageError
+
     scene = trimesh.Scene()
     positions = np.asarray(packed.positions, dtype=np.float64)
     indices = np.asarray(packed.indices, dtype=np.int64)
@@ -128,7 +131,11 @@ def to_glb(packed: PackedMesh) -> bytes:
         if texture is not None and packed.uvs is not None:
             index = int(texture["texture"])
             if index not in images:
-                image = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
+                try:
+                    image = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
+                except (OSError, ValueError, SyntaxError, EOFError, Image.DecompressionBombError) as exc:
+                    why = "unknown image format" if isinstance(exc, UnidentifiedImageError) else str(exc)
+                    raise PackFormatError(f"texture {index} is not a readable PNG ({why})", hint="re-pack it") from None
                 image.info.clear()  # no iCCP/gAMA/cHRM/sRGB chunks: glTF images are sRGB by definition
                 images[index] = image
             image = images[index]
