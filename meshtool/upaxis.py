@@ -32,8 +32,8 @@ FloatArray = npt.NDArray[np.float64]
 
 _Z_NAME = re.compile(r"(?:^|[^a-z0-9])z[-_ ]?up(?:[^a-z0-9]|$)", re.IGNORECASE)
 _Y_NAME = re.compile(r"(?:^|[^a-z0-9])y[-_ ]?up(?:[^a-z0-9]|$)", re.IGNORECASE)
-_HEADER_Z = re.compile(r"\bup[-_ ]?axis\W*\+?z\b|\+?z[-_ ]?up\b|\bup\W*[:=]\s*\+?z\b", re.IGNORECASE)
-_HEADER_Y = re.compile(r"\bup[-_ ]?axis\W*\+?y\b|\+?y[-_ ]?up\b|\bup\W*[:=]\s*\+?y\b", re.IGNORECASE)
+_HEADER_Z = re.compile(r"\bup[-_ ]?axis\W*\+?z\b|(?<![a-z0-9])\+?z[-_ ]?up\b|\bup\s*[:=]\s*\+?z\b", re.IGNORECASE)
+_HEADER_Y = re.compile(r"\bup[-_ ]?axis\W*\+?y\b|(?<![a-z0-9])\+?y[-_ ]?up\b|\bup\s*[:=]\s*\+?y\b", re.IGNORECASE)
 #: Exporters whose OBJ output is Y-up by default (word in the header comment -> name).
 Y_UP_EXPORTERS = {"blender": "Blender", "maya": "Maya", "3ds max": "3ds Max", "wings 3d": "Wings 3D"}
 #: Thin axis / smaller of the two others below which a mesh is "flat" in that axis.

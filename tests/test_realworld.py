@@ -324,3 +324,29 @@ def test_a_changed_consumer_file_makes_the_mbin_stale(tmp_path):
     with load(out) as packed:
         consumers = [(s["role"], s["path"]) for s in packed.meta["sources"] if s["role"] == "consumer"]
         assert consumers == [("consumer", "../model.sdf")]
+
+
+@pytest.mark.parametrize(
+    ("header", "up", "rule"),
+    [
+        (["Exported with Up axis: Z"], "z", "header"),
+        (["+Y up"], "y", "header"),
+        (["everybody up"], "y", "default"),
+        (["Blender v2.79 (sub 0) OBJ File: ''"], "y", "exporter"),
+    ],
+)
+def test_header_comments_as_evidence(tmp_path, header, up, rule):
+    from meshtool.upaxis import decide_up
+
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    decision = decide_up(tmp_path / "m.obj", points, header, [], None)
+    assert (decision.up, decision.rule) == (up, rule)
+
+
+def test_header_units_are_evidence_but_not_applied():
+    from meshtool.units import header_unit, unit_evidence
+
+    header = ["This file uses centimeters as units for non-parametric coordinates."]
+    assert header_unit(header) == "cm" and header_unit(["Blender 4.1.1"]) is None
+    evidence = unit_evidence([], header)
+    assert evidence is not None and evidence.source == "header" and evidence.unit == "cm"
