@@ -8,8 +8,12 @@ instead of blocking it.
 from __future__ import annotations
 
 import faulthandler
+import os
+import subprocess
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -371,3 +375,27 @@ def test_cli_answers_every_attack_with_one_error_line_or_a_finding(tmp_path, mon
         if attack == "mtlnan" and command == "normalize":
             written = (tmp_path / "out" / "mtlnan" / "mtlnan.mtl").read_text().lower().splitlines()
             assert written[1:] == ["", "newmtl a"]  # the bad Kd dropped: the default colour
+
+
+def test_installed_commands_on_the_hang_and_the_qhull_attack(tmp_path):
+    """The console scripts themselves (not click's runner): exit codes and stderr as a user sees them."""
+    bin_dir = Path(sys.executable).parent
+    hang = write_obj(tmp_path, "hang.obj", TRIANGLE + cycling_face(10_000))
+    huge = write_obj(tmp_path, "huge.obj", tetra("v 1e308 0 0", "v -1e308 0 0", "v 0 0 1e308"))
+    env = {k: v for k, v in os.environ.items() if k != "MESHTOOL_DEBUG"}
+    runs = [
+        ([bin_dir / "meshtool", "normalize", hang, "-o", tmp_path / "out"], 0, None),
+        ([bin_dir / "obj2bin", hang, "-o", tmp_path / "hang.mbin"], 0, None),
+        ([bin_dir / "meshtool", "normalize", huge, "-o", tmp_path / "out2"], 1, "error: huge.obj:1: "),
+        ([bin_dir / "obj2bin", huge, "-o", tmp_path / "huge.mbin"], 1, "error: huge.obj:1: "),
+    ]
+    for args, code, error in runs:
+        done = subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=120, env=env)
+        assert done.returncode == code, done.stderr
+        assert "Traceback" not in done.stderr + done.stdout
+        errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+        if error is None:
+            assert errors == []
+        else:
+            assert len(errors) == 1 and errors[0].startswith(error), errors
+    assert not (tmp_path / "huge.mbin").exists()

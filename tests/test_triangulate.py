@@ -1,5 +1,7 @@
 import numpy as np
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from meshtool.obj.parse import parse_obj
 from meshtool.obj.triangulate import triangulate_polygons
@@ -164,3 +166,25 @@ def test_ear_clipping_budget_fans_large_concave_polygons_once_spent(monkeypatch)
     assert tri.over_budget.tolist() == [1, 2] and tri.fanned.size == 0
     areas, _ = areas_and_normals(positions, corner_v[tri.corners])
     np.testing.assert_allclose(areas[tri.face == 0].sum(), shoelace(points), rtol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    radii=st.lists(st.floats(0.05, 1.0), min_size=33, max_size=400),
+    jitter=st.floats(0.0, 0.45),
+    axis=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(0.1, 1)),
+    seed=st.integers(0, 2**16),
+)
+def test_simple_star_shaped_polygons_keep_their_area_and_winding(radii, jitter, axis, seed):
+    """Star-shaped polygons (simple by construction) over the checked path: never fanned, area by shoelace."""
+    n = len(radii)
+    rng = np.random.default_rng(seed)
+    angles = 2 * np.pi * (np.arange(n) + jitter * rng.uniform(-1, 1, n)) / n
+    ring = np.stack([np.cos(angles), np.sin(angles)], axis=1) * np.asarray(radii)[:, None]
+    rot = trimesh.geometry.align_vectors([0, 0, 1], np.asarray(axis) / np.linalg.norm(axis))[:3, :3]
+    positions = flat(ring) @ rot.T
+    tri = triangulate_polygons(positions, np.array([n]), np.arange(n))
+    assert tri.fanned.size == 0 and tri.over_budget.size == 0
+    areas, cross = areas_and_normals(positions, tri.corners)
+    np.testing.assert_allclose(areas.sum(), shoelace(ring), rtol=1e-9)
+    assert (cross @ (rot @ [0, 0, 1]) >= -1e-12).all()  # every triangle faces like the polygon
