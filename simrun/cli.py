@@ -22,11 +22,12 @@ from simrun.doctor import check_environment
 from simrun.errors import SimrunError
 from simrun.glb_export import export_world_glb
 from simrun.mjcf_builder import export_world_mjcf
-from simrun.outfile import check_output, output_policy, write_bytes
-from simrun.play import PythonController, encode_gif, encode_mp4, load_commands, play
+from simrun.outfile import output_policy, write_bytes
+from simrun.play import encode_gif, encode_mp4
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
-from simrun.simlog import Recorder, Simlog, check_model, check_scene, replay_states, resimulate
+from simrun.session import PlayOptions, run_play, run_resim
+from simrun.simlog import Simlog, check_model, check_scene, replay_states
 from simrun.teleop import run_viewer
 from simrun.usd_export import export_world_usd
 
@@ -252,22 +253,22 @@ def play_command(
 ) -> None:
     """Run SCENE headless: timed commands, optional video or frames, and a summary."""
     width, height = _size(size)
+    chosen = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
+    options = PlayOptions(
+        duration,
+        commands_file,
+        video,
+        frames_dir,
+        render_mode,
+        camera,
+        (width, height),
+        fps,
+        realtime,
+        record,
+        seed,
+        chosen,
+    )
     with _guard(), output_policy(force, [scene, commands_file]):
-        for target in (video, record):  # the .mp4 and .simlog writers do not go through write_bytes
-            if target is not None:
-                check_output(target)
-        world = load_scene(scene)
-        python = commands_file is not None and commands_file.suffix == ".py"
-        commands = load_commands(commands_file) if commands_file and not python else []
-        mode = render_mode or ("visual" if video or frames_dir else "none")
-        frames: list[Any] = []
-        sink = None
-        if mode != "none":
-            world.compile()
-            renderer = FrameRenderer(world.model, width, height, mode, camera, world.data)
-            sink = lambda data: frames.append(renderer.render(data))  # noqa: E731
-        elif video or frames_dir:
-            raise SimrunError("render mode 'none' cannot write video or frames")
         bar = None
         if sys.stdout.isatty() and not as_json:
             bar = click.progressbar(length=int(duration * 1000), label="simulating")
@@ -280,37 +281,9 @@ def play_command(
                 bar.update(now - done[0])
                 done[0] = now
 
-        _bind_services(world)  # every bound service exists from the start, before a recorder (which must come last)
-        if python:
-            assert commands_file is not None
-            PythonController(world, commands_file)
-        if seed is not None:
-            for k, sensor in enumerate(world.sensors.values()):
-                sensor.reseed(seed + k)
-        chosen = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
-        recorder = None
-        if record:
-            controller = commands_file if python else None
-            recorder = Recorder(world, record, scene, commands, seed=seed or 0, sensors=chosen, controller=controller)
-        try:
-            result = play(world, duration, commands, sink, fps, realtime, progress)
-        finally:
-            if recorder is not None:
-                recorder.close()
+        result = run_play(scene, options, progress)
         if bar is not None:
             bar.__exit__(None, None, None)
-        if video is not None:
-            if video.suffix.lower() == ".gif":
-                write_bytes(video, encode_gif(frames, fps))
-            elif video.suffix.lower() == ".mp4":
-                encode_mp4(frames, fps, video)
-            else:
-                raise SimrunError(f"{video}: video must end in .gif or .mp4")
-        if frames_dir is not None:
-            for k, frame in enumerate(frames):
-                buffer = io.BytesIO()
-                Image.fromarray(frame).save(buffer, format="PNG")
-                write_bytes(frames_dir / f"frame_{k:05d}.png", buffer.getvalue())
     summary = result.to_dict()
     if as_json:
         click.echo(json.dumps(summary))
@@ -382,37 +355,10 @@ def resim(log: Path, start: float, controller: Path | None) -> None:
     relative to the recording, so this works from any folder.
     """
     with _guard():
-        recording = Simlog(log)
-        recorded = recording.controller_sha256()
-        if recording.header["controller"] is not None and controller is None:
-            raise SimrunError(
-                f"{log}: the run used the controller {recording.header['controller']!r}; give that file with "
-                "--controller PATH (it runs only if its SHA-256 matches the recording)"
-            )
-        if controller is not None and recording.header["controller"] is None:
-            raise SimrunError(f"{log}: the recorded run used no controller; leave out --controller")
-        if controller is not None and recorded is None:
-            raise SimrunError(f"{log}: the recording holds no controller SHA-256 to check {controller} against")
-        scene = recording.scene_path()
-        check_scene(recording, scene)
-        world = load_scene(scene)
-        check_model(recording, world)
-        _bind_services(world)
-        if controller is not None:
-            PythonController(world, controller, sha256=recorded)
-        compared, mismatch = resimulate(world, recording, start)
-        recording.close()
+        compared, mismatch = run_resim(log, start, controller)
         if mismatch is not None:
             raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
     click.echo(f"{log}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
-
-
-def _bind_services(world: Any) -> None:
-    """Create every bound service in scene order (play and resim create the same ones); check every binding.
-
-    Errors name the scene file and line of the binding.
-    """
-    world.check_bindings()
 
 
 @main.command("view")

@@ -18,6 +18,7 @@ import numpy as np
 from PIL import Image
 
 from simrun.commands import Command, check_commands, load_commands
+from simrun.drive import DifferentialDrive
 from simrun.errors import SimrunError
 from simrun.safeio import FileReadError, read_regular
 from simrun.world import World
@@ -122,6 +123,13 @@ class PlayResult:
         }
 
 
+#: Simulated seconds between the samples of a robot's position that the reported distance adds up
+#: (a fixed grid counted in physics steps from the start of the run: rendering never moves it).
+DISTANCE_PERIOD = 0.02
+#: Longest stretch stepped between two looks at the clock (progress, real-time pacing), seconds.
+CHUNK_SECONDS = 0.1
+
+
 def play(
     world: World,
     duration: float,
@@ -132,6 +140,10 @@ def play(
     progress: Any = None,
 ) -> PlayResult:
     """Run ``world`` for ``duration`` simulated seconds.
+
+    Rendering never changes what is simulated or reported: commands are applied, and robot positions
+    sampled for the distance (every :data:`DISTANCE_PERIOD` s), at the first physics step where they are
+    due, whatever frames are taken in between; a frame is taken at the first step at or after its time.
 
     Args:
         world: The world (compiled on demand).
@@ -152,42 +164,58 @@ def play(
     check_commands(world, list(commands or []))
     model, data = world.model, world.data
     pending = list(commands or [])
-    robots = {name: np.array(world.body(name).xpos) for name, e in world if e.TYPE in _ROBOT_TYPES}
+    robots = {name: np.array(world.body(name).xpos) for name, e in world if isinstance(e, DifferentialDrive)}
     travelled = dict.fromkeys(robots, 0.0)
     start_wall = time.perf_counter()
-    start_steps = 0
-    end = data.time + duration
+    dt = model.opt.timestep
+    total = round(duration / dt)  # as World.run
+    sample_every = max(1, round(DISTANCE_PERIOD / dt))
+    chunk = max(1, round(CHUNK_SECONDS / dt))
     frame_period = 1.0 / fps if frame_sink else math.inf
     next_frame = data.time
-    frames = 0
-    dt = model.opt.timestep
-    while data.time < end - 0.5 * dt:
+    frames = done = 0
+    start_time = data.time
+    while done < total:
         while pending and pending[0].t <= data.time + 0.5 * dt:
             pending.pop(0).apply(world)
         if frame_sink and data.time + 0.5 * dt >= next_frame:
             frame_sink(data)
             frames += 1
-            next_frame += frame_period
-        chunk_end = min(end, next_frame, pending[0].t if pending else end, data.time + 0.1)
-        steps = max(1, round((chunk_end - data.time) / dt))
-        world.step(steps)
-        start_steps += steps
-        for name, previous in robots.items():
-            now = np.array(world.body(name).xpos)
-            travelled[name] += float(np.linalg.norm(now[:2] - previous[:2]))
-            robots[name] = now
+            while next_frame <= data.time + 0.5 * dt:
+                next_frame += frame_period
+        limit = min(total - done, sample_every - done % sample_every, chunk)
+        if pending:
+            limit = min(limit, max(1, _steps_until(data.time, dt, pending[0].t, limit)))
+        if frame_sink:
+            limit = min(limit, max(1, _steps_until(data.time, dt, next_frame, limit)))
+        world.step(limit)
+        done += limit
+        if done % sample_every == 0 or done == total:
+            for name, previous in robots.items():
+                now = np.array(world.body(name).xpos)
+                travelled[name] += float(np.linalg.norm(now[:2] - previous[:2]))
+                robots[name] = now
         if realtime:
-            ahead = (data.time - (end - duration)) - (time.perf_counter() - start_wall)
+            ahead = (data.time - start_time) - (time.perf_counter() - start_wall)
             if ahead > 0:
                 time.sleep(ahead)
         if progress is not None:
-            progress(data.time)
+            progress(data.time - start_time)
     wall = time.perf_counter() - start_wall
     samples = {name: int(sensor.samples) for name, sensor in world.sensors.items()}
-    return PlayResult(float(duration), wall, start_steps, frames, travelled, samples, world.warnings())
+    return PlayResult(float(duration), wall, total, frames, travelled, samples, world.warnings())
 
 
-_ROBOT_TYPES = {"DifferentialDrive", "BoeBot", "Pioneer3DX", "IRobotCreate", "LegoNxtTribot"}
+def _steps_until(now: float, dt: float, target: float, limit: int) -> int:
+    """Steps after which ``target`` is due (``time + dt/2 >= target``), at most ``limit``.
+
+    Time is added step by step as MuJoCo adds it, so the step found is the one the clock check finds.
+    """
+    steps = 0
+    while steps < limit and now + 0.5 * dt < target:
+        now += dt
+        steps += 1
+    return steps
 
 
 def encode_gif(frames: list[np.ndarray], fps: float) -> bytes:
