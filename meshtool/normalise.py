@@ -32,6 +32,7 @@ from meshtool.obj.write import format_obj
 from meshtool.outdir import write_folder
 from meshtool.resolve import Resolution, Resolver, printable
 from meshtool.smallparts import fix_small_parts
+from meshtool.texroles import tag_textures
 from meshtool.textures import to_png
 from meshtool.units import UNIT_FACTORS, apply_scale, rotation_matrix, scale_findings, to_z_up, unit_scale
 
@@ -243,6 +244,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
             mesh, library, resolver, source_name, findings, resolutions, sources, files
         )
         findings.extend(f for m in out_materials if (f := opaque_if_invisible(m, source_name)) is not None)
+        tag_textures(out_materials, files)  # colour maps sRGB, data maps linear, in the PNG itself
     else:  # no mtllib and no usemtl: a plain mesh, no MTL written
         out_materials, textures = [], []
     stats = _stats(mesh, len(out_materials), len(textures))

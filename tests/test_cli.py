@@ -4,6 +4,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from PIL import Image
 
 from meshtool.cli import main
 
@@ -148,4 +149,6 @@ def test_search_path_lets_references_leave_the_asset_folder(run, fixtures, tmp_p
     allowed = run("normalize", asset / "m.obj", "-o", tmp_path / "b", "--json", "--search-path", shared)
     report = json.loads(allowed.stdout)
     assert report["stats"]["textures"] == 1
-    assert (tmp_path / "b" / "m" / "wood.png").read_bytes() == (shared / "wood.png").read_bytes()
+    written, source = (Image.open(p) for p in (tmp_path / "b" / "m" / "wood.png", shared / "wood.png"))
+    assert written.tobytes() == source.tobytes()  # same pixels; the PNG gains an sRGB chunk (a colour map)
+    assert written.info.get("srgb") == 0

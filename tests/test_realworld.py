@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import shutil
 from pathlib import Path
@@ -350,3 +351,34 @@ def test_header_units_are_evidence_but_not_applied():
     assert header_unit(header) == "cm" and header_unit(["Blender 4.1.1"]) is None
     evidence = unit_evidence([], header)
     assert evidence is not None and evidence.source == "header" and evidence.unit == "cm"
+
+
+def test_colour_maps_are_tagged_srgb_and_mujoco_reads_them_so(tmp_path):
+    from PIL import Image
+
+    from meshtool.mjcf import build_mjcf
+
+    asset = normalise(RW / "normal_maps" / "tile.obj")
+    tags = {name: Image.open(io.BytesIO(data)).info.get("srgb") for name, data in asset.textures.items()}
+    assert tags == {
+        "tile_albedo.png": 0,
+        "tile_bump.png": None,
+        "tile_normal.png": None,
+        "tile_disp.png": None,
+        "tile_rough.png": None,
+    }
+    for name, data in asset.textures.items():  # pixels untouched
+        source = Image.open(RW / "normal_maps" / name)
+        assert Image.open(io.BytesIO(data)).tobytes() == source.tobytes()
+    convert(RW / "normal_maps" / "tile.obj", tmp_path / "tile.mbin", ConvertOptions())
+    with load(tmp_path / "tile.mbin") as packed:
+        files = build_mjcf(packed, "tile")
+    folder = tmp_path / "mjcf"
+    folder.mkdir()
+    for name, data in files.items():
+        (folder / name).write_bytes(data)
+    model = mujoco.MjModel.from_xml_path(str(folder / "tile.xml"))
+    spaces = {model.texture(k).name: int(model.tex_colorspace[k]) for k in range(model.ntex)}
+    srgb, linear = int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB), int(mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)
+    assert {n: s for n, s in spaces.items() if "albedo" in n} == {"tile_tile_albedo": srgb}
+    assert all(s == linear for n, s in spaces.items() if "albedo" not in n) and len(spaces) == 5
