@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-import trimesh
 
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, info, warning
@@ -127,7 +126,8 @@ def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, I
         MeshtoolError: When a coordinate is not finite or beyond :data:`MAX_HULL_COORDINATE` (code
             ``hull-input``): no hull of such points exists in float64.
     """
-    from scipy.spatial import QhullError  # scipy loads on first use, as in _qhull_subset
+    import trimesh  # trimesh and scipy load on first use (meshtool's start-up stays light)
+    from scipy.spatial import QhullError
 
     pts = np.unique(np.asarray(points, dtype=np.float64), axis=0)
     if pts.size and not (np.abs(pts) <= MAX_HULL_COORDINATE).all():
@@ -165,6 +165,8 @@ def _box(pts: FloatArray, thickness: float) -> tuple[FloatArray, IntArray]:
     lo = pts.min(axis=0) if len(pts) else np.zeros(3)
     hi = pts.max(axis=0) if len(pts) else np.zeros(3)
     centre, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, thickness / 2)
+    import trimesh
+
     box = trimesh.creation.box(extents=2 * half)
     return np.asarray(box.vertices, dtype=np.float64) + centre, np.asarray(box.faces, dtype=np.int64)
 
@@ -342,10 +344,11 @@ def hull_fit(
     report: dict[str, object] = {"hulls": len(hulls), "vertices_per_hull": [len(h.vertices) for h in hulls]}
     if not hulls or faces.shape[0] == 0:
         return report
-    surface = trimesh.Trimesh(positions, faces, process=False)
-    volume = float(abs(surface.volume)) if surface.is_watertight else None
-    hull_volume = float(sum(trimesh.Trimesh(h.vertices, h.faces, process=False).volume for h in hulls))
-    points, _ = trimesh.sample.sample_surface(surface, samples, seed=seed)
+    from meshtool import surface  # trimesh's formulas without trimesh's import cost (bit-identical)
+
+    volume = float(abs(surface.volume(positions, faces))) if surface.is_watertight(faces) else None
+    hull_volume = float(sum(surface.volume(h.vertices, h.faces) for h in hulls))
+    points = surface.sample_surface(positions, faces, samples, seed)
     distance = np.full(len(points), np.inf)
     for h in hulls:
         distance = np.minimum(distance, _outside_distance(points, h))

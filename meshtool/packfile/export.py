@@ -16,7 +16,6 @@ from meshtool.outdir import stamp_glb
 from meshtool.packfile.read import PackedMesh
 
 
-
 def _floats(values: npt.NDArray[np.float32]) -> list[str]:
     """Shortest text that reads back to the same float32 for every value."""
     return [np.format_float_positional(v, unique=True, trim="-") if v != 0 else "0" for v in values.reshape(-1)]

@@ -5,19 +5,20 @@ from __future__ import annotations
 import json
 import zlib
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-import trimesh
 
-from meshtool import __version__
+from meshtool import __version__, surface
 from meshtool.errors import PackFormatError
-from meshtool.hulls import Hull
-from meshtool.normalise import NormalisedAsset
-from meshtool.obj.mtl import Material
 from meshtool.packfile import format as fmt
 from meshtool.packfile.encode import max_angle_deg, oct_decode, oct_encode, quantize_box, render_mesh
+
+if TYPE_CHECKING:
+    from meshtool.hulls import Hull
+    from meshtool.normalise import NormalisedAsset
+    from meshtool.obj.mtl import Material
 
 
 @dataclass(slots=True)
@@ -247,20 +248,22 @@ def _materials(materials: list[Material], textures: list[str]) -> list[dict[str,
 
 
 def _mass_properties(positions: npt.NDArray[np.float64], indices: npt.NDArray[np.int64]) -> dict[str, Any]:
-    """Bounding box, area, and (for unit density, kg/m^3) volume, centre of mass and inertia, via trimesh."""
+    """Bounding box, area, and (for unit density, kg/m^3) volume, centre of mass and inertia.
+
+    Computed by :mod:`meshtool.surface` (bit-identical to trimesh's ``mass_properties``).
+    """
     if indices.shape[0] == 0:
         return {"area_m2": 0.0, "watertight": False}
-    mesh = trimesh.Trimesh(vertices=positions, faces=indices, process=False, validate=False)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        props = mesh.mass_properties
-    volume = float(props["volume"])
-    com = [_finite(x) for x in props["center_mass"]]
+    tris = surface.triangles(positions, indices)
+    cross = surface.crosses(tris)
+    props = surface.mass_properties(tris, cross)
+    com = [_finite(x) for x in props.center_mass]
     return {
-        "area_m2": float(mesh.area),
-        "watertight": bool(mesh.is_watertight),
-        "volume_m3": volume,
+        "area_m2": float(surface.face_areas(cross).sum()),
+        "watertight": surface.is_watertight(indices),
+        "volume_m3": props.volume,
         "center_of_mass_m": com if all(c is not None for c in com) else None,
-        "inertia_unit_density_kg_m2": [[_finite(x) for x in row] for row in props["inertia"]],
+        "inertia_unit_density_kg_m2": [[_finite(x) for x in row] for row in props.inertia],
         "note": "volume, centre of mass and inertia are only meaningful when watertight (null: zero volume)",
     }
 

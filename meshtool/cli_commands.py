@@ -1,0 +1,563 @@
+"""The ``meshtool`` commands (the group and its lazy loading live in :mod:`meshtool.cli`).
+
+Each command turns its options into the library's frozen options dataclass, calls the library, and maps
+the outcome to output and an exit code (see :mod:`meshtool.cli`). Modules only one command needs (MJCF,
+URDF, GLB/USD export) are imported by that command.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import click
+
+from meshtool import __version__
+from meshtool.changes import split_findings
+from meshtool.cli_common import exit_on_bug
+from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
+from meshtool.errors import MeshtoolError, OptionsError, PackFormatError
+from meshtool.findings import Finding, Severity
+from meshtool.hulls import MODES, PRESETS, HullOptions, compute_hulls, quality
+from meshtool.mesh import safe_identifier
+from meshtool.normalise import NormaliseOptions, normalise_to, prepare, safe_file_stem
+from meshtool.outdir import check_output, overwrite_allowed, write_folder, write_output
+from meshtool.packfile import load
+from meshtool.resolve import find_files
+from meshtool.units import UNIT_FACTORS
+
+EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+
+force_option = click.option(
+    "--force",
+    is_flag=True,
+    help="Replace an existing output that meshtool did not write (an input is never replaced).",
+)
+
+
+def normalise_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """The normaliser's options, shared by ``meshtool normalize`` and ``obj2bin``."""
+    decorators = [
+        click.option(
+            "--units",
+            type=click.Choice([*UNIT_FACTORS, "auto"]),
+            default=None,
+            help="Unit the source was modelled in (default m); auto: what a URDF/SDF/MJCF using the mesh says.",
+        ),
+        click.option("--scale", type=float, default=1.0, show_default=True, help="Extra uniform scale after --units."),
+        click.option(
+            "--up",
+            type=click.Choice(["auto", "y", "z"]),
+            default="auto",
+            show_default=True,
+            help="Up axis of the source: y (rotated to Z-up), z (kept) or auto (from evidence; see docs/findings.md).",
+        ),
+        click.option(
+            "--search-path",
+            "search_paths",
+            multiple=True,
+            type=click.Path(path_type=Path, file_okay=False),
+            help="Extra folder where MTL and texture references may resolve (repeatable).",
+        ),
+        click.option("--strict", is_flag=True, help="Fail (exit 1) instead of writing when there are warnings."),
+        click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of text."),
+    ]
+    for decorator in reversed(decorators):
+        func = decorator(func)
+    return func
+
+
+def hull_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Collision-hull options of ``obj2bin``."""
+    decorators = [
+        click.option(
+            "--hulls",
+            "hull_mode",
+            type=click.Choice(list(MODES)),
+            default="convex",
+            show_default=True,
+            help="none; convex (one hull); decompose (CoACD per part); objects (one hull per o/g part).",
+        ),
+        click.option(
+            "--preset",
+            type=click.Choice(list(PRESETS)),
+            default=None,
+            help="Budgets for an engine: mujoco (32 hulls x 64 vertices), mjx (8 x 32), physx-gpu (16 x 64).",
+        ),
+        click.option("--max-hulls", type=click.IntRange(1, 4096), default=None, help="Most hulls per part."),
+        click.option(
+            "--max-hull-vertices",
+            type=click.IntRange(4, 100000),
+            default=None,
+            help="Most vertices per hull (default 64).",
+        ),
+        click.option(
+            "--min-thickness",
+            type=float,
+            default=0.001,
+            show_default=True,
+            help="Smallest hull thickness in metres (capped at 5 % of the part's size).",
+        ),
+        click.option("--merge-parts", is_flag=True, help="Decompose the whole mesh at once, not part by part."),
+        click.option("--threshold", type=float, default=0.05, show_default=True, help="CoACD concavity threshold."),
+        click.option(
+            "--timeout",
+            "timeout_s",
+            type=float,
+            default=300.0,
+            show_default=True,
+            help="Seconds one CoACD run may take.",
+        ),
+        click.option(
+            "--time-budget",
+            "time_budget_s",
+            type=click.FloatRange(min=0, min_open=True),
+            default=180.0,
+            show_default=True,
+            help="Seconds all CoACD runs of one asset may take; parts left then get their convex hull.",
+        ),
+        click.option(
+            "--cache-dir",
+            type=click.Path(path_type=Path, file_okay=False),
+            default=None,
+            help="Decomposition cache (default: the user cache folder).",
+        ),
+        click.option("--no-cache", is_flag=True, help="Do not read or write the decomposition cache."),
+    ]
+    for decorator in reversed(decorators):
+        func = decorator(func)
+    return func
+
+
+def _normalise_options(kw: dict[str, Any], **overrides: Any) -> NormaliseOptions:
+    """Build :class:`NormaliseOptions` from the click keywords (removing them from ``kw``), then ``overrides``."""
+    values = {key: kw.pop(key) for key in ("units", "scale", "up", "search_paths", "strict")}
+    values.update(overrides)
+    return NormaliseOptions(**values)
+
+
+def _user_cache() -> Path:
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("meshtool"))
+
+
+def _hull_options(kw: dict[str, Any]) -> HullOptions:
+    """Build :class:`HullOptions` from the click keywords (removing them from ``kw``)."""
+    preset, max_hulls, max_vertices = kw.pop("preset"), kw.pop("max_hulls"), kw.pop("max_hull_vertices")
+    cache_dir, no_cache = kw.pop("cache_dir"), kw.pop("no_cache")
+    values: dict[str, Any] = {
+        "mode": kw.pop("hull_mode"),
+        "min_thickness": kw.pop("min_thickness"),
+        "merge_parts": kw.pop("merge_parts"),
+        "threshold": kw.pop("threshold"),
+        "timeout_s": kw.pop("timeout_s"),
+        "time_budget_s": kw.pop("time_budget_s"),
+        "cache_dir": None if no_cache else (cache_dir or _user_cache() / "hulls"),
+    }
+    if max_hulls is not None:
+        values["max_hulls"] = max_hulls
+    if max_vertices is not None:
+        values["max_hull_vertices"] = max_vertices
+    return HullOptions.preset(preset, **values) if preset else HullOptions(**values)
+
+
+@click.command("normalize")
+@click.argument("src", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder to write NAME/ into (created when missing).",
+)
+@click.option("--name", default=None, help="Output folder and file stem (default: the source stem made safe).")
+@force_option
+@normalise_options
+def normalize(
+    src: Path,
+    out_dir: Path,
+    name: str | None,
+    force: bool,
+    as_json: bool,
+    **normalise_kw: Any,
+) -> None:
+    """Normalise SRC (an OBJ file) into OUTPUT/NAME/: metres, Z-up, PNG textures, safe names."""
+    with _guard(as_json), overwrite_allowed(force):
+        options = _normalise_options(normalise_kw, name=name)
+        folder, asset = normalise_to(src, out_dir, options)
+    if as_json:
+        click.echo(json.dumps(_report("ok", folder, asset.findings, asset.stats)))
+        return
+    stats = asset.stats
+    click.echo(f"wrote {folder}: {_summary(stats)}")
+    _echo_findings(asset.findings)
+
+
+@click.command("obj2bin", context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="obj2bin")
+@click.argument("src", type=click.Path(path_type=Path, exists=True))
+@click.option(
+    "-o",
+    "--output",
+    "out",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="OUT.mbin for a file (default ./STEM.mbin); the output folder for a folder (required).",
+)
+@click.option("--quantize", is_flag=True, help="u16 positions/uvs in their bounding box, octahedral normals.")
+@click.option(
+    "-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes for a folder."
+)
+@force_option
+@normalise_options
+@hull_options
+def obj2bin(
+    src: Path,
+    out: Path | None,
+    quantize: bool,
+    jobs: int,
+    force: bool,
+    as_json: bool,
+    **kw: Any,
+) -> None:
+    """Convert SRC (an OBJ file, or a folder of them) to .mbin: normalised, collision hulls, packed."""
+    with _guard(as_json):
+        options = ConvertOptions(_normalise_options(kw), quantize, _hull_options(kw))
+        if src.is_dir():
+            if out is None:
+                raise OptionsError("a folder needs -o OUTDIR")
+            _convert_folder(src, out, options, jobs, as_json, force)
+            return
+        default_name = f"{safe_file_stem(src.stem) or 'asset'}.mbin"
+        target = out / default_name if out is not None and out.is_dir() else out or Path(default_name)
+        result = convert(src, target, options, force=force)
+    if as_json:
+        click.echo(json.dumps(_report("ok", result.output, result.findings, result.stats)))
+        return
+    click.echo(f"wrote {result.output}: {_summary(result.stats)}, {result.stats['bytes']} bytes")
+    _echo_findings(result.findings)
+
+
+def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as_json: bool, force: bool) -> None:
+    results: list[ConvertResult] = []
+    total = len(tree_jobs(src, out))
+    stream = convert_tree(src, out, options, jobs, force=force)
+    if sys.stdout.isatty() and not as_json:
+        with click.progressbar(stream, length=total, label="converting") as bar:
+            results.extend(bar)
+    else:
+        for k, result in enumerate(stream, start=1):
+            results.append(result)
+            if not as_json:
+                detail = result.error if result.error else str(result.output)
+                click.echo(f"[{k}/{total}] {result.status}: {result.source} -> {detail}")
+    results.sort(key=lambda r: str(r.source))
+    counts = {s: sum(r.status == s for r in results) for s in ("written", "unchanged", "failed")}
+    if as_json:
+        click.echo(
+            json.dumps(
+                {
+                    "status": "error" if counts["failed"] else "ok",
+                    "counts": counts,
+                    "assets": [
+                        {
+                            "source": str(r.source),
+                            "output": str(r.output),
+                            "status": r.status,
+                            "error": r.error,
+                            "findings": [f.to_dict() for f in r.findings],
+                            "stats": r.stats,
+                        }
+                        for r in results
+                    ],
+                }
+            )
+        )
+    else:
+        for r in results:
+            if r.status == "failed":
+                click.echo(f"error: {r.error}", err=True)
+        click.echo(f"{counts['written']} written, {counts['unchanged']} unchanged, {counts['failed']} failed")
+    if counts["failed"]:
+        sys.exit(EXIT_INPUT)
+
+
+@click.command("hulls")
+@click.argument("src", type=click.Path(path_type=Path, dir_okay=False))
+@normalise_options
+@hull_options
+def hulls(src: Path, as_json: bool, **kw: Any) -> None:
+    """Compute the collision hulls of SRC (an OBJ) and report their quality; writes nothing."""
+    with _guard(as_json):
+        strict = bool(kw["strict"])  # here strict judges the hulls, not the normaliser
+        options = _hull_options(kw)
+        asset = prepare(src, _normalise_options(kw, strict=False))
+        result = compute_hulls(asset.mesh, options, src.name)
+        report = quality(asset.mesh, result.hulls)
+        report["cache_hits"] = result.cache_hits
+        if strict and any(f.severity is not Severity.INFO for f in result.findings):
+            raise OptionsError("hull warnings in strict mode", hint="see the findings")
+    if as_json:
+        click.echo(json.dumps({"status": "ok", "hulls": report, "findings": [f.to_dict() for f in result.findings]}))
+        return
+    click.echo(f"{src}: {_hull_summary(report)}")
+    _echo_findings(result.findings)
+
+
+def _hull_summary(report: dict[str, Any]) -> str:
+    text = f"{report.get('hulls')} hull(s), vertices {report.get('vertices_per_hull')}"
+    if report.get("volume_ratio") is not None:
+        text += f", hull/mesh volume {report['volume_ratio']:.2f}"
+    if report.get("surface_to_hulls_max_m") is not None:
+        text += f", surface gap max {report['surface_to_hulls_max_m'] * 1000:.2f} mm"
+    return text
+
+
+@click.command("info")
+@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def info(file: Path, as_json: bool) -> None:
+    """Describe an .mbin file: counts, sections, sizes, checksums and metadata."""
+    from meshtool.packfile.export import describe
+
+    with _guard(as_json):  # everything that reads the file's content, META included, is inside the guard
+        with load(file, verify=True) as packed:
+            summary = describe(packed)
+        text = json.dumps(summary) if as_json else "\n".join(_info_lines(file, summary))
+    click.echo(text)
+
+
+def _info_lines(file: Path, summary: dict[str, Any]) -> list[str]:
+    lines = [
+        f"{file}: mbin {summary['version']}{' quantized' if summary['quantized'] else ''}, "
+        f"{summary['vertices']} vertices, {summary['triangles']} triangles ({summary['index_type']}), "
+        f"{summary['submeshes']} submesh(es), {len(summary['materials'])} material(s), "
+        f"{len(summary['textures'])} texture(s), {summary['hulls']} hull(s)"
+    ]
+    for s in summary["sections"]:
+        shape = "x".join(str(d) for d in s["shape"])
+        lines.append(
+            f"  {s['kind']:<5}{s['index']:>3} {s['dtype']:>5} {shape:>12} at {s['offset']:>10} "
+            f"{s['bytes']:>10} bytes {s['encoding']:>11}  crc {s['crc32']} {s['checksum']}"
+        )
+    meta = summary["meta"]
+    if meta.get("hull_quality"):
+        lines.append(f"  hulls: {_hull_summary(meta['hull_quality'])}")
+    t = meta.get("transform") or {}
+    lines.append(
+        f"  source units {t.get('units')} (x{t.get('unit_scale')}), scale {t.get('scale')}, up {t.get('up')}; "
+        f"tool {(meta.get('tool') or {}).get('version')}"
+    )
+    return lines
+
+
+@click.command("unpack")
+@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder to write NAME/ into.",
+)
+@force_option
+def unpack(file: Path, out_dir: Path, force: bool) -> None:
+    """Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."""
+    from meshtool.packfile.export import unpack_files
+
+    with _guard(False), load(file, verify=True) as packed:
+        name = safe_file_stem(file.stem) or "asset"
+        files = unpack_files(packed, name)
+        files["asset.json"] = (json.dumps(packed.meta, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
+        folder = write_folder(out_dir, name, files, force=force, inputs=[file])
+    click.echo(f"wrote {folder}: {', '.join(sorted(files))}")
+
+
+@click.command("export")
+@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--glb", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write glTF binary.")
+@click.option("--msh", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write MuJoCo MSH.")
+@click.option(
+    "--usd",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="Write USD (.usda/.usdc), PNG textures beside it.",
+)
+@force_option
+def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, force: bool) -> None:
+    """Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."""
+    from meshtool.packfile.export import to_glb, to_msh
+    from meshtool.packfile.usd import export_usd
+
+    if glb is None and msh is None and usd is None:
+        raise click.UsageError("give --glb, --msh and/or --usd")
+    targets = [p for p in (glb, msh, usd) if p is not None]
+    if len({os.path.normcase(os.path.abspath(p)) for p in targets}) != len(targets):
+        raise click.UsageError("--glb, --msh and --usd must name different files")
+    with _guard(False), load(file, verify=True) as packed:
+        for path, kind, make in ((glb, "glb", to_glb), (msh, "msh", to_msh)):
+            if path is not None:
+                data = _made(make, packed, file)
+                write_output(path, data, kind, force=force, inputs=[file])
+                click.echo(f"wrote {path} ({len(data)} bytes)")
+        if usd is not None:
+            check_output(usd, "usd", force=force, inputs=[file])
+            names = list(packed.meta.get("textures", []))
+            for name, texture in zip(names, packed.textures, strict=True):  # the PNGs written beside the USD
+                check_output(usd.parent / name, None, force=force, inputs=[file], data=bytes(texture))
+            written = export_usd(packed, usd, safe_file_stem(file.stem) or "asset")
+            click.echo(f"wrote {', '.join(str(p) for p in written)}")
+
+
+def _made(make: Callable[[Any], bytes], packed: Any, file: Path) -> bytes:
+    """``make(packed)``, with a texture Pillow cannot decode reported as an input error (exit 1).
+
+    Loading verifies a texture's PNG signature only; decoding it is the exporter's first touch of the image.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        return make(packed)
+    except (UnidentifiedImageError, Image.DecompressionBombError, OSError) as exc:
+        raise PackFormatError(
+            f"a texture cannot be decoded as an image ({type(exc).__name__}: {exc})",
+            path=str(file),
+            hint="re-pack the asset from a valid image",
+        ) from None
+
+
+@click.command("mjcf")
+@click.argument("src", type=click.Path(path_type=Path, exists=True))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder to write NAME/ (NAME.xml, meshes, textures) into, per asset.",
+)
+@click.option("--free-joint", is_flag=True, help="Give each body a free joint.")
+@click.option("--density", type=float, default=1000.0, show_default=True, help="Collision density, kg/m^3.")
+@click.option("--mass", type=float, default=None, help="Total body mass in kg (overrides --density).")
+@force_option
+def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float | None, force: bool) -> None:
+    """Write a MuJoCo model for SRC (an .mbin, or a folder searched for .mbin files)."""
+    from meshtool.mjcf import MjcfOptions, build_mjcf
+
+    with _guard(False):
+        options = MjcfOptions(free_joint=free_joint, density=density, mass=mass)
+        sources = find_files(src, ".mbin") if src.is_dir() else [src]
+        if not sources:
+            raise OptionsError(f"no .mbin files under {src}")
+        stems = [safe_file_stem(p.stem) or "asset" for p in sources]
+        clash = next((p for p, n in zip(sources, stems, strict=True) if stems.count(n) > 1), None)
+        if clash is not None:
+            raise OptionsError(f"two .mbin files would both become {safe_file_stem(clash.stem)!r}", hint="rename one")
+        for path in sources:
+            name = safe_file_stem(path.stem) or "asset"
+            with load(path) as packed:
+                files = build_mjcf(packed, name, options)
+            manifest = json.dumps({"source": str(path)}).encode()
+            folder = write_folder(out_dir, name, {**files, "asset.json": manifest}, force=force, inputs=sources)
+            click.echo(f"wrote {folder / (safe_identifier(name, 'asset') + '.xml')}")
+
+
+def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str, ...]) -> tuple[tuple[str, Path], ...]:
+    pairs = []
+    for value in values:
+        name, sep, folder = value.partition("=")
+        if not sep or not name or not folder:
+            raise click.BadParameter(f"expected NAME=DIR, got {value!r}")
+        pairs.append((name, Path(folder)))
+    return tuple(pairs)
+
+
+@click.command("urdf")
+@click.argument("robot", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder for NAME.xml (MJCF), its .msh meshes and PNG textures, and meshes/*.mbin.",
+)
+@click.option(
+    "--package-dir",
+    "package_dirs",
+    multiple=True,
+    callback=_package_dir,
+    help="Folder of a ROS package for package://NAME/... paths, as NAME=DIR (repeatable).",
+)
+@click.option("--actuators", is_flag=True, help="Add a motor per moving joint, limited to its URDF effort.")
+@click.option("--free-base", is_flag=True, help="Give the root link a free joint (mobile robots).")
+@click.option("--allow-outside", is_flag=True, help="Let relative mesh paths leave the robot's package folder.")
+@force_option
+@hull_options
+def urdf(
+    robot: Path,
+    out_dir: Path,
+    package_dirs: tuple[tuple[str, Path], ...],
+    actuators: bool,
+    free_base: bool,
+    allow_outside: bool,
+    force: bool,
+    **hull_kw: Any,
+) -> None:
+    """Import ROBOT (a URDF): every mesh normalised, packed and hulled; an MJCF of the robot."""
+    from meshtool.urdf import UrdfOptions, import_urdf, write_import
+
+    with _guard(False), overwrite_allowed(force):
+        options = UrdfOptions(package_dirs, _hull_options(hull_kw), actuators, free_base, allow_outside)
+        result = import_urdf(robot, options)
+        _echo_findings(result.findings)
+        write_import(result, out_dir)
+        click.echo(
+            f"wrote {out_dir / (result.name + '.xml')}: {len(result.links)} links, {len(result.joints)} moving "
+            f"joints, {len(result.mbins)} mesh(es) in {out_dir / 'meshes'}"
+        )
+
+
+def _summary(stats: dict[str, Any]) -> str:
+    return (
+        f"{stats['vertices']} vertices, {stats['triangles']} triangles, "
+        f"{stats['materials']} material(s), {stats['textures']} texture(s), "
+        f"extent {' x '.join(f'{e:.4g}' for e in stats['bbox']['extent'])} m"
+    )
+
+
+def _report(status: str, output: Path, findings: list[Finding], stats: dict[str, Any]) -> dict[str, Any]:
+    return {"status": status, "output": str(output), "findings": [f.to_dict() for f in findings], "stats": stats}
+
+
+def _echo_findings(findings: list[Finding]) -> None:
+    shown, notes = split_findings(findings)
+    verbose = bool(os.environ.get("MESHTOOL_VERBOSE"))
+    for finding in findings if verbose else shown:
+        click.echo(finding.one_line(), err=True)
+    if notes and not verbose:
+        click.echo(f"note: {len(notes)} more finding(s) that changed nothing (MESHTOOL_VERBOSE=1 shows them)", err=True)
+
+
+@contextlib.contextmanager
+def _guard(as_json: bool) -> Iterator[None]:
+    """Map library errors to exit 1 (one ``error:`` line) and bugs to exit 3."""
+    try:
+        yield
+    except MeshtoolError as exc:
+        click.echo(f"error: {exc.one_line()}", err=True)
+        if as_json:
+            click.echo(
+                json.dumps({"status": "error", "output": None, "error": exc.to_dict(), "findings": [], "stats": None})
+            )
+        sys.exit(EXIT_INPUT)
+    except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
+        exit_on_bug(exc)
