@@ -268,15 +268,19 @@ class DriveService:
 
     def _integrate(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Odometry: integrate the encoder change since the last update (midpoint heading)."""
-        raw = (self._raw_encoders(model, data) - self._encoder_zero) * self.radius
-        dl, dr = raw - self._last
-        self._last = raw
+        ids, qpos, zero, last, radius = self._ids, data.qpos, self._encoder_zero, self._last, self.radius
+        assert ids is not None
+        left = (float(qpos[ids[4]]) - float(zero[0])) * radius
+        right = (float(qpos[ids[5]]) - float(zero[1])) * radius
+        dl, dr = left - float(last[0]), right - float(last[1])
+        last[0], last[1] = left, right
         ds, dtheta = (dl + dr) / 2, (dr - dl) / self.separation
         o = self._odom
         heading = o.theta + dtheta / 2
-        dt = max(float(data.time) - o.time, model.opt.timestep)
+        now = float(data.time)
+        dt = max(now - o.time, model.opt.timestep)
         self._odom = Odometry(
-            float(data.time),
+            now,
             o.x + ds * math.cos(heading),
             o.y + ds * math.sin(heading),
             o.theta + dtheta,
@@ -323,7 +327,8 @@ class DriveService:
         self._cmd_time, self._vel = float(state["cmd_time"]), (state["vel"][0], state["vel"][1])
         self._wheel_targets = (state["wheel_targets"][0], state["wheel_targets"][1])
         self._integral = [float(v) for v in state["integral"]]
-        self._encoder_zero, self._last = np.asarray(state["encoder_zero"]), np.asarray(state["last"])
+        self._encoder_zero = np.asarray(state["encoder_zero"], dtype=float)
+        self._last = np.array(state["last"], dtype=float)
         self._odom = Odometry(*(float(v) for v in state["odom"]))
         self.next_time = float(state["next_time"])
         self._rested = bool(state.get("rested", True))

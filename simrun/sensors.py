@@ -50,11 +50,12 @@ class RayCaster:
             body = model.body(self.entity).id
             if self.exclude == "robot":
                 root = model.body_rootid[body]
-                self._own = model.body_rootid[model.geom_bodyid] == root
+                own = model.body_rootid[model.geom_bodyid] == root
             elif self.exclude == "body":
-                self._own = model.geom_bodyid == body
+                own = model.geom_bodyid == body
             else:
-                self._own = np.zeros(model.ngeom, dtype=bool)
+                own = np.zeros(model.ngeom, dtype=bool)
+            self._own = np.append(own, False)
             self.body, self._model_id = body, id(model)
         return self.body
 
@@ -79,9 +80,9 @@ class RayCaster:
         mujoco.mj_multiRay(model, data, origin, directions, None, 1, skip, geomid, dist, None, n, cutoff)
         if self.exclude != "robot":
             return
-        hits = geomid >= 0
-        own = np.zeros(n, dtype=bool)
-        own[hits] = self._own[geomid[hits]]
+        own = self._own[geomid]  # the mask ends with False, which a miss (-1) indexes
+        if not own.any():
+            return
         for k in np.flatnonzero(own):
             direction = directions[3 * k : 3 * k + 3]
             travelled, gid = float(dist[k]), int(geomid[k])
@@ -243,24 +244,32 @@ class BumperReading:
 
 
 class Bumper(Sensor):
-    """Reports contact between a geom of the entity (default its ``chassis``) and other bodies."""
+    """Reports contact between a geom of the entity (default its ``chassis``) and anything not of its robot.
+
+    The robot is the whole tree of bodies under the bumper's top-level entity (wheels, a mounted arm).
+    """
 
     def __init__(self, world: World, entity: str, geom: str = "chassis", rate: float = 50.0) -> None:
         super().__init__(world, entity, rate)
         self.geom = f"{entity}/{geom}"
+        self._gid, self._own, self._model_id = -1, np.zeros(0, dtype=bool), 0
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> BumperReading:
         """Names of the geoms touching the bumper geom (excluding the robot's own)."""
-        gid = model.geom(self.geom).id
-        prefix = self.entity + "/"
-        touching = []
-        for i in range(data.ncon):
-            c = data.contact[i]
-            if gid in (c.geom1, c.geom2):
-                other = model.geom(c.geom2 if c.geom1 == gid else c.geom1).name
-                if not other.startswith(prefix):
-                    touching.append(other)
-        return BumperReading(float(data.time), bool(touching), tuple(sorted(set(touching))))
+        if self._model_id != id(model):
+            self._gid = model.geom(self.geom).id
+            root = model.body_rootid[model.geom_bodyid[self._gid]]
+            self._own = model.body_rootid[model.geom_bodyid] == root
+            self._model_id = id(model)
+        touching: tuple[str, ...] = ()
+        if data.ncon:
+            pairs = data.contact.geom[: data.ncon]
+            mine = pairs[(pairs[:, 0] == self._gid) | (pairs[:, 1] == self._gid)]
+            if len(mine):
+                others = np.where(mine[:, 0] == self._gid, mine[:, 1], mine[:, 0])
+                others = others[~self._own[others]]
+                touching = tuple(sorted({model.geom(int(g)).name for g in others}))
+        return BumperReading(float(data.time), bool(touching), touching)
 
 
 @dataclass(frozen=True, slots=True)
@@ -286,11 +295,17 @@ class Encoders(Sensor):
     ) -> None:
         super().__init__(world, entity, rate, noise, seed)
         self.joints = tuple(f"{entity}/{j}" for j in joints)
+        self._qpos = self._qvel = np.zeros(0, dtype=np.intp)
+        self._model_id = 0
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> EncoderReading:
         """Angles and velocities of the joints."""
-        angles = np.array([data.joint(j).qpos[0] for j in self.joints])
-        velocities = np.array([data.joint(j).qvel[0] for j in self.joints])
+        if self._model_id != id(model):
+            ids = [model.joint(j).id for j in self.joints]
+            self._qpos, self._qvel = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
+            self._model_id = id(model)
+        angles = data.qpos[self._qpos]
+        velocities = data.qvel[self._qvel]
         return EncoderReading(float(data.time), tuple(self._noisy(angles).tolist()), tuple(velocities.tolist()))
 
 

@@ -283,24 +283,30 @@ class World:
         """
         model, data = self.model, self.data
         dt = model.opt.timestep
-        controllers = self.controllers
+        controllers, hooked, mj_step = self.controllers, self._hooked, mujoco.mj_step
         remaining = n
-        while remaining > 0:
+        while remaining > 0:  # per-step Python kept minimal: a loop of single steps must stay near raw mj_step
+            now = data.time + 0.5 * dt  # ticks do not advance time
             upcoming = math.inf
             for controller in controllers:
-                if data.time + 0.5 * dt >= controller.next_time:
+                due = controller.next_time
+                if now >= due:
                     controller.tick(model, data)
                     period = controller.period or dt
-                    while controller.next_time <= data.time + 0.5 * dt:
-                        controller.next_time += period
-                upcoming = min(upcoming, controller.next_time)
-            if self._hooked:
-                for entity in self._hooked:
+                    while due <= now:
+                        due += period
+                    controller.next_time = due
+                if due < upcoming:
+                    upcoming = due
+            if hooked:
+                for entity in hooked:
                     entity.before_step(model, data)
                 count = 1
+            elif upcoming < math.inf:
+                count = min(remaining, max(1, round((upcoming - data.time) / dt)))
             else:
-                count = min(remaining, max(1, round((upcoming - data.time) / dt))) if upcoming < math.inf else remaining
-            mujoco.mj_step(model, data, count)
+                count = remaining
+            mj_step(model, data, count)
             remaining -= count
 
     def run(self, seconds: float) -> None:
