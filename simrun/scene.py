@@ -430,7 +430,7 @@ def _entity(table: Any, loader: _Loader, where: KeyPath) -> Entity:
     if not isinstance(table, dict):
         raise loader.error("expected a table", where)
     kind = table.get("type")
-    if kind not in ENTITY_TYPES:
+    if not isinstance(kind, str) or kind not in ENTITY_TYPES:  # a list or table is unhashable
         known = ", ".join(ENTITY_TYPES)
         raise loader.error(f"unknown entity type {kind!r} (known: {known})", (*where, "type"))
     cls = ENTITY_TYPES[kind]
