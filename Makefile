@@ -7,7 +7,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test lint bench bench-hulls corpus fuzz clean
+.PHONY: install demo test lint bench bench-hulls corpus fuzz clean mutants
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -68,3 +68,16 @@ fuzz: $(STAMP)
 
 clean:
 	rm -rf out build dist *.egg-info .pytest_cache .mypy_cache .ruff_cache
+
+# Mutation testing of the robot modules (docs/testing.md, "Mutation testing"); slow, not part of make test.
+# One module at a time, each against its tests (pyproject [tool.mutmut]); LP_NUM_THREADS=0 keeps Mesa's
+# renderer single-threaded so mutmut's forked test runs cannot deadlock. MUTATE=simrun.arm.* for one module.
+MUTATE ?= simrun.drive.* simrun.drive_service.* simrun.arm.* simrun.sensors.* simrun.cameras.*
+mutants: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e ".[test,mutation]"
+	bash scripts/install_gl.sh
+	for m in $(MUTATE); do \
+		LP_NUM_THREADS=0 MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/mutmut run --max-children $${JOBS:-2} "$$m" || exit 1; \
+	done
+	$(BIN)/python scripts/mutation_summary.py
+

@@ -495,3 +495,82 @@ def test_robot_with_a_visual_mesh_keeps_its_mass_and_drives():
     world.run(0.3)
     drive.drive_distance(0.3, power=0.5)
     assert world.run_until(lambda: not drive.busy, timeout=20)
+
+
+def test_default_caster_sits_at_the_chassis_end_away_from_the_axle():
+    world = World()
+    world.insert(Pioneer3DX(name="p"))  # axle 0.05 ahead of the 0.455 m chassis' centre: caster at the rear
+    world.insert(
+        DifferentialDrive(name="front", axle_offset=-0.03, caster_offset=None, pose=Pose((2, 0, 0)))
+    )  # axle behind the centre: caster in front
+    model = world.model
+    assert model.geom("p/caster").pos[0] == pytest.approx(-0.05 - (0.455 / 2 - 0.038))
+    assert model.geom("front/caster").pos[0] == pytest.approx(0.03 + (0.13 / 2 - 0.0125))
+    assert model.geom("front/caster").pos[2] == pytest.approx(0.0125)  # on the ground
+    assert model.geom("front/chassis").pos[0] == pytest.approx(0.03)  # the chassis centre, from the axle
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"mass": -1.0}, "mass must be a positive number"),
+        ({"mass": math.nan}, "mass must be a positive number"),
+        ({"chassis_dimensions": (0.0, 0.09, 0.09)}, "length must be"),
+        ({"chassis_dimensions": (0.13, -0.09, 0.09)}, "width must be"),
+        ({"chassis_dimensions": (0.13, 0.09, 0.0)}, "height must be"),
+        ({"wheel_radius": 0.0}, "wheel_radius must be"),
+        ({"wheel_width": -0.01}, "wheel_width must be"),
+        ({"wheel_mass": 0.0}, "wheel_mass must be"),
+        ({"track": 0.0}, "track must be"),
+        ({"caster_radius": 0.0}, "caster_radius must be"),
+        ({"caster_mass": -0.001}, "caster_mass must be"),
+        ({"stall_torque": 0.0}, "stall_torque must be"),
+        ({"no_load_speed": math.inf}, "no_load_speed must be"),
+        ({"motor_torque_scaling": -30.0}, "motor_torque_scaling must be"),
+        ({"wheel_friction": 0.0}, "wheel_friction must be"),
+        ({"chassis_shape": "triangle"}, "chassis_shape must be one of box, disc"),
+        ({"chassis_shape": "disc"}, "a disc chassis needs length == width"),
+        ({"axle_offset": 0.065}, "axle_offset must lie within the chassis length"),
+        ({"axle_offset": -0.07}, "axle_offset must lie within the chassis length"),
+        ({"axle_offset": math.nan}, "axle_offset must lie within"),
+        ({"chassis_clearance": -0.001}, "chassis_clearance must be >= 0"),
+        ({"caster_offset": 0.01}, "caster_offset must put the caster away from the axle"),
+        ({"caster_offset": math.nan}, "caster_offset must put"),
+        ({"track": 0.01}, "the track must be wider than a wheel"),
+    ],
+)
+def test_bad_robot_parameters_are_refused_naming_the_parameter(change, message):
+    world = World()
+    world.insert(DifferentialDrive(name="bad", **change))
+    with pytest.raises(EntityError, match=f"DifferentialDrive 'bad': {message}"):
+        world.compile()
+
+
+def test_good_edge_parameters_build():
+    world = World()
+    world.insert(DifferentialDrive(name="a", chassis_clearance=0.0, axle_offset=0.064, caster_offset=-0.0126))
+    world.insert(DifferentialDrive(name="b", track=0.0101, pose=Pose((1, 0, 0))))
+    world.insert(
+        DifferentialDrive(name="c", chassis_shape="disc", chassis_dimensions=(0.2, 0.2, 0.05), pose=Pose((2, 0, 0)))
+    )
+    world.compile()
+    assert world.model.geom("c/chassis").size[0] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_motor_actuators_are_the_published_dc_motor(robot):
+    world = World()
+    entity = world.insert(robot(name="r"))
+    model = world.model
+    for side in ("left", "right"):
+        motor = model.actuator(f"r/{side}_motor")
+        assert motor.gainprm[0] == pytest.approx(entity.stall_torque)
+        assert motor.biasprm[2] == pytest.approx(-entity.stall_torque / entity.no_load_speed)
+        np.testing.assert_allclose(motor.ctrlrange, [-1, 1])
+        np.testing.assert_allclose(motor.forcerange, [-entity.stall_torque, entity.stall_torque])
+        assert motor.ctrllimited[0] and motor.forcelimited[0]
+        tyre = model.geom(f"r/{side}_tyre")
+        assert tyre.friction[0] == pytest.approx(entity.wheel_friction)
+    left, right = (model.body(f"r/{side}_wheel").pos for side in ("left", "right"))
+    assert left[1] == pytest.approx(entity.separation / 2) and right[1] == pytest.approx(-entity.separation / 2)
+    assert model.geom("r/caster").friction[0] == 0.0 and model.geom("r/caster").condim[0] == 1

@@ -1,0 +1,62 @@
+"""Kill rate per module from mutmut's results (mutants/**/*.py.meta), and the surviving mutants.
+
+Usage: python scripts/mutation_summary.py [MODULE ...]   (default: the modules `make mutants` mutates)
+
+Killed: a test failed (or pytest hit an internal error, or the mutant ran past its CPU-time limit: a mutant
+that makes the simulation loop forever is caught). The rate is killed / (killed + survived + no tests);
+mutants not yet run are counted apart.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+
+MODULES = ["drive", "drive_service", "arm", "sensors", "cameras"]
+KILLED = {1, 3, -24, 24, 152, 255, 36, 37, -11, -9}
+SURVIVED = {0}
+NO_TESTS = {5, 33}
+
+
+def main() -> int:
+    modules = sys.argv[1:] or MODULES
+    print("| module | mutants | killed | survived | no tests | not run | kill rate |")
+    print("|---|---|---|---|---|---|---|")
+    survivors: list[str] = []
+    for module in modules:
+        meta = Path("mutants") / "simrun" / f"{module}.py.meta"
+        if not meta.exists():
+            print(f"| simrun/{module}.py | - | - | - | - | - | not run |")
+            continue
+        codes = json.loads(meta.read_text())["exit_code_by_key"]
+        count = Counter()
+        for name, code in codes.items():
+            if code is None:
+                count["not run"] += 1
+            elif code in KILLED:
+                count["killed"] += 1
+            elif code in SURVIVED:
+                count["survived"] += 1
+                survivors.append(name)
+            elif code in NO_TESTS:
+                count["no tests"] += 1
+                survivors.append(name)
+            else:
+                count["other"] += 1
+        checked = count["killed"] + count["survived"] + count["no tests"]
+        rate = f"{100 * count['killed'] / checked:.1f} %" if checked else "-"
+        print(
+            f"| simrun/{module}.py | {len(codes)} | {count['killed']} | {count['survived']} | {count['no tests']} "
+            f"| {count['not run']} | {rate} |"
+        )
+    if survivors:
+        print("\nsurvivors (`mutmut show NAME` prints the change):")
+        for name in survivors:
+            print(" ", name)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
