@@ -504,7 +504,7 @@ pose = { position = [0.0, 0.0, 0.001] }
 type = "LynxL6"
 name = "arm"
 parent = "base"
-pose = { position = [0.1, 0.0, 0.22] }
+pose = { position = [0.1, 0.0, 0.237] }
 
 [[services]]
 type = "DriveService"

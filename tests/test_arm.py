@@ -54,7 +54,7 @@ def test_arm_on_a_mobile_base_and_the_base_still_drives():
     world = World()
     world.insert(Ground(name="ground"))
     world.insert(Pioneer3DX(name="base", pose=Pose((0, 0, 0.001))))
-    world.insert(LynxL6(name="arm", parent="base", pose=Pose((0.1, 0, 0.22))))
+    world.insert(LynxL6(name="arm", parent="base", pose=Pose((0.1, 0, 0.237))))  # on the 0.237 m top
     drive = DriveService(world, "base")
     arm = ArmService(world, "base/arm")
     world.run(0.5)
