@@ -100,3 +100,7 @@ class OptionsError(MeshtoolError, ValueError):
 
 class PackFormatError(MeshtoolError, ValueError):
     """An ``.mbin`` file is truncated, corrupted, of an unknown major version, or hostile."""
+
+
+class FormatError(MeshtoolError, ValueError):
+    """A mesh file in a format other than OBJ (STL, PLY, glTF/GLB, COLLADA) cannot be read."""

@@ -23,13 +23,13 @@ from meshtool import __version__
 from meshtool.changes import changes_data
 from meshtool.errors import MeshtoolError, ObjParseError, OptionsError, OutputError, StrictModeError
 from meshtool.findings import Finding, info, warning
-from meshtool.frame import decide_frame
 from meshtool.mesh import DEFAULT_MATERIAL, TriMesh, build_mesh, unique_names
 from meshtool.modelroot import model_root_resolver
 from meshtool.obj.mtl import Material, TextureMap, format_mtl, opaque_if_invisible, parse_mtl
-from meshtool.obj.parse import ObjData, parse_obj
+from meshtool.obj.parse import ObjData
 from meshtool.obj.write import format_obj
 from meshtool.outdir import write_folder
+from meshtool.readers import material_library, read_mesh, source_frame, source_role
 from meshtool.resolve import Resolution, Resolver, printable
 from meshtool.smallparts import fix_small_parts
 from meshtool.texroles import tag_textures
@@ -169,9 +169,9 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
     resolver, root_findings = model_root_resolver(src, options.search_paths)
     source_name = printable(src.name)
     data = resolver.read_source(src)
-    obj = parse_obj(data, source_name)
+    obj = read_mesh(src, data, source_name, resolver)  # OBJ, STL, PLY, glTF/GLB or COLLADA
     findings = [*obj.findings, *root_findings]
-    sources: list[dict[str, str]] = [{"role": "obj", "path": source_name, "sha256": _sha256(data)}]
+    sources: list[dict[str, str]] = [{"role": source_role(obj), "path": source_name, "sha256": _sha256(data)}]
     resolutions: list[Resolution] = []
 
     normalised_before = any(_MARKER.match(c) for c in obj.header_comments[:1])
@@ -193,6 +193,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         for material in mtl.materials:
             library.setdefault(material.name, (material, res.found))
 
+    library.update(material_library(obj, src))  # materials of formats other than OBJ
     given = options.units if options.units in UNIT_FACTORS else None
     check_coordinate_range(obj, given, options.scale)  # before any arithmetic on absurd values
     mesh, mesh_findings = build_mesh(obj)
@@ -209,10 +210,10 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
                 source_name,
             )
         )
-    frame = decide_frame(
+    frame = source_frame(
+        obj,
         src,
         mesh.positions,
-        obj.header_comments,
         options.units,
         options.scale,
         options.up,

@@ -93,6 +93,31 @@ class Resolver:
         self.roots = [self.asset_dir, *self.search_paths]
         self.limits = limits
         self._listing: dict[Path, _Listing] = {}
+        self._embedded: dict[str, tuple[Path, bytes]] = {}
+        self._embedded_paths: dict[Path, tuple[str, bytes]] = {}
+
+    # -- embedded files ------------------------------------------------------------------------------------
+
+    def embed(self, container: Path, name: str, data: bytes) -> str:
+        """Register a file held inside another one (a GLB image, a ``data:`` URI) and return its reference.
+
+        The reference (``CONTAINER#NAME``, made unique) resolves with rule ``embedded`` to a virtual path
+        beside the container; :meth:`read` returns the bytes (within the limit of the kind) and
+        :meth:`display` shows the reference. Nothing is written to disk.
+
+        Args:
+            container: The file that holds the data.
+            name: A name for it (an image's name with its file suffix).
+            data: The bytes.
+        """
+        base = f"{printable(container.name)}#{name.replace('/', '_') or 'embedded'}"
+        ref, n = base, 2
+        while ref in self._embedded:
+            ref, n = f"{base}_{n}", n + 1
+        path = Path(os.path.abspath(container.parent)) / ref
+        self._embedded[ref] = (path, data)
+        self._embedded_paths[path] = (ref, data)
+        return ref
 
     # -- reading -------------------------------------------------------------------------------------------
 
@@ -124,6 +149,13 @@ class Resolver:
             ResolveError: When it left the roots, changed while being read, is not a regular file, is larger
                 than the limit, or cannot be read.
         """
+        embedded = self._embedded_paths.get(found)
+        if embedded is not None:
+            ref, blob = embedded
+            limit = self.limits.for_kind(kind)
+            if len(blob) > limit:
+                raise ResolveError(f"is {len(blob)} bytes, more than the limit of {limit} bytes; not read", path=ref)
+            return blob
         real = _realpath(found)
         if real is None:
             raise ResolveError(
@@ -147,6 +179,9 @@ class Resolver:
 
         Bytes of names that are not UTF-8 are shown as ``\xNN`` (see :func:`printable`).
         """
+        embedded = self._embedded_paths.get(path)
+        if embedded is not None:
+            return embedded[0]
         real = _realpath(path) or Path(os.path.abspath(path))
         for n, root in enumerate(self.roots):
             if real == root or root in real.parents:
@@ -170,6 +205,9 @@ class Resolver:
             The resolution; ``found`` is ``None`` when nothing inside the roots matches.
         """
         res = Resolution(ref, kind, origin, line)
+        if ref in self._embedded:
+            res.found, res.rule = self._embedded[ref][0], "embedded"
+            return res
         text = ref.strip().strip('"').strip()
         foreign = False
         uri = _URI.match(text)

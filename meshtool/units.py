@@ -57,7 +57,8 @@ class UnitEvidence:
     Attributes:
         unit: The unit it implies (a key of :data:`UNIT_FACTORS`), or ``None`` for a scale that is no unit.
         scale: The uniform factor when the evidence is a scale that is no unit (``0.1``), else ``None``.
-        source: ``consumer`` (a URDF/SDF/MJCF that uses the mesh) or ``header`` (an exporter comment).
+        source: ``consumer`` (a URDF/SDF/MJCF that uses the mesh), ``header`` (an exporter comment),
+            ``format`` (the mesh file declares it: COLLADA, glTF) or ``suggestion`` (STL: CAD's usual mm).
         text: One phrase naming the evidence, e.g. ``robot.urdf (URDF, scale 0.001 0.001 0.001)``.
     """
 
@@ -245,7 +246,7 @@ def scale_findings(
         advice = f"if it was modelled in {UNIT_WORDS[best]}, pass --units {best} ({largest * unit_scale(best):.3g} m)"
     else:
         advice = "check the source units (--units) or pass --scale"
-    if evidence is not None and evidence.unit is not None and not unit_given:
+    if evidence is not None and evidence.unit is not None and not unit_given and evidence.source != "format":
         advice = (
             f"{evidence.describe()} ({largest * unit_scale(evidence.unit):.3g} m): pass --units {evidence.unit}"
             + (" or --units auto" if evidence.source == "consumer" else "")

@@ -1,0 +1,204 @@
+"""Mesh readers: OBJ/MTL, STL, PLY, glTF/GLB and COLLADA into one in-memory model.
+
+:func:`read_mesh` picks the reader by the file's suffix and returns an
+:class:`~meshtool.obj.parse.ObjData` (OBJ) or a :class:`~meshtool.readers.model.SourceMesh` (every other
+format), which the normaliser consumes the same way. :func:`source_frame` decides the source unit and up
+axis with what the format declares (COLLADA ``<unit>``/``<up_axis>``, glTF metres Y-up); STL and PLY have
+neither and are treated like OBJ (options, consumer files, geometry), with a unit suggestion for STL.
+
+What each format keeps is listed in ``docs/formats.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from meshtool.errors import FormatError
+from meshtool.findings import info
+from meshtool.frame import Frame, decide_frame
+from meshtool.modelroot import ModelRoot
+from meshtool.obj.mtl import Material
+from meshtool.obj.parse import ObjData, parse_obj
+from meshtool.readers.model import SourceFrame, SourceMesh
+from meshtool.resolve import Resolver
+from meshtool.units import MAX_PLAUSIBLE_M, PLAUSIBLE_OBJECT_M, UNIT_FACTORS, UnitEvidence, unit_scale
+from meshtool.upaxis import FloatArray, UpDecision
+
+#: File suffix (lower case) -> format name.
+FORMATS: dict[str, str] = {
+    ".obj": "obj",
+    ".stl": "stl",
+    ".ply": "ply",
+    ".gltf": "gltf",
+    ".glb": "glb",
+    ".dae": "collada",
+}
+#: Every suffix meshtool reads as a mesh.
+MESH_SUFFIXES = tuple(FORMATS)
+
+__all__ = [
+    "FORMATS",
+    "MESH_SUFFIXES",
+    "SourceFrame",
+    "SourceMesh",
+    "format_of",
+    "material_library",
+    "read_mesh",
+    "source_frame",
+    "source_role",
+]
+
+
+def format_of(path: Path) -> str:
+    """The format name of ``path`` by its suffix (``obj`` for unknown suffixes: the OBJ reader says so)."""
+    return FORMATS.get(path.suffix.lower(), "obj")
+
+
+def read_mesh(src: Path, data: bytes, path: str, resolver: Resolver) -> ObjData:
+    """Read the mesh in ``data`` with the reader for ``src``'s suffix.
+
+    Args:
+        src: The file (its folder is the base of relative references).
+        data: Its bytes, read by the resolver.
+        path: Its name for findings and errors.
+        resolver: The asset's resolver (glTF buffers and embedded images go through it).
+
+    Returns:
+        ``ObjData`` for OBJ, a :class:`SourceMesh` for the other formats.
+
+    Raises:
+        MeshtoolError: ``ObjParseError`` or ``FormatError`` naming the file and line or byte offset.
+    """
+    fmt = format_of(src)
+    if fmt == "obj":
+        return parse_obj(data, path)
+    if fmt == "stl":
+        from meshtool.readers.stl import read_stl
+
+        return read_stl(data, path)
+    if fmt == "ply":
+        from meshtool.readers.ply import read_ply
+
+        return read_ply(data, path)
+    if fmt in ("gltf", "glb"):
+        from meshtool.readers.gltf import read_gltf
+
+        return read_gltf(data, path, src, resolver)
+    if fmt == "collada":
+        from meshtool.readers.collada import read_collada
+
+        return read_collada(data, path)
+    raise FormatError(f"unknown mesh format {fmt!r}", path=path)  # pragma: no cover - FORMATS is exhaustive
+
+
+def source_role(obj: ObjData) -> str:
+    """The ``role`` of the mesh file in ``asset.json``'s ``sources`` (``obj``, ``stl``, ``gltf``...)."""
+    return obj.format if isinstance(obj, SourceMesh) else "obj"
+
+
+def material_library(obj: ObjData, src: Path) -> dict[str, tuple[Material, Path]]:
+    """The materials a non-OBJ format defines, keyed by name, as the normaliser's MTL library holds them.
+
+    Texture references resolve relative to ``src``'s folder (the second element).
+    """
+    if not isinstance(obj, SourceMesh):
+        return {}
+    library: dict[str, tuple[Material, Path]] = {}
+    for material in obj.materials:
+        library.setdefault(material.name, (material, src))
+    return library
+
+
+def source_frame(
+    obj: ObjData,
+    src: Path,
+    positions: FloatArray,
+    units: str | None,
+    scale: float,
+    up: str | None,
+    root: ModelRoot | None,
+    normalised_before: bool = False,
+) -> Frame:
+    """:func:`meshtool.frame.decide_frame` with what the format declares.
+
+    A declared unit (COLLADA, glTF) is used unless ``--units`` names one (``auto`` keeps the declared one:
+    consumers such as ROS apply a COLLADA unit before their own scale); a declared up axis is used unless
+    ``--up`` is ``y`` or ``z``. Both are recorded (rule ``format``) for ``asset.json``.
+
+    Args:
+        obj: The mesh as read.
+        src: The file.
+        positions: (N, 3) positions in source units.
+        units: ``--units``.
+        scale: ``--scale``.
+        up: ``--up``.
+        root: The model root.
+        normalised_before: The file was written by meshtool (OBJ only).
+
+    Returns:
+        The frame and its findings.
+    """
+    header = obj.header_comments
+    if not isinstance(obj, SourceMesh):
+        return decide_frame(src, positions, header, units, scale, up, root, normalised_before)
+    declared = obj.frame
+    user_unit = units if units in UNIT_FACTORS else None
+    unit, extra, factor = units, scale, 1.0
+    if declared.unit_m is not None and user_unit is None:
+        unit, factor = _unit_key(declared.unit_m)
+        extra = scale * factor
+    forced_up = up if up in ("y", "z") else None
+    frame = decide_frame(src, positions, header, unit, extra, forced_up or declared.up or up, root)
+    if declared.unit_m is not None:
+        frame.findings = [f for f in frame.findings if f.code != "units-evidence"]
+        if user_unit is None:
+            frame.evidence = UnitEvidence(
+                unit, None if factor == 1.0 else declared.unit_m, "format", declared.unit_text
+            )
+            frame.findings.append(info("units-format", f"unit from the file: {declared.unit_text}", obj.path))
+    if declared.up is not None and forced_up is None:
+        frame.up_decision = UpDecision(declared.up, "format", declared.up_text)
+        turned = "rotated +90 degrees about X to Z-up" if declared.up == "y" else "kept as it is"
+        frame.findings.append(info("up-axis", f"up axis {declared.up} ({turned}): {declared.up_text}", obj.path))
+    if obj.format == "stl":
+        _stl_defaults(frame, positions, user_unit is None and units != "auto", obj.path)
+    return frame
+
+
+def _unit_key(metres: float) -> tuple[str, float]:
+    """A unit name for ``metres`` per unit, and the remaining factor (1 when the unit is exact)."""
+    for key in UNIT_FACTORS:
+        if math.isclose(unit_scale(key), metres, rel_tol=1e-9):
+            return key, 1.0
+    return "m", metres
+
+
+def _stl_defaults(frame: Frame, positions: FloatArray, suggest_unit: bool, path: str) -> None:
+    """STL comes from CAD: Z-up when nothing else tells, and millimetres suggested when metres is implausible.
+
+    The suggestion becomes the frame's unit evidence (source ``suggestion``) when no consumer file says
+    anything: ``asset.json`` records it and the size warning names ``--units mm``.
+    """
+    if frame.up_decision.rule == "default":
+        frame.up_decision = UpDecision("z", "format", "STL from CAD: Z-up assumed (no other evidence)")
+        frame.up = "z"
+        frame.findings = [f for f in frame.findings if f.code != "up-axis"]
+        frame.findings.append(info("up-axis", f"up axis z (kept as it is): {frame.up_decision.evidence}", path))
+    finite = positions[np.isfinite(positions).all(axis=1)] if positions.shape[0] else positions
+    if not suggest_unit or frame.evidence is not None or finite.shape[0] == 0:
+        return
+    largest = float(np.max(finite.max(axis=0) - finite.min(axis=0))) * frame.scale
+    in_mm = largest * unit_scale("mm")
+    if largest > MAX_PLAUSIBLE_M and PLAUSIBLE_OBJECT_M[0] <= in_mm <= PLAUSIBLE_OBJECT_M[1]:
+        frame.evidence = UnitEvidence("mm", None, "suggestion", "STL without unit, as CAD exports usually are")
+        frame.findings.append(
+            info(
+                "stl-units",
+                f"STL has no unit: read as metres ({largest:.3g} m across); CAD exports are usually millimetres: "
+                f"pass --units mm ({in_mm:.3g} m)",
+                path,
+            )
+        )

@@ -1,0 +1,226 @@
+"""COLLADA (``.dae``) reader, parsed by pycollada.
+
+- **Geometry**: every geometry instanced by the visual scene, placed by its node transforms (pycollada's
+  bound geometries), winding reversed under a mirroring transform. Triangles, polylists and polygons are
+  read (triangulated by pycollada); lines are skipped with a finding.
+- **Frame**: ``<unit meter>`` and ``<up_axis>`` of the document's ``<asset>`` are honoured: the unit
+  becomes the source unit of the normaliser (``cm``, ``mm``, ``in``... or a scale), ``Y_UP``/``Z_UP`` the
+  up axis; ``X_UP`` is turned to ``Y_UP`` here (``(x, y, z) -> (-y, x, z)``, the COLLADA 1.4 axes).
+- **Materials**: each bound material's effect: ``diffuse`` colour -> ``Kd`` (or its texture -> ``map_Kd``),
+  ``emission`` -> ``Ke``, ``specular`` -> ``Ks``, ``shininess`` -> ``Ns``, transparency -> ``d`` (A_ONE).
+  Image files are found and read by the asset's resolver only (never by pycollada), with the containment
+  rules of an OBJ's textures.
+
+Locations of findings count triangles in file order.
+"""
+
+from __future__ import annotations
+
+import io
+import warnings
+from typing import Any
+from urllib.parse import unquote
+
+import numpy as np
+
+from meshtool.errors import FormatError
+from meshtool.findings import Finding, info, warning
+from meshtool.obj.mtl import Material, TextureMap
+from meshtool.readers.model import Piece, SourceFrame, SourceMesh, assemble, mirrors
+
+_X_TO_Y = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def read_collada(data: bytes, path: str) -> SourceMesh:
+    """Read a COLLADA file.
+
+    Args:
+        data: The file's bytes.
+        path: Name for findings and errors.
+
+    Returns:
+        The mesh (one part per geometry instance), its materials and declared frame.
+
+    Raises:
+        FormatError: XML or COLLADA structure pycollada cannot read.
+    """
+    import collada
+
+    ignore = [collada.common.DaeUnsupportedError, collada.common.DaeBrokenRefError]
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            doc = collada.Collada(io.BytesIO(data), ignore=ignore, aux_file_loader=_no_files)
+    except Exception as exc:  # pycollada raises DaeError subclasses, lxml errors, ValueError...
+        text = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+        line = getattr(exc, "lineno", None)
+        raise FormatError(f"COLLADA cannot be read: {text}", path=path, line=line, hint="the file is damaged") from None
+    findings: list[Finding] = []
+    frame, rotate = _frame(doc, path, findings)
+    materials: list[Material] = []
+    by_id: dict[str, int] = {}
+    pieces: list[Piece] = []
+    triangles = lines = 0
+    scene = doc.scene
+    if scene is None:
+        findings.append(warning("collada-no-scene", "no visual scene: nothing is instanced", path))
+        bound: list[Any] = []
+    else:
+        bound = list(scene.objects("geometry"))
+    for geometry in bound:
+        name = str(geometry.original.name or geometry.original.id or "geometry")
+        flip = mirrors(np.asarray(geometry.matrix, dtype=np.float64))
+        for prim in geometry.primitives():
+            kind = type(prim).__name__
+            if "Line" in kind:
+                lines += 1
+                continue
+            if kind in ("BoundPolylist", "BoundPolygons"):
+                prim = prim.triangleset()
+            if prim.vertex is None or prim.vertex_index is None or len(prim.vertex_index) == 0:
+                continue
+            positions = np.asarray(prim.vertex, dtype=np.float64).reshape(-1, 3)
+            faces = np.asarray(prim.vertex_index, dtype=np.int64).reshape(-1, 3)
+            m = faces.shape[0]
+            normals = uvs = None
+            if prim.normal is not None and prim.normal_index is not None and len(prim.normal):
+                normals = np.asarray(prim.normal, dtype=np.float64).reshape(-1, 3)[
+                    np.asarray(prim.normal_index).reshape(-1)
+                ]
+            if prim.texcoordset and prim.texcoord_indexset:
+                uvs = np.asarray(prim.texcoordset[0], dtype=np.float64)[:, :2][
+                    np.asarray(prim.texcoord_indexset[0]).reshape(-1)
+                ]
+            corners = faces.reshape(-1)
+            if normals is not None or uvs is not None:  # attributes indexed per corner: split the corners
+                positions = positions[corners]
+                faces = np.arange(corners.size, dtype=np.int64).reshape(-1, 3)
+            if rotate:
+                positions = positions @ _X_TO_Y.T
+                normals = None if normals is None else normals @ _X_TO_Y.T
+            if flip:
+                faces = faces[:, ::-1].copy()
+            material = _material(prim.material, materials, by_id, path, findings)
+            locations = np.arange(triangles + 1, triangles + m + 1, dtype=np.int64)
+            triangles += m
+            pieces.append(Piece(name, material, positions, faces, locations, uvs, normals))
+    if lines:
+        findings.append(info("lines-skipped", f"{lines} line primitive(s) skipped: not surface geometry", path))
+    record = {
+        "unit_meter": frame.unit_m,
+        "up_axis": str(doc.assetInfo.upaxis),
+        "geometries": len(doc.geometries),
+        "instances": len(bound),
+    }
+    mesh = assemble(pieces, path, "collada", "triangle", materials, frame, findings, record)
+    return _weld(mesh)
+
+
+def _no_files(name: str) -> bytes | None:
+    """The loader pycollada gets of referenced files: meshtool's resolver reads images, pycollada never does."""
+    return None
+
+
+def _frame(doc: Any, path: str, findings: list[Finding]) -> tuple[SourceFrame, bool]:
+    info_ = doc.assetInfo
+    meter = float(info_.unitmeter) if info_.unitmeter is not None else 1.0
+    name = str(info_.unitname or "")
+    if not (np.isfinite(meter) and meter > 0):
+        findings.append(
+            warning("collada-unit-invalid", f"<unit meter={meter!r}> is not a positive number: metres used", path)
+        )
+        meter = 1.0
+    up_text = str(info_.upaxis or "Y_UP")
+    rotate = up_text == "X_UP"
+    up = "z" if up_text == "Z_UP" else "y"
+    if rotate:
+        findings.append(info("collada-x-up", "X_UP turned to Y_UP ((x, y, z) -> (-y, x, z))", path))
+    frame = SourceFrame(
+        meter,
+        f'COLLADA <unit meter="{meter:g}" name="{name}"/>',
+        up,
+        f"COLLADA <up_axis>{up_text}</up_axis>",
+    )
+    return frame, rotate
+
+
+def _material(bound: Any, materials: list[Material], by_id: dict[str, int], path: str, findings: list[Finding]) -> int:
+    if bound is None or isinstance(bound, str) or getattr(bound, "effect", None) is None:
+        return -1
+    key = str(bound.id)
+    if key in by_id:
+        return by_id[key]
+    effect = bound.effect
+    out = Material(str(bound.name or bound.id or f"material{len(materials)}"), 0, illum=2)
+    for attr, colour_key, map_key in (
+        ("diffuse", "Kd", "map_Kd"),
+        ("emission", "Ke", "map_Ke"),
+        ("specular", "Ks", None),
+    ):
+        value = getattr(effect, attr, None)
+        if isinstance(value, tuple) and len(value) >= 3:
+            out.colors[colour_key] = (_clamp(value[0]), _clamp(value[1]), _clamp(value[2]))
+        elif value is not None and map_key is not None and hasattr(value, "sampler"):
+            image = _image_path(value)
+            if image:
+                out.maps[map_key] = TextureMap(image, {}, 0)
+                if colour_key == "Kd":
+                    out.colors["Kd"] = (1.0, 1.0, 1.0)
+            else:
+                findings.append(warning("texture-missing", f"material {out.name!r}: {attr} texture has no image", path))
+    if "Kd" not in out.colors and "map_Kd" not in out.maps:
+        out.colors["Kd"] = (0.8, 0.8, 0.8)
+    shininess = getattr(effect, "shininess", None)
+    if isinstance(shininess, float | int) and np.isfinite(shininess) and shininess > 0:
+        out.scalars["Ns"] = float(min(shininess, 1000.0))
+    alpha = _opacity(effect)
+    if alpha < 1.0:
+        out.scalars["d"] = alpha
+    materials.append(out)
+    by_id[key] = len(materials) - 1
+    return by_id[key]
+
+
+def _image_path(texture_map: Any) -> str | None:
+    try:
+        image = texture_map.sampler.surface.image
+    except AttributeError:
+        return None
+    raw = getattr(image, "path", None)
+    return unquote(str(raw)) if raw else None
+
+
+def _opacity(effect: Any) -> float:
+    """Opacity in the A_ONE mode (the default): ``transparent.a * transparency``."""
+    transparency = getattr(effect, "transparency", None)
+    transparent = getattr(effect, "transparent", None)
+    t = float(transparency) if isinstance(transparency, float | int) and np.isfinite(transparency) else 1.0
+    a = float(transparent[3]) if isinstance(transparent, tuple) and len(transparent) >= 4 else 1.0
+    if getattr(effect, "opaque_mode", "A_ONE") == "RGB_ZERO":
+        rgb = transparent[:3] if isinstance(transparent, tuple) else (0.0, 0.0, 0.0)
+        return float(min(max(1.0 - t * float(np.mean(rgb)), 0.0), 1.0))
+    return float(min(max(a * t, 0.0), 1.0))
+
+
+def _clamp(value: Any) -> float:
+    v = float(value)
+    return min(max(v, 0.0), 1.0) if np.isfinite(v) else 1.0
+
+
+def _weld(mesh: SourceMesh) -> SourceMesh:
+    """Merge vertices split per corner back where position and every attribute are equal (exact match)."""
+    if mesh.corner_v.size == 0:
+        return mesh
+    positions = mesh.positions + 0.0
+    keys = np.ascontiguousarray(positions).view(np.dtype((np.void, 24))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(first.size, dtype=np.int64)
+    rank[order] = np.arange(first.size)
+    remap = rank[inverse.reshape(-1)]
+    # texcoords and normals keep their own (per-corner) indices; positions are shared
+    mesh.vertex_lines = mesh.vertex_lines[first[order]]
+    mesh.colors = None if mesh.colors is None else mesh.colors[first[order]]
+    mesh.positions = positions[first[order]]
+    mesh.corner_v = remap[mesh.corner_v]
+    return mesh
