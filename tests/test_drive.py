@@ -574,3 +574,145 @@ def test_motor_actuators_are_the_published_dc_motor(robot):
     left, right = (model.body(f"r/{side}_wheel").pos for side in ("left", "right"))
     assert left[1] == pytest.approx(entity.separation / 2) and right[1] == pytest.approx(-entity.separation / 2)
     assert model.geom("r/caster").friction[0] == 0.0 and model.geom("r/caster").condim[0] == 1
+
+
+# -- sensors: frames, rates, noise and state, against simulator poses -------------------------------------------
+
+
+def test_sensor_rates_and_noise_are_validated():
+    world, _ = boebot_world()
+    with pytest.raises(EntityError, match="rate and noise must be >= 0"):
+        GPS(world, "bot", rate=-1.0)
+    with pytest.raises(EntityError, match="rate and noise must be >= 0"):
+        Encoders(world, "bot", noise=-0.1)
+    with pytest.raises(EntityError, match="no entity named 'ghost'"):
+        IMU(world, "ghost")
+    for bad in ({"rays": 0}, {"max_range": 0.0}, {"fov_deg": 0.0}, {"fov_deg": 361.0}):
+        with pytest.raises(EntityError, match="laser: rays >= 1, max_range > 0, 0 < fov <= 360"):
+            LaserRangeFinder(world, "bot", **bad)
+
+
+def test_sensor_noise_reseed_snapshot_restore_and_reset():
+    world, _ = boebot_world()
+    gps = GPS(world, "bot", rate=0, noise=0.1, seed=5)
+    world.step(1)
+    first = gps.reading.position
+    state = gps.snapshot()
+    world.step(1)
+    after = gps.reading.position
+    gps.restore(state)
+    world.step(1)
+    assert gps.reading.position != first and gps.samples == state["samples"] + 1
+    np.testing.assert_allclose(gps.reading.position, after, atol=1e-4)  # same noise draws again
+    gps.reseed(5)
+    other = GPS(world, "bot", rate=0, noise=0.1, seed=5)
+    world.step(1)
+    np.testing.assert_array_equal(gps.reading.position, other.reading.position)
+    truth = world.body("bot").xpos
+    assert 0.01 < np.abs(np.array(gps.reading.position) - truth).max() < 0.5  # noisy around the truth
+    world.reset()
+    assert gps.reading is None and gps.samples == 0
+
+
+def test_sensors_sample_at_their_rate_on_the_simulation_clock():
+    world, _ = boebot_world()
+    start = world.time
+    imu, enc = IMU(world, "bot", rate=100.0), Encoders(world, "bot", rate=25.0)
+    every = GPS(world, "bot", rate=0.0)
+    world.run(1.0)
+    assert imu.samples == 100 and enc.samples == 25 and every.samples == 500
+    assert imu.reading.time == pytest.approx(start + 0.99, abs=0.003)
+
+
+def test_gps_latitude_longitude_from_the_body_position():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(BoeBot(name="bot", pose=Pose((1.0, 2.0, 0.001))))
+    gps = GPS(world, "bot", rate=0, origin=(47.6, -122.3))  # every step: the reading is of the current pose
+    plain = GPS(world, "bot", rate=10)
+    world.run(0.5)
+    x, y, _ = world.body("bot").xpos
+    reading = gps.reading
+    np.testing.assert_allclose(reading.position, world.body("bot").xpos, atol=1e-6)
+    metres_per_degree = 111_319.490793  # WGS84 equatorial radius 6378137 m: 2 pi R / 360
+    assert reading.latitude - 47.6 == pytest.approx(y / metres_per_degree, rel=1e-6)  # north = +Y
+    assert reading.longitude + 122.3 == pytest.approx(x / (metres_per_degree * math.cos(math.radians(47.6))), rel=1e-6)
+    assert plain.reading.latitude is None and plain.reading.longitude is None
+
+
+def test_imu_reads_in_the_body_frame():
+    world = World()
+    world.insert(Ground(name="ground"))
+    tilted = (math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0)  # 90 degrees about +X: body +Y is world up
+    world.insert(Box(name="brick", dimensions=(0.2, 0.1, 0.1), free=True, pose=Pose((0, 0, 0.1), tilted)))
+    imu = IMU(world, "brick")
+    world.run(0.5)
+    np.testing.assert_allclose(imu.reading.accelerometer, [0.0, 9.81, 0.0], atol=0.05)
+    np.testing.assert_allclose(imu.reading.orientation, world.body("brick").xquat, atol=1e-9)
+    # turning in place: the gyro's z is the yaw rate of the simulator's body pose
+    world, drive, _ = make(Pioneer3DX)
+    imu = IMU(world, "r", rate=0)
+    drive.drive_speed(-0.2, 0.2)
+    world.run(2.0)
+    before = heading(world, "r")
+    world.run(0.1)
+    rate = math.radians(heading(world, "r") - before) / 0.1
+    assert imu.reading.gyro[2] == pytest.approx(rate, rel=0.02)
+    assert rate == pytest.approx(0.4 / 0.3335, rel=0.03)  # wheel speeds over the track
+    assert abs(imu.reading.gyro[0]) < 0.05 and abs(imu.reading.gyro[1]) < 0.05
+
+
+def test_encoders_read_the_wheel_angles_of_the_distance_driven():
+    world, drive, _ = make(BoeBot)
+    enc = Encoders(world, "r", rate=50)
+    start, angles = world.body("r").xpos.copy(), None
+    world.step(1)
+    angles = np.array(enc.reading.angles)
+    drive.drive_speed(0.1, 0.05)
+    world.run(2.0)
+    turned = np.array(enc.reading.angles) - angles
+    assert turned[0] > 0 and turned[1] > 0 and turned[0] == pytest.approx(2 * turned[1], rel=0.05)
+    assert enc.reading.velocities[0] == pytest.approx(0.1 / 0.025, rel=0.03)
+    drive.drive_speed(0.1, 0.1)
+    world.run(0.5)
+    a0, x0 = np.array(enc.reading.angles), world.body("r").xpos.copy()
+    world.run(1.0)
+    travelled = np.linalg.norm((world.body("r").xpos - x0)[:2])
+    assert np.mean(np.array(enc.reading.angles) - a0) * 0.025 == pytest.approx(travelled, rel=0.02)
+    noisy = Encoders(world, "r", noise=0.01, seed=1, joints=("left_wheel",))
+    world.step(1)
+    assert len(noisy.reading.angles) == 1 and noisy.reading.angles[0] != enc.reading.angles[0]
+    del start
+
+
+def test_laser_angles_noise_and_points():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(Box(name="wall", dimensions=(0.1, 4.0, 1.0), pose=Pose((2.05, 0, 0.5))))
+    world.insert(Pioneer3DX(name="p", pose=Pose((0, 0, 0.001))))
+    laser = LaserRangeFinder(world, "p", fov_deg=90, rays=7, max_range=5.0, points=True)
+    noisy = LaserRangeFinder(world, "p", fov_deg=90, rays=7, max_range=5.0, noise=0.05, seed=2)
+    world.step(1)
+    np.testing.assert_allclose(np.degrees(laser.angles), np.linspace(-45, 45, 7))
+    scan = laser.reading
+    np.testing.assert_allclose(scan.ranges, 2.0 / np.cos(laser.angles), rtol=1e-3)  # a flat wall 2 m ahead
+    np.testing.assert_allclose(scan.points[:, 0], 2.0, atol=1e-3)
+    np.testing.assert_allclose(scan.points[:, 2], 0.3 + world.body("p").xpos[2], atol=1e-6)
+    assert 0 < np.abs(noisy.reading.ranges - scan.ranges).max() < 0.25
+    back = LaserRangeFinder(world, "p", fov_deg=360, rays=4, max_range=5.0, points=True)
+    world.step(1)
+    np.testing.assert_allclose(np.degrees(back.angles), [-180, -90, 0, 90])
+    assert back.reading.ranges[2] == pytest.approx(2.0, abs=1e-3)
+    assert back.reading.ranges[0] == 5.0 and np.isnan(back.reading.points[0]).all()  # nothing behind
+
+
+def test_bumper_reads_nothing_when_free_and_ignores_its_own_robot():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001))))
+    world.insert(Box(name="crate", dimensions=(0.2, 0.2, 0.2), free=True, pose=Pose((0.3, 0, 0.1))))
+    bumper = Bumper(world, "bot")
+    caster = Bumper(world, "bot", geom="caster")
+    world.run(0.3)
+    assert not bumper.reading.pressed and bumper.reading.touching == ()
+    assert caster.reading.touching == ("ground/plane",)  # the floor is not its robot; its wheels are
