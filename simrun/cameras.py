@@ -67,10 +67,10 @@ class RangeCone(Sensor):
         seed: int = 0,
         exclude: str = "robot",
     ) -> None:
-        super().__init__(world, entity, rate, noise, seed)
-        self.caster = RayCaster(entity, exclude)
         if max_range <= min_range or rays < 1 or cone_deg < 0:
             raise EntityError("range cone: 0 <= min_range < max_range, rays >= 1, cone >= 0")
+        self.caster = RayCaster(entity, exclude)
+        super().__init__(world, entity, rate, noise, seed)  # registers it: checks first
         self.offset = np.asarray(offset, dtype=float)
         self.min_range, self.max_range, self.response = min_range, max_range, response
         forward = np.asarray(direction, dtype=float) / np.linalg.norm(direction)

@@ -203,10 +203,10 @@ class LaserRangeFinder(Sensor):
         seed: int = 0,
         exclude: str = "robot",
     ) -> None:
-        super().__init__(world, entity, rate, noise, seed)
         if rays < 1 or max_range <= 0 or not 0 < fov_deg <= 360:
             raise EntityError("laser: rays >= 1, max_range > 0, 0 < fov <= 360")
         self.caster = RayCaster(entity, exclude)
+        super().__init__(world, entity, rate, noise, seed)  # registers it: checks first
         self.height, self.max_range, self.points = height, max_range, points
         span = math.radians(fov_deg)
         if fov_deg == 360:

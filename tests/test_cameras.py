@@ -5,9 +5,9 @@ import pytest
 from conftest import needs_gl
 
 from simrun import Box, Camera, Ground, Pose, World
-from simrun.cameras import IRDistance, Sonar, StereoCamera, StereoRig, Webcam
+from simrun.cameras import IRDistance, RangeCone, Sonar, StereoCamera, StereoRig, Webcam
 from simrun.drive import BoeBot
-from simrun.errors import SimrunError
+from simrun.errors import EntityError, SimrunError
 
 
 def robot_facing_wall(distance):
@@ -80,3 +80,59 @@ def test_camera_without_gl_reports_how_to_fix(monkeypatch):
     with pytest.raises(SimrunError, match="MUJOCO_GL=egl"):
         world.step(1)
     assert cam.reading is None and cam.samples == 0
+
+
+def test_range_cone_validation_defaults_noise_and_min_range():
+    world = robot_facing_wall(0.5)
+    with pytest.raises(EntityError, match="range cone: 0 <= min_range < max_range"):
+        IRDistance(world, "bot", min_range=1.0, max_range=0.5)
+    with pytest.raises(EntityError, match="range cone"):
+        Sonar(world, "bot", rays=0)
+    with pytest.raises(EntityError, match="range cone"):
+        Sonar(world, "bot", cone_deg=-1.0)
+    with pytest.raises(EntityError, match="exclude must be one of"):
+        IRDistance(world, "bot", exclude="chassis")
+    assert world.controllers == []  # a refused sensor is not left running
+    ir, sonar = IRDistance(world, "bot"), Sonar(world, "bot")
+    assert (ir.min_range, ir.max_range, len(ir._local)) == (0.1, 0.8, 9)  # 3 x 3 rays over 2 degrees
+    assert (sonar.min_range, sonar.max_range, len(sonar._local)) == (0.02, 4.0, 49)
+    noisy = IRDistance(world, "bot", noise=0.01, seed=4)
+    world.run(0.1)
+    assert noisy.reading.distance != ir.reading.distance
+    assert noisy.reading.distance == pytest.approx(0.5, abs=0.05)
+
+
+def test_range_cone_direction_offset_and_cone_in_the_body_frame():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001), (np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)))))  # faces +Y
+    world.insert(Box(name="north", dimensions=(2.0, 0.1, 1.0), pose=Pose((0, 1.05, 0.5))))
+    world.insert(Box(name="post", dimensions=(0.05, 0.05, 1.0), pose=Pose((0.25, 0.6, 0.5))))
+    ahead = IRDistance(world, "bot", offset=(0.0, 0.0, 0.2), max_range=2.0, min_range=0.0, cone_deg=0.0, rays=1)
+    left = RangeCone(world, "bot", offset=(0.1, 0.0, 0.2), direction=(0.0, 1.0, 0.0), max_range=3.0)
+    wide = RangeCone(world, "bot", offset=(0.0, 0.0, 0.6), cone_deg=60.0, rays=9, max_range=2.0)  # high: no floor
+    world.run(0.1)
+    y = world.body("bot").xpos[1]
+    assert ahead.reading.distance == pytest.approx(1.0 - y, abs=5e-3)  # the north wall, straight ahead (+Y)
+    assert left.reading.distance == 3.0  # the robot's left is world -X: nothing there
+    # the post 0.25 m to the side is 22.6 degrees off the heading: inside the 60 degree cone, nearer than the wall
+    assert wide.reading.distance == pytest.approx(np.hypot(0.25 - 0.025, 0.6 - y), abs=0.03)
+
+
+def test_stereo_rig_cameras_sit_a_baseline_apart_and_look_along_x():
+    world = World()
+    world.insert(StereoRig(name="eyes", baseline=0.2, fovy=45.0, resolution=(64, 48), pose=Pose((0, 0, 0.5))))
+    model, data = world.model, world.data
+    left, right = model.camera("eyes/left"), model.camera("eyes/right")
+    np.testing.assert_allclose(left.pos, [0, 0.1, 0]) and np.testing.assert_allclose(right.pos, [0, -0.1, 0])
+    assert left.fovy[0] == 45.0 and tuple(model.cam_resolution[left.id]) == (64, 48)
+    view = data.cam_xmat[left.id].reshape(3, 3)
+    np.testing.assert_allclose(-view[:, 2], [1, 0, 0], atol=1e-9)  # MuJoCo cameras look along their -Z
+    np.testing.assert_allclose(view[:, 1], [0, 0, 1], atol=1e-9)  # image up is world up
+    with pytest.raises(EntityError, match="is not a StereoRig"):
+        world.insert(Box(name="crate"))
+        StereoCamera(world, "crate")
+    with pytest.raises(EntityError, match="baseline must be a positive number"):
+        bad = World()
+        bad.insert(StereoRig(name="x", baseline=0.0))
+        bad.compile()
