@@ -232,6 +232,12 @@ def _size(text: str) -> tuple[int, int]:
 )
 @click.option("--seed", type=int, default=None, help="Reseed every sensor's noise (sensor k gets seed + k).")
 @click.option("--record-sensors", default=None, help="Comma-separated sensor names whose readings --record keeps.")
+@click.option(
+    "--record-as",
+    default=None,
+    help="Also write the --record recording as glb, gltf, usd (usda, usdc) and/or html beside it "
+    "(comma-separated; RUN.simlog -> RUN.glb...), as 'simrun replay' does.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
 @click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
 def play_command(
@@ -250,9 +256,12 @@ def play_command(
     record_sensors: str | None,
     as_json: bool,
     force: bool = False,
+    record_as: str | None = None,
 ) -> None:
     """Run SCENE headless: timed commands, optional video or frames, and a summary."""
     width, height = _size(size)
+    if record_as is not None and record is None:
+        raise click.UsageError("--record-as needs --record RUN.simlog")
     chosen = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
     options = PlayOptions(
         duration,
@@ -281,10 +290,24 @@ def play_command(
                 bar.update(now - done[0])
                 done[0] = now
 
+        watchable, written = None, []
+        if record is not None and record_as is not None:
+            from simrun.outfile import check_output
+            from simrun.replay_export import beside
+
+            watchable = beside(record, record_as)
+            for target in watchable.values():
+                check_output(target)  # refused before simulating, like --video and --record
         result = run_play(scene, options, progress)
         if bar is not None:
             bar.__exit__(None, None, None)
+        if record is not None and watchable is not None:
+            from simrun.replay_export import export_recording
+
+            written = export_recording(record, watchable)
     summary = result.to_dict()
+    if watchable is not None:
+        summary["recording_outputs"] = {str(item.path): item.size for item in written}
     if as_json:
         click.echo(json.dumps(summary))
         return
@@ -297,21 +320,73 @@ def play_command(
         click.echo(f"  {name}: drove {metres:.3f} m")
     for name, count in summary["sensor_samples"].items():
         click.echo(f"  sensor {name}: {count} sample(s)")
+    for item in written:
+        click.echo(f"  wrote {item.path} ({item.size} bytes)")
+
+
+_OUT = click.Path(path_type=Path, dir_okay=False)
 
 
 @main.command("replay")
 @click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--video", type=click.Path(path_type=Path, dir_okay=False), required=True, help="OUT.gif or OUT.mp4.")
+@click.option("--video", type=_OUT, default=None, help="OUT.gif or OUT.mp4.")
+@click.option("--glb", type=_OUT, default=None, help="Animated GLB: visual meshes, one animation (Y-up, metres).")
+@click.option("--gltf", type=_OUT, default=None, help="The same as one .gltf file (buffers as data: URIs).")
+@click.option("--usd", type=_OUT, default=None, help="USD (.usd/.usda/.usdc): the physics export + time samples.")
+@click.option("--html", type=_OUT, default=None, help="A page that plays the recording in a browser, offline.")
 @click.option(
     "--render-mode", type=click.Choice([m for m in MODES if m != "none"]), default="visual", show_default=True
 )
 @click.option("--camera", default=None, help="Camera name.")
 @click.option("--size", default="320x240", show_default=True, help="Frame size WxH.")
-@click.option("--fps", type=FPS, default=15.0, show_default=True, help="Frames per simulated second.")
-def replay(log: Path, video: Path, render_mode: str, camera: str | None, size: str, fps: float) -> None:
-    """Replay a .simlog kinematically (the recorded poses, no physics) into a video."""
+@click.option(
+    "--fps",
+    type=FPS,
+    default=None,
+    help="Frames per simulated second of the video (default 15); of the animations, keyframes per second "
+    "(default: every recorded frame) plus those needed to stay within --tolerance.",
+)
+@click.option(
+    "--tolerance",
+    type=_Number(1e-9, 1.0, low_open=True),
+    default=1e-3,
+    show_default=True,
+    help="With --fps: the largest pose error of the animations between keyframes, metres and radians.",
+)
+@click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
+def replay(
+    log: Path,
+    video: Path | None,
+    render_mode: str,
+    camera: str | None,
+    size: str,
+    fps: float | None,
+    glb: Path | None = None,
+    gltf: Path | None = None,
+    usd: Path | None = None,
+    html: Path | None = None,
+    tolerance: float = 1e-3,
+    force: bool = False,
+) -> None:
+    """Replay a .simlog kinematically (the recorded poses, no physics) into a video and/or files anyone can watch.
+
+    --glb/--gltf (three.js, Blender, any glTF viewer), --usd (usdview, Omniverse) and --html (a browser)
+    animate the recorded body poses.
+    """
     width, height = _size(size)
-    with _guard():
+    outputs = {k: v for k, v in (("glb", glb), ("gltf", gltf), ("usd", usd), ("html", html)) if v is not None}
+    if video is None and not outputs:
+        raise click.UsageError("give --video, --glb, --gltf, --usd and/or --html")
+    if outputs:
+        from simrun.replay_export import export_recording
+
+        with _guard(), output_policy(force, [log]):
+            for item in export_recording(log, outputs, fps, tolerance):
+                click.echo(f"wrote {item.path} ({item.size} bytes, {item.keyframes} keyframes) from {log}")
+    if video is None:
+        return
+    fps = 15.0 if fps is None else fps
+    with _guard(), output_policy(force, [log]):
         recording = Simlog(log)
         scene = recording.scene_path()
         check_scene(recording, scene)

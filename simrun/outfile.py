@@ -10,6 +10,8 @@ Kinds recognised by suffix (magic number, plus the generator recorded inside whe
 
 * ``.mbin``, ``.glb``, ``.usd``/``.usda``/``.usdc``, ``.msh``: as meshtool (generator ``meshtool`` or
   ``simrun`` in GLB ``asset.generator`` / USD ``customLayerData``);
+* ``.gltf`` and ``.html``/``.htm``: simrun's generator near the start (``asset.generator``, a
+  ``<meta name="generator">``);
 * ``.xml``: an MJCF (root element ``<mujoco``); ``.mjz``: a zip holding an ``.xml``; ``.png``, ``.gif``,
   ``.mp4``: their magic numbers; ``.simlog``: its magic line. These formats, as simrun writes them, carry
   no generator marker, so a file of the same kind is replaced (documented in README "Outputs").
@@ -41,6 +43,13 @@ MAGIC: dict[str, tuple[bytes, ...]] = {
     ".gif": (b"GIF87a", b"GIF89a"),
     ".mjz": (b"PK\x03\x04",),
     ".simlog": (b"\x89SIMLOG\n",),
+}
+
+#: Suffix -> the generator marker near the start of text outputs simrun writes (recording pages, .gltf).
+_MARKED: dict[str, bytes] = {
+    ".html": b'<meta name="generator" content="simrun (',
+    ".htm": b'<meta name="generator" content="simrun (',
+    ".gltf": b'"generator": "simrun (',
 }
 
 _POLICY: contextvars.ContextVar[tuple[bool, tuple[Path, ...]]] = contextvars.ContextVar(
@@ -82,7 +91,7 @@ def check_output(
     every_input = (*policy_inputs, *inputs)
     try:
         suffix = path.suffix.lower()
-        if suffix in KINDS or suffix not in (*MAGIC, ".xml", ".mp4"):
+        if suffix in KINDS or suffix not in (*MAGIC, *_MARKED, ".xml", ".mp4"):
             meshtool_check_output(path, KINDS.get(suffix), force=force, inputs=every_input, data=data)
             return
         refuse_inputs(path, every_input)
@@ -119,6 +128,8 @@ def _same_kind(path: Path, suffix: str) -> bool:
         return text.startswith("<mujoco")
     if suffix == ".mp4":
         return head[4:8] == b"ftyp"
+    if suffix in _MARKED:
+        return _MARKED[suffix] in head
     return head.startswith(MAGIC[suffix])
 
 

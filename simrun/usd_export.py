@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import re
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,8 +41,14 @@ def _ident(name: str, fallback: str) -> str:
     return text if not text[0].isdigit() else f"_{text}"
 
 
-def export_world_usd(world: World, out: Path) -> None:
+def export_world_usd(world: World, out: Path, decorate: Callable[[Any, dict[int, str]], None] | None = None) -> None:
     """Write the world (at its initial state) as ``.usda``/``.usdc``.
+
+    Args:
+        world: The world (compiled if needed).
+        out: The output file.
+        decorate: Called as ``decorate(stage, body_paths)`` (body id to prim path) before the stage is saved:
+            how :mod:`simrun.replay_usd` adds time samples to the same stage.
 
     Raises:
         SimrunError: An unsupported extension or a failed write.
@@ -96,6 +103,8 @@ def export_world_usd(world: World, out: Path) -> None:
         for g in range(model.ngeom):
             body = int(model.geom_bodyid[g])
             _geom(stage, model, g, paths[body], names, UsdGeom, UsdPhysics, Gf, Vt, Sdf)
+        if decorate is not None:
+            decorate(stage, paths)
         stamp_usd(stage.GetRootLayer())  # how a later export knows this file is simrun's to replace
         stage.GetRootLayer().Save()
         try:
