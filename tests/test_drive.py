@@ -716,3 +716,116 @@ def test_bumper_reads_nothing_when_free_and_ignores_its_own_robot():
     world.run(0.3)
     assert not bumper.reading.pressed and bumper.reading.touching == ()
     assert caster.reading.touching == ("ground/plane",)  # the floor is not its robot; its wheels are
+
+
+# -- drive service details ----------------------------------------------------------------------------------
+
+
+def test_backwards_and_clockwise_commands_go_the_other_way():
+    world, drive, _ = make(LegoNxtTribot)
+    start = world.body("r").xpos.copy()
+    drive.drive_distance(-0.3, power=0.5)
+    assert world.run_until(lambda: not drive.busy, timeout=20)
+    world.run(0.3)
+    assert world.body("r").xpos[0] - start[0] == pytest.approx(-0.3, abs=0.01)
+    assert drive.odometry().x == pytest.approx(-0.3, abs=0.01)
+    before = heading(world, "r")
+    drive.rotate_degrees(-45, power=1.0)
+    assert world.run_until(lambda: not drive.busy, timeout=20)
+    world.run(0.3)
+    assert heading(world, "r") - before == pytest.approx(-45, abs=1.0)
+    left, right = drive.encoders()
+    assert left - right == pytest.approx(math.radians(45) * 0.112, abs=0.003)  # the left wheel went forward
+
+
+def test_power_sets_the_cruising_speed_of_a_distance():
+    speeds = {}
+    for power in (0.25, 1.0):
+        world, drive, _ = make(LegoNxtTribot)
+        drive.drive_distance(3.0, power=power)
+        world.run(2.0)
+        before = world.body("r").xpos[0]
+        world.run(0.2)
+        speeds[power] = (world.body("r").xpos[0] - before) / 0.2
+    assert speeds[0.25] == pytest.approx(0.25 * 0.498, rel=0.05)
+    assert speeds[1.0] == pytest.approx(0.5, rel=0.05)  # capped by limits.max_linear 0.5 m/s
+
+
+def test_drive_speed_all_stop_and_wheel_speed_limits():
+    world, drive, _ = make(IRobotCreate)
+    drive.drive_speed(0.3, -0.1)
+    world.run(3.0)
+    enc = world.data
+    left = enc.joint("r/left_wheel").qvel[0] * 0.036
+    right = enc.joint("r/right_wheel").qvel[0] * 0.036
+    assert (left, right) == pytest.approx((0.3, -0.1), abs=0.005)
+    drive.all_stop()
+    world.run(1.5)
+    before = world.body("r").xpos.copy()
+    world.run(0.1)
+    assert np.linalg.norm(world.body("r").xpos - before) < 1e-4
+    assert not drive.busy
+    drive.drive_speed(2.0, 2.0)  # beyond the motor: full power
+    world.run(2.0)
+    assert world.data.ctrl[0] == 1.0 and world.data.ctrl[1] == 1.0
+
+
+def test_enable_reset_and_snapshot_restore_continue_identically():
+    world, drive, _ = make(BoeBot)
+    drive.enable(False)
+    assert not drive.enabled and not drive.busy
+    for call, args in (("set_drive_power", (0.5, 0.5)), ("drive_speed", (0.1, 0.1)), ("cmd_vel", (0.1, 0.0))):
+        with pytest.raises(EntityError, match="disabled"):
+            getattr(drive, call)(*args)
+    with pytest.raises(EntityError, match="disabled"):
+        drive.rotate_degrees(90)
+    drive.enable(True)
+    drive.drive_distance(0.5, power=0.8)
+    world.run(1.0)
+    state = drive.snapshot()
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    physics = np.zeros(mujoco.mj_stateSize(world.model, spec))
+    mujoco.mj_getState(world.model, world.data, physics, spec)
+    next_time = drive.next_time
+    world.run(1.0)
+    expected = world.data.qpos.copy()
+    mujoco.mj_setState(world.model, world.data, physics, spec)
+    drive.restore(state)
+    assert drive.next_time == next_time
+    world.run(1.0)
+    np.testing.assert_array_equal(world.data.qpos, expected)
+    world.reset()
+    assert not drive.busy and drive.encoders() == (0.0, 0.0)
+    assert drive.odometry().x == 0.0 and world.time == 0.0
+
+
+def test_odometry_twist_and_calibration_scales():
+    world, drive, _ = make(Pioneer3DX)
+    drive.drive_speed(0.3, 0.3)
+    world.run(2.0)
+    odometry = drive.odometry()
+    assert odometry.linear == pytest.approx(0.3, rel=0.02) and abs(odometry.angular) < 0.01
+    assert odometry.time == pytest.approx(world.time, abs=0.021)
+    drive.reset_encoders()
+    assert drive.odometry().x == 0.0 and drive.encoders() == (0.0, 0.0)
+    world2, _, _ = make(Pioneer3DX)
+    scaled = DriveService(world2, "r", radius_scale=1.1, separation_scale=0.5)
+    assert scaled.radius == pytest.approx(0.0975 * 1.1) and scaled.separation == pytest.approx(0.3335 * 0.5)
+    with pytest.raises(EntityError, match="rate must be a positive finite number"):
+        DriveService(world2, "r", rate=0.0)
+    with pytest.raises(EntityError, match="gain must be a finite number"):
+        DriveService(world2, "r", gain=math.nan)
+    fixed = DriveService(world2, "r", gain=0.3, integral_gain=2.0)
+    world2.step(1)
+    assert (fixed.gain, fixed.ki) == (0.3, 2.0)
+
+
+def test_cmd_vel_angular_limit_and_turn_direction():
+    world, drive, _ = make(Pioneer3DX)
+    drive.limits = DriveLimits(max_angular=0.5, max_angular_accel=10.0)
+    before = heading(world, "r")
+    for _ in range(15):
+        drive.cmd_vel(0.0, 5.0)  # far above the 0.5 rad/s limit, counter-clockwise
+        world.run(0.1)
+    turned = heading(world, "r") - before
+    assert turned > 0 and math.radians(turned) == pytest.approx(0.5 * 1.5, rel=0.15)
