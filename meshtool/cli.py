@@ -32,7 +32,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "export": ("meshtool.cli_commands:export", "Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."),
     "hulls": (
         "meshtool.cli_commands:hulls",
-        "Compute the collision hulls of SRC (an OBJ) and report their quality; writes nothing.",
+        "Compute the collision hulls of SRC (a mesh file) and report their quality; writes nothing.",
     ),
     "info": (
         "meshtool.cli_commands:info",
@@ -44,7 +44,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "normalize": (
         "meshtool.cli_commands:normalize",
-        "Normalise SRC (an OBJ file) into OUTPUT/NAME/: metres, Z-up, PNG textures, safe names.",
+        "Normalise SRC (OBJ, STL, PLY, glTF/GLB or COLLADA) into OUTPUT/NAME/: metres, Z-up, PNG textures.",
     ),
     "unpack": ("meshtool.cli_commands:unpack", "Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."),
     "urdf": (
@@ -103,7 +103,7 @@ class LazyGroup(click.Group):
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="meshtool")
 def main() -> None:
-    """Make OBJ/MTL assets simulation-ready."""
+    """Make mesh assets (OBJ/MTL, STL, PLY, glTF/GLB, COLLADA) simulation-ready."""
 
 
 def __getattr__(name: str) -> Any:

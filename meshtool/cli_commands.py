@@ -188,7 +188,7 @@ def normalize(
     as_json: bool,
     **normalise_kw: Any,
 ) -> None:
-    """Normalise SRC (an OBJ file) into OUTPUT/NAME/: metres, Z-up, PNG textures, safe names."""
+    """Normalise SRC (OBJ, STL, PLY, glTF/GLB or COLLADA) into OUTPUT/NAME/: metres, Z-up, PNG textures."""
     with _guard(as_json), overwrite_allowed(force):
         options = _normalise_options(normalise_kw, name=name)
         folder, asset = normalise_to(src, out_dir, options)
@@ -227,7 +227,7 @@ def obj2bin(
     as_json: bool,
     **kw: Any,
 ) -> None:
-    """Convert SRC (an OBJ file, or a folder of them) to .mbin: normalised, collision hulls, packed."""
+    """Convert SRC (OBJ, STL, PLY, glTF/GLB, COLLADA; or a folder of them) to .mbin: normalised, hulls, packed."""
     with _guard(as_json):
         options = ConvertOptions(_normalise_options(kw), quantize, _hull_options(kw))
         if src.is_dir():
@@ -294,7 +294,7 @@ def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as
 @normalise_options
 @hull_options
 def hulls(src: Path, as_json: bool, **kw: Any) -> None:
-    """Compute the collision hulls of SRC (an OBJ) and report their quality; writes nothing."""
+    """Compute the collision hulls of SRC (a mesh file) and report their quality; writes nothing."""
     with _guard(as_json):
         strict = bool(kw["strict"])  # here strict judges the hulls, not the normaliser
         options = _hull_options(kw)

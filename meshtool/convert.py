@@ -96,7 +96,7 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
         raise StrictModeError(f"hull warning in strict mode: {first.one_line()}", path=src.name)
     data = pack(asset, options.quantize, options.fingerprint(), hull_set.hulls, report)
     roots = [src.parent, *options.normalise.search_paths]
-    used = [_source_path(str(s.get("path", "")), roots) for s in asset.manifest.get("sources", [])]
+    used = [_source_path(str(s.get("path", "")), roots) for s in _files(asset.manifest.get("sources", []))]
     check_output(out, "mbin", force=force, inputs=[src, *(p for p in used if p is not None)], data=data)
     write_file(out, data)
     stats = dict(asset.stats)
@@ -122,7 +122,7 @@ def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
         if meta.get("options") != options.fingerprint():
             return False
         roots = [src.parent, *options.normalise.search_paths]
-        for source in meta.get("sources", []):
+        for source in _files(meta.get("sources", [])):
             path = _source_path(str(source["path"]), roots)
             if path is None or file_sha256(path) != source["sha256"]:
                 return False
@@ -131,6 +131,17 @@ def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
         return False
     finally:
         packed.close()
+
+
+def _files(sources: list[dict[str, str]]) -> list[dict[str, str]]:
+    """Source entries that are files.
+
+    Images embedded in a glTF/GLB (``crate.glb#name.png``) are not: the container's entry covers them.
+    """
+    containers = {str(s.get("path")) for s in sources if s.get("role") in ("gltf", "glb")}
+    return [
+        s for s in sources if not (s.get("role") == "texture" and str(s.get("path")).split("#", 1)[0] in containers)
+    ]
 
 
 def _source_path(shown: str, roots: list[Path]) -> Path | None:
@@ -142,12 +153,27 @@ def _source_path(shown: str, roots: list[Path]) -> Path | None:
 
 
 def tree_jobs(src_dir: Path, out_dir: Path) -> list[tuple[Path, Path]]:
-    """Every ``*.obj`` under ``src_dir`` (sorted) with its ``.mbin`` path under ``out_dir``, same layout."""
+    """Every mesh file under ``src_dir`` (sorted) with its ``.mbin`` path under ``out_dir``, same layout.
+
+    Mesh files have a suffix of :data:`meshtool.readers.MESH_SUFFIXES`.
+
+    Files of one folder whose stems clash (``box.obj`` and ``box.stl``) get the suffix appended to all but
+    the first in sorted order (``box.mbin``, ``box_stl.mbin``).
+    """
+    from meshtool.readers import MESH_SUFFIXES
+
     jobs = []
-    for src in find_files(src_dir, ".obj"):
+    taken: set[Path] = set()
+    found = sorted({p for suffix in MESH_SUFFIXES for p in find_files(src_dir, suffix)})
+    for src in found:
         rel = src.relative_to(src_dir)
         folder = out_dir.joinpath(*(safe_file_stem(p) or "_" for p in rel.parts[:-1]))
-        jobs.append((src, folder / f"{safe_file_stem(src.stem) or 'asset'}.mbin"))
+        stem = safe_file_stem(src.stem) or "asset"
+        out = folder / f"{stem}.mbin"
+        if out in taken:
+            out = folder / f"{stem}_{src.suffix.lower().lstrip('.')}.mbin"
+        taken.add(out)
+        jobs.append((src, out))
     return jobs
 
 

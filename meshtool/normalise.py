@@ -29,7 +29,7 @@ from meshtool.obj.mtl import Material, TextureMap, format_mtl, opaque_if_invisib
 from meshtool.obj.parse import ObjData
 from meshtool.obj.write import format_obj
 from meshtool.outdir import write_folder
-from meshtool.readers import material_library, read_mesh, source_frame, source_role
+from meshtool.readers import material_library, read_mesh, source_entries, source_frame
 from meshtool.resolve import Resolution, Resolver, printable
 from meshtool.smallparts import fix_small_parts
 from meshtool.texroles import tag_textures
@@ -171,7 +171,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
     data = resolver.read_source(src)
     obj = read_mesh(src, data, source_name, resolver)  # OBJ, STL, PLY, glTF/GLB or COLLADA
     findings = [*obj.findings, *root_findings]
-    sources: list[dict[str, str]] = [{"role": source_role(obj), "path": source_name, "sha256": _sha256(data)}]
+    sources: list[dict[str, str]] = source_entries(obj, source_name, _sha256(data))  # the file, glTF buffers
     resolutions: list[Resolution] = []
 
     normalised_before = any(_MARKER.match(c) for c in obj.header_comments[:1])

@@ -48,6 +48,7 @@ __all__ = [
     "material_library",
     "read_mesh",
     "source_frame",
+    "source_entries",
     "source_role",
 ]
 
@@ -97,6 +98,18 @@ def read_mesh(src: Path, data: bytes, path: str, resolver: Resolver) -> ObjData:
 def source_role(obj: ObjData) -> str:
     """The ``role`` of the mesh file in ``asset.json``'s ``sources`` (``obj``, ``stl``, ``gltf``...)."""
     return obj.format if isinstance(obj, SourceMesh) else "obj"
+
+
+def source_entries(obj: ObjData, path: str, sha256: str) -> list[dict[str, str]]:
+    """``asset.json`` source entries of the mesh file (role: its format) and the files it read (glTF buffers).
+
+    Args:
+        obj: The mesh as read.
+        path: The mesh file as shown.
+        sha256: Its SHA-256.
+    """
+    extra = obj.sources if isinstance(obj, SourceMesh) else []
+    return [{"role": source_role(obj), "path": path, "sha256": sha256}, *extra]
 
 
 def material_library(obj: ObjData, src: Path) -> dict[str, tuple[Material, Path]]:

@@ -26,6 +26,7 @@ Locations of findings count triangles in file order.
 from __future__ import annotations
 
 import base64
+import hashlib
 import json
 import math
 import struct
@@ -139,6 +140,7 @@ class _Reader:
     triangles: int = 0
     compressed: list[str] = field(default_factory=list)
     skipped_modes: dict[int, int] = field(default_factory=dict)
+    sources: list[dict[str, str]] = field(default_factory=list)
 
     def read(self, fmt: str) -> SourceMesh:
         required = set(self.doc.get("extensionsRequired") or [])
@@ -200,7 +202,9 @@ class _Reader:
             "meshes": len(self._list("meshes")),
             "extensions_used": sorted(str(e) for e in self.doc.get("extensionsUsed") or []),
         }
-        return assemble(pieces, self.path, fmt, "triangle", materials, FRAME, self.findings, record)
+        mesh = assemble(pieces, self.path, fmt, "triangle", materials, FRAME, self.findings, record)
+        mesh.sources = self.sources
+        return mesh
 
     # -- documents -------------------------------------------------------------------------------------
 
@@ -258,7 +262,10 @@ class _Reader:
                 hint="add its folder with --search-path" if outside else "put the file beside the glTF",
                 code="gltf-buffer-missing",
             )
-        return self.resolver.read(res.found, "other")
+        data = self.resolver.read(res.found, "other")
+        shown = self.resolver.display(res.found)
+        self.sources.append({"role": kind, "path": shown, "sha256": hashlib.sha256(data).hexdigest()})
+        return data
 
     def _view(self, index: int) -> tuple[bytes, int, int, int | None]:
         view = self._item("bufferViews", index)

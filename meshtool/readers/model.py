@@ -63,7 +63,9 @@ class SourceMesh(ObjData):
             reference the asset's resolver resolves: a relative URI for external images, or the name an
             embedded image was registered under (:meth:`meshtool.resolve.Resolver.embed`).
         frame: The declared unit and up axis.
-        record: Format-specific facts for ``asset.json`` (``source_format``).
+        record: Format-specific facts (counts, encoding, generator) for tests and reports.
+        sources: ``asset.json`` source entries of other files the reader read (glTF buffers: role
+            ``buffer``, path as the resolver shows it, SHA-256).
     """
 
     format: str = "obj"
@@ -71,6 +73,7 @@ class SourceMesh(ObjData):
     materials: list[Material] = field(default_factory=list)
     frame: SourceFrame = SourceFrame(None, "", None, "")
     record: dict[str, Any] = field(default_factory=dict)
+    sources: list[dict[str, str]] = field(default_factory=list)
 
 
 @dataclass(slots=True)
