@@ -1,5 +1,7 @@
 """Articulated arms and the arm service, including an arm on a driving mobile base."""
 
+import math
+
 import mujoco
 import numpy as np
 import pytest
@@ -296,4 +298,155 @@ joint = { axis = [0.0, -1.0, 0.0], kind = "slide", limits = [0.0, 0.02], mimic =
     assert scene_text(load_scene(saved)) == saved.read_text()
     path.write_text(path.read_text().replace("kp = 200.0", "kp = -1.0"))
     with pytest.raises(SceneError, match=r"segments.*kp must be a finite number >= 0"):
+        load_scene(path)
+
+
+def test_velocity_servo_holds_a_joint_speed():
+    arm = ArticulatedArm(
+        name="spin", segments=(Segment("turret", 0.1, joint=ArmJoint(drive="velocity", kv=20.0, damping=0.0)),)
+    )
+    world = World()
+    world.insert(arm)
+    service = ArmService(world, "spin")
+    service.set_joint_targets([0.5])  # rad/s
+    world.run(1.0)
+    before = float(world.data.joint("spin/turret").qpos[0])
+    world.run(1.0)
+    assert float(world.data.joint("spin/turret").qpos[0]) - before == pytest.approx(0.5, rel=0.02)
+    assert service.joint_states().velocities[0] == pytest.approx(0.5, rel=0.02)
+
+
+def test_gravity_compensation_is_a_per_joint_option():
+    def lever(**options):
+        return ArticulatedArm(
+            name="lever",
+            segments=(
+                Segment("upright", 0.1, joint=ArmJoint(locked=True)),
+                Segment("arm", 0.3, 0.02, 1.0, ArmJoint(axis=(0, 1, 0), kp=20.0, **options)),
+                Segment("hand", 0.05, 0.02, 0.2, ArmJoint(locked=True)),
+            ),
+        )
+
+    sag = {}
+    for name, options in {"on": {}, "off": {"gravity_compensation": False}}.items():
+        world = World()
+        world.insert(lever(**options))
+        service = ArmService(world, "lever")
+        service.set_joint_targets([0.6])  # leaning over: gravity pulls it further
+        world.run(3.0)
+        sag[name] = service.joint_states().positions[0] - 0.6
+        model = world.model
+        compensated = [model.body_gravcomp[model.body(f"lever/{s}").id] for s in ("upright", "arm", "hand")]
+        assert compensated == ([1.0, 1.0, 1.0] if name == "on" else [1.0, 0.0, 0.0])  # a locked link follows
+    assert abs(sag["on"]) < 1e-3 and sag["off"] > 0.05
+    passive = World()
+    passive.insert(
+        ArticulatedArm(
+            name="p",
+            segments=(Segment("s", 0.1, joint=ArmJoint(drive="none", gravity_compensation=True)),),
+        )
+    )
+    assert passive.model.body_gravcomp[passive.model.body("p/s").id] == 1.0  # asked for: on
+
+
+def test_servo_damping_ratio_none_keeps_the_given_kv():
+    world = World()
+    world.insert(
+        ArticulatedArm(
+            name="a",
+            segments=(
+                Segment("j", 0.2, joint=ArmJoint(axis=(0, 1, 0), kp=40.0, kv=3.0, damping=1.0, damping_ratio=None)),
+                Segment("k", 0.2, joint=ArmJoint(axis=(0, 1, 0), kp=40.0, damping_ratio=0.5, damping=0.0)),
+            ),
+        )
+    )
+    design = ArmService(world, "a").servo_design()
+    assert design["a/j"]["kv"] == 3.0
+    inertia = design["a/j"]["inertia"]
+    assert design["a/j"]["damping_ratio"] == pytest.approx(4.0 / (2 * np.sqrt(40.0 * inertia)))
+    assert design["a/k"]["kv"] == pytest.approx(np.sqrt(40.0 * design["a/k"]["inertia"]))
+    assert world.model.actuator("a/j").biasprm[2] == pytest.approx(-3.0)
+    # the bound: a 0.2 m, 0.5 kg capsule of radius 0.03 about its end, plus the one above it stretched out
+    span = 0.2 + 2 * 0.03
+    own = 0.5 * (2 * (3 * 0.03**2 + span**2) / 12 + 0.03**2 / 2)
+    assert design["a/k"]["inertia"] == pytest.approx(0.01 + own + 0.5 * 0.1**2)
+    assert design["a/j"]["inertia"] == pytest.approx(0.01 + 2 * own + 0.5 * 0.1**2 + 0.5 * 0.3**2)
+
+
+@pytest.mark.parametrize(
+    ("segments", "message"),
+    [
+        ((), "no segments"),
+        ((Segment("a", 0.1), Segment("a", 0.1)), "segment names must be unique"),
+        ((Segment("a/b", 0.1),), "segment names must be unique, without '/'"),
+        ((Segment("a", 0.1, parent="b"), Segment("b", 0.1)), "'a' hangs from 'b', not defined before it"),
+        ((Segment("a", -0.1),), "length must be a positive number"),
+        ((Segment("a", 0.1, joint=ArmJoint(kind="ball")),), "kind must be hinge or slide"),
+        ((Segment("a", 0.1, joint=ArmJoint(drive="torque")),), "drive one of position, velocity, none"),
+        ((Segment("a", 0.1, joint=ArmJoint(limits=(0.5, -0.5))),), "low < high"),
+        ((Segment("a", 0.1, joint=ArmJoint(kp=0.0)),), "a position servo needs kp > 0"),
+        ((Segment("a", 0.1, joint=ArmJoint(damping=-1.0)),), "damping must be a finite number >= 0"),
+        ((Segment("a", 0.1, joint=ArmJoint(damping_ratio=0.0)),), "damping_ratio must be positive"),
+        ((Segment("a", 0.1, joint=ArmJoint(mimic="nobody")),), "mimics 'nobody', which must be a segment"),
+    ],
+)
+def test_bad_arms_are_refused(segments, message):
+    world = World()
+    world.insert(ArticulatedArm(name="bad", segments=segments))
+    with pytest.raises(EntityError, match=message):
+        world.compile()
+
+
+def test_arm_service_checks_its_commands_and_keeps_a_move_across_checkpoints():
+    world = World()
+    world.insert(LynxL6(name="lynx"))
+    arm = ArmService(world, "lynx")
+    with pytest.raises(EntityError, match="has 6 joints, got 2"):
+        arm.move_to([0.0, 0.0], 1.0)
+    with pytest.raises(EntityError, match="finite"):
+        arm.set_joint_targets([0, 0, math.nan, 0, 0, 0])
+    with pytest.raises(EntityError, match="duration must be a positive"):
+        arm.move_to([0.0] * 6, 0.0)
+    arm.move_to([0.3, 0.2, 0.1, 0.0, 0.0, 0.01], 1.0)
+    world.run(0.4)
+    state = arm.snapshot()
+    assert state["move"][1] == 1.0 and arm.busy
+    arm.restore({"move": None, "next_time": state["next_time"]})
+    assert not arm.busy
+    arm.restore(state)
+    assert arm.busy
+    assert world.run_until(lambda: not arm.busy, timeout=2.0)
+    world.run(1.0)
+    np.testing.assert_allclose(arm.joint_states().positions, [0.3, 0.2, 0.1, 0.0, 0.0, 0.01], atol=0.005)
+    arm.move_to([0.0] * 6, 1.0)
+    world.reset()
+    assert not arm.busy and world.time == 0.0
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ("[[entities.segments]]\nname = 'a'\n", r"segments\[0\].length: every segment needs a length"),
+        ("[[entities.segments]]\nlength = 0.1\n", r"\[0\].name: every segment needs a name"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\ncolour = 1\n", r"\[0\].colour: unknown key"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 'long'\n", r"\[0\].length: expected a number"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\noffset = [1, 2]\n", r"\[0\].offset: expected 3 numbers"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\nparent = 3\n", r"\[0\].parent: expected a segment name"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\njoint = 3\n", r"\[0\].joint: expected a table"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\njoint = { kind = 1 }\n", r"joint.kind: expected a string"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\njoint = { locked = 1 }\n", r"joint.locked: expected true"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\njoint = { x = {}, q = {} }\n", r"joint.q: unknown key"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\njoint = { x = 2 }\n", r"joint.x: expected a table"),
+        ("[[entities.segments]]\nname = 'a'\nlength = 0.1\njoint = { axis = [1] }\n", r"joint.axis: expected 3"),
+    ],
+)
+def test_scene_segment_errors_name_the_key(tmp_path, table, message):
+    from simrun import SceneError, load_scene
+
+    path = tmp_path / "arm.toml"
+    path.write_text(f"[[entities]]\ntype = 'ArticulatedArm'\nname = 'arm'\n\n{table}")
+    with pytest.raises(SceneError, match=message):
+        load_scene(path)
+    with pytest.raises(SceneError, match="expected an array of segment tables"):
+        path.write_text("[[entities]]\ntype = 'ArticulatedArm'\nname = 'arm'\nsegments = 3\n")
         load_scene(path)
