@@ -387,9 +387,17 @@ def file_sha256(path: Path) -> str | None:
     return sha256_of(path)
 
 
-def find_files(root: Path, suffix: str) -> list[Path]:
-    """Regular files under ``root`` (recursively) whose suffix matches ``suffix`` ignoring case, sorted."""
-    return sorted(p for p in root.rglob("*") if p.suffix.lower() == suffix.lower() and is_regular(p))
+def find_files(root: Path, suffix: str, special: bool = False) -> list[Path]:
+    """Regular files under ``root`` (recursively) whose suffix matches ``suffix`` ignoring case, sorted.
+
+    With ``special``, also entries that are neither regular files nor folders (a FIFO named ``x.obj``), for
+    callers that report them; they must never be opened.
+    """
+    return sorted(
+        p
+        for p in root.rglob("*")
+        if p.suffix.lower() == suffix.lower() and (is_regular(p) or (special and not p.is_dir()))
+    )
 
 
 def map_readonly(path: Path) -> mmap.mmap | None:

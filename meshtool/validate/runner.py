@@ -15,6 +15,7 @@ from pathlib import Path
 
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Severity
+from meshtool.resolve import find_files
 from meshtool.validate.cache import ResultCache
 from meshtool.validate.config import ValidateConfig
 from meshtool.validate.pool import run_here, run_workers
@@ -142,11 +143,10 @@ def discover(paths: list[Path]) -> list[tuple[Path, Path]]:
     found: dict[Path, tuple[Path, Path]] = {}
     for path in paths:
         if path.is_dir():
-            for file in sorted(path.rglob("*")):
-                if file.suffix.lower() not in SUFFIXES or file.is_dir():
-                    continue
-                if not any(part.startswith(".") for part in file.relative_to(path).parts[:-1]):
-                    found.setdefault(file.resolve(), (file, path))
+            for suffix in SUFFIXES:
+                for file in find_files(path, suffix, special=True):
+                    if not any(part.startswith(".") for part in file.relative_to(path).parts[:-1]):
+                        found.setdefault(file.resolve(), (file, path))
         elif os.path.exists(path):
             if path.suffix.lower() not in SUFFIXES:
                 raise ValidateError("not an OBJ or .mbin file", usage=True, path=str(path))
