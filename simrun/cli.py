@@ -260,8 +260,16 @@ def play_command(
 ) -> None:
     """Run SCENE headless: timed commands, optional video or frames, and a summary."""
     width, height = _size(size)
-    if record_as is not None and record is None:
-        raise click.UsageError("--record-as needs --record RUN.simlog")
+    watchable = None
+    if record_as is not None:
+        from simrun.replay_export import beside
+
+        if record is None:
+            raise click.UsageError("--record-as needs --record RUN.simlog")
+        try:
+            watchable = beside(record, record_as)
+        except SimrunError as exc:
+            raise click.BadParameter(str(exc), param_hint="--record-as") from None
     chosen = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
     options = PlayOptions(
         duration,
@@ -290,12 +298,10 @@ def play_command(
                 bar.update(now - done[0])
                 done[0] = now
 
-        watchable, written = None, []
-        if record is not None and record_as is not None:
+        written = []
+        if watchable is not None:
             from simrun.outfile import check_output
-            from simrun.replay_export import beside
 
-            watchable = beside(record, record_as)
             for target in watchable.values():
                 check_output(target)  # refused before simulating, like --video and --record
         result = run_play(scene, options, progress)

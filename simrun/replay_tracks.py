@@ -78,9 +78,14 @@ def read_tracks(world: World, log: Simlog) -> Tracks:
 
 
 def rotation_error(a: F64, b: F64) -> F64:
-    """Angles (radians) between unit quaternions ``a`` and ``b`` (..., 4), either sign."""
-    dot = np.abs(np.sum(a * b, axis=-1))
-    return np.asarray(2.0 * np.arccos(np.clip(dot, 0.0, 1.0)), dtype=np.float64)
+    """Angles (radians) between unit quaternions ``a`` and ``b`` (..., 4), either sign.
+
+    ``4 atan2(|a - b|, |a + b|)`` with the signs aligned: well conditioned for small angles, where
+    ``2 acos(a . b)`` loses half the digits.
+    """
+    sign = np.where(np.sum(a * b, axis=-1) < 0, -1.0, 1.0)[..., None]
+    near, far = np.linalg.norm(a - sign * b, axis=-1), np.linalg.norm(a + sign * b, axis=-1)
+    return np.asarray(4.0 * np.arctan2(near, far), dtype=np.float64)
 
 
 def slerp(qa: F64, qb: F64, s: F64) -> F64:
