@@ -55,6 +55,12 @@ def read_collada(data: bytes, path: str) -> SourceMesh:
         text = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
         line = getattr(exc, "lineno", None)
         raise FormatError(f"COLLADA cannot be read: {text}", path=path, line=line, hint="the file is damaged") from None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PendingDeprecationWarning)  # pycollada builds numpy matrices
+        return _read(doc, path)
+
+
+def _read(doc: Any, path: str) -> SourceMesh:
     findings: list[Finding] = []
     frame, rotate = _frame(doc, path, findings)
     materials: list[Material] = []
