@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import xxhash
 from click.testing import CliRunner
 
 from meshtool.convert import ConvertOptions, convert
@@ -38,17 +39,26 @@ def read_sections(data: bytes) -> tuple[list[list], int]:
     return entries, flags
 
 
-def assemble(entries: list[list], flags: int) -> bytes:
-    """Header, table and 64-byte aligned data with every checksum recomputed (spec sections 2 and 3)."""
+def checksum(blob: bytes, minor: int) -> int:
+    """Spec section 3: CRC-32 in 1.0 files, the low 32 bits of XXH3-64 from 1.1 on."""
+    return zlib.crc32(blob) if minor == 0 else xxhash.xxh3_64_intdigest(bytes(blob)) & 0xFFFFFFFF
+
+
+def assemble(entries: list[list], flags: int, minor: int = 0) -> bytes:
+    """Header, table and 64-byte aligned data with every checksum recomputed (spec sections 2 and 3).
+
+    The attacks are written as format 1.0 files (CRC-32): every reader must still read 1.0.
+    """
     start = -(-(64 + 64 * len(entries)) // 64) * 64
     table, chunks, at = b"", b"", start
     for kind, dtype, ndim, index, rows, cols, encoding, blob in entries:
-        table += ENTRY.pack(kind, dtype, ndim, index, rows, cols, at, len(blob), zlib.crc32(blob), encoding, b"")
+        crc = checksum(blob, minor)
+        table += ENTRY.pack(kind, dtype, ndim, index, rows, cols, at, len(blob), crc, encoding, b"")
         padded = bytes(blob) + b"\0" * (-len(blob) % 64)
         chunks += padded
         at += len(padded)
-    head = HEADER.pack(b"\x89MBN\r\n\x1a\n", 1, 0, flags, len(entries), 64, at, 0, b"")
-    head = head[:32] + struct.pack("<I", zlib.crc32(head[:32] + table)) + head[36:]
+    head = HEADER.pack(b"\x89MBN\r\n\x1a\n", 1, minor, flags, len(entries), 64, at, 0, b"")
+    head = head[:32] + struct.pack("<I", checksum(head[:32] + table, minor)) + head[36:]
     return head + table + b"\0" * (start - 64 - len(table)) + chunks
 
 
@@ -252,7 +262,7 @@ def hostile(bases, base, attack) -> bytes:
 def test_the_generator_reproduces_the_base_files(bases):
     """Reassembling an untouched file gives the same bytes: the attacks change only what they say."""
     for data in bases.values():
-        assert assemble(*read_sections(data)) == data
+        assert assemble(*read_sections(data), minor=data[10]) == data
         parse(data)
 
 

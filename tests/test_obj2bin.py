@@ -51,7 +51,7 @@ def test_info_json(fixtures, tmp_path):
     out = tmp_path / "h.mbin"
     run(obj2bin, fixtures / HEAD, "--units", "cm", "-o", out)
     info = json.loads(run(main, "info", out, "--json").stdout)
-    assert (info["version"], info["vertices"], info["triangles"], info["index_type"]) == ("1.0", 61, 80, "uint16")
+    assert (info["version"], info["vertices"], info["triangles"], info["index_type"]) == ("1.1", 61, 80, "uint16")
     assert [s["kind"] for s in info["sections"]] == [
         "POS",
         "UV",

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import zlib
+from typing import Any
+
 import numpy as np
+import xxhash
 
 MAGIC = b"\x89MBN\r\n\x1a\n"  # 8 bytes, PNG-style
-MAJOR, MINOR = 1, 0
+#: The version this writer writes; readers read every minor version of major 1 (see :func:`checksum`).
+MAJOR, MINOR = 1, 1
 ALIGN = 64
 HEADER_SIZE = 64
 ENTRY_SIZE = 64
@@ -110,6 +115,17 @@ ORDER = (
     KIND_MATERIALS,
     KIND_META,
 )
+
+
+def checksum(data: Any, minor: int) -> int:
+    """The 32-bit checksum the table stores for ``data`` (a bytes-like object) in a file of version 1.``minor``.
+
+    1.0: CRC-32 (ISO-HDLC, zlib's ``crc32``). 1.1 and later: the low 32 bits of XXH3-64 (seed 0), which runs
+    at memory speed (about 20x zlib's CRC-32 on this project's machines).
+    """
+    if minor == 0:
+        return zlib.crc32(data)
+    return xxhash.xxh3_64_intdigest(data) & 0xFFFFFFFF
 
 
 def align(n: int) -> int:

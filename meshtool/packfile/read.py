@@ -36,7 +36,7 @@ class Section:
         shape: Array shape (rows, columns) or (bytes,) for blobs.
         offset: Byte offset in the file.
         length: Byte length.
-        crc: Stored CRC-32.
+        crc: Stored checksum (CRC-32 in 1.0 files, low 32 bits of XXH3-64 in 1.1).
         encoding: Encoding code (0 plain, 1 u16 box, 2 octahedral).
         index: Index among sections of the same kind (textures).
         crc_ok: Result of the checksum check, ``None`` when not verified.
@@ -110,8 +110,9 @@ def load(path: str | Path, verify: bool = True) -> PackedMesh:
 
     Args:
         path: The file.
-        verify: Also check every section's CRC-32 and that indices and submeshes stay in range (reads the
-            whole file once); without it only the header, the table and the bounds are checked.
+        verify: Also check every section's checksum (CRC-32 in 1.0 files, XXH3 in 1.1) and the content:
+            indices, submeshes and hulls in range, every float finite (reads the whole file once); without
+            it only the header, the table, the bounds and the JSON sections are checked.
 
     Returns:
         The mesh, arrays viewing the map.
@@ -179,7 +180,7 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
             f"section table ({count} entries at {table_offset}) does not fit the file", path=name, offset=16
         )
     table = np.frombuffer(view, dtype=fmt.ENTRY, count=count, offset=table_offset)
-    crc = zlib.crc32(bytes(view[:32]) + bytes(view[table_offset:table_end]))
+    crc = fmt.checksum(bytes(view[:32]) + bytes(view[table_offset:table_end]), minor)
     if crc != int(header["table_crc"]):
         raise PackFormatError("header or section table checksum mismatch", path=name, offset=32)
     if any(bytes(view[36:64])):
@@ -195,7 +196,7 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
     _check_layout(sections, name)
     if verify:
         for s in sections:
-            s.crc_ok = zlib.crc32(view[s.offset : s.offset + s.length]) == s.crc
+            s.crc_ok = fmt.checksum(view[s.offset : s.offset + s.length], minor) == s.crc
             if not s.crc_ok:
                 raise PackFormatError(f"section {s.kind!r} checksum mismatch", path=name, offset=s.offset)
     return _build(view, sections, name, verify, bool(flags & fmt.FLAG_QUANTIZED), (major, minor), keep)
@@ -345,9 +346,16 @@ def _build(
         check.check_indices(indices, n, "IDX ", name, idx.offset, idx.encoding == fmt.ENC_PLAIN)
         check.check_submeshes(submeshes, indices.shape[0], len(materials), len(parts), name, by_kind[b"SUBM"].offset)
         for tag, values in (("POS ", positions), ("NRM ", normals), ("UV  ", uvs), ("HULV", raw["HULV"])):
-            if values is not None:
-                s = by_kind[tag.encode()]
-                check.check_finite(values, tag, name, s.offset, 2 if s.dtype in ("u16", "i16") else 4)
+            if values is None:
+                continue
+            s = by_kind[tag.encode()]
+            if s.encoding == fmt.ENC_UNORM16_BOX and values.size:
+                # decoding is monotonic in the code: all values are finite when codes 0 and 65535 decode finite
+                extremes = np.array([[0] * values.shape[1], [65535] * values.shape[1]], dtype=np.uint16)
+                array = "positions" if tag == "POS " else "uvs"
+                if np.isfinite(_decode(extremes, s.encoding, quant.get(array))).all():
+                    continue
+            check.check_finite(values, tag, name, s.offset, 2 if s.dtype in ("u16", "i16") else 4)
         offsets = (by_kind[fmt.KIND_HULL_TABLE].offset, by_kind[fmt.KIND_HULL_FACES].offset)
         check.check_hulls(raw["HULT"], raw["HULV"].shape[0], raw["HULF"], offsets, name)
         for s in sections:

@@ -213,6 +213,8 @@ def check_finite(values: npt.NDArray[Any], what: str, name: str, offset: int, it
         itemsize: Stored bytes per element (4 for f32, 2 for u16 codes).
     """
     flat = np.asarray(values).reshape(-1)
+    if np.isfinite(flat).all():  # one pass, no inverted copy: the common case
+        return
     bad = ~np.isfinite(flat)
     if bad.any():
         k = int(np.argmax(bad))
@@ -228,6 +230,8 @@ def check_indices(indices: npt.NDArray[Any], n: int, what: str, name: str, offse
     if not indices.size:
         return
     flat = indices.reshape(-1)
+    if int(flat.max()) < n:  # a max reduction reads the indices once and allocates nothing
+        return
     bad = flat >= n
     if bad.any():
         k = int(np.argmax(bad))

@@ -22,7 +22,19 @@ if TYPE_CHECKING:
 
 
 @dataclass(slots=True)
-class _Section:
+class StoredSection:
+    """One section as stored: its table fields and data bytes (deflated when ``encoding`` is 3).
+
+    Attributes:
+        kind: Four-byte tag.
+        code: dtype code (see :data:`meshtool.packfile.format.DTYPES`).
+        shape: (rows, columns); columns 0 for 1-D data.
+        ndim: 1 or 2.
+        data: The stored bytes.
+        encoding: Encoding code.
+        index: Number among sections of the same kind.
+    """
+
     kind: bytes
     code: int
     shape: tuple[int, int]
@@ -32,17 +44,17 @@ class _Section:
     index: int = 0
 
 
-def _array(kind: bytes, array: npt.NDArray[Any], code: str, encoding: int = fmt.ENC_PLAIN) -> _Section:
+def _array(kind: bytes, array: npt.NDArray[Any], code: str, encoding: int = fmt.ENC_PLAIN) -> StoredSection:
     a = np.ascontiguousarray(array, dtype=fmt.DTYPES[fmt.CODES[code]])
     shape = (a.shape[0], a.shape[1] if a.ndim == 2 else 0)
-    return _Section(kind, fmt.CODES[code], shape, a.ndim, a.tobytes(), encoding)
+    return StoredSection(kind, fmt.CODES[code], shape, a.ndim, a.tobytes(), encoding)
 
 
-def _blob(kind: bytes, data: bytes, index: int = 0) -> _Section:
-    return _Section(kind, 0, (len(data), 0), 1, data, fmt.ENC_PLAIN, index)
+def _blob(kind: bytes, data: bytes, index: int = 0) -> StoredSection:
+    return StoredSection(kind, 0, (len(data), 0), 1, data, fmt.ENC_PLAIN, index)
 
 
-def _deflated(section: _Section) -> _Section:
+def _deflated(section: StoredSection) -> StoredSection:
     """The same section stored as a zlib stream (level 6; zlib output is deterministic)."""
     section.data = zlib.compress(section.data, 6)
     section.encoding = fmt.ENC_DEFLATE
@@ -92,7 +104,7 @@ def pack(
             _check_float32(what, values, asset.name)
     for hull in hulls or []:
         _check_float32("hull vertex", hull.vertices, asset.name)
-    sections: list[_Section] = []
+    sections: list[StoredSection] = []
     quant: dict[str, Any] = {}
     if quantize:
         codes, lo, hi, err = quantize_box(rm.positions)
@@ -117,8 +129,8 @@ def pack(
     if rm.colors is not None:
         sections.append(_array(fmt.KIND_COLORS, _rgba8(rm.colors), "u8"))
     n = rm.positions.shape[0]
-    indices = _array(fmt.KIND_INDICES, rm.indices, "u16" if n < 65536 else "u32")
-    sections.append(_deflated(indices) if quantize else indices)
+    # Indices stay plain in quantised files too (format 1.1): inflating them cost 10x a lossless load.
+    sections.append(_array(fmt.KIND_INDICES, rm.indices, "u16" if n < 65536 else "u32"))
     sections.append(_array(fmt.KIND_SUBMESHES, _submeshes(asset), "u32"))
     table, hull_vertices, hull_faces = _hull_arrays(hulls or [])
     sections.append(_array(fmt.KIND_HULL_TABLE, table, "u32"))
@@ -141,7 +153,7 @@ def pack(
         "hull_quality": hull_quality,
     }
     sections.append(_deflated(_blob(fmt.KIND_META, canonical_json(meta))))
-    return _assemble(sections, fmt.FLAG_QUANTIZED if quantize else 0)
+    return assemble(sections, fmt.FLAG_QUANTIZED if quantize else 0)
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -164,7 +176,18 @@ def _check_float32(what: str, values: npt.NDArray[Any], name: str) -> None:
         )
 
 
-def _assemble(sections: list[_Section], flags: int) -> bytes:
+def assemble(sections: list[StoredSection], flags: int, minor: int = fmt.MINOR) -> bytes:
+    """Header, section table and 64-byte aligned data of a version 1.``minor`` file, in ``sections`` order.
+
+    Args:
+        sections: The sections as stored.
+        flags: Header flags.
+        minor: The minor version; it selects the checksum (:func:`meshtool.packfile.format.checksum`).
+            Only ``scripts/make_goldens.py`` writes 1.0 (the committed 1.0 goldens, byte for byte).
+
+    Returns:
+        The file.
+    """
     table = np.zeros(len(sections), dtype=fmt.ENTRY)
     offset = fmt.align(fmt.HEADER_SIZE + fmt.ENTRY_SIZE * len(sections))
     chunks: list[bytes] = []
@@ -177,21 +200,21 @@ def _assemble(sections: list[_Section], flags: int) -> bytes:
         table[k]["shape"] = s.shape
         table[k]["offset"] = position
         table[k]["length"] = len(s.data)
-        table[k]["crc"] = zlib.crc32(s.data)
+        table[k]["crc"] = fmt.checksum(s.data, minor)
         table[k]["encoding"] = s.encoding
         padded = fmt.align(len(s.data))
         chunks.append(s.data + b"\0" * (padded - len(s.data)))
         position += padded
     header = np.zeros(1, dtype=fmt.HEADER)
     header["magic"] = fmt.MAGIC
-    header["major"], header["minor"] = fmt.MAJOR, fmt.MINOR
+    header["major"], header["minor"] = fmt.MAJOR, minor
     header["flags"] = flags
     header["section_count"] = len(sections)
     header["table_offset"] = fmt.HEADER_SIZE
     header["file_length"] = position
     head = header.tobytes()
     table_bytes = table.tobytes()
-    header["table_crc"] = zlib.crc32(head[:32] + table_bytes)
+    header["table_crc"] = fmt.checksum(head[:32] + table_bytes, minor)
     gap = b"\0" * (offset - fmt.HEADER_SIZE - len(table_bytes))
     return header.tobytes() + table_bytes + gap + b"".join(chunks)
 
