@@ -96,8 +96,7 @@ def validate_command(
     if changed_only and no_cache:
         _usage("--changed-only needs the cache (drop --no-cache)")
     want_thumbnails = fmt == "html" if thumbnails is None else thumbnails
-    if want_thumbnails:
-        os.environ.setdefault("MUJOCO_GL", "egl")  # workers inherit it; MuJoCo reads it on import
+    # The OpenGL backend of thumbnails is chosen by the physics plugin (simrun): EGL, then OSMesa, headless.
     try:
         config = load_config(config_file or find_config(Path.cwd()))
         options = ValidateOptions(

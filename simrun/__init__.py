@@ -1,3 +1,4 @@
+# ruff: noqa: E402  (MUJOCO_GL must be decided before the imports below import mujoco)
 """simrun: MuJoCo worlds of named entities built on ``mujoco.MjSpec``, with meshtool's ``.mbin`` assets.
 
 Build a world in code::
@@ -15,6 +16,10 @@ or load one from a TOML scene file with :func:`load_scene`.
 """
 
 __version__ = "0.1.0"
+
+from simrun.headless import import_mujoco as _import_mujoco
+
+_import_mujoco()  # headless OpenGL by default: MUJOCO_GL is decided before anything imports mujoco
 
 from simrun.entity import Entity, Material
 from simrun.environment import Camera, Ground, HeightField, Light, Sky

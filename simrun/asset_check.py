@@ -33,7 +33,8 @@ from meshtool.packfile import parse
 from meshtool.validate.plugins import PhysicsOutcome
 from meshtool.validate.rules import hit
 from simrun.assets import AssetLibrary
-from simrun.render import scene_option
+from simrun.errors import SimrunError
+from simrun.render import open_renderer, scene_option
 
 TIMESTEP = 0.002
 #: Speed limits of a body at rest, m/s and rad/s, over the last REST_WINDOW seconds.
@@ -203,9 +204,9 @@ def _thumbnail(
     model.vis.headlight.diffuse[:] = [0.55, 0.55, 0.55]
     model.vis.headlight.ambient[:] = [0.35, 0.35, 0.35]
     try:
-        renderer = mujoco.Renderer(model, THUMB_H, THUMB_W)
-    except Exception as exc:
-        _gl_failure.append(f"no OpenGL context ({str(exc).strip() or type(exc).__name__}); set MUJOCO_GL=egl or osmesa")
+        renderer = open_renderer(model, THUMB_W, THUMB_H)
+    except SimrunError as exc:  # one line naming the fix (simrun.headless)
+        _gl_failure.append(str(exc).removeprefix("cannot render: "))
         outcome.notes.append(f"no thumbnail: {_gl_failure[0]}")
         return
     try:

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 
 import mujoco
 
+from simrun.headless import HEADLESS, PACKAGES, GLChoice, available, gl_choice
+
 _PROBE = """
 import mujoco
 model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size="1"/></worldbody></mujoco>')
@@ -28,24 +30,30 @@ class DoctorReport:
         physics_ok: Whether a model compiled and stepped.
         physics_error: The error when it did not.
         gl: Backend name (``egl``, ``osmesa``) to ``None`` when it rendered, else the error's last line.
+        choice: The backend this process uses and how it was chosen (:mod:`simrun.headless`).
     """
 
     mujoco_version: str
     physics_ok: bool
     physics_error: str | None
     gl: dict[str, str | None] = field(default_factory=dict)
+    choice: GLChoice | None = None
 
     def lines(self) -> list[str]:
         """Human-readable report lines."""
         out = [
             f"mujoco {self.mujoco_version}: physics {'ok' if self.physics_ok else 'FAILED: ' + str(self.physics_error)}"
         ]
+        if self.choice is not None:
+            used = self.choice.backend or "none"
+            problem = f"; cannot render: {self.choice.problem}" if self.choice.problem else ""
+            out.append(f"rendering uses MUJOCO_GL={used} ({self.choice.reason}){problem}")
         for backend, error in self.gl.items():
             out.append(f"MUJOCO_GL={backend}: {'renders' if error is None else 'unavailable (' + error + ')'}")
         return out
 
 
-def check_environment(backends: tuple[str, ...] = ("egl", "osmesa"), timeout_s: float = 60.0) -> DoctorReport:
+def check_environment(backends: tuple[str, ...] = HEADLESS, timeout_s: float = 60.0) -> DoctorReport:
     """Compile and step a small model here; try each GL backend in a child process (GL init can abort).
 
     Args:
@@ -69,6 +77,9 @@ def check_environment(backends: tuple[str, ...] = ("egl", "osmesa"), timeout_s: 
         ok, error = False, f"{type(exc).__name__}: {exc}"
     gl: dict[str, str | None] = {}
     for backend in backends:
+        if backend in PACKAGES and not available(backend):
+            gl[backend] = f"libraries not installed: apt-get install {' '.join(PACKAGES[backend])}"
+            continue
         env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
         try:
             proc = subprocess.run(
@@ -83,4 +94,4 @@ def check_environment(backends: tuple[str, ...] = ("egl", "osmesa"), timeout_s: 
             gl[backend] = None if proc.returncode == 0 else last[:200]
         except subprocess.TimeoutExpired:
             gl[backend] = f"timed out after {timeout_s:.0f} s"
-    return DoctorReport(mujoco.__version__, ok, error, gl)
+    return DoctorReport(mujoco.__version__, ok, error, gl, gl_choice())

@@ -8,7 +8,8 @@
 | ``combined`` | both, visual geoms transparent |
 | ``none`` | nothing: no GL context is created |
 
-Headless machines need ``MUJOCO_GL=egl`` (Mesa) or ``osmesa`` in the environment before mujoco is imported.
+The OpenGL backend is chosen when simrun is imported (:mod:`simrun.headless`: EGL, then OSMesa, on a
+machine without a display); a machine without one gets one error line naming the packages to install.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simrun.errors import SimrunError
+from simrun.headless import INSTALL_HINT, gl_choice
 
 MODES = ("visual", "wireframe", "physics", "combined", "none")
 
@@ -38,6 +40,24 @@ def scene_option(mode: str) -> mujoco.MjvOption:
     if mode == "combined":
         option.flags[mujoco.mjtVisFlag.mjVIS_TRANSPARENT] = True
     return option
+
+
+def open_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    """A ``mujoco.Renderer`` of ``width`` x ``height`` pixels, or one error line saying how to get OpenGL.
+
+    Raises:
+        SimrunError: No usable OpenGL backend (:func:`simrun.headless.gl_choice`), or the context failed.
+    """
+    choice = gl_choice()
+    if choice.problem is not None:
+        raise SimrunError(f"cannot render: {choice.problem}")
+    try:
+        return mujoco.Renderer(model, height, width)
+    except Exception as exc:  # any GL failure (MuJoCo, PyOpenGL, the driver): one line with the fix
+        detail = " ".join(str(exc).split()) or type(exc).__name__
+        raise SimrunError(
+            f"cannot render: no OpenGL context with MUJOCO_GL={choice.backend} ({detail[:200]}); {INSTALL_HINT}"
+        ) from None
 
 
 @dataclass
@@ -82,12 +102,7 @@ class FrameRenderer:
         model.vis.quality.shadowsize = 1024
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
-        try:
-            self.renderer = mujoco.Renderer(model, height, width)
-        except Exception as exc:  # any GL failure: say how to get a context
-            raise SimrunError(
-                f"no OpenGL context ({exc}); install Mesa (scripts/install_gl.sh) and set MUJOCO_GL=egl or osmesa"
-            ) from None
+        self.renderer = open_renderer(model, width, height)
         if mode == "wireframe":
             self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_WIREFRAME] = True
         if mode in ("physics", "combined"):
