@@ -93,9 +93,9 @@ def load_commands(path: Path) -> list[Command]:
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"not valid TOML: {exc}", name, line=toml_error_line(exc)) from None
     lines = key_lines(text)
-    unknown = [k for k in doc if k != "commands"]
+    unknown = [k for k in doc if k not in ("commands", "expect")]  # [[expect]]: read by simrun test
     if unknown:
-        raise SceneError("unknown key (known: commands)", name, unknown[0], line_of(lines, (unknown[0],)))
+        raise SceneError("unknown key (known: commands, expect)", name, unknown[0], line_of(lines, (unknown[0],)))
     tables = doc.get("commands", [])
     if not isinstance(tables, list):
         raise SceneError("expected an array of tables ([[commands]])", name, "commands", line_of(lines, ("commands",)))

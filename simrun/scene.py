@@ -58,7 +58,7 @@ ENTITY_TYPES: dict[str, type[Entity]] = {
         UrdfRobot,
     )
 }
-_TOP = ("world", "assets", "entities", "services", "sensors", "state")
+_TOP = ("world", "assets", "entities", "services", "sensors", "state", "test", "expect")  # test, expect: simrun test
 _BASE = ("type", "name", "parent", "pose", "free", "kinematic")
 #: Largest scene file read, bytes.
 MAX_SCENE_BYTES = 16 * 1024 * 1024
