@@ -26,7 +26,7 @@ import numpy as np
 from meshtool.errors import FormatError
 from meshtool.findings import Finding, info, warning
 from meshtool.obj.mtl import Material, TextureMap
-from meshtool.readers.model import Piece, SourceFrame, SourceMesh, assemble, mirrors
+from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble, mirrors
 
 _X_TO_Y = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
@@ -229,4 +229,20 @@ def _weld(mesh: SourceMesh) -> SourceMesh:
     mesh.colors = None if mesh.colors is None else mesh.colors[first[order]]
     mesh.positions = positions[first[order]]
     mesh.corner_v = remap[mesh.corner_v]
+    mesh.texcoords, mesh.corner_vt = _unique_rows(mesh.texcoords, mesh.corner_vt)
+    mesh.normals, mesh.corner_vn = _unique_rows(mesh.normals, mesh.corner_vn)
     return mesh
+
+
+def _unique_rows(values: FloatArray, index: IntArray) -> tuple[FloatArray, IntArray]:
+    """Equal rows of ``values`` merged (first-use order); ``index`` remapped, -1 kept."""
+    if values.shape[0] == 0:
+        return values, index
+    rows = np.ascontiguousarray(values + 0.0)
+    keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(first.size, dtype=np.int64)
+    rank[order] = np.arange(first.size)
+    remap = rank[inverse.reshape(-1)]
+    return rows[first[order]], np.where(index >= 0, remap[np.maximum(index, 0)], -1)
