@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from simrun.errors import SimrunError
+from simrun.glb_export import COLLISION_GROUP
 from simrun.outfile import GENERATOR
 from simrun.replay_glb import recording_gltf
 from simrun.replay_tracks import I64, Tracks
@@ -69,7 +70,10 @@ def _y_up(v: Any) -> list[float]:
 
 
 def _labels(model: mujoco.MjModel, moving: list[int]) -> list[dict[str, Any]]:
-    """One label per tree with a moving body: the tree's root body, robots (articulated trees) first."""
+    """One label per tree with a moving body: the tree's root body, robots (articulated trees) first.
+
+    A label hangs ``lift`` metres above its body's origin: above every visual geom of the body, 2 cm clear.
+    """
     articulated = {int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_BALL)}
     roots = sorted({int(model.body_rootid[b]) for b in moving} - {0})
     labels = []
@@ -79,7 +83,15 @@ def _labels(model: mujoco.MjModel, moving: list[int]) -> list[dict[str, Any]]:
             for j in range(model.njnt)
         )
         name = model.body(root).name or f"body{root}"
-        labels.append({"body": name, "text": name, "robot": robot})
+        lift = max(
+            (
+                float(np.linalg.norm(model.geom_pos[g])) + float(model.geom_rbound[g])
+                for g in range(model.ngeom)
+                if int(model.geom_bodyid[g]) == root and int(model.geom_group[g]) < COLLISION_GROUP
+            ),
+            default=0.0,
+        )
+        labels.append({"body": name, "text": name, "robot": robot, "lift": lift + 0.02})
     return sorted(labels, key=lambda item: not item["robot"])
 
 
@@ -125,7 +137,6 @@ def recording_html(world: World, tracks: Tracks, keys: dict[int, I64], title: st
         "camera": camera,
         "sun": [c * camera["radius"] for c in (3.0, 10.0, 6.0)],
         "background": "#dde4ec",
-        "label_height": 0.12 * camera["radius"],
         "labels": labels,
     }
     legend = (

@@ -74,9 +74,9 @@
     camera.updateProjectionMatrix();
   }
   const where = new THREE.Vector3();
-  function screen(object) {
+  function screen(object, lift) {
     object.getWorldPosition(where);
-    where.y += config.label_height;
+    where.y += lift;
     where.project(camera);
     return [(where.x + 1) / 2 * view.clientWidth, (1 - where.y) / 2 * view.clientHeight, where.z];
   }
@@ -96,7 +96,7 @@
     controls.update();
     renderer.render(scene, camera);
     for (const item of tracked) {
-      const [x, y, z] = screen(item.object);
+      const [x, y, z] = screen(item.object, item.lift);
       item.label.style.display = z < 1 ? "" : "none";
       item.label.style.transform = "translate(" + x.toFixed(1) + "px," + y.toFixed(1) + "px) translate(-50%,-100%)";
     }
@@ -123,7 +123,7 @@
       label.className = entry.robot ? "label robot" : "label";
       label.textContent = entry.text;
       labels.appendChild(label);
-      tracked.push({ object, label, name: entry.body });
+      tracked.push({ object, label, name: entry.body, lift: entry.lift });
     }
     if (gltf.animations.length) {
       mixer = new THREE.AnimationMixer(gltf.scene);
@@ -146,6 +146,6 @@
     setTime: (t) => { setPlaying(false); show(t); },
     play: () => setPlaying(true),
     pause: () => setPlaying(false),
-    screen: (name) => { const item = tracked.find((i) => i.name === name); return item ? screen(item.object) : null; },
+    screen: (name) => { const item = tracked.find((i) => i.name === name); return item ? screen(item.object, 0) : null; },
   };
 })();
