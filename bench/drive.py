@@ -39,6 +39,7 @@ def scene() -> World:
 
 def timed_world(kind: str, single: bool = False) -> float:
     world = scene()
+    _, data = world.compile()
     if kind == "full":
         drive = DriveService(world, "bot")
         Bumper(world, "bot")
@@ -49,7 +50,6 @@ def timed_world(kind: str, single: bool = False) -> float:
         drive.cmd_vel(0.1, 0.2)
     else:
         LaserRangeFinder(world, "bot", fov_deg=360, rays=360, rate=10)
-    _, data = world.compile()
     if kind != "full":
         data.ctrl[:] = 0.5  # the same motion as the raw loop
     steps = round(SECONDS / world.options.timestep)

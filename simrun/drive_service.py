@@ -10,14 +10,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
 
 from simrun.drive import DifferentialDrive
 from simrun.errors import EntityError
-from simrun.world import World
+
+if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
+    from simrun.world import World
 
 #: Closed-loop pole of the wheel-speed loop per control period (see DriveService._speed_loop).
 POLE = 0.8
@@ -108,6 +110,7 @@ class DriveService:
         self.gain, self.ki = 0.0, 0.0  # set from the compiled model on the first tick (speed_loop)
         self._design: dict[str, float] = {}
         self._free = -1  # first dof of the robot's free joint (-1: none)
+        self._timestep = world.options.timestep
         self._rested = False  # has stood still on its wheels since the start (or reset)
         self.max_wheel_speed = robot.wheel_speed_limit
         self.enabled = True
@@ -252,19 +255,20 @@ class DriveService:
             data.ctrl[left_act], data.ctrl[right_act] = self._power
             return
         targets = self._ramp(self._targets(data), self.period)
-        top, gain, ki, h = self.max_wheel_speed, self.gain, self.ki, self.period
-        for k, (act, dof, target) in enumerate(((left_act, left_dof, targets[0]), (right_act, right_dof, targets[1]))):
-            wanted = target / self.radius
-            error = wanted - data.qvel[dof]
+        top, gain, ki, h, radius = self.max_wheel_speed, self.gain, self.ki, self.period, self.radius
+        qvel, ctrl, integrals = data.qvel, data.ctrl, self._integral
+        for k, act, dof in ((0, left_act, left_dof), (1, right_act, right_dof)):
+            wanted = targets[k] / radius
+            error = wanted - float(qvel[dof])
             # feed-forward (the motor's steady state) plus PI on wheel speed; the integral stops while the
             # output is saturated in the error's direction (no wind-up)
-            integral = self._integral[k] + error * h
+            integral = integrals[k] + error * h
             power = wanted / top + gain * error + ki * integral
             if (power > 1.0 and error > 0) or (power < -1.0 and error < 0):
-                integral = self._integral[k]
+                integral = integrals[k]
                 power = wanted / top + gain * error + ki * integral
-            self._integral[k] = integral
-            data.ctrl[act] = _clip(power)
+            integrals[k] = integral
+            ctrl[act] = 1.0 if power > 1.0 else -1.0 if power < -1.0 else power
 
     def _integrate(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Odometry: integrate the encoder change since the last update (midpoint heading)."""
@@ -278,14 +282,9 @@ class DriveService:
         o = self._odom
         heading = o.theta + dtheta / 2
         now = float(data.time)
-        dt = max(now - o.time, model.opt.timestep)
+        dt = max(now - o.time, self._timestep)
         self._odom = Odometry(
-            now,
-            o.x + ds * math.cos(heading),
-            o.y + ds * math.sin(heading),
-            o.theta + dtheta,
-            ds / dt,
-            dtheta / dt,
+            now, o.x + ds * math.cos(heading), o.y + ds * math.sin(heading), o.theta + dtheta, ds / dt, dtheta / dt
         )
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -430,6 +429,7 @@ class DriveService:
                 int(model.joint(f"{n}/right_wheel").qposadr[0]),
             )
             self._model_id = id(model)
+            self._timestep = float(model.opt.timestep)
             self._design = self._speed_loop(model)
             fixed_gain, fixed_ki = self._fixed_gains
             self.gain = self._design["gain"] if fixed_gain is None else fixed_gain
@@ -448,9 +448,11 @@ class DriveService:
         enough that the chassis rocking, which the encoders see, does not excite it), or, where the motor alone
         is faster than that, ``Kp = 0`` and the integral puts the slower pole at ``p``.
         """
-        data = mujoco.MjData(model)
-        mujoco.mj_forward(model, data)
-        full = np.zeros((model.nv, model.nv))
+        data = self.world.data if self.world.model is model else None
+        if data is None:  # a model the world does not hold (a re-simulation): its own data, at the initial pose
+            data = mujoco.MjData(model)
+            mujoco.mj_forward(model, data)
+        full = np.zeros((model.nv, model.nv))  # from the mass matrix of the last step: nothing is recomputed
         mujoco.mj_fullM(model, data, full)
         dof = self._ids[2] if self._ids is not None else 0
         inertia = float(full[dof, dof])  # the wheel, its armature

@@ -10,14 +10,16 @@ from __future__ import annotations
 import abc
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
 from simrun.errors import EntityError
-from simrun.world import World
+
+if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
+    from simrun.world import World
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -262,13 +264,12 @@ class Bumper(Sensor):
             self._own = model.body_rootid[model.geom_bodyid] == root
             self._model_id = id(model)
         touching: tuple[str, ...] = ()
-        if data.ncon:
-            pairs = data.contact.geom[: data.ncon]
+        pairs = data.contact.geom[: data.ncon]
+        if self._gid in pairs:
             mine = pairs[(pairs[:, 0] == self._gid) | (pairs[:, 1] == self._gid)]
-            if len(mine):
-                others = np.where(mine[:, 0] == self._gid, mine[:, 1], mine[:, 0])
-                others = others[~self._own[others]]
-                touching = tuple(sorted({model.geom(int(g)).name for g in others}))
+            others = np.where(mine[:, 0] == self._gid, mine[:, 1], mine[:, 0])
+            others = others[~self._own[others]]
+            touching = tuple(sorted({model.geom(int(g)).name for g in others}))
         return BumperReading(float(data.time), bool(touching), touching)
 
 
@@ -305,8 +306,9 @@ class Encoders(Sensor):
             self._qpos, self._qvel = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
             self._model_id = id(model)
         angles = data.qpos[self._qpos]
-        velocities = data.qvel[self._qvel]
-        return EncoderReading(float(data.time), tuple(self._noisy(angles).tolist()), tuple(velocities.tolist()))
+        if self.noise:
+            angles = self._noisy(angles)
+        return EncoderReading(float(data.time), tuple(angles.tolist()), tuple(data.qvel[self._qvel].tolist()))
 
 
 @dataclass(frozen=True, slots=True)
