@@ -27,6 +27,7 @@ DATA_CHANGING_INFO = frozenset(
         "mtl-tr-converted",
         "mtl-statement-unsupported",
         "materials-unused",
+        "export-map-dropped",
     }
 )
 

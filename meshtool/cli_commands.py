@@ -394,6 +394,7 @@ def unpack(file: Path, out_dir: Path, force: bool) -> None:
 @force_option
 def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, force: bool) -> None:
     """Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."""
+    from meshtool.normalmaps import export_findings
     from meshtool.packfile.export import to_glb, to_msh
     from meshtool.packfile.usd import export_usd
 
@@ -408,6 +409,8 @@ def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, for
                 data = _made(make, packed, file)
                 write_output(path, data, kind, force=force, inputs=[file])
                 click.echo(f"wrote {path} ({len(data)} bytes)")
+                if kind == "glb":
+                    _echo_findings(export_findings(packed, "glb"))  # maps glTF has no slot for
         if usd is not None:
             check_output(usd, "usd", force=force, inputs=[file])
             names = list(packed.meta.get("textures", []))
@@ -415,6 +418,7 @@ def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, for
                 check_output(usd.parent / name, None, force=force, inputs=[file], data=bytes(texture))
             written = export_usd(packed, usd, safe_file_stem(file.stem) or "asset")
             click.echo(f"wrote {', '.join(str(p) for p in written)}")
+            _echo_findings(export_findings(packed, "usd"))
 
 
 def _made(make: Callable[[Any], bytes], packed: Any, file: Path) -> bytes:

@@ -101,6 +101,8 @@ def to_msh(packed: PackedMesh) -> bytes:
     return head + v.tobytes() + n.tobytes() + t.tobytes() + f.tobytes()
 
 
+#: The name the tangents travel under through trimesh's export (renamed ``TANGENT`` in the written tree).
+_TANGENT = "_meshtool_tangent"
 #: Z-up (meshtool, MuJoCo) to Y-up (glTF 2.0): -90 degrees about X, set as each node's matrix.
 Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
 
@@ -110,14 +112,22 @@ def to_glb(packed: PackedMesh) -> bytes:
 
     Vertex data stays in metres, Z-up, exactly as packed; each node carries :data:`Z_UP_TO_Y_UP`, so
     viewers that follow glTF's +Y-up show the asset standing upright.
+
+    Materials: ``Kd`` and ``d`` as ``baseColorFactor``, ``map_Kd`` as ``baseColorTexture`` (sRGB, as glTF
+    defines it), the material's tangent-space normal map (:func:`meshtool.normalmaps.normal_map`) as
+    ``normalTexture`` (linear) with its ``-bm`` strength as ``scale``. Other maps have no glTF slot
+    (:func:`meshtool.normalmaps.export_findings` lists them). Images carry no colour-space chunks.
     """
     import trimesh  # trimesh and Pillow load on first use (meshtool's start-up stays light)
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
+
+    from meshtool.normalmaps import normal_map, vertex_tangents
 
     scene = trimesh.Scene()
     positions = np.asarray(packed.positions, dtype=np.float64)
     indices = np.asarray(packed.indices, dtype=np.int64)
     images: dict[int, Image.Image] = {}
+    scales: dict[str, float] = {}
     for k, (first, count, material, _) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
         faces = indices[first : first + count]
         used, inverse = np.unique(faces, return_inverse=True)
@@ -126,22 +136,21 @@ def to_glb(packed: PackedMesh) -> bytes:
         kd = spec.get("colors", {}).get("Kd", [0.8, 0.8, 0.8])
         base = [*(float(c) for c in kd), float(spec.get("scalars", {}).get("d", 1.0))]
         texture = spec.get("maps", {}).get("map_Kd")
-        image = None
-        if texture is not None and packed.uvs is not None:
-            index = int(texture["texture"])
-            if index not in images:
-                try:
-                    image = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
-                except (OSError, ValueError, SyntaxError, EOFError, Image.DecompressionBombError) as exc:
-                    why = "unknown image format" if isinstance(exc, UnidentifiedImageError) else str(exc)
-                    raise PackFormatError(f"texture {index} is not a readable PNG ({why})", hint="re-pack it") from None
-                image.info.clear()  # no iCCP/gAMA/cHRM/sRGB chunks: glTF images are sRGB by definition
-                images[index] = image
-            image = images[index]
+        image = normal_image = None
+        name = str(spec.get("name", f"material_{material}"))
+        if packed.uvs is not None:
+            if texture is not None:
+                image = _glb_image(packed, int(texture["texture"]), images)
+            normal = normal_map(spec, packed.textures) if spec else None
+            if normal is not None:
+                normal_image = _glb_image(packed, normal.texture, images)
+                if normal.scale != 1.0:
+                    scales[name] = normal.scale
         pbr = trimesh.visual.material.PBRMaterial(  # type: ignore[no-untyped-call]
-            name=spec.get("name", f"material_{material}"),
+            name=name,
             baseColorFactor=base,
             baseColorTexture=image,
+            normalTexture=normal_image,
             metallicFactor=0.0,
             roughnessFactor=1.0,
         )
@@ -149,9 +158,41 @@ def to_glb(packed: PackedMesh) -> bytes:
         mesh.visual = trimesh.visual.TextureVisuals(uv=uv, material=pbr)  # type: ignore[no-untyped-call]
         if packed.normals is not None:
             mesh.vertex_normals = np.asarray(packed.normals, dtype=np.float64)[used]  # type: ignore[method-assign]
+        if normal_image is not None and uv is not None:  # a normal map needs NORMAL and TANGENT
+            vertex_normals = np.asarray(mesh.vertex_normals, dtype=np.float64)
+            mesh.vertex_normals = vertex_normals  # type: ignore[method-assign]
+            tangents = vertex_tangents(positions[used], inverse.reshape(-1, 3), vertex_normals, uv)
+            mesh.vertex_attributes[_TANGENT] = tangents
         scene.add_geometry(mesh, geom_name=f"submesh_{k}", transform=Z_UP_TO_Y_UP)
-    data: bytes = scene.export(file_type="glb", tree_postprocessor=stamp_glb)  # type: ignore[no-untyped-call]
+
+    def finish(tree: dict[str, Any]) -> None:
+        stamp_glb(tree)
+        for entry in tree.get("materials", []):
+            if "normalTexture" in entry and entry.get("name") in scales:
+                entry["normalTexture"]["scale"] = scales[entry["name"]]
+        for node in tree.get("meshes", []):  # trimesh writes custom attributes with a leading underscore
+            for primitive in node.get("primitives", []):
+                attributes = primitive.get("attributes", {})
+                if _TANGENT in attributes:
+                    attributes["TANGENT"] = attributes.pop(_TANGENT)
+
+    data: bytes = scene.export(file_type="glb", tree_postprocessor=finish)  # type: ignore[no-untyped-call]
     return data
+
+
+def _glb_image(packed: PackedMesh, index: int, images: dict[int, Any]) -> Any:
+    """Texture ``index`` of ``packed`` as an RGBA Pillow image without colour-space chunks, decoded once."""
+    from PIL import Image, UnidentifiedImageError
+
+    if index not in images:
+        try:
+            image = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
+        except (OSError, ValueError, SyntaxError, EOFError, Image.DecompressionBombError) as exc:
+            why = "unknown image format" if isinstance(exc, UnidentifiedImageError) else str(exc)
+            raise PackFormatError(f"texture {index} is not a readable PNG ({why})", hint="re-pack it") from None
+        image.info.clear()  # no iCCP/gAMA/cHRM/sRGB chunks: glTF fixes each slot's colour space itself
+        images[index] = image
+    return images[index]
 
 
 def describe(packed: PackedMesh) -> dict[str, Any]:

@@ -49,7 +49,10 @@ def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:
         UsdGeom.SetStageMetersPerUnit(stage, 1.0)
         xform = UsdGeom.Xform.Define(stage, root)
         stage.SetDefaultPrim(xform.GetPrim())
-        materials = [_material(stage, f"{root}/Materials", m, textures, Sdf, UsdShade) for m in packed.materials]
+        materials = [
+            _material(stage, f"{root}/Materials", m, textures, packed.textures if packed.uvs is not None else None)
+            for m in packed.materials
+        ]
         positions = np.asarray(packed.positions, dtype=np.float64)
         indices = np.asarray(packed.indices, dtype=np.int64)
         for k, (first, count, material, _) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
@@ -90,11 +93,23 @@ def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:
     return written
 
 
-def _material(stage: Any, scope: str, spec: dict[str, Any], textures: list[str], Sdf: Any, UsdShade: Any) -> Any:
-    """A UsdPreviewSurface material (diffuse colour or texture, opacity, roughness from Ns)."""
+def _material(stage: Any, scope: str, spec: dict[str, Any], files: list[str], images: list[Any] | None) -> Any:
+    """A UsdPreviewSurface material: diffuse colour or texture, normal map, opacity, roughness from Ns.
+
+    The colour map is read with ``sourceColorSpace = sRGB``, the normal map with ``raw`` and mapped from
+    0..1 to -1..1 (``scale (2s, 2s, 2, 1)``, ``bias (-s, -s, -1, 0)``, ``s`` its ``-bm`` strength) into the
+    surface's ``normal`` input, as the UsdPreviewSurface specification asks for tangent-space normal maps.
+    ``images`` (the pack's texture bytes) is ``None`` when the mesh has no texture coordinates: then no
+    texture is read at all.
+    """
+    from pxr import Sdf, UsdShade
+
+    from meshtool.normalmaps import normal_map
+
     name = _prim_name(str(spec.get("name", "material")), "material")
-    material = UsdShade.Material.Define(stage, f"{scope}/{name}")
-    shader = UsdShade.Shader.Define(stage, f"{scope}/{name}/PreviewSurface")
+    path = f"{scope}/{name}"
+    material = UsdShade.Material.Define(stage, path)
+    shader = UsdShade.Shader.Define(stage, f"{path}/PreviewSurface")
     shader.CreateIdAttr("UsdPreviewSurface")
     kd = spec.get("colors", {}).get("Kd", [0.8, 0.8, 0.8])
     diffuse = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
@@ -103,18 +118,36 @@ def _material(stage: Any, scope: str, spec: dict[str, Any], textures: list[str],
     shininess = float(spec.get("scalars", {}).get("Ns", 10.0))
     shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(1.0 - min(shininess, 1000.0) / 1000.0))
     texture = spec.get("maps", {}).get("map_Kd")
-    if texture is not None:
-        reader = UsdShade.Shader.Define(stage, f"{scope}/{name}/stReader")
+    normal = normal_map(spec, images) if images is not None else None
+    reader = None
+    if images is not None and (texture is not None or normal is not None):
+        reader = UsdShade.Shader.Define(stage, f"{path}/stReader")
         reader.CreateIdAttr("UsdPrimvarReader_float2")
         reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")  # UsdPreviewSurface: a string
-        image = UsdShade.Shader.Define(stage, f"{scope}/{name}/DiffuseTexture")
-        image.CreateIdAttr("UsdUVTexture")
-        image.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(textures[int(texture["texture"])])
-        image.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
-        image.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+    if reader is not None and texture is not None:
+        image = _uv_texture(stage, f"{path}/DiffuseTexture", files[int(texture["texture"])], "sRGB", reader)
         diffuse.ConnectToSource(image.ConnectableAPI(), "rgb")
+    if reader is not None and normal is not None:
+        image = _uv_texture(stage, f"{path}/NormalTexture", files[normal.texture], "raw", reader)
+        s = normal.scale
+        image.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set((2.0 * s, 2.0 * s, 2.0, 1.0))
+        image.CreateInput("bias", Sdf.ValueTypeNames.Float4).Set((-s, -s, -1.0, 0.0))
+        shader.CreateInput("normal", Sdf.ValueTypeNames.Normal3f).ConnectToSource(image.ConnectableAPI(), "rgb")
     material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
     return material
+
+
+def _uv_texture(stage: Any, path: str, file: str, colorspace: str, reader: Any) -> Any:
+    """A ``UsdUVTexture`` reading ``file`` at the primvar ``st`` with ``sourceColorSpace = colorspace``."""
+    from pxr import Sdf, UsdShade
+
+    image = UsdShade.Shader.Define(stage, path)
+    image.CreateIdAttr("UsdUVTexture")
+    image.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(file)
+    image.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set(colorspace)
+    image.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
+    image.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+    return image
 
 
 def _prim_name(name: str, fallback: str) -> str:
