@@ -14,10 +14,11 @@ from typing import Any
 
 import mujoco
 import numpy as np
-import trimesh
+import xxhash
 from PIL import Image
 
 import meshtool
+from meshtool import surface
 from meshtool.packfile import PackedMesh
 from simrun.errors import EntityError
 from simrun.safeio import FileReadError, check_regular, read_regular
@@ -51,6 +52,8 @@ class AssetLibrary:
     added_whole: set[str] = field(default_factory=set)
     #: In-memory files (MuJoCo's virtual file system) handed to the spec: PNG textures by file name.
     vfs: dict[str, bytes] = field(default_factory=dict)
+    #: 2D textures by content (XXH3-128 of the PNG): identical images are added, and decoded by MuJoCo, once.
+    by_content: dict[bytes, tuple[str, str]] = field(default_factory=dict)
 
     def register(self, path: Path, packed: PackedMesh) -> None:
         """Use ``packed`` (already in memory) as the content of ``path``; nothing is read from disk."""
@@ -118,8 +121,7 @@ class AssetLibrary:
             hull.scale = [scale] * 3
             hull.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
             hulls.append(hull.name)
-            triangles = np.asarray(v, np.float64)[np.asarray(f, np.int64)]
-            volumes.append(float(trimesh.triangles.mass_properties(triangles)["volume"]) * scale**3)
+            volumes.append(surface.volume(v, f) * scale**3)
         asset = MeshAsset(base, visual, hulls, volumes, f"{base}/whole")
         self.added_meshes[key] = asset
         return asset
@@ -157,10 +159,22 @@ class AssetLibrary:
         return self.images[path]
 
     def add_texture(self, name: str, png: bytes, kind: Any = None) -> str:
-        """A texture from PNG bytes held in the spec's virtual file system (no file is written)."""
+        """A texture from PNG bytes held in the spec's virtual file system (no file is written).
+
+        Returns:
+            The texture's name: ``name``, or for a 2D image already added (the same bytes) that texture's
+            name, so that MuJoCo decodes each distinct image once.
+        """
+        two_d = kind is None or kind == mujoco.mjtTexture.mjTEXTURE_2D
+        key = xxhash.xxh3_128_digest(png) if two_d else b""
+        known = self.by_content.get(key) if two_d else None
+        if known is not None and self.vfs[known[1]] == png:
+            return known[0]
         file = f"{len(self.vfs)}_{''.join(c if c.isalnum() else '_' for c in name)}.png"
         self.vfs[file] = png
         self.spec.add_texture(name=name, type=kind if kind is not None else mujoco.mjtTexture.mjTEXTURE_2D, file=file)
+        if two_d:
+            self.by_content.setdefault(key, (name, file))
         return name
 
 

@@ -18,6 +18,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from simrun import model_cache
 from simrun.assets import AssetLibrary
 from simrun.entity import BuildContext, Entity
 from simrun.environment import Camera
@@ -93,6 +94,8 @@ class World:
         self._data: mujoco.MjData | None = None
         self._assets = AssetLibrary(mujoco.MjSpec())
         self._hooked: list[Entity] = []
+        #: Compiled-model cache (simrun/model_cache.py; ``SIMRUN_MODEL_CACHE``); ``None`` compiles every time.
+        self.model_cache: model_cache.ModelCache | None = model_cache.default()
         self.services: list[dict[str, Any]] = []
         #: Runtime controllers (services, sensors): ``tick(model, data)`` every ``period`` s from ``next_time``.
         self.controllers: list[Any] = []
@@ -231,11 +234,17 @@ class World:
         Raises:
             CompileError: MuJoCo refused the model (its message included).
         """
-        spec = self.build_spec()
-        try:
-            model = spec.compile()
-        except ValueError as exc:
-            raise CompileError(f"MuJoCo cannot compile the world: {exc}") from None
+        cache = self.model_cache
+        model = cache.load(self) if cache is not None else None
+        spec = None  # on a cache hit the spec is built when asked for (World.spec)
+        if model is None:
+            spec = self.build_spec()
+            try:
+                model = spec.compile()
+            except ValueError as exc:
+                raise CompileError(f"MuJoCo cannot compile the world: {exc}") from None
+            if cache is not None:
+                cache.store(self, model, model_cache.read_files(self._assets))
         main = [full for full, e in self._entities.items() if isinstance(e, Camera) and e.main]
         if main:
             model.vis.global_.cameraid = model.camera(main[0]).id  # the main view renders from this camera
@@ -253,8 +262,12 @@ class World:
     def spec(self) -> mujoco.MjSpec:
         """The compiled spec."""
         if self._spec is None:
-            self.compile()
-        assert self._spec is not None
+            if self._model is None:
+                self.compile()
+            if self._spec is None:  # the model came from the compiled-model cache: build the spec now
+                spec = self.build_spec()
+                spec.compile()
+                self._spec = spec
         return self._spec
 
     @property
