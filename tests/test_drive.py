@@ -279,6 +279,9 @@ def test_published_dimensions_of_the_other_robots():
     assert 2 * tyre[0] == pytest.approx(0.195)
     disc = model.geom("c/chassis")
     assert disc.type[0] == mujoco.mjtGeom.mjGEOM_CYLINDER and 2 * disc.size[0] == pytest.approx(0.33)
+    assert 2 * disc.size[1] == pytest.approx(0.06) and disc.pos[2] == pytest.approx(0.012 + 0.03)
+    np.testing.assert_allclose(model.site("c/centre").pos, disc.pos)  # a site at the chassis centre
+    np.testing.assert_allclose(model.geom("c/caster").rgba, [0.3, 0.3, 0.3, 1.0])  # a grey caster
     assert model.body("c/left_wheel").pos[1] * 2 == pytest.approx(0.258)
     assert model.geom("t/left_tyre").size[0] == pytest.approx(0.028)
     bad = World()
@@ -530,11 +533,12 @@ def test_default_caster_sits_at_the_chassis_end_away_from_the_axle():
         ({"wheel_friction": 0.0}, "wheel_friction must be"),
         ({"chassis_shape": "triangle"}, "chassis_shape must be one of box, disc"),
         ({"chassis_shape": "disc"}, "a disc chassis needs length == width"),
-        ({"axle_offset": 0.065}, "axle_offset must lie within the chassis length"),
+        ({"axle_offset": 0.065}, r"axle_offset must lie within the chassis length \(\|offset\| < 0.065\)"),
         ({"axle_offset": -0.07}, "axle_offset must lie within the chassis length"),
         ({"axle_offset": math.nan}, "axle_offset must lie within"),
         ({"chassis_clearance": -0.001}, "chassis_clearance must be >= 0"),
         ({"caster_offset": 0.01}, "caster_offset must put the caster away from the axle"),
+        ({"caster_offset": -0.0125}, "caster_offset must put the caster away from the axle"),  # at the axle's edge
         ({"caster_offset": math.nan}, "caster_offset must put"),
         ({"track": 0.01}, "the track must be wider than a wheel"),
     ],
@@ -548,7 +552,9 @@ def test_bad_robot_parameters_are_refused_naming_the_parameter(change, message):
 
 def test_good_edge_parameters_build():
     world = World()
-    world.insert(DifferentialDrive(name="a", chassis_clearance=0.0, axle_offset=0.064, caster_offset=-0.0126))
+    world.insert(
+        DifferentialDrive(name="a", chassis_clearance=0.0, axle_offset=0.064, caster_offset=-(0.0125 + 1e-6))
+    )  # the caster just clear of the axle
     world.insert(DifferentialDrive(name="b", track=0.0101, pose=Pose((1, 0, 0))))
     world.insert(
         DifferentialDrive(name="c", chassis_shape="disc", chassis_dimensions=(0.2, 0.2, 0.05), pose=Pose((2, 0, 0)))
