@@ -1,37 +1,32 @@
 """The meshes of a URDF: read, scaled (mirroring included), hulled and packed once per file and scale.
 
-OBJ files are read with their MTL; STL/PLY/OFF/GLB/COLLADA through trimesh.
-
-COLLADA and other scene files keep their colours and textures: trimesh reads them, writes them as an OBJ
-with its MTL and PNGs into a scratch folder, and the normaliser reads that like any OBJ. A COLLADA file
-whose image reference is broken keeps its geometry (the texture is dropped with a finding).
+Every mesh goes through the normaliser's readers (:mod:`meshtool.readers`): OBJ with its MTL, STL, PLY,
+glTF/GLB and COLLADA, in memory (no intermediate files). COLLADA and glTF keep their colours and textures
+(their images are read through the resolver, inside the package); a broken image reference keeps the
+geometry and drops the texture with a finding. The mesh's own frame: the URDF places meshes as they are
+(Z-up, no rotation), and a COLLADA ``<unit>`` is applied before the URDF ``scale``, as ROS tools do.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import io
-import tempfile
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import trimesh
 
 from meshtool.errors import MeshtoolError
-from meshtool.findings import Finding, warning
+from meshtool.findings import Finding
 from meshtool.hulls import Hull, HullOptions, compute_hulls, quality
 from meshtool.mesh import safe_identifier
 from meshtool.mjcf import MeshParts, mesh_parts
 from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare, safe_file_stem
-from meshtool.outdir import write_file
 from meshtool.packfile import pack
 from meshtool.packfile.read import parse
-from meshtool.resolve import Resolver
+from meshtool.readers import MESH_SUFFIXES
 
-MESH_TYPES = (".obj", ".stl", ".ply", ".dae", ".off", ".glb")
+MESH_TYPES = MESH_SUFFIXES
 Scale = tuple[float, float, float]
 
 
@@ -86,12 +81,8 @@ def load_mesh(
     stem = safe_file_stem(found.stem) or "mesh"
     options = NormaliseOptions(up="z", scale=float(s[0]) if uniform else 1.0, name=stem, search_paths=(root,))
     findings: list[Finding] = []
-    if found.suffix.lower() == ".obj":
-        asset = prepare(found, options)
-        own = any(m.name != "default" for m in asset.materials)
-    else:
-        asset, own, notes = _foreign(found, root, options)
-        findings += notes
+    asset = prepare(found, options)
+    own = any(m.name != "default" for m in asset.materials)
     if not uniform:
         asset = _scaled(asset, s)
     hull_set = compute_hulls(asset.mesh, hulls, found.name)
@@ -122,97 +113,6 @@ def _scaled(asset: NormalisedAsset, s: np.ndarray) -> NormalisedAsset:
         stats["bbox"] = {"min": lo.tolist(), "max": hi.tolist(), "extent": (hi - lo).tolist()}
     manifest["stats"] = stats
     return dataclasses.replace(asset, mesh=scaled, manifest=manifest)
-
-
-def _foreign(found: Path, root: Path, options: NormaliseOptions) -> tuple[NormalisedAsset, bool, list[Finding]]:
-    """STL/PLY/OFF/GLB/COLLADA through trimesh, written as OBJ + MTL + PNGs and normalised like an OBJ."""
-    data = Resolver(root).read(found)
-    kind = found.suffix.lower()[1:]
-    findings: list[Finding] = []
-    missing: list[str] = []
-
-    def resolve(name: str) -> bytes:
-        target = (found.parent / name.replace("\\", "/")).resolve()
-        if not Resolver(root).inside(target) or not target.is_file():
-            missing.append(name)
-            raise FileNotFoundError(name)
-        return Resolver(root).read(target)
-
-    resolver = _CallbackResolver(resolve)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            loaded = trimesh.load(io.BytesIO(data), file_type=kind, resolver=resolver, process=False)
-    except Exception as exc:  # trimesh and pycollada raise many types for unreadable files
-        raise UrdfError(
-            f"trimesh cannot read it: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", path=str(found)
-        ) from None
-    meshes = _meshes_of(loaded)
-    if not meshes:
-        raise UrdfError("has no triangles", path=str(found))
-    for name in sorted(set(missing)):
-        findings.append(
-            warning("texture-missing", f"image {name!r} is missing; the texture is dropped, geometry kept", str(found))
-        )
-    own = any(_has_material(m) for m in meshes)
-    if not own:
-        for m in meshes:
-            m.visual = trimesh.visual.ColorVisuals(m)
-    scene = trimesh.Scene(meshes)
-    text, extra = trimesh.exchange.obj.export_obj(  # type: ignore[no-untyped-call]
-        scene, include_normals=True, include_texture=own, return_texture=True, mtl_name=f"{options.name}.mtl"
-    )
-    with tempfile.TemporaryDirectory(prefix="meshtool-urdf-") as tmp:
-        scratch = Path(tmp) / f"{options.name}.obj"
-        write_file(scratch, str(text).encode("utf-8"))
-        for name, blob in (extra or {}).items():
-            write_file(Path(tmp) / name, bytes(blob))
-        asset = prepare(scratch, dataclasses.replace(options, search_paths=()))
-    return asset, own, findings
-
-
-class _CallbackResolver(trimesh.resolvers.Resolver):
-    """A trimesh resolver that reads through meshtool's :class:`Resolver` (never outside the root)."""
-
-    def __init__(self, read: Any) -> None:
-        self._read = read
-
-    def get(self, name: str) -> bytes:
-        data: bytes = self._read(name)
-        return data
-
-    def write(self, name: str, data: bytes) -> None:
-        raise OSError("read-only")
-
-    def namespaced(self, namespace: str) -> _CallbackResolver:
-        return _CallbackResolver(lambda name: self._read(f"{namespace}/{name}"))
-
-    def keys(self) -> Any:
-        return iter(())
-
-
-def _meshes_of(loaded: Any) -> list[trimesh.Trimesh]:
-    """Every triangle mesh of a loaded file, placed by its scene graph."""
-    if isinstance(loaded, trimesh.Trimesh):
-        return [loaded] if len(loaded.faces) else []
-    if isinstance(loaded, trimesh.Scene):
-        out = []
-        for node in loaded.graph.nodes_geometry:
-            transform, name = loaded.graph[node]
-            geometry = loaded.geometry.get(name)
-            if isinstance(geometry, trimesh.Trimesh) and len(geometry.faces):
-                placed = geometry.copy()
-                placed.apply_transform(transform)
-                out.append(placed)
-        return out
-    return []
-
-
-def _has_material(mesh: trimesh.Trimesh) -> bool:
-    visual = mesh.visual
-    if isinstance(visual, trimesh.visual.TextureVisuals):
-        return visual.material is not None
-    return False
 
 
 def mesh_prefix(found: Path, taken: set[str]) -> str:
