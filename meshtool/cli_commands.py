@@ -430,6 +430,10 @@ def _made(make: Callable[[Any], bytes], packed: Any, file: Path) -> bytes:
 
     try:
         return make(packed)
+    except PackFormatError as exc:  # the exporter's own refusal: name the file when it could not
+        if exc.path is not None:
+            raise
+        raise PackFormatError(exc.message, path=str(file), hint=exc.hint) from None
     except (UnidentifiedImageError, Image.DecompressionBombError, OSError) as exc:
         raise PackFormatError(
             f"a texture cannot be decoded as an image ({type(exc).__name__}: {exc})",

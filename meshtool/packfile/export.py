@@ -189,7 +189,10 @@ def _glb_image(packed: PackedMesh, index: int, images: dict[int, Any]) -> Any:
             image = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
         except (OSError, ValueError, SyntaxError, EOFError, Image.DecompressionBombError) as exc:
             why = "unknown image format" if isinstance(exc, UnidentifiedImageError) else str(exc)
-            raise PackFormatError(f"texture {index} is not a readable PNG ({why})", hint="re-pack it") from None
+            raise PackFormatError(
+                f"a texture cannot be decoded as an image (texture {index}, {type(exc).__name__}: {why})",
+                hint="re-pack the asset from a valid image",
+            ) from None
         image.info.clear()  # no iCCP/gAMA/cHRM/sRGB chunks: glTF fixes each slot's colour space itself
         images[index] = image
     return images[index]
