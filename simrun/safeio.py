@@ -36,6 +36,8 @@ def open_regular(path: Path, what: str = "file") -> BinaryIO:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except OSError as exc:
         raise FileReadError(f"{path}: {what} cannot be read: {exc.strerror}") from None
+    except ValueError:  # a NUL byte in the name: no file can have it
+        raise FileReadError(f"{path!r}: {what} name contains a NUL byte; name a file") from None
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
