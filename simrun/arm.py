@@ -17,14 +17,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import mujoco
 import numpy as np
 
 from simrun.entity import BuildContext, Entity, check_positive
 from simrun.errors import EntityError
-from simrun.world import World
+
+if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
+    from simrun.world import World
 
 DRIVES = ("position", "velocity", "none")
 AXES = ("x", "y", "z", "rx", "ry", "rz")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import mujoco
 import numpy as np
@@ -18,7 +18,9 @@ import numpy.typing as npt
 from simrun.entity import BuildContext, Entity, check_positive
 from simrun.errors import EntityError, SimrunError
 from simrun.sensors import RayCaster, Sensor
-from simrun.world import World
+
+if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
+    from simrun.world import World
 
 
 @dataclass(frozen=True, slots=True)

@@ -17,9 +17,10 @@ from pathlib import Path
 from typing import Any
 
 from simrun.errors import SceneError, SimrunError
+from simrun.registry import REGISTRY, names
 from simrun.safeio import FileReadError, read_regular
 from simrun.tomlpos import key_lines, line_of
-from simrun.world import SERVICE_TYPES, World, service_class
+from simrun.world import World
 
 #: Largest commands file read, bytes.
 MAX_COMMANDS_BYTES = 16 * 1024 * 1024
@@ -131,8 +132,9 @@ def parse_command(table: Any, fail: Any, where: str = "") -> Command:
     for key, value in (("service", service), ("entity", table["entity"]), ("call", table["call"])):
         if not isinstance(value, str) or not value:
             raise fail(f"expected a non-empty string, got {value!r}", key)
-    if service not in SERVICE_TYPES:
-        raise fail(f"unknown service type {service!r} (known: {', '.join(SERVICE_TYPES)})", "service")
+    if service not in names("services"):
+        raise fail(f"unknown service type {service!r} (known: {', '.join(names('services'))})", "service")
+    cls = REGISTRY[service].load()
     args = table.get("args", [])
     if not isinstance(args, list):
         raise fail(f"expected an array of arguments, got {args!r}", "args")
@@ -141,9 +143,9 @@ def parse_command(table: Any, fail: Any, where: str = "") -> Command:
         if problem:
             raise fail(f"argument {k + 1} {problem}", "args")
     call = table["call"]
-    method = getattr(service_class(service), call, None)
+    method = getattr(cls, call, None)
     if call.startswith("_") or not callable(method):
-        public = [n for n, m in inspect.getmembers(service_class(service), callable) if not n.startswith("_")]
+        public = [n for n, m in inspect.getmembers(cls, callable) if not n.startswith("_")]
         public = [n for n in public if n not in ("tick", "reset", "snapshot", "restore")]
         raise fail(f"{service} has no command {call!r} (commands: {', '.join(public)})", "call")
     try:

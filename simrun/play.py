@@ -18,8 +18,8 @@ import numpy as np
 from PIL import Image
 
 from simrun.commands import Command, check_commands, load_commands
-from simrun.drive import DifferentialDrive
 from simrun.errors import SimrunError
+from simrun.registry import REGISTRY, robot_types
 from simrun.safeio import FileReadError, read_regular
 from simrun.world import World
 
@@ -164,7 +164,8 @@ def play(
     check_commands(world, list(commands or []))
     model, data = world.model, world.data
     pending = list(commands or [])
-    robots = {name: np.array(world.body(name).xpos) for name, e in world if isinstance(e, DifferentialDrive)}
+    robot_classes = tuple(REGISTRY[kind].load() for kind in robot_types())
+    robots = {name: np.array(world.body(name).xpos) for name, e in world if isinstance(e, robot_classes)}
     travelled = dict.fromkeys(robots, 0.0)
     start_wall = time.perf_counter()
     dt = model.opt.timestep

@@ -18,46 +18,21 @@ from typing import Any
 
 import tomli_w
 
-from simrun.arm import ArticulatedArm, KukaLBR3, LynxL6
 from simrun.commands import toml_error_line
-from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
 from simrun.entity import Entity, Material
-from simrun.environment import Camera, Ground, HeightField, Light, Sky
 from simrun.errors import EntityError, SceneError, SimrunError
 from simrun.mesh_entity import MeshEntity
 from simrun.outfile import write_text
 from simrun.pose import Pose
+from simrun.registry import REGISTRY, names, scene_type, service_parameters
 from simrun.safeio import FileReadError, check_regular, read_regular
 from simrun.scene_state import KEYS, apply_state, state_table
-from simrun.shapes import Box, Capsule, Cylinder, Sphere
 from simrun.tomlpos import KeyPath, key_lines, line_of
 from simrun.urdf_robot import UrdfRobot
-from simrun.world import MAX_TIMESTEP, MIN_TIMESTEP, SERVICE_TYPES, World, WorldOptions, service_class
+from simrun.world import MAX_TIMESTEP, MIN_TIMESTEP, World, WorldOptions
 
-ENTITY_TYPES: dict[str, type[Entity]] = {
-    cls.TYPE: cls
-    for cls in (
-        Box,
-        Sphere,
-        Capsule,
-        Cylinder,
-        MeshEntity,
-        Ground,
-        HeightField,
-        Sky,
-        Light,
-        Camera,
-        DifferentialDrive,
-        BoeBot,
-        Pioneer3DX,
-        IRobotCreate,
-        LegoNxtTribot,
-        ArticulatedArm,
-        KukaLBR3,
-        LynxL6,
-        UrdfRobot,
-    )
-}
+#: Entity types by name (:mod:`simrun.registry`, the one list of scene types).
+ENTITY_TYPES = names("entities")
 _TOP = ("world", "assets", "entities", "services", "sensors", "state", "test", "expect")  # test, expect: simrun test
 _BASE = ("type", "name", "parent", "pose", "free", "kinematic")
 #: Largest scene file read, bytes.
@@ -216,14 +191,20 @@ class _Loader:
             where: KeyPath = ("services", k)
             if isinstance(service, dict) and isinstance(service.get("type"), str):
                 self.labels[where] = service["type"]
-            _known(service, ("type", "entity"), self, where)
+            if not isinstance(service, dict):
+                raise self.error("expected a table", where)
             kind = service.get("type")
             if not isinstance(kind, str):
                 raise self.error("a service needs a 'type' string", where)
             self.labels[where] = kind
-            if kind not in SERVICE_TYPES:
-                known = ", ".join(SERVICE_TYPES)
+            if kind not in names("services"):
+                known = ", ".join(names("services"))
                 raise self.error(f"unknown service type {kind!r} (known: {known})", (*where, "type"))
+            hints = service_parameters(kind)
+            _known(service, ["type", "entity", *hints], self, where)
+            for key, hint in hints.items():
+                if key in service:
+                    _convert(service[key], hint, self, (*where, key))
             if not isinstance(service.get("entity"), str):
                 raise self.error("a service needs an 'entity' string naming the entity it drives", where)
             if service["entity"] not in entities:
@@ -249,9 +230,14 @@ class _Loader:
                     problem = f"must be at most {MAX_SENSOR_RATE:g} Hz, got {value!r}"
                 if problem:
                     raise self.error(problem, (*where, key))
-            target_key = "camera" if spec.get("type") == "Webcam" else "entity"
+            kind = spec.get("type")
+            if not isinstance(kind, str) or kind not in names("sensors"):  # a list or table is unhashable
+                known = ", ".join(names("sensors"))
+                raise self.error(f"unknown sensor type {kind!r} (known: {known})", (*where, "type"))
+            target_key = REGISTRY[kind].binds
             target = spec.get(target_key)
-            if isinstance(target, str) and target not in entities:
+            owner = target.rsplit("/", 1)[0] if isinstance(target, str) and target_key == "camera" else target
+            if isinstance(target, str) and target not in entities and owner not in entities:
                 raise self.error(f"no entity named {target!r}", (*where, target_key))
             try:
                 world.add_sensor(dict(spec))
@@ -362,7 +348,7 @@ def _services(world: World) -> list[dict[str, Any]]:
     """The scene's bindings, then services created in code (constructed directly), in creation order."""
     services = [dict(s) for s in world.services]
     bound = {(s.get("type"), s.get("entity")) for s in services}
-    classes = {kind: service_class(kind) for kind in SERVICE_TYPES}
+    classes = {kind: REGISTRY[kind].load() for kind in names("services")}
     for controller in world.controllers:
         for kind, cls in classes.items():
             entity = getattr(controller, "name", None)
@@ -433,7 +419,7 @@ def _entity(table: Any, loader: _Loader, where: KeyPath) -> Entity:
     if not isinstance(kind, str) or kind not in ENTITY_TYPES:  # a list or table is unhashable
         known = ", ".join(ENTITY_TYPES)
         raise loader.error(f"unknown entity type {kind!r} (known: {known})", (*where, "type"))
-    cls = ENTITY_TYPES[kind]
+    cls: type[Entity] = scene_type("entities", kind).load()
     hints = typing.get_type_hints(cls)
     fields = [f.name for f in dataclasses.fields(cls)]
     params = [f for f in fields if f not in _BASE]
@@ -486,6 +472,14 @@ def _convert(value: Any, hint: Any, loader: _Loader, where: KeyPath) -> Any:
             return hint.from_scene(value, _key_text(where[2:]))
         except EntityError as exc:  # its message starts with the key path (``segments[1].length: ...``)
             raise loader.error(str(exc), where[:2], line_at=where) from None
+    if dataclasses.is_dataclass(hint) and isinstance(hint, type) and hint is not Material:  # e.g. DriveLimits
+        fields = typing.get_type_hints(hint)
+        _known(value, list(fields), loader, where)
+        converted = {k: _convert(v, fields[k], loader, (*where, k)) for k, v in value.items()}
+        try:
+            return hint(**converted)
+        except (EntityError, ValueError, TypeError) as exc:
+            raise loader.error(str(exc), where) from None
     if hint is Material:
         _known(value, ("restitution", "dynamic_friction", "static_friction"), loader, where)
         coefficients = {k: _number(v, loader, (*where, k)) for k, v in value.items()}

@@ -175,6 +175,9 @@ class Recorder:
         """The recorder holds no simulation state."""
         return {}
 
+    def restore(self, state: dict[str, Any]) -> None:
+        """Nothing to restore (see :meth:`snapshot`)."""
+
     def close(self) -> None:
         """Flush and close the file."""
         self._file.close()
@@ -453,6 +456,13 @@ class _Comparator:
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Nothing to reset."""
+
+    def snapshot(self) -> dict[str, Any]:
+        """Not part of checkpoints (it is added after them)."""
+        return {}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Nothing to restore."""
 
 
 def resimulate(world: World, log: Simlog, start: float) -> tuple[int, float | None]:

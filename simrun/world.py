@@ -7,7 +7,6 @@ the body ``box`` and elements ``box/...``; a child ``wheel`` of ``robot`` is ``r
 
 from __future__ import annotations
 
-import importlib
 import math
 import re
 from collections.abc import Iterator
@@ -23,6 +22,7 @@ from simrun.assets import AssetLibrary
 from simrun.entity import BuildContext, Entity
 from simrun.environment import Camera
 from simrun.errors import CompileError, EntityError
+from simrun.registry import Controller, scene_type, service_arguments
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -35,23 +35,6 @@ _NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 MIN_TIMESTEP, MAX_TIMESTEP = 1e-5, 0.1
 #: Most bodies a world may have (entities with a body, robot links included); bounds the work of one scene.
 MAX_BODIES = 10_000
-#: Service types a world can bind (``[[services]]``), by name: module and class, imported when first used.
-SERVICE_TYPES: dict[str, tuple[str, str]] = {
-    "DriveService": ("simrun.drive_service", "DriveService"),
-    "ArmService": ("simrun.arm", "ArmService"),
-}
-
-
-def service_class(kind: str) -> Any:
-    """The class of a service type of :data:`SERVICE_TYPES`.
-
-    Raises:
-        EntityError: An unknown service type.
-    """
-    if kind not in SERVICE_TYPES:
-        raise EntityError(f"unknown service type {kind!r} (known: {', '.join(SERVICE_TYPES)})")
-    module, name = SERVICE_TYPES[kind]
-    return getattr(importlib.import_module(module), name)
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,8 +80,9 @@ class World:
         #: Compiled-model cache (simrun/model_cache.py; ``SIMRUN_MODEL_CACHE``); ``None`` compiles every time.
         self.model_cache: model_cache.ModelCache | None = model_cache.default()
         self.services: list[dict[str, Any]] = []
-        #: Runtime controllers (services, sensors): ``tick(model, data)`` every ``period`` s from ``next_time``.
-        self.controllers: list[Any] = []
+        #: Runtime controllers (services, sensors: :class:`~simrun.registry.Controller`): ``tick(model, data)``
+        #: every ``period`` s from ``next_time``, in creation order (checkpoints depend on it).
+        self.controllers: list[Controller] = []
         self._bound: dict[tuple[str, str], Any] = {}
         #: Sensors created from ``[[sensors]]`` specs (or :meth:`add_sensor`), by name.
         self.sensors: dict[str, Any] = {}
@@ -332,11 +316,13 @@ class World:
         Raises:
             EntityError: No such binding, or an unknown service type.
         """
-        if not any(s.get("type") == kind and s.get("entity") == entity for s in self.services):
+        binding = next((s for s in self.services if s.get("type") == kind and s.get("entity") == entity), None)
+        if binding is None:
             raise EntityError(f"no {kind} is bound to {entity!r}; add it under [[services]] or create it in code")
         key = (kind, entity)
         if key not in self._bound:
-            self._bound[key] = service_class(kind)(self, entity)
+            cls = scene_type("services", kind).load()
+            self._bound[key] = cls(self, entity, **service_arguments(binding))
         return self._bound[key]
 
     def add_sensor(self, spec: dict[str, Any]) -> Any:
@@ -345,33 +331,19 @@ class World:
         Raises:
             EntityError: Unknown type, missing or duplicate name, unknown entity or parameter.
         """
-        from simrun.cameras import IRDistance, Sonar, Webcam
-        from simrun.sensors import GPS, IMU, Bumper, Encoders, LaserRangeFinder
-
-        kinds: dict[str, Any] = {
-            "LaserRangeFinder": LaserRangeFinder,
-            "Bumper": Bumper,
-            "Encoders": Encoders,
-            "GPS": GPS,
-            "IMU": IMU,
-            "IRDistance": IRDistance,
-            "Sonar": Sonar,
-            "Webcam": Webcam,
-        }
         params = dict(spec)
         kind, name = params.pop("type", None), params.pop("name", None)
-        if kind not in kinds:
-            raise EntityError(f"unknown sensor type {kind!r} (known: {', '.join(kinds)})")
+        registered = scene_type("sensors", kind)
         if not isinstance(name, str) or name in self.sensors:
             raise EntityError(f"a sensor needs a unique 'name', got {name!r}")
-        target = params.pop("camera" if kind == "Webcam" else "entity", None)
+        target = params.pop(registered.binds, None)
         if not isinstance(target, str):
-            raise EntityError(f"sensor {name!r} needs an {'camera' if kind == 'Webcam' else 'entity'} string")
+            raise EntityError(f"sensor {name!r} needs a {registered.binds!r} string")
         for key, value in params.items():
             if isinstance(value, list):
                 params[key] = tuple(value)
         try:
-            sensor = kinds[kind](self, target, **params)
+            sensor = registered.load()(self, target, **params)
         except TypeError as exc:
             raise EntityError(f"sensor {name!r}: {exc}") from None
         self.sensors[name] = sensor

@@ -73,3 +73,72 @@ def test_every_finding_code_is_documented():
                 and isinstance(node.args[0], ast.Constant)
             ):
                 assert f"`{node.args[0].value}`" in docs, (path.name, node.args[0].value)
+
+
+def _simrun_imports(path: Path) -> set[str]:
+    """simrun modules a module imports when it runs (function bodies too; ``if TYPE_CHECKING:`` blocks not)."""
+    tree = ast.parse(path.read_text())
+    skipped = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skipped.update(id(n) for child in node.body for n in ast.walk(child))
+    found = set()
+    for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.startswith("simrun."))
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0 and node.module.startswith("simrun"):
+            if node.module == "simrun":
+                found.update(f"simrun.{a.name}" for a in node.names)
+            else:
+                found.add(node.module)
+    return found
+
+
+def test_simrun_has_no_import_cycle():
+    """No cycle among simrun's modules, counting imports inside functions and the registry's lazy targets."""
+    from simrun.registry import REGISTRY
+
+    modules = {f"simrun.{p.stem}": p for p in (ROOT / "simrun").glob("*.py") if p.stem != "__init__"}
+    graph = {name: {m for m in _simrun_imports(path) if m in modules and m != name} for name, path in modules.items()}
+    graph["simrun.registry"] |= {t.target.split(":")[0] for t in REGISTRY.values()}
+    assert {"simrun.sensors", "simrun.arm", "simrun.cameras", "simrun.drive_service"} <= graph["simrun.registry"]
+    state: dict[str, int] = {}  # 1 on the stack, 2 done
+
+    def visit(name: str, stack: list[str]) -> None:
+        state[name] = 1
+        for target in sorted(graph[name]):
+            if state.get(target) == 1:
+                cycle = [*stack[stack.index(target) :], target]
+                raise AssertionError("import cycle: " + " -> ".join(cycle))
+            if target not in state:
+                visit(target, [*stack, target])
+        state[name] = 2
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+
+
+def test_each_simrun_module_imports_alone():
+    """Each module imports first in a fresh interpreter (an order-dependent cycle would fail here)."""
+    import subprocess
+    import sys
+
+    names = sorted(f"simrun.{p.stem}" for p in (ROOT / "simrun").glob("*.py") if p.stem != "__init__")
+    script = (
+        "import importlib, sys\n"
+        "bad = []\n"
+        f"for name in {names!r}:\n"
+        "    for loaded in [m for m in sys.modules if m == 'simrun' or m.startswith('simrun.')]:\n"
+        "        del sys.modules[loaded]\n"
+        "    try:\n"
+        "        importlib.import_module(name)\n"
+        "    except Exception as exc:\n"
+        "        bad.append(f'{name}: {type(exc).__name__}: {exc}')\n"
+        "print('\\n'.join(bad))\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == ""
