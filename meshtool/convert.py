@@ -36,11 +36,15 @@ class ConvertOptions:
         normalise: The normaliser's options (units, scale, up axis, search paths, strict).
         quantize: Write the quantised encoding.
         hulls: How collision hulls are made (default: one convex hull).
+        check: Compile the packed asset in MuJoCo before writing it (:mod:`meshtool.loadcheck`; skipped with
+            a note when simrun is not installed) and refuse one MuJoCo rejects. Not part of the
+            fingerprint: it never changes the bytes written.
     """
 
     normalise: NormaliseOptions = field(default_factory=NormaliseOptions)
     quantize: bool = False
     hulls: HullOptions = field(default_factory=HullOptions)
+    check: bool = True
 
     def fingerprint(self) -> dict[str, Any]:
         """The options as recorded in the file's metadata (paths as strings)."""
@@ -82,8 +86,9 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
             MTL or texture it uses).
 
     Raises:
-        MeshtoolError: The input cannot be converted, or the output cannot be written or would replace an
-            input or a file meshtool did not write (:class:`OutputError`).
+        MeshtoolError: The input cannot be converted, MuJoCo refuses the packed asset
+            (:class:`meshtool.model.ModelError`, with ``options.check``), or the output cannot be written or
+            would replace an input or a file meshtool did not write (:class:`OutputError`).
     """
     options = options or ConvertOptions()
     refuse_inputs(out, [src])  # before any work: `obj2bin box.obj -o box.obj`
@@ -95,6 +100,13 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
         first = next(f for f in hull_set.findings if f.severity.value == "warning")
         raise StrictModeError(f"hull warning in strict mode: {first.one_line()}", path=src.name)
     data = pack(asset, options.quantize, options.fingerprint(), hull_set.hulls, report)
+    checked = "off"
+    if options.check:  # before anything is written: a pack MuJoCo refuses is an error, not an output
+        from meshtool.loadcheck import check_pack
+
+        skipped = check_pack(data, src.name)
+        findings += skipped
+        checked = "skipped" if skipped else "compiled"
     roots = [src.parent, *options.normalise.search_paths]
     used = [_source_path(str(s.get("path", "")), roots) for s in _files(asset.manifest.get("sources", []))]
     check_output(out, "mbin", force=force, inputs=[src, *(p for p in used if p is not None)], data=data)
@@ -103,6 +115,7 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
     stats["bytes"] = len(data)
     stats["hulls"] = report or {"hulls": 0}
     stats["hull_cache_hits"] = hull_set.cache_hits
+    stats["mujoco_check"] = checked
     return ConvertResult(src, out, "written", findings, stats)
 
 
@@ -136,11 +149,11 @@ def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
 def _files(sources: list[dict[str, str]]) -> list[dict[str, str]]:
     """Source entries that are files.
 
-    Images embedded in a glTF/GLB (``crate.glb#name.png``) are not: the container's entry covers them.
+    Images embedded in a glTF/GLB (``crate.glb/name.png``) are not: the container's entry covers them.
     """
     containers = {str(s.get("path")) for s in sources if s.get("role") in ("gltf", "glb")}
     return [
-        s for s in sources if not (s.get("role") == "texture" and str(s.get("path")).split("#", 1)[0] in containers)
+        s for s in sources if not (s.get("role") == "texture" and str(s.get("path")).split("/", 1)[0] in containers)
     ]
 
 

@@ -101,20 +101,21 @@ class Resolver:
     def embed(self, container: Path, name: str, data: bytes) -> str:
         """Register a file held inside another one (a GLB image, a ``data:`` URI) and return its reference.
 
-        The reference (``CONTAINER#NAME``, made unique) resolves with rule ``embedded`` to a virtual path
-        beside the container; :meth:`read` returns the bytes (within the limit of the kind) and
-        :meth:`display` shows the reference. Nothing is written to disk.
+        The reference (``CONTAINER/NAME``, made unique) resolves with rule ``embedded`` to a virtual path
+        "inside" the container file (no real file can be there: the container is a file, not a folder);
+        :meth:`read` returns the bytes (within the limit of the kind) and :meth:`display` shows the
+        reference. Nothing is written to disk.
 
         Args:
             container: The file that holds the data.
             name: A name for it (an image's name with its file suffix).
             data: The bytes.
         """
-        base = f"{printable(container.name)}#{name.replace('/', '_') or 'embedded'}"
+        base = f"{printable(container.name)}/{re.sub(r'[^A-Za-z0-9_.-]+', '_', name).strip('_.') or 'embedded'}"
         ref, n = base, 2
         while ref in self._embedded:
             ref, n = f"{base}_{n}", n + 1
-        path = Path(os.path.abspath(container.parent)) / ref
+        path = Path(os.path.abspath(container.parent)).joinpath(*ref.split("/"))
         self._embedded[ref] = (path, data)
         self._embedded_paths[path] = (ref, data)
         return ref

@@ -305,6 +305,7 @@ def make_collada() -> None:
     v = box((20, 10, 5))  # centimetres
     normals = face_normals(v, CUBE_FACES)
     uv = CUBE[:, :2]
+
     # triangles: vertex / normal / texcoord offsets; first 6 triangles red, last 6 textured
     def tris(rows: range) -> str:
         return " ".join(f"{CUBE_FACES[k][c]} {k} {CUBE_FACES[k][c]}" for k in rows for c in range(3))
@@ -405,6 +406,20 @@ def make_mixed() -> None:
     shutil.copytree(ROOT / "dae" / "cm_zup", d / "link", dirs_exist_ok=True)
 
 
+def make_validate() -> None:
+    """One asset per format-specific ``meshtool validate`` rule (S012, S013), triggering only that rule."""
+    d = ROOT / "validate"
+    text = stl_ascii_solid("flipped", box((0.2, 0.2, 0.2)), CUBE_FACES, flip_normals=(2, 7))
+    write(d / "S012_facet_normals" / "flipped.stl", text)
+    doc = json.loads((ROOT / "gltf" / "external" / "cube.gltf").read_text())
+    doc["buffers"][0]["uri"] = "model.bin"  # not there
+    doc["images"], doc["textures"], doc["materials"] = [], [], []
+    doc["meshes"] = [
+        {"primitives": [{k: v for k, v in p.items() if k != "material"} for p in doc["meshes"][0]["primitives"]]}
+    ]
+    write(d / "S013_buffer_missing" / "model.gltf", json.dumps(doc, indent=1) + "\n")
+
+
 def main() -> None:
     if ROOT.exists():
         shutil.rmtree(ROOT)
@@ -413,6 +428,7 @@ def main() -> None:
     make_gltf()
     make_collada()
     make_mixed()
+    make_validate()
     for path in sorted(ROOT.rglob("*")):
         if path.is_file():
             print(path.relative_to(ROOT.parent.parent))

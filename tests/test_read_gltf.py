@@ -49,10 +49,10 @@ def test_glb_texture_transform_baked_and_v_flipped(fixtures):
 
 def test_glb_embedded_texture_becomes_a_png_with_provenance(fixtures):
     asset = prepare(fixtures / GLTF / "embedded_texture.glb")
-    assert list(asset.textures) == ["embedded_texture.glb_checker.png"]
-    assert asset.textures["embedded_texture.glb_checker.png"][:8] == b"\x89PNG\r\n\x1a\n"
+    assert list(asset.textures) == ["checker.png"]
+    assert asset.textures["checker.png"][:8] == b"\x89PNG\r\n\x1a\n"
     sources = {s["role"]: s["path"] for s in asset.manifest["sources"]}
-    assert sources == {"glb": "embedded_texture.glb", "texture": "embedded_texture.glb#checker.png"}
+    assert sources == {"glb": "embedded_texture.glb", "texture": "embedded_texture.glb/checker.png"}
     rules = [r["rule"] for r in asset.manifest["resolutions"]]
     assert rules == ["embedded"]
     t = asset.manifest["transform"]

@@ -30,6 +30,8 @@ FIXTURE = {
     "S009": ("S009_name_unsafe/my box.obj", {}),
     "S010": ("S010_encoding/box.obj", {}),
     "S011": ("S011_syntax/box.obj", {}),
+    "S012": ("../formats/validate/S012_facet_normals/flipped.stl", {}),
+    "S013": ("../formats/validate/S013_buffer_missing/model.gltf", {}),
     "G001": ("G001_non_finite/box.obj", {}),
     "G002": ("G002_no_faces/points.obj", {}),
     "G003": ("G003_degenerate_faces/box.obj", {}),

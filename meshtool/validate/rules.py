@@ -62,6 +62,8 @@ _TABLE: list[tuple[str, str, Severity, str, str]] = [
     ("S009", "name-unsafe", W, "a file name has spaces, non-ASCII or shell-special characters", "rename to letters, digits, _ . - only"),
     ("S010", "encoding", W, "an OBJ or MTL is not plain UTF-8 (Latin-1, UTF-16, byte-order mark)", "re-save the file as UTF-8 without BOM"),
     ("S011", "syntax", W, "malformed or partial statements were dropped", "fix the lines named, or export again"),
+    ("S012", "facet-normals", W, "STL facet normals point against their facets' winding (tools disagree on the outside)", "recalculate normals outside in the modeller and export again"),
+    ("S013", "buffer-missing", E, "a glTF buffer is missing, outside the asset folder or too short: no geometry", "put the .bin beside the .gltf, or export a single .glb"),
     ("G001", "non-finite", E, "vertices with NaN or infinite coordinates", "fix or delete those vertices"),
     ("G002", "no-faces", W, "the file has vertices but no faces: usable only as a convex collision hull", "export the faces, not only points or lines"),
     ("G003", "degenerate-faces", W, "triangles with a repeated vertex or zero area", "clean the mesh (merge by distance, delete degenerate)"),

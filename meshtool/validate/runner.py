@@ -15,6 +15,7 @@ from pathlib import Path
 
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Severity
+from meshtool.readers import MESH_SUFFIXES
 from meshtool.resolve import find_files
 from meshtool.validate.cache import ResultCache
 from meshtool.validate.config import ValidateConfig
@@ -23,7 +24,7 @@ from meshtool.validate.remote import SchedulerError, run_dask
 from meshtool.validate.task import AssetResult, AssetTask
 
 EXECUTORS = ("local", "dask")
-SUFFIXES = (".obj", ".mbin")
+SUFFIXES = (*MESH_SUFFIXES, ".mbin")  # OBJ, STL, PLY, glTF/GLB, COLLADA sources and packs
 
 #: Called with each asset's result, the number done so far and the total.
 Progress = Callable[[AssetResult, int, int], None]

@@ -47,6 +47,12 @@ FROM_NORMALISER: dict[str, str] = {
     "no-faces": "G002",
     "degenerate-faces": "G003",
     "scale-suspicious": "U001",
+    "stl-normals-disagree": "S012",
+    "stl-trailing-data": "S011",
+    "stl-endsolid-missing": "S011",
+    "colors-invalid": "S011",
+    "texture-coordinates-invalid": "S011",
+    "normals-invalid": "S011",
 }
 
 _ABSOLUTE = re.compile(r"^([A-Za-z]:[\\/]|[\\/]|[A-Za-z][A-Za-z0-9+.-]*://)")

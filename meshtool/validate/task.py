@@ -25,6 +25,7 @@ from meshtool.findings import Finding, Severity
 from meshtool.hulls import Hull, HullOptions, compute_hulls
 from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
 from meshtool.packfile import pack, parse
+from meshtool.readers import format_of
 from meshtool.resolve import Resolver, file_sha256
 from meshtool.units import scale_findings
 from meshtool.validate.collision import collision_findings
@@ -188,11 +189,12 @@ def _read_obj(read: ReadAsset) -> None:
     resolver = Resolver(src.parent)
     data = resolver.read_source(src)
     result.deps[str(src.resolve())] = hashlib.sha256(data).hexdigest()
-    result.findings.extend(encoding_findings(name, data))
+    if format_of(src) == "obj":  # binary formats (STL, PLY, GLB) are no text
+        result.findings.extend(encoding_findings(name, data))
     try:
         asset = prepare(src, NormaliseOptions())
     except MeshtoolError as exc:
-        rule = "G001" if exc.code == "non-finite" else "S001"
+        rule = {"non-finite": "G001", "gltf-buffer-missing": "S013"}.get(str(exc.code), "S001")
         result.findings.append(hit(rule, exc.message, exc.path or name, exc.line))
         result.findings.extend(name_findings([name]))
         read.done = True
