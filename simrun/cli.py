@@ -26,6 +26,7 @@ from simrun.outfile import output_policy, write_bytes
 from simrun.play import encode_gif, encode_mp4
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
+from simrun.scenetest.cli import test_command
 from simrun.session import PlayOptions, run_play, run_resim
 from simrun.simlog import Simlog, check_model, check_scene, replay_states
 from simrun.teleop import run_viewer
@@ -96,6 +97,9 @@ def main() -> None:
     Exit codes: 0 ok, 1 invalid input or a failed check (one 'error:' line naming the file and line), 2 usage,
     3 simrun failed (a bug; SIMRUN_DEBUG=1 shows the traceback).
     """
+
+
+main.add_command(test_command)  # simrun test: scene tests with [[expect]] (simrun/scenetest/cli.py)
 
 
 @main.command("doctor")

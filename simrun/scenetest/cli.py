@@ -1,0 +1,168 @@
+"""``simrun test``: the click layer over :mod:`simrun.scenetest`.
+
+Exit codes (as ``meshtool validate``): 0 every run passed; 1 a run failed or could not finish, or a scene,
+commands file or expectation is invalid (one ``error:`` line with FILE:LINE), or the Dask scheduler cannot
+be reached; 2 usage (bad options, ``--seeds``/``--vary`` values, no scene found); 3 simrun itself failed
+(a worker crashed or a bug; ``SIMRUN_DEBUG=1`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from simrun.errors import SimrunError
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+
+
+def _jobs() -> int:
+    """Worker processes by default: the usable CPUs, at most 8."""
+    return max(1, min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
+
+
+@click.command("test")
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--seeds", default="0", show_default=True, help="Seeds: START:STOP (STOP excluded), N or N1,N2,...")
+@click.option(
+    "--vary",
+    multiple=True,
+    metavar="KEY=SPEC",
+    help="Vary NAME.PARAMETER: START:STOP:COUNT (a grid), uniform(A,B), normal(MEAN,SD), choice(V1,...) or a "
+    "number. Repeatable.",
+)
+@click.option("-j", "--jobs", type=click.IntRange(1, 256), default=None, help="Workers (default: CPUs, at most 8).")
+@click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True)
+@click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); needs dask.")
+@click.option(
+    "--scheduler-timeout",
+    type=click.FloatRange(0, min_open=True),
+    default=30.0,
+    show_default=True,
+    metavar="SECONDS",
+    help="How long to try reaching --scheduler.",
+)
+@click.option(
+    "--timeout",
+    type=click.FloatRange(0, min_open=True),
+    default=None,
+    metavar="SECONDS",
+    help="Stop a run in a worker process after this long (an error for that run; needs -j 2 or more).",
+)
+@click.option(
+    "--format", "fmt", type=click.Choice(["text", "json", "junit", "github", "html"]), default="text", show_default=True
+)
+@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), help="Write the report here.")
+@click.option(
+    "--record-failures",
+    "record_dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    default=None,
+    help="Write each failed run (scene as run, its files, a .simlog for simrun resim) under this folder.",
+)
+@click.option("--thumbnails/--no-thumbnails", default=None, help="Picture failed runs (default: only for html).")
+@click.option("--force", is_flag=True, help="Replace files under --record-failures that simrun did not write.")
+@click.option("-v", "--verbose", is_flag=True, help="Text report: list every run and expectation.")
+def test_command(
+    paths: tuple[Path, ...],
+    seeds: str,
+    vary: tuple[str, ...],
+    jobs: int | None,
+    executor: str,
+    scheduler: str | None,
+    scheduler_timeout: float,
+    timeout: float | None,
+    fmt: str,
+    output: Path | None,
+    record_dir: Path | None,
+    thumbnails: bool | None,
+    force: bool,
+    verbose: bool,
+) -> None:
+    """Run every scene under PATHS x seed x variation and check its [[expect]] tables (docs/scene-format.md)."""
+    from meshtool.outdir import write_file
+    from meshtool.validate.remote import SchedulerError
+    from simrun.outfile import output_policy
+    from simrun.scenetest.reports import render, session_line, to_text, verdict_line
+    from simrun.scenetest.runner import TestOptions, run_tests
+    from simrun.scenetest.spec import SpecError
+    from simrun.scenetest.vary import VaryError, parse_seeds, parse_vary
+
+    if scheduler and executor != "dask":
+        _usage("--scheduler needs --executor dask")
+    try:
+        options = TestOptions(
+            seeds=parse_seeds(seeds),
+            axes=[parse_vary(v) for v in vary],
+            jobs=jobs or _jobs(),
+            executor=executor,
+            scheduler=scheduler,
+            connect_timeout=scheduler_timeout,
+            timeout=timeout,
+            record_dir=record_dir,
+            thumbnails=fmt == "html" if thumbnails is None else thumbnails,
+        )
+        keys = [a.key for a in options.axes]
+        if len(set(keys)) != len(keys):
+            _usage("--vary: a key is given twice")
+        with output_policy(force, list(paths)):
+            report = run_tests(list(paths), options, _progress_bar())
+        text = to_text(report, verbose) if fmt == "text" else render(report, fmt)
+        if output is not None:
+            write_file(output, text.encode("utf-8"))
+    except (SpecError, VaryError) as exc:
+        _usage(str(exc))
+    except ImportError:
+        click.echo("error: the Dask executor needs dask.distributed (pip install 'meshtool-simrun[dask]')", err=True)
+        sys.exit(EXIT_FAILED)
+    except SchedulerError as exc:
+        where = scheduler or "a new local cluster"
+        click.echo(
+            f"error: cannot reach the Dask scheduler at {where}: {exc}; start one (dask scheduler) with workers, "
+            "check --scheduler, or raise --scheduler-timeout",
+            err=True,
+        )
+        sys.exit(EXIT_FAILED)
+    except SimrunError as exc:
+        click.echo(f"error: {' '.join(str(exc).split())}", err=True)
+        sys.exit(EXIT_FAILED)
+    except OSError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_FAILED)
+    if output is None:
+        click.echo(text, nl=False)
+    else:
+        click.echo(f"wrote {output}", err=True)
+        click.echo(verdict_line(report), err=True)
+    click.echo(session_line(report), err=True)
+    if report.internal():
+        sys.exit(EXIT_INTERNAL)
+    sys.exit(EXIT_FAILED if report.failed() else EXIT_OK)
+
+
+def _usage(message: str) -> None:
+    click.echo(f"usage error: {message}", err=True)
+    sys.exit(EXIT_USAGE)
+
+
+def _progress_bar() -> Any:
+    """A progress callback drawing a bar on stderr when it is a terminal, else ``None``."""
+    if not sys.stderr.isatty():
+        return None
+    state: dict[str, Any] = {}
+
+    def update(done: int, total: int) -> None:
+        bar = state.get("bar")
+        if bar is None:
+            bar = click.progressbar(length=total, label="simulating", file=sys.stderr, show_pos=True)
+            bar.__enter__()
+            state["bar"] = bar
+        bar.update(1)
+        if done == total:
+            bar.__exit__(None, None, None)
+
+    return update

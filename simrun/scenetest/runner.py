@@ -1,0 +1,281 @@
+"""``simrun test``'s library entry: plan every scene x variation x seed, run them anywhere, record failures.
+
+:func:`run_tests` checks every scene first (:func:`simrun.scenetest.spec.load_case`: a bad scene, commands
+file or expectation is one error before anything runs), plans one :class:`~simrun.scenetest.task.RunTask`
+per run in a fixed order (scene, variation, seed), hands them to an executor
+(:mod:`simrun.scenetest.executors`), and puts the results back in that order, so the report does not
+depend on which worker finished first. Failed runs are written, with their scene as run and the files it
+reads, under ``record_dir``, where ``simrun resim`` re-simulates them bit for bit.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+import tomli_w
+
+from simrun.errors import SimrunError
+from simrun.outfile import write_bytes
+from simrun.scenetest.bundle import Bundle
+from simrun.scenetest.spec import Case, discover, load_case
+from simrun.scenetest.task import RunResult, RunTask
+from simrun.scenetest.vary import Axis, VaryError, apply, check_key, draw, jitter, variations
+
+EXECUTORS = ("local", "dask")
+#: Size of a failed run's picture in HTML reports, pixels.
+THUMBNAIL_SIZE = (320, 240)
+
+
+@dataclass
+class TestOptions:
+    """How to run the tests.
+
+    Attributes:
+        seeds: The seeds every variation of every scene runs with.
+        axes: ``--vary`` keys.
+        jobs: Worker processes (local) or LocalCluster workers (dask without a scheduler).
+        executor: ``local`` or ``dask``.
+        scheduler: Dask scheduler address, or ``None`` for a LocalCluster.
+        connect_timeout: Seconds to try reaching the scheduler.
+        timeout: Seconds one run may take in a worker process (``None``: no limit).
+        record_dir: Folder to write failed runs into (scene as run, its files, ``.simlog``), or ``None``.
+        thumbnails: Render a failed run's last state (for HTML reports).
+    """
+
+    seeds: list[int] = field(default_factory=lambda: [0])
+    axes: list[Axis] = field(default_factory=list)
+    jobs: int = 1
+    executor: str = "local"
+    scheduler: str | None = None
+    connect_timeout: float = 30.0
+    timeout: float | None = None
+    record_dir: Path | None = None
+    thumbnails: bool = False
+
+
+@dataclass
+class Run:
+    """One run in the report.
+
+    Attributes:
+        case: The scene's case.
+        seed: Its seed.
+        variation: Index of its grid variation.
+        values: Every value the run varied: ``--vary`` keys (in the order given) then jitter
+            (``jitter.ENTITY.x`` ...), as written into the scene.
+        result: What it gave.
+        recording: The ``.simlog`` written for it (POSIX path), or ``None``.
+        resim: The command that re-simulates it, or ``None``.
+    """
+
+    case: Case
+    seed: int
+    variation: int
+    values: dict[str, float]
+    result: RunResult
+    recording: str | None = None
+    resim: str | None = None
+
+    @property
+    def label(self) -> str:
+        """``SCENE seed=S KEY=VALUE ...``: the run's name in reports."""
+        values = " ".join(f"{k}={_num(v)}" for k, v in self.values.items())
+        return f"{self.case.display} seed={self.seed}" + (f" {values}" if values else "")
+
+
+def _num(value: float) -> str:
+    return repr(float(value)) if value != int(value) else str(int(value))
+
+
+@dataclass
+class TestReport:
+    """Every run, in plan order, and how the session went (the last two are not in the reports' bodies).
+
+    Attributes:
+        cases: The scenes tested.
+        runs: One per scene x variation x seed.
+        seeds: The seeds.
+        axes: The ``--vary`` keys.
+        executor: ``local`` or ``dask``.
+        where: How many runs each process or worker ran.
+        seconds: Wall-clock seconds of the whole session.
+    """
+
+    cases: list[Case]
+    runs: list[Run]
+    seeds: list[int]
+    axes: list[Axis]
+    executor: str = "local"
+    where: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.0
+
+    def counts(self) -> dict[str, int]:
+        """Runs by status: ``passed``, ``failed``, ``error``."""
+        tally = Counter(r.result.status for r in self.runs)
+        return {s: tally.get(s, 0) for s in ("passed", "failed", "error")}
+
+    def failed(self) -> bool:
+        """Whether any run failed or could not finish."""
+        return any(r.result.status != "passed" for r in self.runs)
+
+    def internal(self) -> bool:
+        """Whether simrun itself failed in a run (a crash or a bug)."""
+        return any(r.result.internal for r in self.runs)
+
+
+def plan(
+    cases: list[Case], options: TestOptions
+) -> tuple[list[RunTask], list[tuple[Case, int, int, dict[str, float]]]]:
+    """The runs' tasks and, per task, (case, seed, variation, values).
+
+    Raises:
+        VaryError: A ``--vary`` key that names nothing in any scene, or a parameter that cannot vary.
+    """
+    unused = {a.key for a in options.axes}
+    tasks: list[RunTask] = []
+    info: list[tuple[Case, int, int, dict[str, float]]] = []
+    thumbnail = THUMBNAIL_SIZE if options.thumbnails else None
+    for case in cases:
+        names = {t.get("name") for g in ("entities", "sensors") for t in case.doc.get(g, []) if isinstance(t, dict)}
+        axes = [a for a in options.axes if a.key.partition(".")[0] in names]
+        for axis in axes:
+            check_key(case.doc, axis.key, entity_class)
+            unused.discard(axis.key)
+        grid = variations(axes)
+        stem = PurePosixPath(case.bundle.scene).stem
+        original = case.bundle.files[case.bundle.scene]
+        for v, fixed in enumerate(grid):
+            for seed in options.seeds:
+                drawn = draw(axes, seed)
+                values = {a.key: (fixed[a.key] if a.key in fixed else drawn[a.key]) for a in axes}
+                offsets = jitter(case.jitter, seed)
+                name = f"{stem}.seed{seed}" + (f".v{v}" if len(grid) > 1 else "") + ".toml"
+                text = original
+                if values or offsets:
+                    doc = apply(case.doc, values, offsets, entity_class)
+                    shown = " ".join(f"{k}={_num(x)}" for k, x in {**values, **_jitter_keys(offsets)}.items())
+                    head = f"# The scene {case.display} as simrun test ran it: seed={seed} {shown}\n"
+                    text = (head + tomli_w.dumps(doc)).encode("utf-8")
+                tasks.append(
+                    RunTask(
+                        len(tasks),
+                        case.bundle.digest,
+                        name,
+                        text,
+                        seed,
+                        case.duration,
+                        case.commands,
+                        case.controller,
+                        case.expectations,
+                        options.record_dir is not None,
+                        thumbnail,
+                    )
+                )
+                info.append((case, seed, v, {**values, **_jitter_keys(offsets)}))
+    if unused:
+        raise VaryError(f"--vary {sorted(unused)[0]}: no scene has an entity or sensor of that name")
+    return tasks, info
+
+
+def entity_class(name: str) -> Any:
+    """The class of an entity type name of a scene file, or ``None``."""
+    try:
+        from simrun import registry
+    except ImportError:  # before the scene-type registry
+        from simrun import scene
+
+        return getattr(scene, "ENTITY_TYPES", {}).get(name)
+    try:
+        return registry.load("entities", name)
+    except SimrunError:
+        return None
+
+
+def _jitter_keys(offsets: dict[str, float]) -> dict[str, float]:
+    return {f"jitter.{k}": v for k, v in offsets.items()}
+
+
+Progress = Callable[[int, int], None]
+
+
+def run_tests(paths: list[Path], options: TestOptions, progress: Progress | None = None) -> TestReport:
+    """Test every scene under ``paths`` (see the module).
+
+    Args:
+        paths: Scene files or folders.
+        options: Seeds, variations, executor, recording.
+        progress: Called as ``progress(done, total)`` after each run.
+
+    Raises:
+        SpecError, VaryError: Nothing to test, or a bad ``--vary`` key (usage errors).
+        SceneError, SimrunError: A scene, commands file or expectation that cannot run (with FILE:LINE), or
+            a failed-run recording that cannot be written.
+        meshtool.validate.remote.SchedulerError: The Dask scheduler cannot be reached.
+    """
+    started = time.perf_counter()
+    cases = [load_case(p) for p in discover(paths)]
+    tasks, info = plan(cases, options)
+    bundles = {c.bundle.digest: c.bundle for c in cases}
+    results: dict[int, RunResult] = {}
+    where: Counter[str] = Counter()
+    for result, worker in _execute(tasks, bundles, options):
+        results[result.index] = result
+        where[worker] += 1
+        if progress is not None:
+            progress(len(results), len(tasks))
+    runs = [Run(c, seed, v, values, results[k]) for k, (c, seed, v, values) in enumerate(info)]
+    if options.record_dir is not None:
+        _record(runs, tasks, options.record_dir, cases)
+    report = TestReport(cases, runs, list(options.seeds), list(options.axes), options.executor, dict(where))
+    report.seconds = time.perf_counter() - started
+    return report
+
+
+def _execute(tasks: list[RunTask], bundles: dict[str, Bundle], options: TestOptions) -> Iterator[tuple[RunResult, str]]:
+    from simrun.scenetest import executors
+
+    if options.executor == "dask":
+        return executors.run_dask(tasks, bundles, options.scheduler, options.jobs, options.connect_timeout)
+    if options.jobs > 1 and len(tasks) > 1:
+        return executors.run_pool(tasks, bundles, options.jobs, options.timeout)
+    return executors.run_here(tasks, bundles)
+
+
+def _record(runs: list[Run], tasks: list[RunTask], folder: Path, cases: list[Case]) -> None:
+    """Write each failed run's scene, files and ``.simlog`` under ``folder`` (one subfolder per scene)."""
+    ids: dict[str, str] = {}
+    for case in cases:
+        stem = PurePosixPath(case.bundle.scene).stem
+        ident, n = stem, 1
+        while ident in ids.values():
+            n += 1
+            ident = f"{stem}-{n}"
+        ids[case.display] = ident
+    written: set[str] = set()
+    for run, task in zip(runs, tasks, strict=True):
+        if run.result.simlog is None:
+            continue
+        bundle = run.case.bundle
+        base = folder / ids[run.case.display]
+        if bundle.digest not in written:
+            for name, data in bundle.files.items():
+                write_bytes(base.joinpath(*PurePosixPath(name).parts), data)
+            written.add(bundle.digest)
+        scene_dir = base.joinpath(*PurePosixPath(bundle.scene).parent.parts)
+        scene = scene_dir / task.scene_name
+        log = scene.with_suffix(".simlog")
+        write_bytes(scene, task.scene_text)
+        write_bytes(log, run.result.simlog)
+        run.recording = log.as_posix()
+        command = f"simrun resim {log.as_posix()}"
+        if task.controller is not None:
+            command += f" --controller {base.joinpath(*PurePosixPath(task.controller).parts).as_posix()}"
+        run.resim = command
+
+
+__all__ = ["EXECUTORS", "Run", "SimrunError", "TestOptions", "TestReport", "plan", "run_tests"]
