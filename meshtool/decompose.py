@@ -200,3 +200,48 @@ def _write(cache_dir: Path | None, key: str, pieces: list[FloatArray]) -> None:
     buffer = io.BytesIO()
     np.savez(buffer, **{f"hull_{k}": p for k, p in enumerate(pieces)})  # type: ignore[arg-type]
     write_file(cache_dir / key[:2] / f"{key}.npz", buffer.getvalue())
+
+
+def read_hulls(cache_dir: Path | None, key: str) -> list[tuple[FloatArray, IntArray, list[str]]] | None:
+    """The finished hulls (vertices, faces, notes) of a part decomposed before with the same key, if cached.
+
+    Stored beside the decomposition (``KEY.hulls.npz``) so that a cached conversion needs neither CoACD nor
+    qhull; a damaged entry is a miss.
+    """
+    if cache_dir is None:
+        return None
+    data = read_cache(cache_dir / key[:2] / f"{key}.hulls.npz")
+    if data is None:
+        return None
+    try:
+        with np.load(io.BytesIO(data)) as archive:
+            notes = json.loads(bytes(archive["notes"]).decode())
+            hulls = [
+                (
+                    np.asarray(archive[f"v_{k}"], dtype=np.float64),
+                    np.asarray(archive[f"f_{k}"], dtype=np.int64),
+                    [str(n) for n in notes[k]],
+                )
+                for k in range(len(notes))
+            ]
+    except (OSError, ValueError, KeyError, TypeError, IndexError):
+        return None
+    if not hulls or any(v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 for v, f, _ in hulls):
+        return None
+    if any(f.size and (f.min() < 0 or f.max() >= len(v)) for v, f, _ in hulls):
+        return None
+    return hulls
+
+
+def write_hulls(cache_dir: Path | None, key: str, hulls: list[tuple[FloatArray, IntArray, list[str]]]) -> None:
+    """Cache the finished hulls of a decomposed part (see :func:`read_hulls`)."""
+    if cache_dir is None or not hulls:
+        return
+    arrays: dict[str, npt.NDArray[np.generic]] = {}
+    for k, (vertices, faces, _) in enumerate(hulls):
+        arrays[f"v_{k}"] = np.asarray(vertices, dtype=np.float64)
+        arrays[f"f_{k}"] = np.asarray(faces, dtype=np.int64)
+    arrays["notes"] = np.frombuffer(json.dumps([notes for _, _, notes in hulls]).encode(), np.uint8)
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)  # type: ignore[arg-type]
+    write_file(cache_dir / key[:2] / f"{key}.hulls.npz", buffer.getvalue())

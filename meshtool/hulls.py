@@ -253,26 +253,39 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
     if options.mode == "none" or mesh.positions.shape[0] == 0:
         return result
     groups = _groups(mesh, options)
-    from meshtool.decompose import Budget, decompose
+    from meshtool.decompose import Budget, cache_key, decompose, read_hulls, write_hulls
 
     budget, over_budget = Budget(options.time_budget_s), 0
     for part, points, faces in groups:
+        key, made = None, None
         if options.mode == "decompose" and faces.shape[0] >= 4 and budget.left() <= 0:
             over_budget += 1
             pieces = [points[np.unique(faces)]]
         elif options.mode == "decompose" and faces.shape[0] >= 4:
-            pieces, hit, problem = decompose(points, faces, options, budget.left())
-            result.cache_hits += int(hit)
-            if problem:
-                result.findings.append(warning("decompose-failed", f"{problem}: convex hull used instead", name))
-                pieces = [points]
+            # the finished hulls of a part decomposed before: no CoACD, no qhull (nor their imports)
+            key = cache_key(points, faces, options) if options.cache_dir is not None else None
+            made = read_hulls(options.cache_dir, key) if key is not None else None
+            pieces = []
+            if made is not None:
+                result.cache_hits += 1
+            else:
+                pieces, hit, problem = decompose(points, faces, options, budget.left())
+                result.cache_hits += int(hit)
+                if problem:
+                    result.findings.append(warning("decompose-failed", f"{problem}: convex hull used instead", name))
+                    pieces, key = [points], None
         else:
             pieces = [points if faces.shape[0] == 0 else points[np.unique(faces)]]
-        for piece in pieces:
-            try:
-                vertices, hull_faces, notes = convex_hull(piece, options)
-            except MeshtoolError as exc:
-                raise MeshtoolError(exc.message, path=name, hint=exc.hint, code=exc.code) from None
+        if made is None:
+            made = []
+            for piece in pieces:
+                try:
+                    made.append(convex_hull(piece, options))
+                except MeshtoolError as exc:
+                    raise MeshtoolError(exc.message, path=name, hint=exc.hint, code=exc.code) from None
+            if key is not None:
+                write_hulls(options.cache_dir, key, made)
+        for vertices, hull_faces, notes in made:
             result.hulls.append(Hull(vertices, hull_faces, part))
             for note in notes:
                 make = warning if note == "boxed" else info

@@ -28,7 +28,6 @@ from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
-import trimesh
 
 from meshtool.findings import Finding, warning
 from meshtool.hulls import HullOptions
@@ -457,6 +456,8 @@ def _pose(matrix: Any) -> tuple[tuple[float, float, float], tuple[float, float, 
 
 
 def _quat(rotation: Any) -> tuple[float, float, float, float]:
+    import trimesh  # loaded on first use: importing meshtool.urdf (as simrun does) stays light
+
     m = np.eye(4)
     m[:3, :3] = rotation
     raw = trimesh.transformations.quaternion_from_matrix(m)  # type: ignore[no-untyped-call]

@@ -104,7 +104,8 @@ def test_cache_hit_and_determinism(bowl_asset, decomposed):
     again = compute_hulls(bowl_asset.mesh, options)
     assert again.cache_hits == 1 and result.cache_hits == 0
     assert [h.vertices.tobytes() for h in again.hulls] == [h.vertices.tobytes() for h in result.hulls]
-    assert len(list(cache.rglob("*.npz"))) == 1
+    entries = sorted(p.name for p in cache.rglob("*.npz"))  # the pieces and the finished hulls, one entry each
+    assert len(entries) == 2 and entries[0].endswith(".hulls.npz") and not entries[1].endswith(".hulls.npz")
     fresh = compute_hulls(bowl_asset.mesh, HullOptions(mode="decompose", threshold=0.1, cache_dir=None))
     assert [h.vertices.tobytes() for h in fresh.hulls] == [h.vertices.tobytes() for h in result.hulls]
 
