@@ -215,6 +215,11 @@ def normalize(
 @click.option(
     "-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes for a folder."
 )
+@click.option(
+    "--no-check",
+    is_flag=True,
+    help="Do not compile the packed asset in MuJoCo before writing it (the check needs simrun installed).",
+)
 @force_option
 @normalise_options
 @hull_options
@@ -223,13 +228,14 @@ def obj2bin(
     out: Path | None,
     quantize: bool,
     jobs: int,
+    no_check: bool,
     force: bool,
     as_json: bool,
     **kw: Any,
 ) -> None:
     """Convert SRC (OBJ, STL, PLY, glTF/GLB, COLLADA; or a folder of them) to .mbin: normalised, hulls, packed."""
     with _guard(as_json):
-        options = ConvertOptions(_normalise_options(kw), quantize, _hull_options(kw))
+        options = ConvertOptions(_normalise_options(kw), quantize, _hull_options(kw), check=not no_check)
         if src.is_dir():
             if out is None:
                 raise OptionsError("a folder needs -o OUTDIR")

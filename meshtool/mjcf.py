@@ -71,8 +71,11 @@ class MeshParts:
     volumes: list[float] = field(default_factory=list)
 
 
-def mesh_parts(packed: PackedMesh, prefix: str, max_hull_vertices: int = 64) -> MeshParts:
-    """Meshes, materials, textures and geoms of ``packed``, every name starting with ``prefix``."""
+def mesh_parts(packed: PackedMesh, prefix: str, max_hull_vertices: int = 64, keep_small: bool = False) -> MeshParts:
+    """Meshes, materials, textures and geoms of ``packed``, every name starting with ``prefix``.
+
+    Submeshes with fewer than 4 vertices (which MuJoCo refuses) are left out unless ``keep_small``.
+    """
     parts = MeshParts()
     files = list(packed.meta.get("textures", []))
     texture_names: list[str] = []
@@ -99,7 +102,7 @@ def mesh_parts(packed: PackedMesh, prefix: str, max_hull_vertices: int = 64) -> 
     for k, (first, count, material, _part) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
         faces = indices[first : first + count]
         used, inverse = np.unique(faces, return_inverse=True)
-        if len(used) < 4:
+        if len(used) < 4 and not keep_small:
             continue  # MuJoCo needs 4 vertices for a mesh; a lone triangle is not worth a geom
         normals = np.asarray(packed.normals, np.float64)[used] if packed.normals is not None else None
         uvs = np.asarray(packed.uvs, np.float64)[used] if packed.uvs is not None else None

@@ -6,7 +6,9 @@ equalities, motors) and hand it to the *MJCF builder*, a callable registered und
 ``meshtool.mjcf`` with the name ``builder``. simrun registers :func:`simrun.mjcf_builder.build_files`,
 which builds a ``mujoco.MjSpec``, writes the XML with its ``.msh`` meshes and PNG textures, and compiles
 the written folder before returning it. Without simrun installed, :func:`mjcf_files` raises
-:class:`ModelError` with the hint to install it.
+:class:`ModelError` with the hint to install it. The same group's ``check`` plugin
+(:func:`simrun.mjcf_builder.check_model`) only compiles a model in memory: :func:`check_model` is how
+``obj2bin`` asks whether MuJoCo accepts what it packed.
 
 Frames and units: metres, radians, kilograms; every pose is relative to the parent body, positions
 ``(3,)`` and quaternions ``(4,)`` as ``(w, x, y, z)``. Mesh texture coordinates follow OBJ (``v = 0`` at
@@ -221,6 +223,50 @@ def mjcf_builder() -> MjcfBuilder | None:
         loaded: MjcfBuilder = point.load()
         return loaded
     return None
+
+
+class ModelChecker(Protocol):
+    """The signature of the ``meshtool.mjcf`` ``check`` plugin."""
+
+    def __call__(self, model: ModelDesc) -> None:
+        """Compile ``model`` in memory (no files, no simulation).
+
+        Raises:
+            ModelError: MuJoCo refuses the model (its message and the element at fault).
+        """
+        ...
+
+
+@cache
+def mjcf_checker() -> ModelChecker | None:
+    """The installed model check plugin (entry point ``meshtool.mjcf:check``), or ``None``."""
+    for point in entry_points(group=GROUP, name="check"):
+        loaded: ModelChecker = point.load()
+        return loaded
+    return None
+
+
+def check_model(model: ModelDesc) -> bool:
+    """Whether MuJoCo could be asked: compile ``model`` with the installed plugin, writing nothing.
+
+    Uses the ``check`` plugin (a compile in memory); an installation that registers only the ``builder``
+    is asked through it (it also writes and reloads the folder in a scratch directory).
+
+    Returns:
+        ``True`` when MuJoCo compiled the model, ``False`` when no plugin is installed (nothing was checked).
+
+    Raises:
+        ModelError: MuJoCo refuses the model.
+    """
+    checker = mjcf_checker()
+    if checker is not None:
+        checker(model)
+        return True
+    builder = mjcf_builder()
+    if builder is not None:
+        builder(model)
+        return True
+    return False
 
 
 def mjcf_files(model: ModelDesc) -> dict[str, bytes]:

@@ -9,6 +9,7 @@ Everything MJCF that meshtool or simrun writes goes through here, on ``mujoco.Mj
   all flat beside the XML and referenced by plain file names, so the folder loads from wherever it is
   moved; the written folder is compiled again before it is returned, and must give the same model;
 - :func:`build_files` is the ``meshtool.mjcf`` entry point (``meshtool mjcf``, ``meshtool urdf``);
+- :func:`check_model` is the ``meshtool.mjcf`` ``check`` entry point: a compile in memory (``obj2bin``);
 - :func:`export_world_mjcf` writes a world (``simrun export --mjcf``).
 
 A model MuJoCo refuses raises :class:`meshtool.model.ModelError` with MuJoCo's message and the element
@@ -332,6 +333,16 @@ def build_files(model: ModelDesc) -> dict[str, bytes]:
     spec, files = spec_from_model(model)
     compile_spec(spec, model)
     return folder_files(spec, f"{model.name}.xml", files)
+
+
+def check_model(model: ModelDesc) -> None:
+    """The ``meshtool.mjcf`` check: ``model`` compiled in memory, nothing written, nothing simulated.
+
+    Raises:
+        ModelError: MuJoCo refuses the model (its message and the element at fault).
+    """
+    spec, _ = spec_from_model(model)
+    compile_spec(spec, model)
 
 
 def export_world_mjcf(world: Any, out: Path) -> list[Path]:

@@ -1,0 +1,127 @@
+"""obj2bin compiles what it packs in MuJoCo, refusing (exit 1, nothing written) what MuJoCo rejects (issue 16 #5).
+
+The verdicts come from MuJoCo itself: the refused pack is also refused by ``meshtool mjcf`` (the builder
+compiles the written folder), and accepted packs load from the MJCF folder with ``MjModel.from_xml_path``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import pytest
+from click.testing import CliRunner
+
+import meshtool.model
+from meshtool.cli import main, obj2bin
+from meshtool.convert import ConvertOptions, convert
+from meshtool.errors import MeshtoolError
+from meshtool.loadcheck import check_pack
+from meshtool.model import ModelError
+from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.packfile import pack
+
+ROOT = Path(__file__).resolve().parent.parent
+MICRO = ROOT / "fixtures" / "followups" / "micro_cube" / "micro.obj"
+TILE = ROOT / "fixtures" / "realworld" / "normal_maps" / "tile.obj"
+ONE_TRIANGLE = ROOT / "fixtures" / "realworld" / "one_triangle"
+
+
+def _obj2bin(*args: str) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k != "MESHTOOL_DEBUG"}
+    code = "import sys; from meshtool.cli import obj2bin; sys.exit(obj2bin())"
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, env=env, timeout=300)
+
+
+def test_a_pack_mujoco_refuses_is_exit_1_and_nothing_is_written(tmp_path: Path) -> None:
+    out = tmp_path / "micro.mbin"
+    run = _obj2bin(str(MICRO), "-o", str(out))
+    assert run.returncode == 1, run.stderr
+    errors = [line for line in run.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "Traceback" not in run.stderr
+    assert "MuJoCo refuses the converted asset: mesh volume is too small (collision hull 0)" in errors[0]
+    assert "--no-check" in errors[0] and "micro.obj" in errors[0]
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_no_check_writes_it_and_meshtool_mjcf_then_refuses_it_too(tmp_path: Path) -> None:
+    out = tmp_path / "micro.mbin"
+    result = CliRunner().invoke(obj2bin, [str(MICRO), "-o", str(out), "--no-check", "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["stats"]["mujoco_check"] == "off"
+    assert out.is_file()
+    mjcf = CliRunner().invoke(main, ["mjcf", str(out), "-o", str(tmp_path / "mjcf")])
+    assert mjcf.exit_code == 1, mjcf.output
+    assert "error: MuJoCo refuses the model: mesh volume is too small" in mjcf.output
+    assert not (tmp_path / "mjcf").exists()
+
+
+SOURCES = [TILE, ONE_TRIANGLE / "parts.obj", ONE_TRIANGLE / "triangle.obj"]
+
+
+@pytest.mark.parametrize("source", SOURCES, ids=lambda p: p.stem)
+def test_accepted_packs_are_compiled_and_load_in_mujoco(source: Path, tmp_path: Path) -> None:
+    out = tmp_path / f"{source.stem}.mbin"
+    result = CliRunner().invoke(obj2bin, [str(source), "-o", str(out), "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["stats"]["mujoco_check"] == "compiled"
+    mjcf = CliRunner().invoke(main, ["mjcf", str(out), "-o", str(tmp_path / "mjcf")])
+    assert mjcf.exit_code == 0, mjcf.output
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "mjcf" / source.stem / f"{source.stem}.xml"))
+    assert model.nmesh >= 2
+
+
+def test_a_part_under_4_vertices_is_refused_by_the_check() -> None:
+    source = ONE_TRIANGLE / "triangle.obj"
+    asset = prepare(source, NormaliseOptions())
+    assert any(f.code == "part-padded" for f in asset.findings)
+    mesh = asset.mesh  # undo the padding: the one-triangle part MuJoCo refuses
+    for name in ("faces", "face_uv", "face_normal", "face_material", "face_part", "face_lines"):
+        setattr(mesh, name, getattr(mesh, name)[:1])
+    data = pack(asset, False, {}, [], None)
+    with pytest.raises(ModelError) as caught:
+        check_pack(data, "triangle.obj")
+    assert "at least 4 vertices required (visual mesh 0: part 'default')" in caught.value.message
+    assert check_pack(pack(prepare(source, NormaliseOptions()), False, {}, [], None), "triangle.obj") == []
+
+
+def test_without_the_plugin_the_check_is_skipped_with_a_note(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(meshtool.model, "mjcf_checker", lambda: None)
+    monkeypatch.setattr(meshtool.model, "mjcf_builder", lambda: None)
+    result = convert(MICRO, tmp_path / "micro.mbin", ConvertOptions())
+    assert result.stats["mujoco_check"] == "skipped"
+    (note,) = [f for f in result.findings if f.code == "mujoco-check-skipped"]
+    assert note.severity.value == "info" and "install simrun" in note.message
+    assert (tmp_path / "micro.mbin").is_file()
+
+
+def test_an_installation_with_only_the_builder_is_checked_through_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(meshtool.model, "mjcf_checker", lambda: None)
+    with pytest.raises(MeshtoolError, match="mesh volume is too small"):
+        convert(MICRO, tmp_path / "micro.mbin", ConvertOptions())
+    assert not (tmp_path / "micro.mbin").exists()
+    assert convert(TILE, tmp_path / "tile.mbin").stats["mujoco_check"] == "compiled"
+
+
+def test_a_folder_run_reports_the_refused_asset_and_converts_the_rest(tmp_path: Path) -> None:
+    src = tmp_path / "src"
+    (src / "a").mkdir(parents=True)
+    (src / "a" / "micro.obj").write_bytes(MICRO.read_bytes())
+    (src / "parts.obj").write_bytes((ONE_TRIANGLE / "parts.obj").read_bytes())
+    result = CliRunner().invoke(obj2bin, [str(src), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1, result.output
+    assert "1 written, 0 unchanged, 1 failed" in result.output
+    assert (tmp_path / "out" / "parts.mbin").is_file() and not (tmp_path / "out" / "a" / "micro.mbin").exists()
+
+
+def test_the_check_does_not_change_the_bytes(tmp_path: Path) -> None:
+    checked = convert(TILE, tmp_path / "a.mbin", ConvertOptions(check=True))
+    unchecked = convert(TILE, tmp_path / "b.mbin", ConvertOptions(check=False))
+    assert (checked.stats["mujoco_check"], unchecked.stats["mujoco_check"]) == ("compiled", "off")
+    assert (tmp_path / "a.mbin").read_bytes() == (tmp_path / "b.mbin").read_bytes()
