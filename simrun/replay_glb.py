@@ -1,8 +1,8 @@
 """Animated glTF of a recording: the world's visual geoms, one node per body, one animation of the body poses.
 
 Layout: the scene's one root node, ``simrun_world``, turns MuJoCo's Z-up world into glTF's Y-up (-90
-degrees about X; metres throughout). Under it, one node per body that has visual geoms, named like the
-body (``boebot``, ``boebot/left_wheel``, with ``extras.simrun_body`` holding the name as well), at the
+degrees about X; metres throughout). Under it, one node per body (the world body only when it has geoms),
+named like the body (``boebot``, ``boebot/left_wheel``, with ``extras.simrun_body`` holding the name as well), at the
 body's world pose at the first frame (MuJoCo's ``xpos``/``xquat``: the body frame, not the inertial one).
 Under each body node, one node per visual geom (named like the geom) at the geom's pose in the body frame,
 with a mesh with normals, texture coordinates where its material has a texture, and a material: the geom's
@@ -189,17 +189,19 @@ def recording_gltf(world: World, tracks: Tracks, keys: dict[int, I64], name: str
     if not children:
         raise SimrunError("the world has no visual geoms to export")
     body_nodes: dict[int, int] = {}
-    for b in sorted(children):
+    for b in range(model.nbody):
+        if b == 0 and b not in children:
+            continue  # the world body is the root node's frame; a node only when it has geoms of its own
         body_name = model.body(b).name or f"body{b}"
-        body_nodes[b] = gltf.node(
-            {
-                "name": body_name,
-                "translation": [float(v) for v in tracks.positions[0, b]],
-                "rotation": _xyzw(tracks.quats[0, b]),
-                "children": children[b],
-                "extras": {"simrun_body": body_name},
-            }
-        )
+        item: dict[str, Any] = {
+            "name": body_name,
+            "translation": [float(v) for v in tracks.positions[0, b]],
+            "rotation": _xyzw(tracks.quats[0, b]),
+        }
+        if b in children:
+            item["children"] = children[b]
+        item["extras"] = {"simrun_body": body_name}
+        body_nodes[b] = gltf.node(item)
     root = gltf.node({"name": ROOT, "rotation": _root_rotation(), "children": list(body_nodes.values())})
     gltf.scene("recording", [root])
     channels = []

@@ -4,10 +4,13 @@ Used by the animated exports (glTF and the browser page). Every shape is in the 
 conventions: boxes by half sizes, capsules and cylinders along z by radius and half length, planes facing
 +z), metres. Texture coordinates follow glTF (``v = 0`` at the image's top row, as MuJoCo's texture data):
 box faces each show the whole image, spheres, ellipsoids, capsules and cylinder sides are mapped by
-longitude (u) and latitude or height (v), cylinder caps and planes by x and y. Planes tile the image
-``texrepeat`` times over the plane (per metre with ``texuniform``); meshes keep MuJoCo's texture
-coordinates. Normals are unit length, per vertex; vertices are split where normals or texture coordinates
-change (box edges, cylinder rims, the longitude seam), so flat faces shade flat.
+longitude (u) and latitude or height (v), cylinder caps and planes by x and y. Planes and box faces tile
+the image ``texrepeat`` times over the face, or, with ``texuniform``, ``texrepeat / 2`` times per metre (as
+MuJoCo's renderer draws them: measured, a 10-repeat uniform checker plane shows 5 tiles per metre); meshes
+keep MuJoCo's texture coordinates. (MuJoCo's renderer maps 2D textures onto spheres, capsules and
+cylinders its own way; those differ.) Normals are unit length, per vertex; vertices are split where
+normals or texture coordinates change (box edges, cylinder rims, the longitude seam), so flat faces shade
+flat.
 """
 
 from __future__ import annotations
@@ -77,7 +80,7 @@ def box(half: F64, repeat: F64, uniform: bool) -> Surface:
                 u_axis, v_axis = v_axis, u_axis  # keep the winding counter-clockwise from outside
             normal = np.zeros(3)
             normal[axis] = sign
-            scale = repeat * (2 * np.array([half[u_axis], half[v_axis]]) if uniform else 1.0)
+            scale = repeat * (np.array([half[u_axis], half[v_axis]]) if uniform else 1.0)  # see the module
             base = len(positions)
             for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
                 p = np.zeros(3)
@@ -94,7 +97,7 @@ def plane(half: F64, repeat: F64, uniform: bool) -> Surface:
     hx, hy = (float(h) if h > 0 else INFINITE_PLANE for h in half[:2])
     corners = np.array([[-hx, -hy, 0.0], [hx, -hy, 0.0], [hx, hy, 0.0], [-hx, hy, 0.0]])
     if uniform:
-        uvs = np.stack([corners[:, 0] * repeat[0], -corners[:, 1] * repeat[1]], axis=1)
+        uvs = np.stack([corners[:, 0] * repeat[0] / 2, -corners[:, 1] * repeat[1] / 2], axis=1)
     else:
         uvs = np.stack([(corners[:, 0] / (2 * hx) + 0.5) * repeat[0], (0.5 - corners[:, 1] / (2 * hy)) * repeat[1]], 1)
     normals = np.tile([0.0, 0.0, 1.0], (4, 1))
