@@ -1,6 +1,8 @@
 """Kill rate per module from mutmut's results (mutants/**/*.py.meta), and the surviving mutants.
 
 Usage: python scripts/mutation_summary.py [MODULE ...]   (default: the modules `make mutants` mutates)
+       python scripts/mutation_summary.py --sample K MODULE   (every K-th mutant name of MODULE, for
+       `mutmut run NAME...` when there is no time for all of them; mutmut must have generated the mutants)
 
 Killed: a test failed (or pytest hit an internal error, or the mutant ran past its CPU-time limit: a mutant
 that makes the simulation loop forever is caught). The rate is killed / (killed + survived + no tests);
@@ -20,7 +22,16 @@ SURVIVED = {0}
 NO_TESTS = {5, 33}
 
 
+def sample(every: int, module: str) -> int:
+    """Print every ``every``-th mutant of ``module`` in mutmut's order (deterministic)."""
+    codes = json.loads((Path("mutants") / "simrun" / f"{module}.py.meta").read_text())["exit_code_by_key"]
+    print(" ".join(name for k, name in enumerate(codes) if k % every == 0))
+    return 0
+
+
 def main() -> int:
+    if sys.argv[1:2] == ["--sample"]:
+        return sample(int(sys.argv[2]), sys.argv[3])
     modules = sys.argv[1:] or MODULES
     print("| module | mutants | killed | survived | no tests | not run | kill rate |")
     print("|---|---|---|---|---|---|---|")

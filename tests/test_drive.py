@@ -494,6 +494,12 @@ def test_robot_with_a_visual_mesh_keeps_its_mass_and_drives():
     model = world.model
     visual = model.geom("bot/visual0")
     assert (visual.group[0], visual.contype[0], visual.conaffinity[0]) == (2, 0, 0)
+    assert visual.type[0] == mujoco.mjtGeom.mjGEOM_MESH
+    vertices = model.mesh_vert[model.mesh_vertadr[visual.dataid[0]] :][: model.mesh_vertnum[visual.dataid[0]]]
+    extent = vertices.max(axis=0) - vertices.min(axis=0)
+    np.testing.assert_allclose(sorted(extent), [0.16, 0.2, 0.24], atol=1e-3)  # the packed head at scale 1
+    # MuJoCo centres a mesh on its geom: the head (its base at its origin) stands on the 0.105 m offset
+    assert visual.pos[2] + vertices[:, 2].min() == pytest.approx(0.105, abs=1e-3)
     assert model.body_subtreemass[model.body("bot").id] == pytest.approx(0.454 + 0.02 + 0.001)
     world.run(0.3)
     drive.drive_distance(0.3, power=0.5)
@@ -835,3 +841,26 @@ def test_cmd_vel_angular_limit_and_turn_direction():
         world.run(0.1)
     turned = heading(world, "r") - before
     assert turned > 0 and math.radians(turned) == pytest.approx(0.5 * 1.5, rel=0.15)
+
+
+def test_wheels_and_tyres_are_as_documented():
+    """docs/robots.md: hinge wheels about +Y with bearing damping; stiff ellipsoid tyres, a cylinder drawn."""
+    world = World()
+    world.insert(BoeBot(name="b"))
+    model = world.model
+    for side in ("left", "right"):
+        joint = model.joint(f"b/{side}_wheel")
+        assert joint.type[0] == mujoco.mjtJoint.mjJNT_HINGE and tuple(joint.axis) == (0, 1, 0)
+        assert model.dof_damping[joint.dofadr[0]] == pytest.approx(0.0001)
+        tyre = model.geom(f"b/{side}_tyre")
+        assert tyre.type[0] == mujoco.mjtGeom.mjGEOM_ELLIPSOID and tyre.group[0] == 3
+        np.testing.assert_allclose(tyre.size, [0.025, 0.005, 0.025])
+        np.testing.assert_allclose(tyre.friction, [1.2, 0.005, 0.0001])
+        np.testing.assert_allclose(tyre.solref, [0.005, 1.0])
+        np.testing.assert_allclose(tyre.solimp, [0.99, 0.999, 0.001, 0.5, 2.0])
+        assert tyre.solmix[0] == 1000.0
+        np.testing.assert_allclose(tyre.rgba, [0.1, 0.1, 0.1, 1.0])
+        drawn = model.geom(f"b/{side}_wheel_visual")
+        assert drawn.type[0] == mujoco.mjtGeom.mjGEOM_CYLINDER and (drawn.contype[0], drawn.conaffinity[0]) == (0, 0)
+        np.testing.assert_allclose(drawn.size[:2], [0.025, 0.005])
+        assert model.body_mass[model.body(f"b/{side}_wheel").id] == pytest.approx(0.01)  # the drawn one is massless
