@@ -293,3 +293,26 @@ def test_play_writes_the_recording_as_glb_and_usd_beside_it(tmp_path: Path) -> N
 def _export_bytes(log: Path, out: Path) -> bytes:
     export_recording(log, {"glb": out})
     return out.read_bytes()
+
+
+def test_bad_inputs_are_one_error_line_and_write_nothing(demo: Path, tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    runner = CliRunner()
+    broken = tmp_path / "broken.simlog"
+    broken.write_bytes(demo.read_bytes()[:5000])  # truncated inside a record
+    (tmp_path / "boebot.toml").write_bytes(DEMO.read_bytes())  # the recorded scene path is relative
+    out = tmp_path / "out.glb"
+    result = runner.invoke(main, ["replay", str(broken), "--glb", str(out)])
+    assert result.exit_code == 1 and result.output.startswith("error: ") and result.output.count("\n") == 1
+    assert "byte" in result.output and not out.exists()
+    monkeypatch.setenv("SIMRUN_VIEWER_JS", str(tmp_path / "missing.js"))
+    result = runner.invoke(main, ["replay", str(demo), "--glb", str(out), "--html", str(tmp_path / "p.html")])
+    assert result.exit_code == 1 and "install_three_viewer.sh" in result.output and result.output.count("\n") == 1
+    assert not out.exists()  # checked before anything is written
+    own = tmp_path / "own"
+    own.mkdir()
+    scene = own / "boebot.toml"
+    scene.write_text(DEMO.read_text())
+    log = _record(scene, own, 0.5)
+    scene.write_text(DEMO.read_text() + "\n# edited\n")
+    result = runner.invoke(main, ["replay", str(log), "--usd", str(own / "run.usda")])
+    assert result.exit_code == 1 and "changed since" in result.output and not (own / "run.usda").exists()

@@ -166,3 +166,16 @@ def test_screenshots_at_two_times_show_the_robot_where_the_simulation_puts_it(pa
         label_x, label_y = lifted[t]
         explained |= (np.abs(cx - label_x) < 60) & (cy > label_y - 30) & (cy < label_y + 5)
     assert explained.mean() > 0.995, np.column_stack([cx, cy])[~explained][:10]
+
+
+def test_page_is_deterministic_and_replaced_only_when_simrun_wrote_it(page: Path, tmp_path: Path) -> None:
+    log = page.with_suffix(".simlog")
+    again = tmp_path / "again.html"
+    assert CliRunner().invoke(main, ["replay", str(log), "--html", str(again)]).exit_code == 0
+    assert again.read_bytes() == page.read_bytes()
+    assert '<meta name="generator" content="simrun (' in again.read_text()[:400]
+    assert CliRunner().invoke(main, ["replay", str(log), "--html", str(again), "--fps", "5"]).exit_code == 0  # ours
+    foreign = tmp_path / "notes.html"
+    foreign.write_text("<p>mine</p>")
+    result = CliRunner().invoke(main, ["replay", str(log), "--html", str(foreign)])
+    assert result.exit_code == 1 and foreign.read_text() == "<p>mine</p>"
