@@ -189,6 +189,10 @@ class ModelDesc:
         inertia_from_geoms: Bodies without an inertial get mass from their geoms (``False``: none, as in
             URDF, where a link without ``<inertial>`` is massless).
         where: Element name to ``(file, line)`` of its source, for error messages.
+        generator: Who writes the model (``meshtool 0.1.0``), or empty. When set, the builder writes it as a
+            comment at the top of the XML followed by the folder's other files and their SHA-256
+            (:data:`STAMP_FILES`), so a later write can tell its own files from the user's
+            (:func:`stamped_files`).
     """
 
     name: str
@@ -202,6 +206,7 @@ class ModelDesc:
     excludes: list[tuple[str, str]] = field(default_factory=list)
     inertia_from_geoms: bool = True
     where: dict[str, tuple[str, int | None]] = field(default_factory=dict)
+    generator: str = ""
 
 
 class MjcfBuilder(Protocol):
@@ -301,3 +306,44 @@ def balance_inertia(moments: FloatArray) -> tuple[FloatArray, bool]:
         return m, False
     mean = float(np.mean(np.clip(m, 0.0, None)))
     return np.full(3, mean if mean > 1e-9 else 1e-9), True
+
+
+#: The line that starts the file list in an MJCF comment of :attr:`ModelDesc.generator`.
+STAMP_FILES = "files (name sha256):"
+
+
+def stamp_text(generator: str, files: dict[str, bytes]) -> str:
+    """The comment text of a stamped MJCF: ``generator``, then one ``NAME SHA256`` line per file, sorted.
+
+    ``-`` and ``%`` in names are written as ``%2D`` and ``%25`` (an XML comment may not hold ``--``).
+    """
+    import hashlib
+
+    lines = [generator, STAMP_FILES]
+    for name in sorted(files):
+        quoted = name.replace("%", "%25").replace("-", "%2D")
+        lines.append(f"  {quoted} {hashlib.sha256(files[name]).hexdigest()}")
+    return "\n".join(lines)
+
+
+def stamped_files(xml: bytes, generators: tuple[str, ...]) -> dict[str, str] | None:
+    """The files (name -> SHA-256) an MJCF's stamp lists, when its generator starts with one of ``generators``.
+
+    Returns:
+        ``None`` when the XML carries no such stamp (the user's file, or another tool's).
+    """
+    import re
+
+    text = xml.decode("utf-8", errors="replace")
+    found = re.match(r"\s*(?:<\?xml[^>]*\?>\s*)?<mujoco\b[^>]*>\s*<!--(.*?)-->", text, re.DOTALL)
+    if found is None:
+        return None
+    lines = found.group(1).splitlines()
+    if not lines or not lines[0].startswith(generators) or STAMP_FILES not in lines[1:2]:
+        return None
+    listed: dict[str, str] = {}
+    for line in lines[2:]:
+        parts = line.split()
+        if len(parts) == 2 and re.fullmatch(r"[0-9a-f]{64}", parts[1]):
+            listed[parts[0].replace("%2D", "-").replace("%25", "%")] = parts[1]
+    return listed

@@ -22,6 +22,8 @@ written.
 from __future__ import annotations
 
 import io
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -42,12 +44,16 @@ from meshtool.model import (
     MotorDesc,
     balance_inertia,
     mjcf_files,
+    stamped_files,
 )
-from meshtool.outdir import write_file
-from meshtool.resolve import Resolver, find_package_dir, is_file
+from meshtool.outdir import GENERATOR, GENERATORS, check_output, write_file
+from meshtool.packfile import parse
+from meshtool.resolve import Resolver, file_sha256, find_package_dir, is_file
 from meshtool.urdf_mesh import MESH_TYPES, LoadedMesh, UrdfError, load_mesh, mesh_prefix, parse_scale
 
 WORLD = "world"
+#: Bytes of an existing ``NAME.xml`` read to find meshtool's stamp (it is the XML's first element).
+_STAMP_READ = 1 << 20
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,6 +88,8 @@ class UrdfImport:
             builder's findings.
         links: Link names in body order (a ``world`` root link is not a body).
         joints: Moving joint names in model order.
+        sources: Every file the import read (the URDF, each mesh, its MTL and textures): outputs may never
+            replace one of them.
     """
 
     name: str
@@ -90,6 +98,7 @@ class UrdfImport:
     findings: list[Finding]
     links: list[str]
     joints: list[str]
+    sources: list[Path] = field(default_factory=list)
 
     def mjcf(self) -> dict[str, bytes]:
         """``NAME.xml`` with its ``.msh`` meshes and PNG textures, built and compiled by the MJCF builder.
@@ -121,19 +130,69 @@ def import_urdf(path: Path, options: UrdfOptions | None = None) -> UrdfImport:
     return _Builder(path, text, options).build(robot)
 
 
-def write_import(result: UrdfImport, out_dir: Path) -> list[Path]:
+def write_import(result: UrdfImport, out_dir: Path, *, force: bool | None = None) -> list[Path]:
     """Write the MJCF (compiled first), its meshes and textures, and ``meshes/*.mbin`` under ``out_dir``.
+
+    Nothing the user made is replaced (:mod:`meshtool.outdir`'s rules, checked for every file before the
+    first is written): never one of :attr:`UrdfImport.sources`; an existing ``.mbin`` or ``.msh`` only when
+    meshtool wrote it; ``NAME.xml`` only when it carries meshtool's stamp; a PNG only when the stamped
+    ``NAME.xml`` there lists it with its current SHA-256 (a file of the previous import, unchanged since)
+    or holds exactly the bytes to be written. ``force`` replaces the others, never a source.
+
+    Args:
+        result: The import.
+        out_dir: The output folder (created when missing).
+        force: ``None`` uses :func:`meshtool.outdir.overwrite_allowed`'s setting (``--force``).
 
     Raises:
         ModelError: No MJCF builder is installed, or MuJoCo refuses the model (nothing is written).
+        OutputError: A file would replace a source or a file meshtool did not write (nothing is written).
     """
     files = result.mjcf()
-    written = []
-    for name, data in sorted({**files, **result.mbins}.items()):
+    xml_name = f"{result.name}.xml"
+    previous = _previous_import(out_dir / xml_name)
+    outputs = {**files, **result.mbins}
+    for name, data in sorted(outputs.items()):
         target = out_dir / name
-        write_file(target, data)
+        ours = previous is not None and (name == xml_name or previous.get(name) == file_sha256(target))
+        check_output(target, force=True if ours else force, inputs=result.sources, data=data)
+    written = []
+    for name in sorted(outputs, key=lambda n: (n == xml_name, n)):  # the XML (the record) last
+        target = out_dir / name
+        write_file(target, outputs[name])
         written.append(target)
     return written
+
+
+def _mesh_sources(found: Path, root: Path, mbin: bytes) -> set[Path]:
+    """The mesh file and every file its pack's metadata lists as read (MTL, textures), as paths."""
+    out = {found}
+    with parse(mbin, found.name, verify=False) as packed:
+        sources = packed.meta.get("sources", [])
+    for source in sources if isinstance(sources, list) else []:
+        shown = str(source.get("path", "")) if isinstance(source, dict) else ""
+        if shown.startswith("<search-path 1>/"):
+            out.add(root / shown[len("<search-path 1>/") :])
+        elif shown and not shown.startswith("<"):
+            out.add(found.parent / shown.split("#", 1)[0])
+    return out
+
+
+def _previous_import(xml: Path) -> dict[str, str] | None:
+    """The files (name -> SHA-256) listed by a meshtool-stamped MJCF at ``xml``; ``None`` when there is none."""
+    try:
+        fd = os.open(xml, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        head = os.read(fd, _STAMP_READ)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return stamped_files(head, GENERATORS)
 
 
 class _Builder:
@@ -147,6 +206,7 @@ class _Builder:
         self.prefixes: set[str] = set()
         self.materials: dict[str, Any] = {}
         self.excludes: list[tuple[str, str]] = []
+        self.sources: set[Path] = set()
 
     # -- structure ------------------------------------------------------------------------------------
 
@@ -184,8 +244,10 @@ class _Builder:
         model.motors = self._motors(moving)
         self._assets(model)
         model.where = self._locations(links, robot.joints)
+        model.generator = f"{GENERATOR} (meshtool urdf)"
         mbins = {f"meshes/{m.prefix}.mbin": m.mbin for m in self.meshes.values()}
-        return UrdfImport(name, model, mbins, self.findings, order, [j.name for j in moving])
+        sources = sorted({Path(self.path), *self.sources}, key=str)
+        return UrdfImport(name, model, mbins, self.findings, order, [j.name for j in moving], sources)
 
     def _body(
         self,
@@ -386,6 +448,7 @@ class _Builder:
             prefix = mesh_prefix(found, self.prefixes)
             loaded, findings = load_mesh(found, root, scale, prefix, self.options.hulls)
             self.findings += findings
+            self.sources |= _mesh_sources(found, root, loaded.mbin)
             self.meshes[key] = loaded
             self.used[prefix] = set()
         return self.meshes[key]

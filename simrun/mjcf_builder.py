@@ -31,7 +31,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from meshtool.model import GeomDesc, ModelDesc, ModelError
+from meshtool.model import GeomDesc, ModelDesc, ModelError, stamp_text
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes
 
@@ -184,14 +184,20 @@ def _refusal(text: str, model: ModelDesc | None) -> ModelError:
 
 
 def folder_files(
-    spec: mujoco.MjSpec, xml_name: str, vfs: dict[str, bytes] | None = None, base_dir: Path | None = None
+    spec: mujoco.MjSpec,
+    xml_name: str,
+    vfs: dict[str, bytes] | None = None,
+    base_dir: Path | None = None,
+    generator: str = "",
 ) -> dict[str, bytes]:
     """The files of a self-contained MJCF folder for ``spec``: ``xml_name``, ``*.msh`` and ``*.png``.
 
     Meshes given as arrays become ``.msh`` files; meshes and textures that name files are copied from
     ``vfs`` (the spec's in-memory files) or from ``base_dir``. Every file name is made unique (MuJoCo
     caches meshes by file name). The result is written to a scratch folder and compiled there with
-    ``MjModel.from_xml_path``; it must give the same counts as the spec itself.
+    ``MjModel.from_xml_path``; it must give the same counts as the spec itself. A ``generator`` is written
+    as a comment at the top of the XML with the other files and their SHA-256
+    (:func:`meshtool.model.stamp_text`).
 
     Raises:
         ModelError: MuJoCo refuses the spec, a referenced file is missing, or the written folder loads
@@ -231,6 +237,8 @@ def folder_files(
             raise ModelError(f"texture {texture.name!r}: cube textures from files are not exported")
     out.compiler.meshdir = ""
     out.compiler.texturedir = ""
+    if generator:
+        out.comment = stamp_text(generator, files)
     out.assets = dict(files)  # to_xml compiles the copy: it reads the new files from memory
     try:
         with exact_numbers():
@@ -332,7 +340,7 @@ def build_files(model: ModelDesc) -> dict[str, bytes]:
     """
     spec, files = spec_from_model(model)
     compile_spec(spec, model)
-    return folder_files(spec, f"{model.name}.xml", files)
+    return folder_files(spec, f"{model.name}.xml", files, generator=model.generator)
 
 
 def check_model(model: ModelDesc) -> None:
