@@ -26,7 +26,7 @@ import numpy as np
 from meshtool.errors import FormatError
 from meshtool.findings import Finding, info, warning
 from meshtool.obj.mtl import Material, TextureMap
-from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble, mirrors
+from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble, merge_rows, mirrors
 
 _X_TO_Y = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
@@ -217,32 +217,28 @@ def _weld(mesh: SourceMesh) -> SourceMesh:
     """Merge vertices split per corner back where position and every attribute are equal (exact match)."""
     if mesh.corner_v.size == 0:
         return mesh
-    positions = mesh.positions + 0.0
-    keys = np.ascontiguousarray(positions).view(np.dtype((np.void, 24))).ravel()
-    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-    order = np.argsort(first, kind="stable")
-    rank = np.empty(first.size, dtype=np.int64)
-    rank[order] = np.arange(first.size)
-    remap = rank[inverse.reshape(-1)]
+    positions, remap = merge_rows(mesh.positions)
+    first = _first_index(remap, positions.shape[0])
     # texcoords and normals keep their own (per-corner) indices; positions are shared
-    mesh.vertex_lines = mesh.vertex_lines[first[order]]
-    mesh.colors = None if mesh.colors is None else mesh.colors[first[order]]
-    mesh.positions = positions[first[order]]
+    mesh.vertex_lines = mesh.vertex_lines[first]
+    mesh.colors = None if mesh.colors is None else mesh.colors[first]
+    mesh.positions = positions
     mesh.corner_v = remap[mesh.corner_v]
     mesh.texcoords, mesh.corner_vt = _unique_rows(mesh.texcoords, mesh.corner_vt)
     mesh.normals, mesh.corner_vn = _unique_rows(mesh.normals, mesh.corner_vn)
     return mesh
 
 
+def _first_index(remap: IntArray, size: int) -> IntArray:
+    """For each of ``size`` merged rows, the first input row that maps to it."""
+    first = np.full(size, remap.size, dtype=np.int64)
+    np.minimum.at(first, remap, np.arange(remap.size, dtype=np.int64))
+    return first
+
+
 def _unique_rows(values: FloatArray, index: IntArray) -> tuple[FloatArray, IntArray]:
     """Equal rows of ``values`` merged (first-use order); ``index`` remapped, -1 kept."""
     if values.shape[0] == 0:
         return values, index
-    rows = np.ascontiguousarray(values + 0.0)
-    keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
-    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-    order = np.argsort(first, kind="stable")
-    rank = np.empty(first.size, dtype=np.int64)
-    rank[order] = np.arange(first.size)
-    remap = rank[inverse.reshape(-1)]
-    return rows[first[order]], np.where(index >= 0, remap[np.maximum(index, 0)], -1)
+    rows, remap = merge_rows(values)
+    return rows, np.where(index >= 0, remap[np.maximum(index, 0)], -1)

@@ -168,12 +168,7 @@ def assemble(
             corner_vn.append(np.full(flat.shape, -1, dtype=np.int64))
         locations = np.asarray(p.locations, dtype=np.int64).reshape(-1)
         face_lines.append(locations)
-        first = np.full(n, locations[0] if locations.size else 0, dtype=np.int64)
-        if faces.size:  # a vertex's location: the first triangle that uses it
-            order = np.argsort(faces.ravel(), kind="stable")
-            used, where = np.unique(faces.ravel()[order], return_index=True)
-            first[used] = np.repeat(locations, 3)[order][where]
-        vertex_lines.append(first)
+        vertex_lines.append(first_use(faces, locations, n))
         face_material.append(np.full(faces.shape[0], p.material, dtype=np.int64))
         part = part_ids.setdefault(p.part, len(part_ids))
         if part == len(part_names):
@@ -182,7 +177,10 @@ def assemble(
         v_off += n
 
     def cat(arrays: list[Any], shape: tuple[int, ...], dtype: Any) -> Any:
-        return np.concatenate(arrays).astype(dtype, copy=False) if arrays else np.zeros(shape, dtype=dtype)
+        if not arrays:
+            return np.zeros(shape, dtype=dtype)
+        joined = arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
+        return joined.astype(dtype, copy=False)
 
     corners = cat(corner_v, (0,), np.int64)
     material_names = [m.name for m in materials]
@@ -270,20 +268,79 @@ def _clean(values: Any, width: int, path: str, what: str, findings: list[Finding
     return out
 
 
+def first_use(faces: IntArray, locations: IntArray, n: int) -> IntArray:
+    """(n,) the location of the first triangle that uses each of ``n`` vertices (the first location if none)."""
+    default = int(locations[0]) if locations.size else 0
+    first = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+    if faces.size:
+        np.minimum.at(first, faces.reshape(-1), np.repeat(locations, 3))
+    first[first == np.iinfo(np.int64).max] = default
+    return first
+
+
+def merge_rows(rows: FloatArray) -> tuple[FloatArray, IntArray]:
+    """Rows with exactly equal values merged, in order of first occurrence.
+
+    Exact (bitwise after turning -0.0 into 0.0): rows are grouped by a hash of their bits, and every group is
+    checked to hold equal rows (a collision falls back to an exact lexicographic sort). float32 rows (binary
+    STL) are compared as float32, which is exact and reads half the memory.
+
+    Args:
+        rows: (n, k) float32 or float64.
+
+    Returns:
+        The distinct rows as float64 and, for each input row, the index of its distinct row.
+    """
+    single = np.asarray(rows).dtype == np.float32
+    values: npt.NDArray[np.floating[Any]] = np.array(rows, dtype=np.float32 if single else np.float64, order="C")
+    np.add(values, 0.0, out=values)  # -0.0 -> 0.0, in place
+    n = values.shape[0]
+    if n == 0:
+        return values.astype(np.float64), np.zeros(0, dtype=np.int64)
+    bits: npt.NDArray[Any] = values.view(np.uint32 if single else np.uint64).reshape(n, -1)
+    mixed = np.zeros(n, dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        for k in range(bits.shape[1]):
+            mixed ^= bits[:, k].astype(np.uint64, copy=False)
+            mixed *= np.uint64(0x9E3779B97F4A7C15)
+            mixed ^= mixed >> np.uint64(29)
+    order = np.argsort(mixed)
+    sorted_hash = mixed[order]
+    start = np.concatenate([[True], sorted_hash[1:] != sorted_hash[:-1]])
+    group_sorted = np.cumsum(start) - 1
+    group = np.empty(n, dtype=np.int64)
+    group[order] = group_sorted
+    firsts = np.minimum.reduceat(order, np.flatnonzero(start))  # first occurrence of each group
+    if not (bits == bits[firsts[group]]).all():  # a hash collision: exact sort instead
+        order = np.lexsort(bits.T[::-1])
+        ordered = bits[order]
+        start = np.concatenate([[True], (ordered[1:] != ordered[:-1]).any(axis=1)])
+        group[order] = np.cumsum(start) - 1
+        firsts = np.minimum.reduceat(order, np.flatnonzero(start))
+    rank = np.empty(firsts.size, dtype=np.int64)
+    by_first = np.argsort(firsts)
+    rank[by_first] = np.arange(firsts.size)
+    return values[firsts[by_first]].astype(np.float64), rank[group]
+
+
 def transform_points(matrix: FloatArray, points: FloatArray) -> FloatArray:
     """``points`` (n, 3) transformed by the 4x4 ``matrix``."""
-    result: FloatArray = points @ matrix[:3, :3].T + matrix[:3, 3]
+    if np.array_equal(matrix, np.eye(4)):
+        return points
+    result: FloatArray = np.einsum("ij,kj->ik", points, matrix[:3, :3]) + matrix[:3, 3]
     return result
 
 
 def transform_normals(matrix: FloatArray, normals: FloatArray) -> FloatArray:
     """``normals`` (n, 3) transformed by the inverse transpose of ``matrix``'s 3x3 part, renormalised."""
     linear = matrix[:3, :3]
+    if np.array_equal(linear, np.eye(3)):
+        return normals
     try:
         inverse_t = np.linalg.inv(linear).T
     except np.linalg.LinAlgError:
         return normals
-    out = normals @ inverse_t.T
+    out = np.einsum("ij,kj->ik", normals, inverse_t)
     length = np.linalg.norm(out, axis=1, keepdims=True)
     result: FloatArray = np.divide(out, length, out=np.zeros_like(out), where=length > 0)
     return result

@@ -20,7 +20,7 @@ import numpy as np
 
 from meshtool.errors import FormatError
 from meshtool.findings import Finding, info, warning
-from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble
+from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble, first_use, merge_rows
 
 _HEADER = 80
 _FACET = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
@@ -83,7 +83,7 @@ def _binary(data: bytes, count: int, path: str) -> SourceMesh:
         findings.append(
             info("stl-binary-solid-header", f"binary STL whose header starts with 'solid' ({header[:40]!r})", path)
         )
-    corners = facets["v"].astype(np.float64).reshape(-1, 3)
+    corners = facets["v"].reshape(-1, 3)  # float32, merged exactly as float32 (read as float64 after)
     normals = facets["normal"].astype(np.float64)
     locations = np.arange(1, count + 1, dtype=np.int64)
     name = _solid_name(header) if header.lower().startswith("solid") else ""
@@ -202,15 +202,8 @@ def _finish(
     record: dict[str, object],
 ) -> SourceMesh:
     """Merge equal corners, check facet normals against the winding, assemble the parts."""
-    all_corners = np.concatenate([s[1] for s in solids]) + 0.0  # -0.0 and 0.0 are one vertex
-    keys = np.ascontiguousarray(all_corners).view(np.dtype((np.void, 24))).ravel()
-    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-    # order vertices by first use, so the result does not depend on the byte order of the coordinates
-    rank = np.empty(first.size, dtype=np.int64)
-    order = np.argsort(first, kind="stable")
-    rank[order] = np.arange(first.size)
-    index = rank[inverse.reshape(-1)]
-    positions = all_corners[first[order]]
+    all_corners = np.concatenate([s[1] for s in solids]) if len(solids) > 1 else solids[0][1]
+    positions, index = merge_rows(all_corners)  # vertices in order of first use
     pieces: list[Piece] = []
     start = 0
     disagree, first_bad = 0, None
@@ -272,13 +265,7 @@ def _shared(
     mesh.face_lines = np.concatenate([p.locations for p in pieces]).astype(np.int64)
     mesh.face_material = np.full(faces.shape[0], -1, dtype=np.int64)
     mesh.face_part = np.concatenate([np.full(p.faces.shape[0], names.index(p.part), dtype=np.int64) for p in pieces])
-    vertex_lines = np.zeros(positions.shape[0], dtype=np.int64)
-    if faces.size:
-        flat = faces.reshape(-1)
-        order = np.argsort(flat, kind="stable")
-        used, where = np.unique(flat[order], return_index=True)
-        vertex_lines[used] = np.repeat(mesh.face_lines, 3)[order][where]
-    mesh.vertex_lines = vertex_lines
+    mesh.vertex_lines = first_use(faces, mesh.face_lines, positions.shape[0])
     return mesh
 
 
