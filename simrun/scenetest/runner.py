@@ -47,6 +47,8 @@ class TestOptions:
         thumbnails: Render a failed run's last state (for HTML reports).
     """
 
+    __test__ = False  # not a pytest class
+
     seeds: list[int] = field(default_factory=lambda: [0])
     axes: list[Axis] = field(default_factory=list)
     jobs: int = 1
@@ -105,6 +107,8 @@ class TestReport:
         where: How many runs each process or worker ran.
         seconds: Wall-clock seconds of the whole session.
     """
+
+    __test__ = False  # not a pytest class
 
     cases: list[Case]
     runs: list[Run]
