@@ -1,6 +1,6 @@
 """Every mesh format through meshtool's readers: outcome per real file, and parse speed against trimesh.
 
-Usage: python bench/formats_check.py ../shared/robots [--corpus ../shared/corpus] [--derived 10] [--json OUT]
+Usage: python bench/formats_check.py ../shared/robots [--corpus ../shared/corpus] [--derived 10] [--json OUT] [--docs]
 
 1. **Outcome**: every STL, COLLADA, PLY, glTF/GLB and OBJ file under the robots folder is normalised in memory
    (:func:`meshtool.normalise.prepare`, default options) and checked against an independent parser
@@ -12,7 +12,8 @@ Usage: python bench/formats_check.py ../shared/robots [--corpus ../shared/corpus
    holds no glTF or PLY, so ``--derived N`` also converts the N largest corpus OBJs with trimesh into GLB,
    binary PLY and binary STL in a scratch folder and times those (labelled *derived*).
 
-Prints Markdown tables (for docs/corpus.md and docs/benchmarks.md) and writes ``--json`` when given. A crash
+Prints the Markdown sections; ``--docs`` writes them into docs/corpus.md and docs/benchmarks.md (between
+``<!-- formats:begin/end -->`` markers), ``--json`` the raw rows. A crash
 (an exception that is not a ``MeshtoolError``) fails the script.
 """
 
@@ -33,6 +34,7 @@ from typing import Any
 
 import numpy as np
 import trimesh
+from _report import write_section
 
 from meshtool.errors import MeshtoolError
 from meshtool.mesh import build_mesh
@@ -141,6 +143,9 @@ def main() -> int:
     parser.add_argument("--corpus", type=Path, default=None)
     parser.add_argument("--derived", type=int, default=10)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument(
+        "--docs", action="store_true", help="write the sections into docs/corpus.md and docs/benchmarks.md"
+    )
     args = parser.parse_args()
 
     files = mesh_files(args.robots)
@@ -156,21 +161,36 @@ def main() -> int:
             c["with_materials"] += int(r["materials"] > 0)
             c["textures"] += r["textures"]
             c["warnings"] += r["warnings"]
-    print(
-        "| format | files | normalised | errors | triangles | same triangles and bbox as trimesh "
-        "| with own materials | textures | warnings |"
-    )
-    print("|---|---|---|---|---|---|---|---|---|")
+    out = [
+        "<!-- formats:begin -->",
+        "## Other mesh formats: the robots' STL, COLLADA and OBJ meshes",
+        "",
+        f"`python bench/formats_check.py {args.robots} --docs` (issue 20): every mesh file under the robots folder "
+        "normalised with default options; *same as trimesh*: the triangle count and the bounding box of meshtool's "
+        "reader output (source units and axes) equal what `trimesh.load` (an independent parser, scene graph "
+        "applied) reads from the same file. `../shared/corpus` holds only OBJ (the tables above). The shared "
+        "data holds no glTF or PLY files; their readers are "
+        "checked on the fixtures (`fixtures/formats/`) and on corpus meshes converted by trimesh (speed, "
+        "docs/benchmarks.md).",
+        "",
+        "| format | files | normalised | errors | triangles | same as trimesh | with own materials "
+        "| textures | warnings |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for fmt, c in sorted(by_format.items()):
-        print(
+        out.append(
             f"| {fmt} | {c['files']} | {c['ok']} | {c['error']} | {c['triangles']:,} | {c['agree']} of {c['ok']} | "
             f"{c['with_materials']} | {c['textures']} | {c['warnings']} |"
         )
     codes = Counter(code for r in rows if r["status"] == "ok" for code in r["codes"])
-    print("\nfinding codes (files):", ", ".join(f"{k} {v}" for k, v in sorted(codes.items())))
-    for r in rows:
-        if r["status"] != "ok" or not (r["bbox_agrees"] and r["triangles_agree"]):
-            print("  differs:", json.dumps(r))
+    out += ["", "Finding codes (number of files): " + ", ".join(f"`{k}` {v}" for k, v in sorted(codes.items())) + "."]
+    differs = [r for r in rows if r["status"] != "ok" or not (r["bbox_agrees"] and r["triangles_agree"])]
+    out += [
+        f"- differs: `{Path(r['file']).name}`: {r.get('error') or 'geometry differs from trimesh'}" for r in differs
+    ]
+    out.append("<!-- formats:end -->")
+    corpus_section = "\n".join(out)
+    print(corpus_section)
 
     times: dict[str, list[dict[str, float]]] = defaultdict(list)
     for p in files:
@@ -179,24 +199,41 @@ def main() -> int:
         if args.corpus is not None and args.derived > 0:
             for p in derived(args.corpus, args.derived, Path(tmp)):
                 times[f"{format_of(p)} (derived)"].append(timing(p))
-    print(
-        f"\n{platform.machine()}, Python {platform.python_version()}, trimesh {trimesh.__version__}, "
-        f"load average {os.getloadavg()[0]:.1f}"
-    )
-    print(
-        "| format | files | MB | meshtool reader s | trimesh.load s (process=False) | trimesh.load s (process=True, "
-        "merges vertices) | meshtool MB/s | trimesh MB/s (False / True) |"
-    )
-    print("|---|---|---|---|---|---|---|---|")
+    bench = [
+        "<!-- formats:begin -->",
+        "## Mesh formats: meshtool's readers vs trimesh",
+        "",
+        f"`python bench/formats_check.py {args.robots} --corpus {args.corpus} --derived {args.derived} --docs`: "
+        "best of 3 per file, bytes already in memory (file reading excluded), summed per format. "
+        f"Machine: {platform.machine()}, CPython {platform.python_version()}, numpy {np.__version__}, trimesh "
+        f"{trimesh.__version__}; load average {os.getloadavg()[0]:.1f} at the end of the run (shared machine: "
+        "absolute times are inflated, ratios less so).",
+        "",
+        "*meshtool reader*: bytes -> the mesh model (STL: corners merged into shared vertices, facet normals "
+        "checked; COLLADA: pycollada's parse, then welding; glTF and PLY keep their indexed vertices). trimesh "
+        "`process=False` returns the arrays as stored (STL: three unshared corners per facet), the peer for "
+        "glTF/PLY; `process=True` merges vertices as meshtool does for STL. "
+        "*derived*: the 10 largest corpus OBJs written by trimesh as GLB, binary PLY and binary STL.",
+        "",
+        "| format | files | MB | meshtool reader s | trimesh process=False s | trimesh process=True s "
+        "| meshtool MB/s | trimesh MB/s (False / True) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for fmt, entries in sorted(times.items()):
         mb = sum(e["bytes"] for e in entries) / 1e6
         a = sum(e["meshtool_s"] for e in entries)
         b = sum(e["trimesh_s"] for e in entries)
         c = sum(e["trimesh_merge_s"] for e in entries)
-        print(
+        bench.append(
             f"| {fmt} | {len(entries)} | {mb:.1f} | {a:.3f} | {b:.3f} | {c:.3f} | {mb / a:.1f} "
             f"| {mb / b:.1f} / {mb / c:.1f} |"
         )
+    bench.append("<!-- formats:end -->")
+    bench_section = "\n".join(bench)
+    print(bench_section)
+    if args.docs:
+        write_section(Path("docs/corpus.md"), corpus_section, "<!-- formats:begin -->", "<!-- formats:end -->")
+        write_section(Path("docs/benchmarks.md"), bench_section, "<!-- formats:begin -->", "<!-- formats:end -->")
     if args.json:
         args.json.write_text(json.dumps({"outcome": rows, "timing": times}, indent=1) + "\n")
     return 0
