@@ -23,6 +23,7 @@ from typing import Any
 import click
 
 from meshtool import __version__
+from meshtool.cli_common import VocabularyGroup
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 
@@ -63,7 +64,7 @@ def _import(target: str) -> Any:
     return getattr(importlib.import_module(module), attribute)
 
 
-class LazyGroup(click.Group):
+class LazyGroup(VocabularyGroup):
     """A click group whose subcommands are imported when one is run (or its own help is asked for).
 
     The group's ``--help`` lists the commands from :data:`COMMANDS` without importing them.

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import stat
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -19,7 +20,7 @@ import click
 
 from meshtool import __version__
 from meshtool.changes import split_findings
-from meshtool.cli_common import exit_on_bug
+from meshtool.cli_common import VocabularyCommand, exit_on_bug, progress_enabled
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
 from meshtool.errors import MeshtoolError, OptionsError, PackFormatError
 from meshtool.findings import Finding, Severity
@@ -200,9 +201,9 @@ def normalize(
     _echo_findings(asset.findings)
 
 
-@click.command("obj2bin", context_settings={"help_option_names": ["-h", "--help"]})
+@click.command("obj2bin", cls=VocabularyCommand, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="obj2bin")
-@click.argument("src", type=click.Path(path_type=Path, exists=True))
+@click.argument("src", type=click.Path(path_type=Path))  # a missing file: exit 1 (docs/cli.md)
 @click.option(
     "-o",
     "--output",
@@ -236,7 +237,7 @@ def obj2bin(
     """Convert SRC (OBJ, STL, PLY, glTF/GLB, COLLADA; or a folder of them) to .mbin: normalised, hulls, packed."""
     with _guard(as_json):
         options = ConvertOptions(_normalise_options(kw), quantize, _hull_options(kw), check=not no_check)
-        if src.is_dir():
+        if _is_folder(src):
             if out is None:
                 raise OptionsError("a folder needs -o OUTDIR")
             _convert_folder(src, out, options, jobs, as_json, force)
@@ -251,12 +252,20 @@ def obj2bin(
     _echo_findings(result.findings)
 
 
+def _is_folder(path: Path) -> bool:
+    """Whether ``path`` is a folder; a path that cannot be looked at (missing, too long) is not: the reader says why."""
+    try:
+        return stat.S_ISDIR(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
 def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as_json: bool, force: bool) -> None:
     results: list[ConvertResult] = []
     total = len(tree_jobs(src, out))
     stream = convert_tree(src, out, options, jobs, force=force)
-    if sys.stdout.isatty() and not as_json:
-        with click.progressbar(stream, length=total, label="converting") as bar:
+    if progress_enabled() and not as_json:  # on stderr (click's default is stdout), only on a terminal
+        with click.progressbar(stream, length=total, label="converting", file=sys.stderr) as bar:
             results.extend(bar)
     else:
         for k, result in enumerate(stream, start=1):
@@ -449,7 +458,7 @@ def _made(make: Callable[[Any], bytes], packed: Any, file: Path) -> bytes:
 
 
 @click.command("mjcf")
-@click.argument("src", type=click.Path(path_type=Path, exists=True))
+@click.argument("src", type=click.Path(path_type=Path))  # a missing file: exit 1 (docs/cli.md)
 @click.option(
     "-o",
     "--output",
@@ -468,7 +477,7 @@ def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float
 
     with _guard(False):
         options = MjcfOptions(free_joint=free_joint, density=density, mass=mass)
-        sources = find_files(src, ".mbin") if src.is_dir() else [src]
+        sources = find_files(src, ".mbin") if _is_folder(src) else [src]
         if not sources:
             raise OptionsError(f"no .mbin files under {src}")
         stems = [safe_file_stem(p.stem) or "asset" for p in sources]

@@ -1,14 +1,48 @@
-"""What every meshtool command does when meshtool itself fails: one line, exit 3, traceback on request."""
+"""The command-line vocabulary shared by ``meshtool``, ``obj2bin`` and ``simrun`` (docs/cli.md).
+
+Every command of the three gets, from :class:`VocabularyGroup` / :class:`VocabularyCommand`:
+
+- ``--json``: one JSON object on stdout, errors included (``{"status": "error", "exit_code": 1, "error":
+  {"message": ...}}``); a command that writes its own JSON keeps it, one with text output has its lines
+  wrapped (``{"status": "ok", "command": ..., "output": [...]}``); ``--format json`` means the same where a
+  command has ``--format``;
+- ``-q/--quiet``: nothing on stdout unless ``--json`` (errors still on stderr, the exit code says the rest);
+- ``-v/--verbose``: more detail (``MESHTOOL_VERBOSE=1``: every finding); ``-vv`` also the traceback of an
+  internal error (``MESHTOOL_DEBUG=1`` / ``SIMRUN_DEBUG=1``);
+- the exit codes of :data:`EXIT_CODES`, and one ``error:`` line on stderr for a mistake.
+
+Progress displays go to stderr and only when stderr is a terminal (:func:`progress_enabled`).
+"""
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import os
 import sys
-from typing import NoReturn
+import warnings
+from collections.abc import Iterator, Sequence
+from typing import Any, NoReturn
 
 import click
 
-EXIT_INTERNAL = 3
+from meshtool.progress import reporting
+
+EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+#: Exit code for each kind of outcome, the same in every command (docs/cli.md).
+EXIT_CODES: dict[str, int] = {
+    "success (warnings allowed)": EXIT_OK,
+    "an input file that does not exist, cannot be read or is not the right kind of file": EXIT_INPUT,
+    "an input refused: bad syntax, values out of range, a broken reference (one error line with file:line)": EXIT_INPUT,
+    "a check failed: validate findings, a scene warning, a re-simulation that differs": EXIT_INPUT,
+    "an output refused: it would replace an input or a file the tool did not write (--force)": EXIT_INPUT,
+    "a service that cannot be reached (a Dask scheduler), a per-asset timeout": EXIT_INPUT,
+    "usage: an unknown option or command, a bad option value, a missing argument": EXIT_USAGE,
+    "the tool itself failed (a bug: 'internal error:' line; -vv shows the traceback)": EXIT_INTERNAL,
+}
+#: Environment variable that makes an internal error raise its traceback, per program.
+DEBUG_VARIABLES = {"meshtool": "MESHTOOL_DEBUG", "obj2bin": "MESHTOOL_DEBUG", "simrun": "SIMRUN_DEBUG"}
 
 
 def exit_on_bug(exc: Exception) -> NoReturn:
@@ -17,3 +51,252 @@ def exit_on_bug(exc: Exception) -> NoReturn:
         raise exc
     click.echo(f"internal error: {type(exc).__name__}: {exc} (please report; MESHTOOL_DEBUG=1 shows more)", err=True)
     sys.exit(EXIT_INTERNAL)
+
+
+def progress_enabled() -> bool:
+    """Whether to draw progress: only on a terminal's stderr (never into a pipe, a log or a JSON stream)."""
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+class Progress:
+    """A progress display on stderr for long work on one file (stages, parts); silent when not on a terminal.
+
+    Use as a callback ``progress(label, done, total)``; the line is redrawn in place and cleared at the end.
+    """
+
+    def __init__(self, enabled: bool | None = None) -> None:
+        self.enabled = progress_enabled() if enabled is None else enabled
+        self.stream = sys.stderr
+        self._shown = False
+
+    def __call__(self, label: str, done: int = 0, total: int = 0) -> None:
+        """Show ``label`` and, when ``total``, ``done/total``."""
+        if not self.enabled:
+            return
+        count = f" {done}/{total}" if total else ""
+        self.stream.write(f"\r\x1b[K{label}{count}")
+        self.stream.flush()
+        self._shown = True
+
+    def close(self) -> None:
+        """Clear the line."""
+        if self.enabled and self._shown:
+            self.stream.write("\r\x1b[K")
+            self.stream.flush()
+            self._shown = False
+
+
+class _ClearFirst(io.TextIOBase):
+    """stderr that clears a shown progress line before anything else is written to it."""
+
+    def __init__(self, display: Progress) -> None:
+        super().__init__()
+        self.display = display
+
+    def write(self, text: str) -> int:
+        """Clear the progress line, then write."""
+        self.display.close()
+        return self.display.stream.write(text)
+
+    def flush(self) -> None:
+        """Flush the terminal."""
+        self.display.stream.flush()
+
+    def isatty(self) -> bool:
+        """The terminal's answer."""
+        return bool(self.display.stream.isatty())
+
+
+def _flags(args: Sequence[str]) -> tuple[bool, bool, int]:
+    """(json, quiet, verbosity) from a command's raw arguments (before click parses them)."""
+    as_json = quiet = False
+    verbose = 0
+    previous = ""
+    for arg in args:
+        if arg == "--":
+            break
+        if arg == "--json" or arg == "--format=json" or (previous == "--format" and arg == "json"):
+            as_json = True
+        elif arg in ("-q", "--quiet"):
+            quiet = True
+        elif arg == "--verbose":
+            verbose += 1
+        elif arg.startswith("-v") and set(arg[1:]) == {"v"}:
+            verbose += len(arg) - 1
+        previous = arg
+    return as_json, quiet, verbose
+
+
+def equip(command: click.Command) -> click.Command:
+    """Give a command the shared options it lacks (``-q``, ``-v``, ``--json``); the flags are read by the group."""
+    if getattr(command, "_vocabulary", False):
+        return command
+    taken = {opt for param in command.params for opt in getattr(param, "opts", [])}
+    extra: list[click.Option] = []
+    if "-q" not in taken and "--quiet" not in taken:
+        extra.append(click.Option(["-q", "--quiet"], is_flag=True, expose_value=False, help="Print nothing on stdout."))
+    if "-v" not in taken and "--verbose" not in taken:
+        extra.append(
+            click.Option(
+                ["-v", "--verbose"],
+                count=True,
+                expose_value=False,
+                help="More detail; -vv also the traceback of an internal error.",
+            )
+        )
+    if "--json" not in taken:
+        fmt = next((p for p in command.params if "--format" in getattr(p, "opts", [])), None)
+        choices = getattr(getattr(fmt, "type", None), "choices", ())
+        text = "The same as --format json." if "json" in choices else "Print one JSON object on stdout."
+        extra.append(click.Option(["--json"], is_flag=True, expose_value=False, help=text))
+    command.params.extend(extra)
+    command._vocabulary = True  # type: ignore[attr-defined]
+    return command
+
+
+def _with_format(command: click.Command, args: list[str]) -> list[str]:
+    """``--json`` as ``--format json`` for a command whose ``--format`` offers json (and has no ``--json``)."""
+    own = {opt for param in command.params if param.expose_value for opt in getattr(param, "opts", [])}
+    if "--json" in args and "--json" not in own and "--format" in own:
+        at = args.index("--json")
+        return [*args[:at], "--format", "json", *args[at + 1 :]]
+    return args
+
+
+class _Tee(io.StringIO):
+    """Keeps what is written (and passes it on to ``target`` when given)."""
+
+    def __init__(self, target: Any = None) -> None:
+        super().__init__()
+        self.target = target
+
+    def write(self, text: str) -> int:
+        """Keep, and pass on."""
+        if self.target is not None:
+            self.target.write(text)
+        return super().write(text)
+
+    def flush(self) -> None:
+        """Flush the target."""
+        if self.target is not None:
+            self.target.flush()
+
+    def text(self) -> str:
+        """Everything written."""
+        return self.getvalue()
+
+
+@contextlib.contextmanager
+def vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
+    """Run one command with the shared ``--json`` / ``-q`` / ``-v`` behaviour (see the module)."""
+    as_json, quiet, verbose = _flags(args)
+    if verbose >= 1 and program in ("meshtool", "obj2bin"):
+        os.environ["MESHTOOL_VERBOSE"] = "1"
+    if verbose >= 2:
+        os.environ[DEBUG_VARIABLES.get(program, "MESHTOOL_DEBUG")] = "1"
+    if not as_json:
+        display = Progress(enabled=progress_enabled() and not quiet)
+        try:
+            with reporting(display if display.enabled else None), contextlib.ExitStack() as stack:
+                if display.enabled:
+                    stack.enter_context(contextlib.redirect_stderr(_ClearFirst(display)))
+                if quiet:
+                    with contextlib.redirect_stdout(io.StringIO()):
+                        yield
+                else:
+                    yield
+        finally:
+            display.close()
+        return
+    out, err = _Tee(), _Tee(sys.stderr)
+    code = EXIT_OK
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            yield
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (EXIT_OK if exc.code is None else EXIT_INPUT)
+        _emit_json(name, out.text(), err.text(), code)
+        raise
+    except click.exceptions.Exit as exc:
+        code = exc.exit_code
+        _emit_json(name, out.text(), err.text(), code)
+        raise
+    except click.ClickException as exc:
+        _emit_json(name, out.text(), f"error: {exc.format_message()}\n", exc.exit_code)
+        raise
+    _emit_json(name, out.text(), err.text(), code)
+
+
+def _emit_json(name: str, out: str, err: str, code: int) -> None:
+    """Pass the command's own JSON through, else wrap its text lines (and its error) in one JSON object."""
+    text = out.strip()
+    if text:
+        try:
+            json.loads(text)
+        except ValueError:
+            pass
+        else:
+            sys.stdout.write(out if out.endswith("\n") else out + "\n")
+            sys.stdout.flush()
+            return
+    prefixes = ("error: ", "usage error: ", "internal error: ", "Error: ")  # the last is click's usage message
+    errors = [line[len(p) :] for line in err.splitlines() for p in prefixes if line.startswith(p)]
+    document: dict[str, Any] = {"status": "ok" if code == EXIT_OK else "error", "command": name, "exit_code": code}
+    document["output"] = [line for line in out.splitlines() if line.strip()]
+    if code != EXIT_OK:
+        message = errors[0] if errors else (err.strip().splitlines() or ["failed"])[-1]
+        document["error"] = {"message": message}
+    sys.stdout.write(json.dumps(document) + "\n")
+    sys.stdout.flush()
+
+
+class VocabularyGroup(click.Group):
+    """A click group whose commands share the vocabulary of the module (options added when they are fetched)."""
+
+    program = "meshtool"
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        """The command, equipped with the shared options."""
+        command = super().get_command(ctx, cmd_name)
+        return equip(command) if command is not None else None
+
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        """Also maps ``--json`` to ``--format json`` where that is the command's spelling."""
+        name, command, rest = super().resolve_command(ctx, args)
+        if command is not None:
+            rest = _with_format(command, rest)
+        return name, command, rest
+
+    def invoke(self, ctx: click.Context) -> Any:
+        """Run the command inside :func:`vocabulary`."""
+        with warnings.catch_warnings():  # click 8.2 deprecates protected_args (click 9 keeps them in args)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            args = [*ctx.protected_args, *ctx.args]
+        name = args[0] if args else ""
+        with vocabulary(self.program, name, args[1:]):
+            return self.run_command(ctx)
+
+    def run_command(self, ctx: click.Context) -> Any:
+        """The group's own invocation (a subclass adds its error mapping here)."""
+        return super().invoke(ctx)
+
+
+class VocabularyCommand(click.Command):
+    """A single-command program (``obj2bin``) with the shared vocabulary."""
+
+    program = "obj2bin"
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        equip(self)
+
+    def main(self, args: Sequence[str] | None = None, *rest: Any, **kwargs: Any) -> Any:
+        """The console-script entry: the raw arguments decide ``--json``/``-q``/``-v`` before click parses them."""
+        raw = list(sys.argv[1:] if args is None else args)
+        with vocabulary(self.program, self.name or "", raw):
+            return super().main(raw, *rest, **kwargs)

@@ -25,6 +25,7 @@ from meshtool.hulls import HullOptions, compute_hulls, quality
 from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
 from meshtool.outdir import check_output, refuse_inputs, write_file
 from meshtool.packfile import load, pack
+from meshtool.progress import report as report_progress
 from meshtool.resolve import file_sha256, find_files
 
 
@@ -92,8 +93,11 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
     """
     options = options or ConvertOptions()
     refuse_inputs(out, [src])  # before any work: `obj2bin box.obj -o box.obj`
+    report_progress("reading and normalising")
     asset = prepare(src, options.normalise)
+    report_progress("collision hulls")
     hull_set = compute_hulls(asset.mesh, options.hulls, src.name)
+    report_progress("packing")
     report = quality(asset.mesh, hull_set.hulls) if hull_set.hulls else None
     findings = [*asset.findings, *hull_set.findings]
     if options.normalise.strict and any(f.severity.value == "warning" for f in hull_set.findings):
@@ -102,6 +106,7 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
     data = pack(asset, options.quantize, options.fingerprint(), hull_set.hulls, report)
     checked = "off"
     if options.check:  # before anything is written: a pack MuJoCo refuses is an error, not an output
+        report_progress("checking in MuJoCo")
         from meshtool.loadcheck import check_pack
 
         skipped = check_pack(data, src.name)

@@ -17,6 +17,7 @@ import numpy.typing as npt
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, info, warning
 from meshtool.mesh import TriMesh
+from meshtool.progress import report as report_progress
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -256,7 +257,9 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
     from meshtool.decompose import Budget, cache_key, decompose, read_hulls, write_hulls
 
     budget, over_budget = Budget(options.time_budget_s), 0
-    for part, points, faces in groups:
+    for done, (part, points, faces) in enumerate(groups):
+        if options.mode == "decompose":
+            report_progress("decomposing parts", done, len(groups))
         key, made = None, None
         if options.mode == "decompose" and faces.shape[0] >= 4 and budget.left() <= 0:
             over_budget += 1

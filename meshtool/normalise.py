@@ -29,6 +29,7 @@ from meshtool.obj.mtl import Material, TextureMap, format_mtl, opaque_if_invisib
 from meshtool.obj.parse import ObjData
 from meshtool.obj.write import format_obj
 from meshtool.outdir import write_folder
+from meshtool.progress import report as report_progress
 from meshtool.readers import material_library, read_mesh, source_entries, source_frame
 from meshtool.resolve import Resolution, Resolver, printable
 from meshtool.smallparts import fix_small_parts
@@ -365,7 +366,9 @@ def write_asset(asset: NormalisedAsset, out_dir: Path, src: Path | None = None) 
 
 def normalise_to(src: Path, out_dir: Path, options: NormaliseOptions | None = None) -> tuple[Path, NormalisedAsset]:
     """:func:`normalise` then :func:`write_asset`; returns the folder and the asset."""
+    report_progress("reading and normalising")
     asset = normalise(src, options)
+    report_progress("writing")
     return write_asset(asset, out_dir, src), asset
 
 

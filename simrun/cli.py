@@ -16,6 +16,7 @@ import click
 import numpy as np
 from PIL import Image
 
+from meshtool.cli_common import VocabularyGroup, progress_enabled
 from simrun import __version__
 from simrun.archive import save_mjz
 from simrun.doctor import check_environment
@@ -27,7 +28,7 @@ from simrun.play import encode_gif, encode_mp4
 from simrun.render import MODES, FrameRenderer
 from simrun.scene import load_scene
 from simrun.scenetest.cli import test_command
-from simrun.session import PlayOptions, run_play, run_resim
+from simrun.session import DEFAULT_SIZE, PlayOptions, run_play, run_resim
 from simrun.simlog import Simlog, check_model, check_scene, replay_states
 from simrun.teleop import run_viewer
 from simrun.usd_export import export_world_usd
@@ -39,12 +40,19 @@ EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 DEBUG_VARIABLE = "SIMRUN_DEBUG"
 
 
-class _Group(click.Group):
-    """The command group: a user error is one ``error:`` line (exit 1), a bug one ``internal error:`` line (3)."""
+class _Group(VocabularyGroup):
+    """The command group: a user error is one ``error:`` line (exit 1), a bug one ``internal error:`` line (3).
 
-    def invoke(self, ctx: click.Context) -> Any:
+    The vocabulary shared with meshtool (``--json``, ``-q``, ``-v``, exit codes: docs/cli.md) comes from
+    :class:`meshtool.cli_common.VocabularyGroup`.
+    """
+
+    program = "simrun"
+
+    def run_command(self, ctx: click.Context) -> Any:
+        """Run the command, mapping simrun's errors to exit codes."""
         try:
-            return super().invoke(ctx)
+            return super().run_command(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
         except SimrunError as exc:
@@ -87,6 +95,8 @@ class _Number(click.ParamType):  # type: ignore[type-arg]
 MAX_SECONDS = 86400.0
 SECONDS = _Number(0.0, MAX_SECONDS)
 FPS = _Number(0.0, 1000.0, low_open=True)
+#: The one default image size of play, replay and snapshot (docs/cli.md).
+DEFAULT_SIZE_TEXT = f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}"
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
@@ -103,19 +113,30 @@ main.add_command(test_command)  # simrun test: scene tests with [[expect]] (simr
 
 
 @main.command("doctor")
-def doctor() -> None:
-    """Check MuJoCo: version, compile and step a model, and which headless GL backends start."""
+@click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON object.")
+def doctor(as_json: bool) -> None:
+    """Check MuJoCo: version, compile and step a model, which GL backend renders and which headless ones start."""
     report = check_environment()
-    for line in report.lines():
-        click.echo(line)
+    if as_json:
+        choice = report.choice
+        gl = {"backend": choice.backend, "reason": choice.reason, "problem": choice.problem} if choice else None
+        document: dict[str, Any] = {"status": "ok" if report.physics_ok else "error", "mujoco": report.mujoco_version}
+        document |= {"physics_ok": report.physics_ok, "physics_error": report.physics_error}
+        document |= {"rendering": gl, "backends": {k: v is None for k, v in report.gl.items()}, "problems": report.gl}
+        click.echo(json.dumps(document))
+    else:
+        for line in report.lines():
+            click.echo(line)
     if not report.physics_ok:
         raise SystemExit(EXIT_INPUT)
 
 
 @main.command("check")
 @click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--seconds", type=SECONDS, default=1.0, show_default=True, help="Simulated time to step.")
-def check(scene: Path, seconds: float) -> None:
+@click.option("--duration", "seconds", type=SECONDS, default=1.0, show_default=True, help="Simulated seconds to step.")
+@click.option("--seconds", "seconds", type=SECONDS, hidden=True, help="Deprecated spelling of --duration.")
+@click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
+def check(scene: Path, seconds: float, as_json: bool) -> None:
     """Load SCENE, compile it, bind its services and sensors, and step it; fail on any warning or non-finite state."""
     with _guard():
         world = load_scene(scene)
@@ -127,6 +148,18 @@ def check(scene: Path, seconds: float) -> None:
         if not np.isfinite(world.data.qpos).all():
             raise SimrunError(f"{scene}: the state became non-finite within {seconds:g} s")
     model = world.model
+    if as_json:
+        counts = {"entities": len(world), "bodies": model.nbody - 1, "geoms": model.ngeom, "meshes": model.nmesh}
+        result: dict[str, Any] = {
+            "status": "ok",
+            "scene": str(scene),
+            **counts,
+            "textures": model.ntex,
+            "duration_s": seconds,
+        }
+        result |= {"services": len(world.services), "sensors": len(world.sensors)}
+        click.echo(json.dumps(result))
+        return
     click.echo(
         f"{scene}: ok: {len(world)} entities, {model.nbody - 1} bodies, {model.ngeom} geoms, {model.nmesh} meshes, "
         f"{model.ntex} textures; stepped {seconds:g} s with no warning"
@@ -225,7 +258,7 @@ def _size(text: str) -> tuple[int, int]:
     help="visual | wireframe | physics | combined | none (default: visual with --video/--frames, else none).",
 )
 @click.option("--camera", default=None, help="Camera name (default: the main view, else a free camera).")
-@click.option("--size", default="320x240", show_default=True, help="Frame size WxH.")
+@click.option("--size", default=DEFAULT_SIZE_TEXT, show_default=True, help="Frame size WxH.")
 @click.option("--fps", type=FPS, default=15.0, show_default=True, help="Frames per simulated second.")
 @click.option("--realtime", is_flag=True, help="Do not run faster than the wall clock.")
 @click.option(
@@ -291,8 +324,8 @@ def play_command(
     )
     with _guard(), output_policy(force, [scene, commands_file]):
         bar = None
-        if sys.stdout.isatty() and not as_json:
-            bar = click.progressbar(length=int(duration * 1000), label="simulating")
+        if progress_enabled() and not as_json:  # on stderr, only on a terminal (stdout stays the summary)
+            bar = click.progressbar(length=int(duration * 1000), label="simulating", file=sys.stderr)
             bar.__enter__()
         done = [0]
 
@@ -348,7 +381,7 @@ _OUT = click.Path(path_type=Path, dir_okay=False)
     "--render-mode", type=click.Choice([m for m in MODES if m != "none"]), default="visual", show_default=True
 )
 @click.option("--camera", default=None, help="Camera name.")
-@click.option("--size", default="320x240", show_default=True, help="Frame size WxH.")
+@click.option("--size", default=DEFAULT_SIZE_TEXT, show_default=True, help="Frame size WxH.")
 @click.option(
     "--fps",
     type=FPS,
@@ -468,10 +501,13 @@ def view(scene: Path) -> None:
     "--render-mode", type=click.Choice([m for m in MODES if m != "none"]), default="visual", show_default=True
 )
 @click.option("--camera", default=None, help="Camera name (default: the main view, else a free camera).")
-@click.option("--size", default="640x480", show_default=True, help="Image size WxH.")
-@click.option("--at", "at_time", type=SECONDS, default=0.0, show_default=True, help="Simulated time to show.")
+@click.option("--size", default=DEFAULT_SIZE_TEXT, show_default=True, help="Image size WxH.")
+@click.option(
+    "--duration", "at_time", type=SECONDS, default=0.0, show_default=True, help="Simulated seconds before the picture."
+)
+@click.option("--at", "at_time", type=SECONDS, hidden=True, help="Deprecated spelling of --duration.")
 def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, size: str, at_time: float) -> None:
-    """Render one picture of SCENE (after stepping to --at seconds)."""
+    """Render one picture of SCENE after simulating --duration seconds."""
     width, height = _size(size)
     with _guard():
         world = load_scene(scene)

@@ -235,7 +235,7 @@ def test_cli_exit_codes(assets, tmp_path):
     assert cli(assets / "G005_winding_inconsistent", *cache, "--strict").exit_code == 1
     assert cli(assets / "S003_texture_missing", *cache).exit_code == 1
     missing = cli(tmp_path / "nope", *cache)
-    assert missing.exit_code == 2 and "no such file or folder" in missing.output
+    assert missing.exit_code == 1 and "no such file or folder" in missing.output
     assert cli(assets, "--scheduler", "tcp://x:1").exit_code == 2
     (tmp_path / "meshtool.toml").write_text("[validate]\nseverity = { G005 = 'fatal' }\n")
     bad = cli(assets, "--config", tmp_path / "meshtool.toml")

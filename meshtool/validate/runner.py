@@ -153,7 +153,7 @@ def discover(paths: list[Path]) -> list[tuple[Path, Path]]:
                 raise ValidateError("not an OBJ or .mbin file", usage=True, path=str(path))
             found.setdefault(path.resolve(), (path, path.parent))
         else:
-            raise ValidateError("no such file or folder", usage=True, path=str(path))
+            raise ValidateError("no such file or folder", exit_code=1, path=str(path))  # as every command (docs/cli.md)
     if not found:
         raise ValidateError(
             "no OBJ or .mbin files found", usage=True, path=", ".join(map(str, paths)), hint="check the paths"
