@@ -13,7 +13,8 @@ colour (the material's when the geom keeps MuJoCo's default colour), the materia
 The animation ``recording`` has a translation and a rotation channel (LINEAR; glTF interpolates
 rotations spherically, the shorter way) per moving body, keyed at the frames
 :func:`simrun.replay_tracks.animation_keys` keeps, in the recording's seconds. Static bodies have no
-channel. Numbers are float32 (poses exact to about 1e-7 m on metre-scale worlds).
+channel. Numbers are float32 (poses exact to about 1e-7 m on metre-scale worlds; a key whose time float32
+cannot tell from the previous key's, which takes recordings longer than about 1e5 s, is dropped).
 """
 
 from __future__ import annotations
@@ -209,6 +210,7 @@ def recording_gltf(world: World, tracks: Tracks, keys: dict[int, I64], name: str
     for b, frames in sorted(keys.items()):
         if b not in body_nodes:
             continue
+        frames = _distinct_in_float32(tracks.times, frames)
         signature = frames.tobytes()
         if signature not in inputs:
             inputs[signature] = gltf.accessor(tracks.times[frames], bounds=True, target=None)
@@ -218,3 +220,14 @@ def recording_gltf(world: World, tracks: Tracks, keys: dict[int, I64], name: str
         channels += [(body_nodes[b], "rotation", inputs[signature], rotation)]
     gltf.animation(name, channels)
     return gltf
+
+
+def _distinct_in_float32(times: Any, frames: I64) -> I64:
+    """``frames`` less those whose time rounds to the same float32 as an earlier kept one.
+
+    glTF stores key times as float32 and needs them strictly increasing; past about 1e5 s, float32 cannot
+    tell frames 1 ms apart (``--fps`` then keeps the animation valid and small).
+    """
+    stored = np.asarray(times, dtype=np.float64)[frames].astype(np.float32)
+    keep = np.concatenate([[True], np.diff(np.maximum.accumulate(stored)) > 0])
+    return np.asarray(frames[keep], dtype=np.int64)

@@ -316,3 +316,26 @@ def test_bad_inputs_are_one_error_line_and_write_nothing(demo: Path, tmp_path: P
     scene.write_text(DEMO.read_text() + "\n# edited\n")
     result = runner.invoke(main, ["replay", str(log), "--usd", str(own / "run.usda")])
     assert result.exit_code == 1 and "changed since" in result.output and not (own / "run.usda").exists()
+
+
+def test_key_times_stay_strictly_increasing_in_float32_on_long_runs(tmp_path: Path) -> None:
+    from simrun.replay_glb import recording_gltf
+    from simrun.replay_tracks import Tracks, animation_keys
+
+    world = load_scene(DEMO)
+    world.compile()
+    n, nbody = 40, world.model.nbody
+    times = 1e5 + np.arange(n) * 1e-3  # float32 resolves 7.8 ms here
+    positions = np.zeros((n, nbody, 3))
+    positions[:, 2, 0] = np.linspace(0.0, 1.0, n)  # the robot slides 1 m along x
+    quats = np.zeros((n, nbody, 4))
+    quats[..., 0] = 1.0
+    tracks = Tracks(times, positions, quats, 1e-3)
+    out = tmp_path / "long.glb"
+    out.write_bytes(recording_gltf(world, tracks, animation_keys(tracks)).glb())
+    animated = _animated(*_gltf(out.read_bytes()))
+    keys, values = animated["boebot"]["translation"]
+    assert (np.diff(keys) > 0).all() and 5 <= len(keys) < n
+    assert values[0][0] == 0.0 and keys[0] == np.float32(1e5)
+    issues = _validate(out)
+    assert (issues["numErrors"], issues["numWarnings"]) == (0, 0), issues["messages"][:5]
