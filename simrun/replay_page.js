@@ -1,7 +1,7 @@
 // simrun's recording player: plays the animated glTF embedded in the page with three.js (bundled by
 // scripts/install_three_viewer.sh and inlined before this script). Controls: play/pause (also the space
-// bar), a time slider, the clock; labels follow the moving bodies. The URL fragment picks a moment:
-// #t=12.5 opens paused at 12.5 s, #t=12.5&play plays from there; no fragment plays from the start.
+// bar), a time slider, the clock, the playback speed; labels follow the moving bodies. The URL fragment
+// picks a moment: #t=12.5 opens paused at 12.5 s, #t=12.5&play plays from there; none plays from the start.
 // window.simrunPlayer = {ready, time(), duration, setTime(t), play(), pause(), screen(name)} for scripts.
 (function () {
   "use strict";
@@ -48,7 +48,7 @@
   slider.min = String(start);
   slider.max = String(end);
   slider.step = "any";
-  let mixer = null, action = null, playing = false, time = start, last = null;
+  let mixer = null, action = null, playing = false, time = start, last = null, speed = 1;
   const tracked = [];
 
   function show(t) {
@@ -85,7 +85,7 @@
     if (!playing) return;
     const now = performance.now();
     if (last !== null) {
-      let t = time + (now - last) / 1000;
+      let t = time + ((now - last) / 1000) * speed;
       if (t > end) t = start + (t - end) % Math.max(1e-9, end - start);
       show(t);
     }
@@ -105,6 +105,7 @@
 
   button.addEventListener("click", () => setPlaying(!playing));
   slider.addEventListener("input", () => { setPlaying(false); show(parseFloat(slider.value)); });
+  document.getElementById("speed").addEventListener("change", (e) => { advance(); speed = parseFloat(e.target.value); });
   window.addEventListener("keydown", (e) => {
     if (e.code === "Space" && e.target === document.body) { e.preventDefault(); setPlaying(!playing); }
   });

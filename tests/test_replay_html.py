@@ -179,3 +179,9 @@ def test_page_is_deterministic_and_replaced_only_when_simrun_wrote_it(page: Path
     foreign.write_text("<p>mine</p>")
     result = CliRunner().invoke(main, ["replay", str(log), "--html", str(foreign)])
     assert result.exit_code == 1 and foreign.read_text() == "<p>mine</p>"
+
+
+def test_without_webgl_the_page_says_why(page: Path, tmp_path: Path) -> None:
+    dom = _browser(page, "", tmp_path, "--disable-webgl", "--dump-dom")
+    assert '<html lang="en" data-state="error">' in dom
+    assert re.search(r'<output id="status">error: this browser cannot start WebGL[^<]*</output>', dom)
