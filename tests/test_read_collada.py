@@ -74,3 +74,21 @@ def test_x_up_is_turned_to_y_up(fixtures, tmp_path):
 def test_damaged_collada_is_one_error():
     with pytest.raises(FormatError, match="COLLADA cannot be read"):
         read_collada(b"<COLLADA><unclosed>", "bad.dae")
+
+
+def test_entities_are_refused_before_parsing(fixtures, tmp_path):
+    secret = tmp_path / "secret.txt"
+    secret.write_text("0 0 0 1 1 1")
+    text = (fixtures / DAE).read_text()
+    text = text.replace(
+        '<?xml version="1.0" encoding="utf-8"?>',
+        f'<?xml version="1.0" encoding="utf-8"?>\n<!DOCTYPE c [<!ENTITY leak SYSTEM "file://{secret}">]>',
+    )
+    with pytest.raises(FormatError, match="DOCTYPE or ENTITY"):
+        read_collada(text.encode(), "xxe.dae")
+
+
+def test_index_past_its_source_is_one_error(fixtures):
+    text = (fixtures / DAE).read_text().replace("<p>0 0 0", "<p>99 0 0", 1)
+    with pytest.raises(FormatError, match="COLLADA"):
+        read_collada(text.encode(), "bad.dae")

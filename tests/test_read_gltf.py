@@ -154,3 +154,31 @@ def test_accessor_past_its_view_is_an_error(fixtures, tmp_path):
     (folder / "cube.gltf").write_text(json.dumps(doc))
     with pytest.raises(FormatError, match="runs past its bufferView"):
         read(folder / "cube.gltf")
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda doc: doc["accessors"][0].update(count="many"),
+        lambda doc: doc["nodes"][0].update(mesh="zero"),
+        lambda doc: doc["meshes"][0]["primitives"][0].update(indices=99),
+        lambda doc: doc["accessors"][0].update(componentType=1),
+        lambda doc: doc["accessors"].__setitem__(0, {"componentType": 5126, "count": 10**12, "type": "VEC3"}),
+        lambda doc: doc.update(nodes={"0": {}}),
+    ],
+)
+def test_hostile_json_values_are_one_error(fixtures, tmp_path, change):
+    folder = tmp_path / "h"
+    shutil.copytree(fixtures / GLTF / "external", folder)
+    doc = json.loads((folder / "cube.gltf").read_text())
+    change(doc)
+    (folder / "cube.gltf").write_text(json.dumps(doc))
+    with pytest.raises(FormatError):
+        read(folder / "cube.gltf")
+
+
+def test_deeply_nested_json_is_one_error(tmp_path):
+    path = tmp_path / "deep.gltf"
+    path.write_text('{"asset": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    with pytest.raises(FormatError, match="glTF JSON cannot be read"):
+        read(path)

@@ -17,17 +17,19 @@ Locations of findings count triangles in file order.
 from __future__ import annotations
 
 import io
+import re
 import warnings
 from typing import Any
 from urllib.parse import unquote
 
 import numpy as np
 
-from meshtool.errors import FormatError
+from meshtool.errors import FormatError, MeshtoolError
 from meshtool.findings import Finding, info, warning
 from meshtool.obj.mtl import Material, TextureMap
 from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble, merge_rows, mirrors
 
+_DECLARATION = re.compile(rb"<!(?:DOCTYPE|ENTITY)", re.IGNORECASE)
 _X_TO_Y = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
 
@@ -46,6 +48,13 @@ def read_collada(data: bytes, path: str) -> SourceMesh:
     """
     import collada
 
+    if _DECLARATION.search(data):
+        raise FormatError(
+            "COLLADA with a DOCTYPE or ENTITY declaration is not read (entities could read or expand files "
+            "outside the asset)",
+            path=path,
+            hint="remove the declaration; COLLADA files need none",
+        )
     ignore = [collada.common.DaeUnsupportedError, collada.common.DaeBrokenRefError]
     try:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
@@ -57,7 +66,15 @@ def read_collada(data: bytes, path: str) -> SourceMesh:
         raise FormatError(f"COLLADA cannot be read: {text}", path=path, line=line, hint="the file is damaged") from None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PendingDeprecationWarning)  # pycollada builds numpy matrices
-        return _read(doc, path)
+        try:
+            return _read(doc, path)
+        except MeshtoolError:
+            raise
+        except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:  # e.g. an index past its source
+            what = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
+            raise FormatError(
+                f"malformed COLLADA: {what}", path=path, hint="the file is damaged; export it again"
+            ) from None
 
 
 def _read(doc: Any, path: str) -> SourceMesh:

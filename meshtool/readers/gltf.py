@@ -37,7 +37,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from meshtool.errors import FormatError
+from meshtool.errors import FormatError, MeshtoolError
 from meshtool.findings import Finding, info, warning
 from meshtool.obj.mtl import Material, TextureMap
 from meshtool.readers.model import (
@@ -59,6 +59,8 @@ _COMPONENT = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 512
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _NORMALISE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
 _MAX_DEPTH = 256
+#: Most elements of an accessor without a bufferView (all zeros): such an accessor costs no bytes in the file.
+_MAX_UNBACKED = 1 << 24
 _GLB_MAGIC = b"glTF"
 _JSON_CHUNK = 0x4E4F534A
 _BIN_CHUNK = 0x004E4942
@@ -83,7 +85,14 @@ def read_gltf(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMe
     """
     doc, glb_bin = _container(data, path)
     reader = _Reader(doc, glb_bin, path, src, resolver)
-    return reader.read("glb" if data[:4] == _GLB_MAGIC else "gltf")
+    try:
+        return reader.read("glb" if data[:4] == _GLB_MAGIC else "gltf")
+    except MeshtoolError:
+        raise
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError) as exc:
+        # a value of the wrong JSON type or range somewhere (a string where a count belongs, ...)
+        what = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
+        raise FormatError(f"malformed glTF: {what}", path=path, hint="the file is damaged; export it again") from None
 
 
 def _container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None]:
@@ -114,7 +123,7 @@ def _container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None]:
         text = data
     try:
         doc = json.loads(text.decode("utf-8-sig"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         line = getattr(exc, "lineno", None)
         raise FormatError(f"glTF JSON cannot be read: {str(exc).splitlines()[0][:100]}", path=path, line=line) from None
     if not isinstance(doc, dict):
@@ -312,6 +321,8 @@ class _Reader:
             )
             values = raw.astype(np.float64)
         else:
+            if count > _MAX_UNBACKED:
+                raise FormatError(f"accessor {index} has {count} elements and no data", path=self.path)
             values = np.zeros((count, width))
         if acc.get("normalized") and ctype in _NORMALISE:
             values = np.maximum(values / _NORMALISE[ctype], -1.0)
