@@ -202,6 +202,8 @@ def _read_obj(read: ReadAsset) -> None:
     read.asset = asset
     manifest = asset.manifest
     for source in manifest["sources"]:
+        if source["role"] == "texture" and source["path"].split("/", 1)[0] == name:
+            continue  # an image embedded in the glTF/GLB: the file's own digest covers it
         result.deps[str((src.parent / source["path"]).resolve())] = source["sha256"]
     result.findings.extend(from_normaliser(asset.findings))
     result.findings.extend(reference_findings(manifest["resolutions"]))
