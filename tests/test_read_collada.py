@@ -92,3 +92,14 @@ def test_index_past_its_source_is_one_error(fixtures):
     text = (fixtures / DAE).read_text().replace("<p>0 0 0", "<p>99 0 0", 1)
     with pytest.raises(FormatError, match="COLLADA"):
         read_collada(text.encode(), "bad.dae")
+
+
+def test_zipped_collada_is_refused(fixtures):
+    import io
+    import zipfile
+
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as z:
+        z.writestr("link.dae", (fixtures / DAE).read_bytes())
+    with pytest.raises(FormatError, match="zipped COLLADA"):
+        read_collada(buffer.getvalue(), "link.dae")

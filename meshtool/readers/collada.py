@@ -48,6 +48,10 @@ def read_collada(data: bytes, path: str) -> SourceMesh:
     """
     import collada
 
+    if data.startswith(b"PK\x03\x04"):  # pycollada would unzip it (.zae): no bounded, checked read of the inside
+        raise FormatError(
+            "a zipped COLLADA archive (.zae) is not read", path=path, offset=0, hint="unzip it and pass the .dae"
+        )
     if _DECLARATION.search(data):
         raise FormatError(
             "COLLADA with a DOCTYPE or ENTITY declaration is not read (entities could read or expand files "
