@@ -448,11 +448,11 @@ class DriveService:
         enough that the chassis rocking, which the encoders see, does not excite it), or, where the motor alone
         is faster than that, ``Kp = 0`` and the integral puts the slower pole at ``p``.
         """
-        data = self.world.data if self.world.model is model else None
-        if data is None:  # a model the world does not hold (a re-simulation): its own data, at the initial pose
-            data = mujoco.MjData(model)
-            mujoco.mj_forward(model, data)
-        full = np.zeros((model.nv, model.nv))  # from the mass matrix of the last step: nothing is recomputed
+        # always at the model's initial pose: the gains must not depend on when the first tick happens (a run
+        # resumed from a checkpoint or a saved current state designs the same loop, so it replays bit for bit)
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        full = np.zeros((model.nv, model.nv))
         mujoco.mj_fullM(model, data, full)
         dof = self._ids[2] if self._ids is not None else 0
         inertia = float(full[dof, dof])  # the wheel, its armature
