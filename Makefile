@@ -24,14 +24,15 @@ demo: $(STAMP)
 	$(BIN)/python scripts/show_asset.py out/demo/head_1
 	$(BIN)/obj2bin "fixtures/head/Head 1.obj" --units cm -o out/demo/head_1.mbin
 	$(BIN)/meshtool info out/demo/head_1.mbin
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/meshtool validate fixtures/head fixtures/validate/clean out/demo/head_1.mbin \
+	$(BIN)/meshtool validate fixtures/head fixtures/validate/clean out/demo/head_1.mbin \
 		--format html -o demo-out/validate.html
 	$(BIN)/meshtool urdf fixtures/urdf/tiny_arm_description/urdf/tiny_arm.urdf -o out/demo/tiny_arm --actuators
 	$(BIN)/simrun check fixtures/scenes/urdf_arm.toml
 	$(BIN)/simrun export fixtures/scenes/urdf_arm.toml --usd demo-out/urdf_arm.usda --glb demo-out/urdf_arm.glb
 	$(BIN)/simrun check fixtures/scenes/boebot.toml
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/simrun play fixtures/scenes/boebot.toml --duration 40 \
-		--commands fixtures/scenes/square.commands.toml --video demo-out/demo.gif --size 320x240 --fps 5
+	$(BIN)/simrun doctor
+	$(BIN)/simrun play fixtures/scenes/boebot.toml --duration 40 \
+		--commands fixtures/scenes/square.commands.toml --video demo-out/demo.gif --fps 10
 
 lint: $(STAMP)
 	$(BIN)/ruff check meshtool simrun tests bench scripts

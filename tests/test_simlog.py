@@ -73,7 +73,8 @@ def test_reader_rejects_corrupt_and_newer_files(tmp_path):
         Simlog(tmp_path / "newer.simlog")
     (tmp_path / "cut.simlog").write_bytes(data[:-7])
     log = Simlog(tmp_path / "cut.simlog")
-    with pytest.raises(SimlogError, match=r"byte \d+: record of 784 bytes runs past the end of the file"):
+    size = 8 + 8 * log.header["state_size"]  # a frame: time and the state, float64
+    with pytest.raises(SimlogError, match=rf"byte \d+: record of {size} bytes runs past the end of the file"):
         list(log.records())
     result = CliRunner().invoke(main, ["resim", str(tmp_path / "newer.simlog")])
     assert result.exit_code == 1 and result.stderr.startswith("error: ")
