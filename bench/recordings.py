@@ -60,7 +60,7 @@ def main() -> None:
             ("USD (`.usd`, crate)", ["--usd", "demo.usd"], {"usd": "demo.usd"}, None),
             ("USD (`.usda`, text)", ["--usd", "demo.usda"], {"usd": "demo.usda"}, None),
             ("HTML player (GLB + three.js inline)", ["--html", "demo.html"], {"html": "demo.html"}, None),
-            ("MP4 320x240, 15 fps (`--video`)", ["--video", "demo.mp4"], {}, None),
+            ("MP4 320x240, 15 fps (`--video`)", ["--video", "demo.mp4", "--size", "320x240", "--fps", "15"], {}, None),
             ("MP4 640x480, 30 fps", ["--video", "big.mp4", "--size", "640x480", "--fps", "30"], {}, None),
         ]
         rows = []
@@ -84,7 +84,8 @@ def main() -> None:
         f"(boebot.toml + square.commands.toml, {DURATION} simulated seconds, 2,000 frames, 4 moving bodies; "
         f"`simrun play --record` took {play_s:.2f} s, the `.simlog` is {simlog_bytes:,} bytes), each "
         f"`simrun replay` command timed end to end in a new process, best of {options.repeat}. "
-        f"Machine: {platform.machine()}, CPython {platform.python_version()}, MuJoCo {mujoco.__version__}.",
+        f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, CPython {platform.python_version()}, MuJoCo "
+        f"{mujoco.__version__}; load average {os.getloadavg()[1]:.1f} at the end (wall times grow with it).",
         "",
         "| output | bytes | `simrun replay` wall s | export only, s |",
         "|---|---|---|---|",
