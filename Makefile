@@ -6,6 +6,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+PEERS  := .bench-peers
 
 .PHONY: install demo test lint bench bench-hulls corpus fuzz clean mutants
 
@@ -43,19 +44,23 @@ test: $(STAMP) lint
 	bash scripts/install_gl.sh
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q
 
-bench: $(STAMP)
-	$(BIN)/python bench/parse.py ../shared/corpus
+bench: $(STAMP) $(PEERS)/.installed
+	$(BIN)/python bench/startup.py .
+	$(BIN)/python bench/parse.py ../shared/corpus --peer-python=$(PEERS)/bin/python
 	$(BIN)/python bench/load.py ../shared/corpus
 	$(BIN)/python bench/world.py ../shared/corpus
 	$(BIN)/python bench/drive.py .
 	$(BIN)/python bench/validate.py ../shared/corpus
 
-PEERS := .bench-peers
-$(PEERS)/bin/obj2mjcf:
+# The benchmarks' peers (obj2mjcf, the C++ tinyobjloader binding) live in their own environment inside the
+# checkout (ignored by git), never in the project's .venv.
+$(PEERS)/.installed:
+	@if [ -L $(PEERS) ]; then echo "$(PEERS) is a symlink (left by an old checkout): remove it"; exit 1; fi
 	$(PYTHON) -m venv $(PEERS)
-	$(PEERS)/bin/python -m pip install --quiet obj2mjcf
+	$(PEERS)/bin/python -m pip install --quiet obj2mjcf "tinyobjloader==2.0.0rc13"
+	touch $@
 
-bench-hulls: $(STAMP) $(PEERS)/bin/obj2mjcf
+bench-hulls: $(STAMP) $(PEERS)/.installed
 	$(BIN)/python bench/hulls.py ../shared/corpus --obj2mjcf=$(PEERS)/bin/obj2mjcf
 
 corpus: $(STAMP)

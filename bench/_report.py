@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import os
 import re
+import statistics
+import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 
 
@@ -27,6 +31,7 @@ def arguments(doc: str | None, repeat: int) -> argparse.Namespace:
     parser.add_argument("--repeat", type=int, default=repeat)
     parser.add_argument("--out", type=Path, default=Path("docs/benchmarks.md"))
     parser.add_argument("--obj2mjcf", default=None, help="path of the obj2mjcf executable (bench/hulls.py)")
+    parser.add_argument("--peer-python", default=None, help="Python of the peers' environment (bench/parse.py)")
     return parser.parse_args()
 
 
@@ -48,3 +53,98 @@ def best(fn: Callable[[], object], repeat: int) -> float:
         fn()
         times.append(time.perf_counter() - start)
     return min(times)
+
+
+# ------------------------------------------------------------------------------------ interleaved timing
+
+
+@dataclass
+class Timing:
+    """Wall-clock and CPU seconds of the repeated runs of one contender."""
+
+    wall: list[float] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
+
+    def add(self, wall: float, cpu: float) -> None:
+        self.wall.append(wall)
+        self.cpu.append(cpu)
+
+    @property
+    def wall_min(self) -> float:
+        return min(self.wall)
+
+    @property
+    def wall_median(self) -> float:
+        return statistics.median(self.wall)
+
+    @property
+    def cpu_min(self) -> float:
+        return min(self.cpu)
+
+    @property
+    def cpu_median(self) -> float:
+        return statistics.median(self.cpu)
+
+    def cells(self, unit: str = "ms") -> str:
+        """``wall min / median | CPU min / median`` in ``unit`` (``ms`` or ``s``)."""
+        f = 1000.0 if unit == "ms" else 1.0
+        digits = 3 if unit == "s" else (3 if self.wall_min * f < 1 else 2 if self.wall_min * f < 100 else 0)
+        return (
+            f"{self.wall_min * f:.{digits}f} / {self.wall_median * f:.{digits}f} | "
+            f"{self.cpu_min * f:.{digits}f} / {self.cpu_median * f:.{digits}f}"
+        )
+
+
+def timed(fn: Callable[[], object], inner: int | None = 1) -> Callable[[], tuple[float, float]]:
+    """A contender that times ``fn``: (wall, CPU of this process) seconds per call.
+
+    Args:
+        fn: The work.
+        inner: Calls per measurement (the time is divided by it); ``None`` picks enough calls for about
+            20 ms, so that sub-millisecond work is measured above the clocks' resolution.
+    """
+    if inner is None:
+        fn()  # warm-up, then calibrate
+        start = time.perf_counter()
+        fn()
+        inner = max(1, min(1000, int(0.02 / max(time.perf_counter() - start, 1e-7))))
+    calls = inner
+
+    def run() -> tuple[float, float]:
+        cpu, wall = time.process_time(), time.perf_counter()
+        for _ in range(calls):
+            fn()
+        return (time.perf_counter() - wall) / calls, (time.process_time() - cpu) / calls
+
+    return run
+
+
+def command(argv: list[str], env: dict[str, str] | None = None) -> Callable[[], tuple[float, float]]:
+    """A contender that runs a command: (wall, user + system CPU of that process and its children) seconds."""
+
+    def run() -> tuple[float, float]:
+        wall = time.perf_counter()
+        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        _, status, usage = os.wait4(proc.pid, 0)
+        elapsed = time.perf_counter() - wall
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode != 0:
+            raise RuntimeError(f"{' '.join(argv)} exited {proc.returncode}")
+        return elapsed, usage.ru_utime + usage.ru_stime
+
+    return run
+
+
+def interleave(contenders: dict[str, Callable[[], tuple[float, float]]], repeat: int) -> dict[str, Timing]:
+    """Run each contender once per round, ``repeat`` rounds, in turn (so load changes hit all alike)."""
+    results = {name: Timing() for name in contenders}
+    for _ in range(repeat):
+        for name, run in contenders.items():
+            results[name].add(*run())
+    return results
+
+
+def load_average() -> str:
+    """The machine's 1/5/15-minute load averages and CPU count, for the report."""
+    one, five, fifteen = os.getloadavg()
+    return f"load average {one:.2f} / {five:.2f} / {fifteen:.2f} on {os.cpu_count()} CPUs"
