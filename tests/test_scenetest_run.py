@@ -205,3 +205,45 @@ def test_html_has_a_thumbnail_per_failure(tmp_path: Path) -> None:
         pytest.skip("no headless OpenGL here")
     assert page.count("data:image/png;base64,") == 1  # one failed run, one picture
     assert "Passed runs (1)" in page
+
+
+CONTROLLER = """
+def step(world):
+    world.service("DriveService", "boebot").drive_speed(0.1, 0.1)
+"""
+
+
+def test_python_controller_run_is_recorded_and_resimulated(tmp_path: Path) -> None:
+    """A [test] controller module travels in the bundle; its failure re-simulates with --controller."""
+    scene = (SCENES / "boebot.toml").read_text(encoding="utf-8")
+    (tmp_path / "ctl.py").write_text(CONTROLLER, encoding="utf-8")
+    path = tmp_path / "drive.toml"
+    path.write_text(
+        scene + '\n[test]\nduration = 2.0\ncommands = "ctl.py"\n\n[[expect]]\nid = "stays"\nkind = "position"\n'
+        'body = "boebot"\npoint = [1.0, 1.0]\nwithin = 0.05\n',
+        encoding="utf-8",
+    )
+    record = tmp_path / "failed"
+    report = run_tests([path], TestOptions(record_dir=record))
+    (run,) = report.runs
+    assert run.result.status == "failed", run.result.error
+    (outcome,) = run.result.outcomes
+    assert outcome.miss is not None and 0.05 < outcome.miss + 0.05 < 0.25  # it drove away at about 0.1 m/s
+    assert run.resim is not None and "--controller" in run.resim
+    done = simrun(*run.resim.split()[1:], cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "bit-identical" in done.stdout
+
+
+def test_a_worker_that_dies_is_an_internal_error(tmp_path: Path) -> None:
+    """A run that kills its worker process (as a native crash would) is an error for that run, exit 3."""
+    scene = (SCENES / "boebot.toml").read_text(encoding="utf-8")
+    (tmp_path / "die.py").write_text("import os\n\ndef step(world):\n    os._exit(7)\n", encoding="utf-8")
+    path = tmp_path / "crash.toml"
+    path.write_text(scene + '\n[test]\nduration = 1.0\ncommands = "die.py"\n', encoding="utf-8")
+    out = tmp_path / "r.json"
+    done = simrun("test", str(path), "--seeds", "0:3", "-j", "2", "--format", "json", "-o", str(out))
+    assert done.returncode == 3, done.stderr
+    runs = json.loads(out.read_text(encoding="utf-8"))["runs"]
+    assert [r["status"] for r in runs] == ["error"] * 3
+    assert all(r["error"] == "internal error: the worker process running it died (exit code 7)" for r in runs)

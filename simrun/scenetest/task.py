@@ -18,11 +18,15 @@ import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
+from typing import TYPE_CHECKING
 
 from simrun.commands import Command
 from simrun.errors import SimrunError
 from simrun.expect import Expectation, Observer, Outcome
 from simrun.scenetest.bundle import Bundle, materialise
+
+if TYPE_CHECKING:
+    from simrun.world import World
 
 _folders: dict[str, Path] = {}  # bundle digest -> unpacked folder (per process)
 
@@ -164,16 +168,16 @@ def _run(task: RunTask, bundle: Bundle) -> RunResult:
         scene.unlink(missing_ok=True)
 
 
-def _thumbnail(world: object, size: tuple[int, int], result: RunResult) -> None:
+def _thumbnail(world: World, size: tuple[int, int], result: RunResult) -> None:
     """A PNG of the world's current state (the main camera, else a free camera framing the bodies)."""
     from PIL import Image
 
     from simrun.render import FrameRenderer
 
     try:
-        renderer = FrameRenderer(world.model, size[0], size[1], "visual", None, world.data)  # type: ignore[attr-defined]
+        renderer = FrameRenderer(world.model, size[0], size[1], "visual", None, world.data)
         buffer = io.BytesIO()
-        Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")  # type: ignore[attr-defined]
+        Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")
         result.thumbnail = buffer.getvalue()
     except SimrunError as exc:
         result.notes.append(f"no thumbnail: {exc}")
