@@ -49,6 +49,7 @@ bench: $(STAMP) $(PEERS)/.installed
 	$(BIN)/python bench/parse.py ../shared/corpus --peer-python=$(PEERS)/bin/python
 	$(BIN)/python bench/load.py ../shared/corpus
 	$(BIN)/python bench/world.py ../shared/corpus
+	$(BIN)/python bench/decompose_fixed.py .
 	$(BIN)/python bench/drive.py .
 	$(BIN)/python bench/validate.py ../shared/corpus
 
