@@ -136,7 +136,7 @@ def import_mujoco(environ: MutableMapping[str, str] = os.environ) -> ModuleType:
     global _CHOICE
     if "mujoco" in sys.modules:  # imported before simrun: MuJoCo already decided
         if _CHOICE is None:
-            _CHOICE = choose(environ)
+            _CHOICE = _as_imported(environ)
         return sys.modules["mujoco"]
     choice = choose(environ)
     _CHOICE = choice
@@ -151,6 +151,23 @@ def import_mujoco(environ: MutableMapping[str, str] = os.environ) -> ModuleType:
         finally:
             environ["MUJOCO_GL"] = user
     return importlib.import_module("mujoco")
+
+
+def _as_imported(environ: Mapping[str, str]) -> GLChoice:
+    """The choice when ``mujoco`` was imported before simrun: what MuJoCo read then, judged as :func:`choose` would."""
+    module = sys.modules.get("mujoco.rendering.classic.gl_context")
+    read = getattr(module, "_MUJOCO_GL", None)
+    if read is None:  # unknown MuJoCo layout: judge the environment as it is now
+        return choose(environ)
+    choice = choose({**environ, "MUJOCO_GL": read} if read else {k: v for k, v in environ.items() if k != "MUJOCO_GL"})
+    if not read and choice.backend in HEADLESS:  # MuJoCo took its default (GLFW) before simrun could choose
+        return GLChoice(
+            "glfw",
+            "mujoco was imported before simrun, without MUJOCO_GL",
+            "mujoco was imported before simrun without MUJOCO_GL and there is no display: import simrun first, "
+            f"or set MUJOCO_GL={choice.backend}",
+        )
+    return choice
 
 
 def gl_choice() -> GLChoice:

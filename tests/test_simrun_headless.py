@@ -157,3 +157,25 @@ def test_every_render_path_here_draws_the_same_scene(backend, tmp_path):
     assert first.std() > 5
     for other in images.values():
         assert np.abs(other - first).mean() < 8.0  # the same scene, the same camera, light and size
+
+
+def test_mujoco_imported_before_simrun_is_judged_by_what_it_read():
+    """MuJoCo decides at its own import: imported first without MUJOCO_GL (headless), it took GLFW; say so."""
+    code = (
+        "import mujoco, simrun\n"
+        "from simrun.errors import SimrunError\n"
+        "from simrun.render import open_renderer\n"
+        "try:\n"
+        "    open_renderer(mujoco.MjModel.from_xml_string('<mujoco/>'), 8, 8).close()\n"
+        "    print('rendered')\n"
+        "except SimrunError as exc:\n"
+        "    print(exc)\n"
+    )
+    for value, expected in ((None, "import simrun first"), ("egl", "rendered")):
+        if value == "egl" and not HERE["egl"]:
+            continue
+        result = subprocess.run(
+            [sys.executable, "-c", code], env=_env(value), capture_output=True, text=True, timeout=300, check=False
+        )
+        assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
+        assert expected in result.stdout, result.stdout
