@@ -2,7 +2,7 @@
 
 The stage is :mod:`simrun.usd_export`'s, physics schemas and all.
 
-Each body prim's ``xformOp:translate`` (double3, metres) and ``xformOp:orient`` (quatf, w x y z) get one
+Each body prim's ``xformOp:translate`` (double3, metres) and ``xformOp:orient`` (quatd, w x y z) get one
 time sample per keyframe (:func:`simrun.replay_tracks.animation_keys`); the stage's
 ``timeCodesPerSecond`` and ``framesPerSecond`` are the recording's frame rate (1 / frame period), so time
 code ``c`` is ``c / timeCodesPerSecond`` seconds of the recording, and ``startTimeCode``/``endTimeCode``
@@ -71,6 +71,6 @@ def export_recording_usd(world: World, tracks: Tracks, keys: dict[int, I64], out
             for k in frames.tolist():
                 code = time_code(float(tracks.times[k]), rate)
                 translate.Set(Gf.Vec3d(*(float(v) for v in tracks.positions[k, b])), code)
-                orient.Set(Gf.Quatf(*(float(v) for v in tracks.quats[k, b])), code)
+                orient.Set(Gf.Quatd(*(float(v) for v in tracks.quats[k, b])), code)
 
     export_world_usd(world, out, decorate)

@@ -120,9 +120,16 @@ def _joints(model: mujoco.MjModel, body: int) -> range:
 
 
 def _place(xform: Any, pos: Any, quat: Any, Gf: Any) -> None:
+    """Translate (double3) and orient (quatd) ops.
+
+    The orientation is double precision: a float quaternion near the identity turns into a rotation off by
+    up to 1e-5 rad when USD composes the transform.
+    """
+    from pxr import UsdGeom
+
     xform.AddTranslateOp().Set(Gf.Vec3d(*(float(v) for v in pos)))
     w, x, y, z = (float(v) for v in quat)
-    xform.AddOrientOp().Set(Gf.Quatf(w, x, y, z))
+    xform.AddOrientOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Quatd(w, x, y, z))
 
 
 class _Names:
