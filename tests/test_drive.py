@@ -504,6 +504,10 @@ def test_robot_with_a_visual_mesh_keeps_its_mass_and_drives():
     world.run(0.3)
     drive.drive_distance(0.3, power=0.5)
     assert world.run_until(lambda: not drive.busy, timeout=20)
+    named = World(base_dir=SCENES)
+    named.assets["head"] = "head.mbin"  # a scene's [assets] name
+    named.insert(BoeBot(name="bot", visual_mesh="head"))
+    assert named.model.geom("bot/visual0").type[0] == mujoco.mjtGeom.mjGEOM_MESH
 
 
 def test_default_caster_sits_at_the_chassis_end_away_from_the_axle():
@@ -863,4 +867,8 @@ def test_wheels_and_tyres_are_as_documented():
         drawn = model.geom(f"b/{side}_wheel_visual")
         assert drawn.type[0] == mujoco.mjtGeom.mjGEOM_CYLINDER and (drawn.contype[0], drawn.conaffinity[0]) == (0, 0)
         np.testing.assert_allclose(drawn.size[:2], [0.025, 0.005])
+        np.testing.assert_allclose(drawn.quat, [math.cos(math.pi / 4), math.sin(math.pi / 4), 0, 0])  # axis along Y
+        assert drawn.group[0] == 2  # drawn by default (groups 0-2), the ellipsoid in group 3 is not
+        np.testing.assert_allclose(drawn.rgba, [0.1, 0.1, 0.1, 1.0])
         assert model.body_mass[model.body(f"b/{side}_wheel").id] == pytest.approx(0.01)  # the drawn one is massless
+    np.testing.assert_allclose(model.geom("b/chassis").rgba, BoeBot(name="x").color)
