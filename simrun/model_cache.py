@@ -51,7 +51,7 @@ CACHEABLE = frozenset(
     }
 )
 #: Source files whose content shapes a compiled model (their sizes and times are part of the key).
-_CODE_ROOTS = ("simrun", "meshtool/packfile")
+_CODE_ROOTS = ("simrun", "meshtool", "meshtool/packfile")
 
 
 def default() -> ModelCache | None:

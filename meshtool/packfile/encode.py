@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from fractions import Fraction
@@ -123,6 +124,7 @@ def _grid_bounds(lo: float, hi: float) -> tuple[float, float]:
     return lo, hi
 
 
+@functools.lru_cache(maxsize=256)
 def exact_grid(lo: float, hi: float) -> bool:
     """Whether ``float32(lo + q * ((hi - lo) / 65535))`` (float64) equals float32 ``q * step + lo`` for every q.
 
@@ -133,8 +135,9 @@ def exact_grid(lo: float, hi: float) -> bool:
     if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo:
         return False
     step = (hi - lo) / U16_MAX
-    if float(np.float32(step)) != step or float(np.float32(lo)) != lo:
-        return False
+    with np.errstate(over="ignore"):  # beyond float32's range: not a float32 number, so no exact grid
+        if float(np.float32(step)) != step or float(np.float32(lo)) != lo:
+            return False
     fs, fl = Fraction(step), Fraction(lo)
     scale = max(fs.denominator, fl.denominator)
     s, m = int(fs * scale), int(fl * scale)
