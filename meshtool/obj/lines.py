@@ -27,6 +27,7 @@ _COMMENT = re.compile(r"(?:^|\s)#")
 _MSVC_SPECIAL = re.compile(r"^[+-]?1\.#(INF|IND|QNAN|SNAN)\d*$", re.IGNORECASE)
 # Bytes that never occur in a text OBJ (tab, LF, VT, FF are allowed; CR was converted by the decoder).
 _CONTROL = re.compile(rb"[\x00-\x08\x0e-\x1f]")
+_NOT_CONTROL = bytes(b for b in range(256) if not (b < 9 or 13 < b < 32))
 
 
 @dataclass(slots=True)
@@ -53,8 +54,7 @@ def reject_control_bytes(raw: bytes, path: str) -> None:
     Raises:
         ObjParseError: At the first control byte.
     """
-    a = np.frombuffer(raw, dtype=np.uint8)
-    if not ((a < 9).any() or ((a > 13) & (a < 32)).any()):
+    if not raw.translate(None, _NOT_CONTROL):  # keeps only control bytes: one C pass, nothing allocated
         return
     match = _CONTROL.search(raw)
     if match is None:  # unreachable: the same bytes as the comparisons
@@ -77,11 +77,14 @@ def classify(raw: bytes) -> Lines:
     if ends.size:
         starts[0] = 0
         starts[1:] = ends[:-1] + 1
-    padded = np.concatenate([buf, np.zeros(3, dtype=np.uint8)])
-    c0 = padded[starts]
+    # every line ends with its newline, so a line's second and third bytes exist or are past the end of
+    # the text; clipping to the last byte (a newline) reads them as newline (no padded copy of the text)
+    last = max(buf.size - 1, 0)
+    c0 = buf[starts] if buf.size else np.zeros(0, dtype=np.uint8)
     if np.isin(c0, (32, 9, 11, 12)).any():  # indented statements: strip the indentation, keep line numbers
         return classify(_LEADING_WS.sub(b"", raw))
-    c1, c2 = padded[starts + 1], padded[starts + 2]
+    c1 = buf[np.minimum(starts + 1, last)] if buf.size else c0
+    c2 = buf[np.minimum(starts + 2, last)] if buf.size else c0
 
     def space(c: npt.NDArray[np.uint8]) -> BoolArray:
         result: BoolArray = (c == 32) | (c == 9) | (c == 10) | (c == 11) | (c == 12)
