@@ -11,6 +11,8 @@ import contextlib
 import itertools
 import json
 import mmap
+import re
+import struct
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -152,13 +154,12 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
     size = len(view)
     if size < fmt.HEADER_SIZE:
         raise PackFormatError(f"truncated: {size} bytes, the header alone is 64", path=name, offset=size)
-    header = np.frombuffer(view, dtype=fmt.HEADER, count=1)[0]
-    if bytes(view[:8]) != fmt.MAGIC:
+    magic, major, minor, flags, count, table_offset, stated, table_crc = _HEADER.unpack_from(view, 0)
+    if magic != fmt.MAGIC:
         hint = (
             "damaged by a text-mode transfer (line endings changed)" if bytes(view[:1]) == b"\x89" else "not an .mbin"
         )
         raise PackFormatError(f"bad magic number: {hint}", path=name, offset=0)
-    major, minor = int(header["major"]), int(header["minor"])
     if major != fmt.MAJOR:
         raise PackFormatError(
             f"unsupported format version {major}.{minor}: this reader reads {fmt.MAJOR}.x",
@@ -167,32 +168,25 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
             hint="upgrade meshtool or re-pack the asset",
             code="pack-version",
         )
-    stated = int(header["file_length"])
     if stated != size:
         raise PackFormatError(
             f"truncated or padded: header says {stated} bytes, the file has {size}", path=name, offset=24
         )
-    count = int(header["section_count"])
-    table_offset = int(header["table_offset"])
     table_end = table_offset + count * fmt.ENTRY_SIZE
     if table_offset != fmt.HEADER_SIZE or count == 0 or table_end > size:
         raise PackFormatError(
             f"section table ({count} entries at {table_offset}) does not fit the file", path=name, offset=16
         )
-    table = np.frombuffer(view, dtype=fmt.ENTRY, count=count, offset=table_offset)
-    crc = fmt.checksum(bytes(view[:32]) + bytes(view[table_offset:table_end]), minor)
-    if crc != int(header["table_crc"]):
+    table = bytes(view[table_offset:table_end])
+    crc = fmt.checksum(bytes(view[:32]) + table, minor)
+    if crc != table_crc:
         raise PackFormatError("header or section table checksum mismatch", path=name, offset=32)
     if any(bytes(view[36:64])):
         raise PackFormatError("reserved header bytes are not zero", path=name, offset=36)
-    flags = int(header["flags"])
     if flags & ~fmt.FLAG_QUANTIZED:
         raise PackFormatError(f"unknown header flags {flags:#x}", path=name, offset=12)
 
-    fields = fmt.ENTRY_FIELDS
-    columns = {f: table[f].tolist() for f in fields}
-    rows = [{f: columns[f][k] for f in fields} for k in range(count)]
-    sections = [_entry(e, k, name, size, table_end, table_offset) for k, e in enumerate(rows)]
+    sections = [_entry(e, k, name, size, table_end, table_offset) for k, e in enumerate(_ENTRY.iter_unpack(table))]
     _check_layout(sections, name)
     if verify:
         for s in sections:
@@ -202,21 +196,25 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
     return _build(view, sections, name, verify, bool(flags & fmt.FLAG_QUANTIZED), (major, minor), keep)
 
 
-def _entry(e: dict[str, Any], k: int, name: str, size: int, table_end: int, table_offset: int) -> Section:
+#: Header fields before ``reserved`` and one table entry, as the layouts of docs/mbin-spec.md sections 2 and 3.
+_HEADER = struct.Struct("<8sHHIIIQI")
+_ENTRY = struct.Struct("<4sBBH2QQQII16s")
+assert _HEADER.size == 36 and _ENTRY.size == fmt.ENTRY_SIZE
+_DTYPE_NAMES = {code: name for name, code in fmt.CODES.items()}
+
+
+def _entry(e: tuple[Any, ...], k: int, name: str, size: int, table_end: int, table_offset: int) -> Section:
+    kind_raw, code, ndim, index, rows, cols, offset, length, crc, encoding, reserved = e
     at = table_offset + k * fmt.ENTRY_SIZE
-    kind_bytes = bytes(e["kind"]).ljust(4)
+    kind_bytes = kind_raw.rstrip(b"\0").ljust(4)  # a numpy "S4" field's reading: trailing NULs dropped
     try:
         kind = kind_bytes.decode("ascii")
     except UnicodeDecodeError:
         raise PackFormatError(f"section {k} has a non-ASCII kind", path=name, offset=at) from None
-    code, ndim = int(e["dtype"]), int(e["ndim"])
     if code not in fmt.DTYPES or ndim not in (1, 2):
         raise PackFormatError(f"section {kind!r} has dtype code {code}, ndim {ndim}", path=name, offset=at + 4)
-    rows, cols = (int(x) for x in e["shape"])
-    offset, length = int(e["offset"]), int(e["length"])
     itemsize = fmt.DTYPES[code].itemsize
     elements = rows * (cols if ndim == 2 else 1)
-    encoding = int(e["encoding"])
     if encoding == fmt.ENC_DEFLATE:
         expected_ok = elements * itemsize <= fmt.MAX_INFLATE_RATIO * length + 1024
     else:
@@ -229,11 +227,10 @@ def _entry(e: dict[str, Any], k: int, name: str, size: int, table_end: int, tabl
         raise PackFormatError(
             f"section {kind!r}: {length} bytes at {offset} are outside the data area", path=name, offset=at + 24
         )
-    if any(bytes(e["reserved"])):
+    if any(reserved):
         raise PackFormatError(f"section {kind!r}: reserved bytes are not zero", path=name, offset=at + 48)
-    dtype = next(n for n, c in fmt.CODES.items() if c == code)
     shape = (rows, cols) if ndim == 2 else (rows,)
-    return Section(kind, dtype, shape, offset, length, int(e["crc"]), encoding, int(e["index"]))
+    return Section(kind, _DTYPE_NAMES[code], shape, offset, length, crc, encoding, index)
 
 
 def _check_layout(sections: list[Section], name: str) -> None:
@@ -403,10 +400,18 @@ def _inflate(view: memoryview, s: Section, name: str) -> bytes:
     return data
 
 
+#: A JSON number that may not fit a float: an exponent of 3 or more digits, or 300 digits in a row.
+_OVERFLOW_LITERAL = re.compile(r"[eE][+-]?\d{3}|\d{300}")
+
+
 def _json(view: memoryview, s: Section, name: str, kind: type) -> Any:
     data = _inflate(view, s, name) if s.encoding == fmt.ENC_DEFLATE else bytes(view[s.offset : s.offset + s.length])
     try:
-        value = json.loads(data.decode("utf-8"), parse_constant=check.reject_constant, parse_float=check.finite_float)
+        text = data.decode("utf-8")
+        # A float literal can overflow to infinity only with a 3-digit exponent or 300 digits; without such a
+        # literal the C parser's own floats are all finite, so the per-number hook is needed only then.
+        hook = check.finite_float if _OVERFLOW_LITERAL.search(text) else None
+        value = json.loads(text, parse_constant=check.reject_constant, parse_float=hook)
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise PackFormatError(f"section {s.kind!r} is not UTF-8 JSON ({exc})", path=name, offset=s.offset) from None
     if not isinstance(value, kind):
