@@ -13,7 +13,7 @@ import pytest
 
 from simrun import Box, EntityError, Ground, Pose, World, load_scene
 from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
-from simrun.drive_service import DriveLimits, DriveService
+from simrun.drive_service import DriveLimits, DriveService, Odometry
 from simrun.sensors import GPS, IMU, Bumper, Encoders, LaserRangeFinder
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
@@ -872,3 +872,117 @@ def test_wheels_and_tyres_are_as_documented():
         np.testing.assert_allclose(drawn.rgba, [0.1, 0.1, 0.1, 1.0])
         assert model.body_mass[model.body(f"b/{side}_wheel").id] == pytest.approx(0.01)  # the drawn one is massless
     np.testing.assert_allclose(model.geom("b/chassis").rgba, BoeBot(name="x").color)
+
+
+def test_service_settings_are_checked():
+    world, _, _ = make(BoeBot)
+    for bad in ({"radius_scale": math.nan}, {"separation_scale": 0.0}, {"rate": -50.0}):
+        with pytest.raises(EntityError, match=r"drive service: .* must be a positive finite number"):
+            DriveService(world, "r", **bad)
+    for bad in ({"gain": math.inf}, {"integral_gain": math.nan}):
+        with pytest.raises(EntityError, match=r"drive service: .* must be a finite number"):
+            DriveService(world, "r", **bad)
+    with pytest.raises(EntityError, match="cmd_vel: linear must be a finite number"):
+        DriveService(world, "r").cmd_vel(math.nan, 0.0)
+    fresh = DriveService(world, "r")
+    assert fresh.odometry() == Odometry(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_speed_loop_poles_are_where_the_design_puts_them(robot):
+    """The closed loop of the sampled first-order motor with feed-forward + PI, solved independently."""
+    _, drive, entity = make(robot, settle=0.0)
+    design = drive.speed_loop()
+    h, w0 = drive.period, entity.wheel_speed_limit
+    a = math.exp(-h / design["time_constant"])
+    g = (1 - a) * w0
+    kp, ki = design["gain"], design["integral_gain"]
+    # e[k+1] = a e[k] - g (kp e[k] + ki h S[k]),  S[k] = S[k-1] + e[k]
+    poles = np.roots([1.0, -(1 + a - g * kp - g * ki * h), a - g * kp])
+    assert np.all(np.abs(poles.imag) < 1e-6)  # no oscillation
+    assert np.abs(poles).max() == pytest.approx(0.8, abs=1e-6)  # the slowest at the design's pole
+    assert design["time_constant"] == pytest.approx(design["inertia"] * w0 / entity.stall_torque)
+
+
+def test_speed_loop_inertia_is_the_robots_share_per_wheel():
+    world, drive, _ = make(custom, settle=0.0)
+    model = world.model
+    wheel = model.body("r/left_wheel").id
+    mass = model.body_subtreemass[model.body("r").id]
+    share = mass * 0.05**2 / 2  # going straight each wheel drives half the robot (its yaw share is smaller here)
+    assert drive.speed_loop()["inertia"] == pytest.approx(share + model.body_inertia[wheel][1], rel=0.02)
+
+
+def test_integrals_do_not_wind_up_while_saturated():
+    for direction in (1.0, -1.0):
+        world, drive, _ = make(Pioneer3DX)
+        drive.drive_speed(2.0 * direction, 2.0 * direction)  # beyond the 1.2 m/s motors: saturated
+        world.run(3.0)
+        drive.drive_speed(0.0, 0.0)
+        world.run(4.5)  # 1.2 m/s at 0.3 m/s^2: 4 s to stop
+        before = world.body("r").xpos.copy()
+        world.run(0.2)
+        assert np.linalg.norm(world.body("r").xpos - before) < 0.002, direction
+
+
+def test_a_finished_distance_stays_stopped_and_stop_overrides_cmd_vel():
+    world, drive, _ = make(IRobotCreate)
+    drive.limits = DriveLimits(command_timeout=100.0)
+    drive.cmd_vel(0.2, 0.0)
+    world.run(0.5)
+    drive.drive_distance(0.2)
+    assert world.run_until(lambda: not drive.busy, timeout=10)
+    before = world.body("r").xpos.copy()
+    world.run(1.0)
+    assert np.linalg.norm(world.body("r").xpos - before) < 0.001  # the old cmd_vel does not come back
+    drive.cmd_vel(0.2, 0.0)
+    world.run(0.5)
+    drive.all_stop()
+    world.run(1.5)
+    before = world.body("r").xpos.copy()
+    world.run(1.0)
+    assert np.linalg.norm(world.body("r").xpos - before) < 0.001
+    drive.cmd_vel(0.2, 0.0)
+    world.run(0.5)
+    drive.enable(False)
+    drive.enable(True)  # re-enabled: idle until the next command
+    world.run(1.0)
+    before = world.body("r").xpos.copy()
+    world.run(0.3)
+    assert np.linalg.norm(world.body("r").xpos - before) < 0.001
+
+
+def test_odometry_restarts_cleanly_after_reset_encoders_and_world_reset():
+    world, drive, _ = make(LegoNxtTribot)
+    drive.drive_speed(0.2, 0.1)  # an arc: the wheels turn by different angles
+    world.run(1.0)
+    drive.all_stop()
+    world.run(1.0)
+    drive.reset_encoders()
+    assert drive.odometry() == Odometry(world.time, 0.0, 0.0, 0.0, 0.0, 0.0)
+    start, start_heading = world.body("r").xpos.copy(), heading(world, "r")
+    drive.drive_distance(0.3)
+    assert world.run_until(lambda: not drive.busy, timeout=10)
+    world.run(0.2)
+    odometry = drive.odometry()
+    moved = world.body("r").xpos - start
+    assert math.hypot(moved[0], moved[1]) == pytest.approx(0.3, abs=0.01)
+    assert math.hypot(odometry.x, odometry.y) == pytest.approx(0.3, abs=0.01)
+    assert math.degrees(odometry.theta) == pytest.approx(heading(world, "r") - start_heading, abs=0.5)
+    world.reset()
+    assert drive.odometry() == Odometry(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def test_service_follows_its_robot_when_the_world_is_rebuilt():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(Box(name="crate", dimensions=(0.2, 0.2, 0.2), free=True, pose=Pose((3, 0, 0.1))))
+    world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001))))
+    drive = DriveService(world, "bot")
+    world.run(0.3)
+    world.remove("crate")  # the robot's joints and motors get new ids in the new model
+    world.run(0.3)
+    start = world.body("bot").xpos.copy()
+    drive.drive_distance(0.2, power=1.0)
+    assert world.run_until(lambda: not drive.busy, timeout=10)
+    assert world.body("bot").xpos[0] - start[0] == pytest.approx(0.2, abs=0.01)
