@@ -450,3 +450,60 @@ def test_scene_segment_errors_name_the_key(tmp_path, table, message):
     with pytest.raises(SceneError, match="expected an array of segment tables"):
         path.write_text("[[entities]]\ntype = 'ArticulatedArm'\nname = 'arm'\nsegments = 3\n")
         load_scene(path)
+
+
+def test_settling_time_follows_the_damping_ratio():
+    world = World()
+    segments = tuple(
+        Segment(f"s{k}", 0.1, joint=ArmJoint(axis=(0, 1, 0), kp=30.0, damping=0.0, damping_ratio=zeta))
+        for k, zeta in enumerate((0.5, 1.0, 2.0))
+    )
+    world.insert(ArticulatedArm(name="a", segments=segments))
+    design = ArmService(world, "a").servo_design()
+    under, critical, over = (design[f"a/s{k}"] for k in range(3))
+    assert under["settling_time"] == pytest.approx(4.0 / (0.5 * under["natural_frequency"]))
+    assert critical["settling_time"] == pytest.approx(5.83 / critical["natural_frequency"])
+    slow = over["natural_frequency"] * (2.0 - math.sqrt(3.0))
+    assert over["settling_time"] == pytest.approx(4.0 / slow)
+
+
+def test_arm_base_links_and_gripper_coupling_in_the_model():
+    world = World()
+    world.insert(LynxL6(name="lynx", color=(0.2, 0.3, 0.4, 1.0)))
+    model = world.model
+    base = model.geom("lynx/base")
+    np.testing.assert_allclose(base.pos, [0.0, 0.0, 0.015])  # a 0.03 m cylinder standing on the origin
+    np.testing.assert_allclose(model.geom("lynx/elbow/geom").rgba, [0.2, 0.3, 0.4, 1.0])
+    coupling = model.equality("lynx/finger_right/mimic")
+    np.testing.assert_allclose(coupling.solref, [0.005, 1.0])
+    np.testing.assert_allclose(coupling.solimp, [0.99, 0.999, 0.001, 0.5, 2.0])
+    assert coupling.data[1] == 1.0  # mirrored one to one
+    bad = World()
+    bad.insert(LynxL6(name="x", base_mass=0.0))
+    with pytest.raises(EntityError, match="base_mass must be a positive number"):
+        bad.compile()
+
+
+def test_a_restored_move_continues_from_where_it_started():
+    world = World()
+    world.insert(KukaLBR3(name="k"))
+    arm = ArmService(world, "k")
+    arm.move_to([0.6, 0, 0, 0, 0, 0, 0], 2.0)
+    world.run(0.5)
+    state = arm.snapshot()
+    arm.restore(state)
+    world.run(0.5)  # a quarter of the way further: the cosine profile at half time
+    target = world.data.ctrl[world.model.actuator("k/link1").id]
+    assert target == pytest.approx(0.3, abs=0.02)
+
+
+def test_scene_segment_offset_reaches_the_model(tmp_path):
+    from simrun import load_scene
+
+    path = tmp_path / "arm.toml"
+    path.write_text(
+        "[[entities]]\ntype = 'ArticulatedArm'\nname = 'arm'\n\n[[entities.segments]]\nname = 'a'\nlength = 0.1\n"
+        "offset = [0.02, 0.0, 0.01]\n"
+    )
+    world = load_scene(path)
+    np.testing.assert_allclose(world.model.body("arm/a").pos, [0.02, 0.0, 0.05 + 0.01])
