@@ -18,6 +18,7 @@ from meshtool.findings import Finding, info
 _CONTINUATION = re.compile(r"\\\n")
 # Control characters that never occur in a text OBJ/MTL (tab, LF, CR, FF, VT are allowed).
 _BINARY_BYTES = bytes(b for b in range(32) if b not in (9, 10, 11, 12, 13))
+_TEXT_BYTES = bytes(b for b in range(256) if b not in _BINARY_BYTES)
 _BINARY_HEAD = 1 << 16  # a bad byte this early means a binary file (reported by byte offset)
 
 
@@ -62,7 +63,8 @@ def decode_text(data: bytes, path: str, error: type[MeshtoolError]) -> DecodedTe
         MeshtoolError: (of class ``error``) when the data contains NUL or other binary control bytes.
     """
     findings: list[Finding] = []
-    if data.isascii() and b"\r" not in data and b"\\\n" not in data:  # the common case: nothing to change
+    # the common case, nothing to change (a one-byte search for the backslash first: memchr speed)
+    if data.isascii() and b"\r" not in data and (b"\\" not in data or b"\\\n" not in data):
         _reject_binary(data, path, error)
         if data and not data.endswith(b"\n"):
             data += b"\n"
@@ -120,6 +122,8 @@ def _reject_binary(data: bytes, path: str, error: type[MeshtoolError]) -> None:
     A bad byte in the first 64 KiB (a binary file) is located by byte offset; one further in (a text file
     with a stray NUL) by line, with the offset in the message.
     """
+    if not data.translate(None, _TEXT_BYTES):  # keeps only the binary bytes: one C pass, nothing allocated
+        return
     bad = [at for at in (data.find(bytes([b])) for b in _BINARY_BYTES) if at >= 0]
     if not bad:
         return
