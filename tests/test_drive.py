@@ -986,3 +986,59 @@ def test_service_follows_its_robot_when_the_world_is_rebuilt():
     drive.drive_distance(0.2, power=1.0)
     assert world.run_until(lambda: not drive.busy, timeout=10)
     assert world.body("bot").xpos[0] - start[0] == pytest.approx(0.2, abs=0.01)
+
+
+def test_bumper_ignores_its_own_mounted_arm():
+    from simrun.arm import ArmService, LynxL6
+
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(Pioneer3DX(name="base", pose=Pose((0, 0, 0.001))))
+    world.insert(LynxL6(name="arm", parent="base", pose=Pose((0.1, 0, 0.237))))
+    bumper = Bumper(world, "base")
+    ArmService(world, "base/arm").set_joint_targets([0, -1.5, -1.2, 0, 0, 0])  # fold back onto the chassis
+    world.run(3.0)
+    model, data = world.model, world.data
+    pairs = {tuple(sorted((model.geom(c.geom1).name, model.geom(c.geom2).name))) for c in data.contact[: data.ncon]}
+    assert ("base/arm/finger_left/geom", "base/chassis") in pairs  # the gripper does rest on the chassis
+    assert not bumper.reading.pressed and bumper.reading.touching == ()
+
+
+def test_ray_exclusion_modes_and_continuation_past_the_robot():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(Box(name="wall", dimensions=(0.1, 4.0, 1.0), pose=Pose((1.05, 0, 0.5))))
+    world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001))))
+    # 3 cm up, looking back through the robot's own chassis, caster and wheels, and ahead at the wall
+    robot = LaserRangeFinder(world, "bot", height=0.03, fov_deg=360, rays=8, max_range=3.0)
+    none = LaserRangeFinder(world, "bot", height=0.03, fov_deg=360, rays=8, max_range=3.0, exclude="none")
+    world.run(0.1)
+    ahead = int(np.argmin(np.abs(robot.angles)))
+    x = world.body("bot").xpos[0]
+    assert robot.reading.ranges[ahead] == pytest.approx(1.0 - x, abs=2e-3)
+    assert none.reading.ranges[ahead] == pytest.approx(0.045, abs=1e-3)  # from inside: its own chassis' front face
+    left = int(np.argmin(np.abs(robot.angles - np.pi / 2)))
+    assert robot.reading.ranges[left] == 3.0  # past its own wheel: nothing
+    assert none.reading.ranges[left] < 0.06
+    clean = LaserRangeFinder(world, "bot", height=0.3, fov_deg=60, rays=5, max_range=3.0)
+    noisy = LaserRangeFinder(world, "bot", height=0.3, fov_deg=60, rays=5, max_range=3.0, noise=0.01)
+    world.step(1)
+    offsets = noisy.reading.ranges - clean.reading.ranges
+    assert len(set(np.round(offsets, 9))) == 5 and np.abs(offsets).max() < 0.05  # each ray its own draw
+
+
+def test_laser_defaults_and_default_noise_seed():
+    world, _ = boebot_world()
+    laser = LaserRangeFinder(world, "bot")
+    np.testing.assert_allclose(np.degrees(laser.angles), np.arange(-90, 91))  # 181 rays over 180 degrees
+    assert (laser.height, laser.max_range, laser.rate, laser.seed) == (0.3, 8.0, 10.0, 0)
+    single = LaserRangeFinder(world, "bot", rays=1)
+    assert list(single.angles) == [0.0] or single.angles.shape == (1,)
+    a, b = GPS(world, "bot", noise=0.1), GPS(world, "bot", noise=0.1, seed=0)
+    c, d = Encoders(world, "bot", noise=0.1), Encoders(world, "bot", noise=0.1, seed=0)
+    e, f = (LaserRangeFinder(world, "bot", noise=0.1, rays=5, seed=s) for s in (0, 0))
+    g = LaserRangeFinder(world, "bot", noise=0.1, rays=5)
+    world.step(1)
+    assert a.reading.position == b.reading.position and c.reading.angles == d.reading.angles
+    np.testing.assert_array_equal(e.reading.ranges, g.reading.ranges)
+    del f
