@@ -53,3 +53,40 @@ def test_name_starting_with_a_digit_exports_and_validates(tmp_path):
     assert [e.GetMessage() for e in found if e.GetType() == UsdValidation.ValidationErrorType.Error] == []
     (reader,) = [p for p in stage.Traverse() if p.GetName() == "stReader"]
     assert reader.GetAttribute("inputs:varname").GetTypeName() == Sdf.ValueTypeNames.String
+
+
+def _two_clashing_materials(tmp_path: Path) -> Path:
+    """An .mbin with materials ``a-b`` (red) and ``a_b`` (green): one sanitised prim name for both."""
+    from meshtool.cli import obj2bin
+
+    tetra = ["v 0 0 0", "v 1 0 0", "v 0 1 0", "v 0 0 1", "v 2 0 0", "v 3 0 0", "v 2 1 0", "v 2 0 1"]
+    faces = ["f {} {} {}", "f {} {} {}", "f {} {} {}", "f {} {} {}"]
+    corners = [(1, 2, 3), (1, 2, 4), (1, 3, 4), (2, 3, 4)]
+    lines = ["mtllib m.mtl", *tetra, "usemtl a-b"]
+    lines += [f.format(*c) for f, c in zip(faces, corners, strict=True)]
+    lines += ["usemtl a_b"] + [f.format(*(i + 4 for i in c)) for f, c in zip(faces, corners, strict=True)]
+    (tmp_path / "m.obj").write_text("\n".join(lines) + "\n")
+    (tmp_path / "m.mtl").write_text("newmtl a-b\nKd 1 0 0\nnewmtl a_b\nKd 0 1 0\n")
+    out = tmp_path / "m.mbin"
+    result = CliRunner().invoke(obj2bin, [str(tmp_path / "m.obj"), "-o", str(out), "--no-check"])
+    assert result.exit_code == 0, result.output
+    return out
+
+
+def test_materials_whose_names_sanitise_alike_stay_distinct_and_bound_right(tmp_path):
+    source = _two_clashing_materials(tmp_path)
+    out = tmp_path / "m.usda"
+    result = CliRunner().invoke(main, ["export", str(source), "--usd", str(out)])
+    assert result.exit_code == 0, result.output
+    stage = Usd.Stage.Open(str(out))
+    materials = sorted(str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdShade.Material))
+    assert materials == ["/m/Materials/a_b", "/m/Materials/a_b_2"]
+    # the colour each part shows is its own material's Kd (the MTL's numbers), read through the binding
+    colours = {}
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Mesh) and "/Geom/" in str(prim.GetPath()):
+            material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+            shader = UsdShade.Shader(stage.GetPrimAtPath(material.GetPath().AppendChild("PreviewSurface")))
+            x = min(p[0] for p in UsdGeom.Mesh(prim).GetPointsAttr().Get())
+            colours[x] = tuple(shader.GetInput("diffuseColor").Get())
+    assert colours == {0.0: (1.0, 0.0, 0.0), 2.0: (0.0, 1.0, 0.0)}

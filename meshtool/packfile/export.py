@@ -127,7 +127,8 @@ def to_glb(packed: PackedMesh) -> bytes:
     positions = np.asarray(packed.positions, dtype=np.float64)
     indices = np.asarray(packed.indices, dtype=np.int64)
     images: dict[int, Image.Image] = {}
-    scales: dict[str, float] = {}
+    scales: dict[str, float] = {}  # normal-map strength by (distinct) material name
+    names = _distinct_names([str(m.get("name", f"material_{k}")) for k, m in enumerate(packed.materials)])
     for k, (first, count, material, _) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
         faces = indices[first : first + count]
         used, inverse = np.unique(faces, return_inverse=True)
@@ -137,7 +138,7 @@ def to_glb(packed: PackedMesh) -> bytes:
         base = [*(float(c) for c in kd), float(spec.get("scalars", {}).get("d", 1.0))]
         texture = spec.get("maps", {}).get("map_Kd")
         image = normal_image = None
-        name = str(spec.get("name", f"material_{material}"))
+        name = names[material] if packed.materials else f"material_{material}"
         if packed.uvs is not None:
             if texture is not None:
                 image = _glb_image(packed, int(texture["texture"]), images)
@@ -178,6 +179,19 @@ def to_glb(packed: PackedMesh) -> bytes:
 
     data: bytes = scene.export(file_type="glb", tree_postprocessor=finish)  # type: ignore[no-untyped-call]
     return data
+
+
+def _distinct_names(names: list[str]) -> list[str]:
+    """The names in order, a repeated one suffixed ``_2``, ``_3``...: each glTF material keeps its own entry."""
+    out: list[str] = []
+    taken: set[str] = set()
+    for name in names:
+        candidate, n = name, 2
+        while candidate in taken:
+            candidate, n = f"{name}_{n}", n + 1
+        taken.add(candidate)
+        out.append(candidate)
+    return out
 
 
 def _glb_image(packed: PackedMesh, index: int, images: dict[int, Any]) -> Any:

@@ -49,9 +49,11 @@ def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:
         UsdGeom.SetStageMetersPerUnit(stage, 1.0)
         xform = UsdGeom.Xform.Define(stage, root)
         stage.SetDefaultPrim(xform.GetPrim())
+        images = packed.textures if packed.uvs is not None else None
+        prims = _unique_prim_names([str(m.get("name", "material")) for m in packed.materials], "material")
         materials = [
-            _material(stage, f"{root}/Materials", m, textures, packed.textures if packed.uvs is not None else None)
-            for m in packed.materials
+            _material(stage, f"{root}/Materials/{prim}", m, textures, images)
+            for prim, m in zip(prims, packed.materials, strict=True)
         ]
         positions = np.asarray(packed.positions, dtype=np.float64)
         indices = np.asarray(packed.indices, dtype=np.int64)
@@ -93,8 +95,8 @@ def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:
     return written
 
 
-def _material(stage: Any, scope: str, spec: dict[str, Any], files: list[str], images: list[Any] | None) -> Any:
-    """A UsdPreviewSurface material: diffuse colour or texture, normal map, opacity, roughness from Ns.
+def _material(stage: Any, path: str, spec: dict[str, Any], files: list[str], images: list[Any] | None) -> Any:
+    """A UsdPreviewSurface material at prim ``path``: diffuse colour or texture, normal map, opacity, Ns roughness.
 
     The colour map is read with ``sourceColorSpace = sRGB``, the normal map with ``raw`` and mapped from
     0..1 to -1..1 (``scale (2s, 2s, 2, 1)``, ``bias (-s, -s, -1, 0)``, ``s`` its ``-bm`` strength) into the
@@ -106,8 +108,6 @@ def _material(stage: Any, scope: str, spec: dict[str, Any], files: list[str], im
 
     from meshtool.normalmaps import normal_map
 
-    name = _prim_name(str(spec.get("name", "material")), "material")
-    path = f"{scope}/{name}"
     material = UsdShade.Material.Define(stage, path)
     shader = UsdShade.Shader.Define(stage, f"{path}/PreviewSurface")
     shader.CreateIdAttr("UsdPreviewSurface")
@@ -148,6 +148,20 @@ def _uv_texture(stage: Any, path: str, file: str, colorspace: str, reader: Any) 
     image.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
     image.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
     return image
+
+
+def _unique_prim_names(names: list[str], fallback: str) -> list[str]:
+    """Valid and pairwise distinct prim names, in order: ``a-b`` and ``a_b`` become ``a_b`` and ``a_b_2``."""
+    out: list[str] = []
+    taken: set[str] = set()
+    for name in names:
+        base = _prim_name(name, fallback)
+        candidate, n = base, 2
+        while candidate in taken:
+            candidate, n = f"{base}_{n}", n + 1
+        taken.add(candidate)
+        out.append(candidate)
+    return out
 
 
 def _prim_name(name: str, fallback: str) -> str:
