@@ -426,7 +426,17 @@ class _Probe:
                     self.e.id,
                 )
             value = getattr(value, p["field"])
-        flat = np.asarray(value, dtype=float).ravel() if not isinstance(value, str) else np.array([math.nan])
+        try:
+            flat = np.asarray(value, dtype=float).ravel()
+        except (TypeError, ValueError):
+            shown = f"field {p['field']!r}" if p["field"] else "reading"
+            raise SceneError(
+                f"the sensor's {shown} is not numbers ({value!r:.60}); name a numeric field",
+                self.e.file,
+                "expect",
+                self.e.line,
+                self.e.id,
+            ) from None
         if p["index"] is not None:
             if p["index"] >= flat.size:
                 raise SceneError(
