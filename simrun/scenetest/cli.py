@@ -124,11 +124,11 @@ def test_command(
         sys.exit(EXIT_FAILED)
     except SchedulerError as exc:
         where = scheduler or "a new local cluster"
-        click.echo(
-            f"error: cannot reach the Dask scheduler at {where}: {exc}; start one (dask scheduler) with workers, "
-            "check --scheduler, or raise --scheduler-timeout",
-            err=True,
+        hint = getattr(exc, "hint", None) or (
+            "start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
+            "or raise --scheduler-timeout"
         )
+        click.echo(f"error: cannot reach the Dask scheduler at {where}: {exc}; {hint}", err=True)
         sys.exit(EXIT_FAILED)
     except SimrunError as exc:
         click.echo(f"error: {' '.join(str(exc).split())}", err=True)
