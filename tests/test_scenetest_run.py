@@ -247,3 +247,37 @@ def test_a_worker_that_dies_is_an_internal_error(tmp_path: Path) -> None:
     runs = json.loads(out.read_text(encoding="utf-8"))["runs"]
     assert [r["status"] for r in runs] == ["error"] * 3
     assert all(r["error"] == "internal error: the worker process running it died (exit code 7)" for r in runs)
+
+
+def test_workers_die_with_their_parent(tmp_path: Path) -> None:
+    """Killing simrun test (SIGKILL: no clean-up runs) ends its busy worker processes too (PR_SET_PDEATHSIG).
+
+    Each run simulates an hour (minutes of work), so a worker gone within seconds was killed, not finished.
+    """
+    psutil = pytest.importorskip("psutil")
+    import signal
+    import time
+
+    long = tmp_path / "long.toml"
+    long.write_text((SCENES / "boebot.toml").read_text(encoding="utf-8") + "\n[test]\nduration = 3600.0\n")
+    parent = subprocess.Popen(
+        [*SIMRUN, "test", str(long), "--seeds", "0:2", "-j", "2"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        workers: list = []
+        while time.monotonic() < deadline and len(workers) < 2:
+            time.sleep(0.2)
+            workers = [c for c in psutil.Process(parent.pid).children() if "spawn_main" in " ".join(c.cmdline())]
+        assert len(workers) == 2
+        time.sleep(3)  # both are running their hour now
+        assert all(w.is_running() for w in workers)
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait(10)
+        gone, alive = psutil.wait_procs(workers, timeout=10)
+        assert not alive and len(gone) == 2
+    finally:
+        if parent.poll() is None:
+            parent.kill()

@@ -109,3 +109,20 @@ def test_apply_writes_what_the_world_then_has(tmp_path: Path) -> None:
 def test_bad_keys(key: str, message: str) -> None:
     with pytest.raises(VaryError, match=message):
         check_key(doc(), key, entity_class)
+
+
+def test_motor_and_sensor_noise_keys_reach_the_world(tmp_path: Path) -> None:
+    import tomli_w
+
+    room = tomllib.loads((SCENE.parent / "pioneer_room.toml").read_text(encoding="utf-8"))
+    values = {"p3dx.stall_torque": 0.5, "p3dx.no_load_speed": 12.0, "laser.noise": 0.02}
+    for key in values:
+        check_key(room, key, entity_class)
+    path = tmp_path / "room.toml"
+    path.write_text(tomli_w.dumps(apply(room, values, {}, entity_class)), encoding="utf-8")
+    world = load_scene(path)
+    assert world.sensors["laser"].noise == 0.02
+    robot = world.entity("p3dx")
+    assert robot.stall_torque == 0.5 and robot.no_load_speed == 12.0
+    forces = [world.model.actuator(k).forcerange for k in range(world.model.nu)]
+    assert all(list(f) == [-0.5, 0.5] for f in forces)
