@@ -153,3 +153,78 @@ def _remove_slow_plugin():
     from meshtool.validate import task
 
     task.physics_plugin = task._real_physics_plugin
+
+
+@pytest.fixture
+def odd_service():
+    """Start a TCP service on 127.0.0.1 that is not Dask: ``odd_service(greeting)`` gives its address.
+
+    ``greeting`` is sent on each connection and the connection closed; ``None`` accepts and stays silent.
+    """
+    import socket
+    import threading
+
+    servers = []
+
+    def start(greeting):
+        server = socket.create_server(("127.0.0.1", 0))
+        held = []
+
+        def serve():
+            while True:
+                try:
+                    conn, _ = server.accept()
+                except OSError:  # closed at the end of the test
+                    return
+                if greeting is None:
+                    held.append(conn)  # never answers
+                else:
+                    conn.sendall(greeting)
+                    conn.close()
+
+        threading.Thread(target=serve, daemon=True).start()
+        servers.append((server, held))
+        return f"tcp://127.0.0.1:{server.getsockname()[1]}"
+
+    yield start
+    for server, held in servers:
+        server.close()
+        for conn in held:
+            conn.close()
+
+
+def test_a_service_that_is_not_dask_is_one_error_line_and_exit_1(client_dir, odd_service):
+    address = odd_service(b"HTTP/1.1 400 Bad Request\r\n\r\n")
+    args = ["validate", "assets", "--executor", "dask", "--scheduler", address, "--scheduler-timeout", "3"]
+    result = CliRunner().invoke(main, [*args, "--no-cache"])
+    assert result.exit_code == 1, result.output
+    (line,) = result.output.strip().splitlines()
+    assert line.startswith(f"error: cannot reach the Dask scheduler at {address}: the service there is not Dask")
+    assert "HTTP/1.1 400 Bad Request" in line and "8786" in line
+    assert "internal error" not in line and "Traceback" not in result.output
+
+
+def test_a_silent_service_is_one_error_line_within_the_scheduler_timeout(client_dir, odd_service):
+    """A listener that accepts and never answers: refused after --scheduler-timeout, not waited on for ever."""
+    address = odd_service(None)
+    command = [str(Path(sys.executable).parent / "meshtool"), "validate", "assets", "--executor", "dask"]
+    command += ["--scheduler", address, "--scheduler-timeout", "2", "--no-cache"]
+    # bounded, not timed: without the probe the run waited on the silent socket far past a minute
+    result = subprocess.run(command, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1, result.stderr
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith(f"error: cannot reach the Dask scheduler at {address}: no Dask greeting within 2 s")
+    assert "--scheduler-timeout" in line and result.stdout == ""
+
+
+def test_fully_cached_run_says_the_dask_executor_was_not_contacted(client_dir, tmp_path):
+    cache = tmp_path / "cache"
+    first = validate([Path("assets")], ValidateOptions(jobs=1, cache_dir=cache))
+    assert first.checked == 7
+    unreachable = "tcp://127.0.0.1:9"  # nothing listens there: contacting it would fail
+    args = ["validate", "assets", "--executor", "dask", "--scheduler", unreachable, "--cache-dir", str(cache)]
+    result = CliRunner().invoke(main, args)
+    last = result.output.strip().splitlines()[-1]
+    assert last.startswith("checked 0, 7 from cache; dask executor not contacted: everything cached, "), last
+    local = CliRunner().invoke(main, ["validate", "assets", "--cache-dir", str(cache)])
+    assert "; local executor not used: everything cached, " in local.output.strip().splitlines()[-1]

@@ -270,7 +270,8 @@ def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[tupl
         where = options.scheduler or "a new local cluster"
         raise ValidateError(
             f"cannot reach the Dask scheduler at {where}: {exc}",
-            hint="start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
+            hint=exc.hint
+            or "start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
             "or run without --executor dask",
             exit_code=1,
         ) from None

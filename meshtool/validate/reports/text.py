@@ -62,5 +62,9 @@ def summary_lines(report: ValidationReport, strict: bool = False, colour: bool =
     run = f"checked {report.checked}{f' ({places})' if places else ''}, {report.cache_hits} from cache"
     if report.unchanged_skipped:
         run += f", {report.unchanged_skipped} unchanged not shown (--changed-only)"
-    run += f"; {report.executor} executor, {report.seconds:.2f} s"
+    if report.checked == 0 and report.cache_hits:  # the executor was never started nor contacted
+        unused = "not contacted" if report.executor == "dask" else "not used"
+        run += f"; {report.executor} executor {unused}: everything cached, {report.seconds:.2f} s"
+    else:
+        run += f"; {report.executor} executor, {report.seconds:.2f} s"
     return [summary, run]
