@@ -124,7 +124,8 @@ def test_stereo_rig_cameras_sit_a_baseline_apart_and_look_along_x():
     world.insert(StereoRig(name="eyes", baseline=0.2, fovy=45.0, resolution=(64, 48), pose=Pose((0, 0, 0.5))))
     model, data = world.model, world.data
     left, right = model.camera("eyes/left"), model.camera("eyes/right")
-    np.testing.assert_allclose(left.pos, [0, 0.1, 0]) and np.testing.assert_allclose(right.pos, [0, -0.1, 0])
+    np.testing.assert_allclose(left.pos, [0, 0.1, 0])
+    np.testing.assert_allclose(right.pos, [0, -0.1, 0])
     assert left.fovy[0] == 45.0 and tuple(model.cam_resolution[left.id]) == (64, 48)
     view = data.cam_xmat[left.id].reshape(3, 3)
     np.testing.assert_allclose(-view[:, 2], [1, 0, 0], atol=1e-9)  # MuJoCo cameras look along their -Z
@@ -136,3 +137,51 @@ def test_stereo_rig_cameras_sit_a_baseline_apart_and_look_along_x():
         bad = World()
         bad.insert(StereoRig(name="x", baseline=0.0))
         bad.compile()
+
+
+def test_cone_rays_spread_over_the_cone():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001))))
+    world.insert(Box(name="wall", dimensions=(0.1, 4.0, 2.0), pose=Pose((2.05, 0, 1.0))))
+    azimuth = np.radians(10.0)
+    post = (np.cos(azimuth), np.sin(azimuth))
+    world.insert(Box(name="post", dimensions=(0.02, 0.02, 2.0), pose=Pose((post[0], post[1], 1.0))))
+    straight = RangeCone(world, "bot", offset=(0.0, 0.0, 0.5), max_range=3.0, rate=0)  # one ray, dead ahead
+    three = RangeCone(world, "bot", offset=(0.0, 0.0, 0.5), cone_deg=20.0, rays=3, max_range=3.0, rate=0)
+    two = RangeCone(world, "bot", offset=(0.0, 0.0, 0.5), cone_deg=20.0, rays=2, max_range=3.0)
+    assert len(straight._local) == 1 and len(three._local) == 9 and len(two._local) == 4
+    world.run(0.1)
+    body = world.body("bot")
+    rotation = body.xmat.reshape(3, 3)
+    origin, ahead = body.xpos + rotation @ [0.0, 0.0, 0.5], rotation[:, 0]
+    assert straight.reading.distance == pytest.approx((2.0 - origin[0]) / ahead[0], abs=1e-3)  # the wall's face
+    # the ray at +10 degrees in the horizontal plane meets the post's near face
+    assert three.reading.distance == pytest.approx((post[0] - 0.01 - origin[0]) / np.cos(azimuth), abs=0.01)
+    assert two.reading.distance < 1.2  # the corner rays at +-10 degrees: one finds the post
+    assert straight.seed == 0 and IRDistance(world, "bot").seed == 0
+
+
+def test_webcam_on_a_rig_camera_takes_the_rig_as_its_entity():
+    world = World()
+    world.insert(StereoRig(name="eyes", pose=Pose((0, 0, 0.5))))
+    cam = Webcam(world, "eyes/left", rate=0)
+    assert cam.entity == "eyes" and cam.eye.camera == "eyes/left" and cam.eye.depth is False
+
+
+@needs_gl
+def test_cameras_reuse_their_renderer_and_render_depth_for_both_eyes():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(Box(name="post", dimensions=(0.1, 0.1, 1.0), pose=Pose((1.0, 0, 0.5))))
+    world.insert(StereoRig(name="eyes", baseline=0.2, resolution=(32, 24), pose=Pose((0, 0, 0.5))))
+    stereo = StereoCamera(world, "eyes", depth=True, rate=0)
+    plain = Webcam(world, "eyes/left", width=32, height=24, rate=0)
+    world.step(1)
+    renderer = stereo.left._renderer
+    world.step(1)
+    assert stereo.left._renderer is renderer  # one context per camera, not one per frame
+    assert stereo.reading.left.depth is not None and stereo.reading.right.depth is not None
+    for eye in (stereo.reading.left, stereo.reading.right):
+        assert eye.depth[12].min() == pytest.approx(0.95, abs=0.05)  # the post's near face, in both eyes
+    assert plain.reading.depth is None
