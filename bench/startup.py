@@ -87,21 +87,26 @@ def main() -> int:
             "obj2bin cached --no-check": fresh_out(lambda out: [*cached, "--no-check", "-o", f"{out}.mbin"], work),
         }
         results = interleave(contenders, args.repeat)
-    evidence = {
-        "meshtool --version": importtime(
-            "import sys; sys.argv = ['meshtool', '--version']\n"
-            "from meshtool.cli import main\ntry: main()\nexcept SystemExit: pass"
-        ),
-        "meshtool normalize": importtime(
-            f"import sys, tempfile; sys.argv = ['meshtool', 'normalize', {str(head)!r}, '-o', tempfile.mkdtemp(), "
-            "'--units', 'cm']\nfrom meshtool.cli import main\ntry: main()\nexcept SystemExit: pass"
-        ),
-        "obj2bin cached": importtime(
-            f"import sys, tempfile; sys.argv = ['obj2bin', {str(bowl)!r}, '--hulls', 'decompose', '--cache-dir', "
-            f"{str(cache)!r}, '-o', tempfile.mkdtemp() + '/b.mbin']\nfrom meshtool.cli import obj2bin\n"
-            "try: obj2bin()\nexcept SystemExit: pass"
-        ),
-    }
+        evidence = {
+            "meshtool --version": importtime(
+                "import sys; sys.argv = ['meshtool', '--version']\n"
+                "from meshtool.cli import main\ntry: main()\nexcept SystemExit: pass"
+            ),
+            "meshtool normalize": importtime(
+                f"import sys, tempfile; sys.argv = ['meshtool', 'normalize', {str(head)!r}, '-o', tempfile.mkdtemp(), "
+                "'--units', 'cm']\nfrom meshtool.cli import main\ntry: main()\nexcept SystemExit: pass"
+            ),
+            "obj2bin cached": importtime(
+                f"import sys, tempfile; sys.argv = ['obj2bin', {str(bowl)!r}, '--hulls', 'decompose', '--cache-dir', "
+                f"{str(cache)!r}, '-o', tempfile.mkdtemp() + '/b.mbin']\nfrom meshtool.cli import obj2bin\n"
+                "try: obj2bin()\nexcept SystemExit: pass"
+            ),
+            "obj2bin cached --no-check": importtime(
+                f"import sys, tempfile; sys.argv = ['obj2bin', {str(bowl)!r}, '--hulls', 'decompose', '--cache-dir', "
+                f"{str(cache)!r}, '--no-check', '-o', tempfile.mkdtemp() + '/b.mbin']\n"
+                "from meshtool.cli import obj2bin\ntry: obj2bin()\nexcept SystemExit: pass"
+            ),
+        }
     write_section(args.out, table(results, evidence, args.repeat), BEGIN, END)
     for name, t in results.items():
         print(f"{name}: wall {t.wall_min:.3f}/{t.wall_median:.3f} s, cpu {t.cpu_min:.3f}/{t.cpu_median:.3f} s")
