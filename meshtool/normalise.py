@@ -251,7 +251,10 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         out_materials, textures = [], []
     stats = _stats(mesh, len(out_materials), len(textures))
     unit_given = options.units not in (None, "auto") or frame.units != "m"
-    findings.extend(scale_findings(np.asarray(stats["bbox"]["extent"]), source_name, unit_given, frame.evidence))
+    explicit = options.units if options.units in UNIT_FACTORS else None
+    applied = unit_scale(units) * frame.scale
+    extent = np.asarray(stats["bbox"]["extent"])
+    findings.extend(scale_findings(extent, source_name, unit_given, frame.evidence, applied, explicit))
     manifest = {
         "format": "meshtool-asset",
         "format_version": 1,

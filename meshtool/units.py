@@ -145,9 +145,7 @@ def evidence_findings(evidence: UnitEvidence | None, units: str, scale: float, p
     """
     if evidence is None:
         return []
-    wanted = unit_scale(evidence.unit) if evidence.unit is not None else evidence.scale
-    agrees = wanted is not None and math.isclose(unit_scale(units) * scale, wanted, rel_tol=1e-9)
-    if agrees:
+    if agrees_with(evidence, unit_scale(units) * scale):
         return [info("units-evidence", f"units agree with the evidence: {evidence.describe()}", path)]
     if evidence.source == "consumer" and (evidence.unit is not None or evidence.scale is not None):
         fix = f"--units {evidence.unit}" if evidence.unit else f"--scale {evidence.scale:g}"
@@ -159,6 +157,12 @@ def evidence_findings(evidence: UnitEvidence | None, units: str, scale: float, p
             )
         ]
     return [info("units-evidence", f"read as {units} x{scale:g}; evidence: {evidence.describe()}", path)]
+
+
+def agrees_with(evidence: UnitEvidence, metres_per_unit: float) -> bool:
+    """Whether the factor applied to the source (metres per source unit, ``--scale`` included) is the evidence's."""
+    wanted = unit_scale(evidence.unit) if evidence.unit is not None else evidence.scale
+    return wanted is not None and math.isclose(metres_per_unit, wanted, rel_tol=1e-9)
 
 
 def unit_scale(unit: str) -> float:
@@ -214,16 +218,27 @@ def rotation_matrix(up: str) -> list[list[float]]:
 
 
 def scale_findings(
-    extent: FloatArray, path: str, unit_given: bool, evidence: UnitEvidence | None = None
+    extent: FloatArray,
+    path: str,
+    unit_given: bool,
+    evidence: UnitEvidence | None = None,
+    applied: float | None = None,
+    explicit: str | None = None,
 ) -> list[Finding]:
     """A ``scale-suspicious`` finding when the largest extent is implausible for a robot-world object.
+
+    A size that something vouches for is no warning but a ``scale-unusual`` info: a consumer file (URDF, SDF,
+    MJCF) that uses the mesh at the factor applied (a Gazebo ground plane 10.9 m long in metres), or a unit the
+    user named with ``--units``.
 
     Args:
         extent: (3,) bounding-box size in metres, Z-up.
         path: The source file for the finding.
-        unit_given: Whether the user chose the unit (changes the advice).
+        unit_given: Whether the unit was chosen rather than the default metres (changes the advice).
         evidence: What files say about the unit (:func:`unit_evidence`); a consumer file's unit is
             suggested instead of a size-based guess and named in the message.
+        applied: Metres per source unit applied (unit factor times ``--scale``), compared with the evidence.
+        explicit: The unit the user named with ``--units`` (not ``auto``), or ``None``.
 
     Returns:
         Zero or one finding.
@@ -234,6 +249,12 @@ def scale_findings(
     axis = int(np.argmax(extent))
     shape = ("long (along x)", "wide (along y)", "tall")[axis]
     size = f"{largest:.1f} m" if largest >= 10 else f"{largest * 1000:.3g} mm"
+    vouched = evidence is not None and evidence.source == "consumer" and applied is not None
+    if vouched and evidence is not None and applied is not None and agrees_with(evidence, applied):
+        return [info("scale-unusual", f"{size} {shape}: the size {evidence.text} gives it, kept", path)]
+    if explicit is not None:
+        given = f"{size} {shape} read as {UNIT_WORDS[explicit]} (--units {explicit}): kept"
+        return [info("scale-unusual", given, path)]
     if largest > MAX_PLAUSIBLE_M:
         plausible = [
             u for u in SUGGESTED_UNITS if PLAUSIBLE_OBJECT_M[0] <= largest * unit_scale(u) <= PLAUSIBLE_OBJECT_M[1]

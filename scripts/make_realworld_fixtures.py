@@ -111,6 +111,35 @@ def gazebo_model() -> None:
     png(d / "materials" / "textures" / "crate.png", (150, 100, 50))
 
 
+def gazebo_ground() -> None:
+    """A Gazebo ground plane: model.sdf uses meshes/ground.obj with no scale (metres), a 10.9 x 10.9 x 0.1 m slab.
+
+    Larger than any object, and right: the consumer file vouches for the size (no ``scale-suspicious``)."""
+    d = ROOT / "gazebo_model" / "ground"
+    write(
+        d / "model.config",
+        '<?xml version="1.0"?>\n<model>\n  <name>ground</name>\n  <version>1.0</version>\n'
+        '  <sdf version="1.6">model.sdf</sdf>\n</model>\n',
+    )
+    mesh = "<mesh><uri>model://ground/meshes/ground.obj</uri></mesh>"
+    write(
+        d / "model.sdf",
+        '<?xml version="1.0"?>\n<sdf version="1.6">\n  <model name="ground">\n    <static>true</static>\n'
+        '    <link name="link">\n'
+        f'      <visual name="visual"><geometry>{mesh}</geometry></visual>\n'
+        f'      <collision name="collision"><geometry>{mesh}</geometry></collision>\n'
+        "    </link>\n  </model>\n</sdf>\n",
+    )
+    slab = box((10.9, 10.9, 0.1)).splitlines()
+    shifted = [
+        "v " + " ".join(f"{float(c) - o:g}" for c, o in zip(line.split()[1:], (5.45, 5.45, 0.1), strict=True))
+        if line.startswith("v ")
+        else line
+        for line in slab
+    ]
+    write(d / "meshes" / "ground.obj", "# ground plane, metres, Z-up, top face at z = 0\n" + "\n".join(shifted) + "\n")
+
+
 def ros_package() -> None:
     """A ROS package: package.xml, urdf/arm.urdf using meshes/link.obj with scale 0.001 (millimetres)."""
     d = ROOT / "ros_package" / "arm_description"
@@ -198,6 +227,7 @@ def main() -> None:
         invisible,
         zup_ground,
         gazebo_model,
+        gazebo_ground,
         ros_package,
         mjcf_beside,
         inline_comments,

@@ -382,3 +382,42 @@ def test_colour_maps_are_tagged_srgb_and_mujoco_reads_them_so(tmp_path):
     srgb, linear = int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB), int(mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)
     assert {n: s for n, s in spaces.items() if "albedo" in n} == {"tile_tile_albedo": srgb}
     assert all(s == linear for n, s in spaces.items() if "albedo" not in n) and len(spaces) == 5
+
+
+GROUND = RW / "gazebo_model" / "ground" / "meshes" / "ground.obj"
+
+
+@pytest.mark.parametrize("units", [[], ["--units", "m"], ["--units", "auto"]])
+def test_gazebo_ground_plane_passes_strict(units, tmp_path):
+    """model.sdf uses the 10.9 m slab with no scale (metres): the size is vouched for, not suspicious."""
+    from meshtool.cli import obj2bin
+
+    out = tmp_path / "ground.mbin"
+    result = CliRunner().invoke(obj2bin, [str(GROUND), "-o", str(out), "--strict", "--json", *units])
+    assert result.exit_code == 0, result.output
+    with load(out) as packed:  # the SDF's numbers: 10.9 x 10.9 x 0.1 m
+        extent = packed.positions.max(axis=0) - packed.positions.min(axis=0)
+    np.testing.assert_allclose(extent, [10.9, 10.9, 0.1], rtol=1e-6)
+    asset = normalise(GROUND, NormaliseOptions(units=units[1] if units else None))
+    assert "scale-suspicious" not in codes(asset)
+    (unusual,) = [f for f in asset.findings if f.code == "scale-unusual"]
+    assert unusual.severity.value == "info" and "10.9 m long" in unusual.message
+    assert "../model.sdf" in unusual.message
+
+
+def test_gazebo_ground_plane_read_in_another_unit_still_warns():
+    asset = normalise(GROUND, NormaliseOptions(units="cm"))
+    (evidence,) = [f for f in asset.findings if f.code == "units-evidence"]
+    assert evidence.severity.value == "warning" and "--units m" in evidence.message
+    with pytest.raises(StrictModeError):
+        normalise(GROUND, NormaliseOptions(units="cm", strict=True))
+
+
+def test_a_floor_with_no_consumer_file_is_still_suspicious():
+    asset = normalise(RW / "flat_ground" / "floor.obj")
+    (suspicious,) = [f for f in asset.findings if f.code == "scale-suspicious"]
+    assert suspicious.severity.value == "warning"
+    explicit = normalise(RW / "flat_ground" / "floor.obj", NormaliseOptions(units="m"))
+    assert "scale-suspicious" not in codes(explicit)
+    (unusual,) = [f for f in explicit.findings if f.code == "scale-unusual"]
+    assert unusual.message == "10.9 m long (along x) read as metres (--units m): kept"
