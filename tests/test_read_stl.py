@@ -100,3 +100,27 @@ def test_ascii_without_endsolid_keeps_the_geometry():
     text = b"solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"
     mesh = read_stl(text, "open.stl")
     assert mesh.corner_v.size == 3 and "stl-endsolid-missing" in [f.code for f in mesh.findings]
+
+
+def _binary_box_stl(path: Path, size: tuple[float, float, float]) -> None:
+    """A binary STL box of ``size`` (no unit, as STL never has one): 80-byte header, count, 12 facets."""
+    corners = CUBE * size
+    quads = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (2, 3, 7, 6), (1, 2, 6, 5), (0, 4, 7, 3)]
+    tris = [t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))]
+    body = b"".join(struct.pack("<12fH", 0, 0, 0, *corners[list(t)].ravel(), 0) for t in tris)
+    path.write_bytes(b"\0" * 80 + struct.pack("<I", len(tris)) + body)
+
+
+def test_cad_sized_stl_gets_the_same_millimetre_suggestion_with_units_auto(tmp_path):
+    """100 x 200 x 300 with no unit: millimetres (0.3 m), whether --units is left out or auto."""
+    src = tmp_path / "bracket.stl"
+    _binary_box_stl(src, (100, 200, 300))
+    messages = {}
+    for units in (None, "auto"):
+        asset = prepare(src, NormaliseOptions(units=units))
+        found = {f.code: f.message for f in asset.findings}
+        assert "pass --units mm (0.3 m)" in found["stl-units"]
+        assert asset.manifest["transform"]["units_evidence"].startswith("mm from STL without unit")
+        messages[units] = found["scale-suspicious"]
+    assert messages[None] == messages["auto"]
+    assert messages[None].endswith("(0.3 m): pass --units mm") and "--units cm" not in messages[None]

@@ -177,7 +177,7 @@ def source_frame(
         turned = "rotated +90 degrees about X to Z-up" if declared.up == "y" else "kept as it is"
         frame.findings.append(info("up-axis", f"up axis {declared.up} ({turned}): {declared.up_text}", obj.path))
     if obj.format == "stl":
-        _stl_defaults(frame, positions, user_unit is None and units != "auto", obj.path)
+        _stl_defaults(frame, positions, user_unit is None, obj.path)  # --units auto: the same suggestion
     return frame
 
 
