@@ -82,14 +82,14 @@ class ModelRootResolver(Resolver):
         if model_root is not None and model_root.folder != self.asset_dir:
             self.roots.append(model_root.folder)
 
-    def display(self, path: Path) -> str:
+    def display(self, path: Path, resolved: bool = False) -> str:
         """Like :meth:`Resolver.display`; a file inside the model root only is shown relative to the OBJ."""
-        real = Path(os.path.realpath(path))
+        real = Path(os.path.abspath(path)) if resolved else Path(os.path.realpath(path))
         inside_first = any(real == root or root in real.parents for root in self.roots[: len(self.search_paths) + 1])
         root = self.model_root.folder if self.model_root is not None else None
         if not inside_first and root is not None and (real == root or root in real.parents):
             return Path(os.path.relpath(real, self.asset_dir)).as_posix()
-        return super().display(path)
+        return super().display(path, resolved)
 
 
 def model_root_resolver(src: Path, search_paths: Sequence[Path] = ()) -> tuple[ModelRootResolver, list[Finding]]:

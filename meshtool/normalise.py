@@ -186,8 +186,9 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         findings.extend(res.findings)
         if res.found is None:
             continue
-        shown = resolver.display(res.found)
-        mtl_bytes = resolver.read(res.found, "mtl")
+        mtl_bytes = resolver.read_resolution(res, "mtl")  # res.found: the file actually read
+        assert res.found is not None
+        shown = resolver.display(res.found, resolved=True)
         sources.append({"role": "mtl", "path": shown, "sha256": _sha256(mtl_bytes)})
         mtl = parse_mtl(mtl_bytes, shown)
         findings.extend(mtl.findings)
@@ -277,7 +278,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
                 "ref": r.ref,
                 "kind": r.kind,
                 "from": f"{r.origin}:{r.line}",
-                "found": resolver.display(r.found) if r.found else None,
+                "found": resolver.display(r.found, resolved=True) if r.found else None,
                 "rule": r.rule,
             }
             for r in resolutions
@@ -387,7 +388,7 @@ def _materials(
 ) -> tuple[list[Material], list[str]]:
     """Output materials (safe names, textures converted and renamed) in first-use order."""
     out_names = unique_names(mesh.material_names, "material")
-    converted: dict[Path, str | None] = {}
+    converted: dict[Path, tuple[str | None, Path | None, str | None]] = {}
     texture_names: set[str] = set()
     out: list[Material] = []
     for source_material, out_name in zip(mesh.material_names, out_names, strict=True):
@@ -405,16 +406,20 @@ def _materials(
             continue
         material, mtl_file = entry
         clean = Material(out_name, material.line, dict(material.colors), dict(material.scalars), material.illum)
-        origin = resolver.display(mtl_file)
+        origin = resolver.display(mtl_file, resolved=True)
         for key, tex in material.maps.items():
             res = resolver.resolve(tex.file, mtl_file.parent, "texture", origin, tex.line)
             resolutions.append(res)
             findings.extend(res.findings)
             if res.found is None:
                 continue
-            if res.found not in converted:
-                converted[res.found] = _convert_texture(res.found, resolver, findings, sources, files, texture_names)
-            written = converted[res.found]
+            looked_up = res.found
+            if looked_up not in converted:
+                name = _convert_texture(res, resolver, findings, sources, files, texture_names)
+                converted[looked_up] = (name, res.found, res.refused)
+            written, res.found, res.refused = converted[looked_up]  # one file, read once, recorded alike
+            if res.refused is not None:
+                res.rule = "refused"
             if written is not None:
                 clean.maps[key] = TextureMap(written, dict(tex.options), tex.line)
         out.append(clean)
@@ -422,19 +427,24 @@ def _materials(
 
 
 def _convert_texture(
-    found: Path,
+    res: Resolution,
     resolver: Resolver,
     findings: list[Finding],
     sources: list[dict[str, str]],
     files: dict[str, bytes],
     taken: set[str],
 ) -> str | None:
-    shown = resolver.display(found)
+    """Read and convert the texture ``res`` found; ``res`` then records the file read, or the refusal."""
+    assert res.found is not None
+    shown = resolver.display(res.found, resolved=True)
     try:
-        data = resolver.read(found, "texture")
+        data = resolver.read_resolution(res, "texture")
     except MeshtoolError as exc:
         findings.append(warning("texture-unreadable", f"{exc.message}: map dropped", shown))
         return None
+    assert res.found is not None
+    found = res.found
+    shown = resolver.display(found, resolved=True)
     sources.append({"role": "texture", "path": shown, "sha256": _sha256(data)})
     try:
         png = to_png(data, shown)

@@ -64,9 +64,13 @@ class Resolution:
         kind: ``mtl`` or ``texture``.
         origin: The referencing file, relative to the asset folder.
         line: 1-based line of the reference.
-        found: The file found (absolute, symlinks resolved), or ``None``.
-        rule: The rule that found it (see the module docstring), or ``None``.
+        found: The file found (absolute, symlinks resolved, inside the roots), or ``None``. Once read with
+            :meth:`Resolver.read_resolution`, the file that was actually opened; ``None`` when the read was
+            refused.
+        rule: The rule that found it (see the module docstring), ``refused`` when the file was found but
+            its read was refused (it changed, grew too large or became a special file), or ``None``.
         findings: What is worth telling about this reference.
+        refused: Why the read was refused (the one-line reason), else ``None``.
     """
 
     ref: str
@@ -76,6 +80,7 @@ class Resolution:
     found: Path | None = None
     rule: str | None = None
     findings: list[Finding] = field(default_factory=list)
+    refused: str | None = None
 
 
 class Resolver:
@@ -150,13 +155,42 @@ class Resolver:
             ResolveError: When it left the roots, changed while being read, is not a regular file, is larger
                 than the limit, or cannot be read.
         """
+        return self._read_real(found, kind)[1]
+
+    def read_resolution(self, res: Resolution, kind: str | None = None) -> bytes:
+        """Read the file a resolution found, race-free, and make the resolution record what was read.
+
+        On success :attr:`Resolution.found` becomes the file actually opened (a path inside a root, reached
+        from it without following any link). When the read is refused, ``found`` becomes ``None``, ``rule``
+        ``refused`` and :attr:`Resolution.refused` the reason, so that nothing ever records a file that
+        was not read (a link swapped in after the lookup can name anything); the error is raised again for
+        the caller to turn into its finding or error.
+
+        Args:
+            res: A resolution whose ``found`` is set.
+            kind: Selects the size limit; default the resolution's kind.
+
+        Raises:
+            ResolveError: As :meth:`read`.
+        """
+        if res.found is None:
+            raise ResolveError(f"{res.kind} {res.ref.strip()!r} was not found", path=res.origin, line=res.line)
+        try:
+            res.found, data = self._read_real(res.found, kind or res.kind)
+        except ResolveError as exc:
+            res.found, res.rule, res.refused = None, "refused", exc.message
+            raise
+        return data
+
+    def _read_real(self, found: Path, kind: str) -> tuple[Path, bytes]:
+        """The path read (inside a root, without links) and the bytes of :meth:`read`."""
         embedded = self._embedded_paths.get(found)
         if embedded is not None:
             ref, blob = embedded
             limit = self.limits.for_kind(kind)
             if len(blob) > limit:
                 raise ResolveError(f"is {len(blob)} bytes, more than the limit of {limit} bytes; not read", path=ref)
-            return blob
+            return found, blob
         real = _realpath(found)
         if real is None:
             raise ResolveError(
@@ -164,26 +198,38 @@ class Resolver:
                 path=printable(found),
                 hint="do not modify the asset while meshtool reads it",
             )
-        for root in self.roots:
-            if real == root or root in real.parents:
-                rel = real.relative_to(root).parts
-                return read_beneath(root, rel, self.limits.for_kind(kind), self.display(real))
-        raise ResolveError("is outside the asset folder and search paths; not read", path=printable(found))
+        root = self._root_of(real)
+        if root is None:
+            raise ResolveError("is outside the asset folder and search paths; not read", path=printable(found))
+        rel = real.relative_to(root).parts
+        return real, read_beneath(root, rel, self.limits.for_kind(kind), self.display(real, resolved=True))
 
     def inside(self, path: Path) -> bool:
         """Whether ``path`` (after resolving symlinks) lies inside one of the roots."""
         real = _realpath(path)
-        return real is not None and any(real == root or root in real.parents for root in self.roots)
+        return real is not None and self._root_of(real) is not None
 
-    def display(self, path: Path) -> str:
+    def _root_of(self, real: Path) -> Path | None:
+        """The first root that holds the real path ``real`` (no symlinks looked up), else ``None``."""
+        for root in self.roots:
+            if real == root or root in real.parents:
+                return root
+        return None
+
+    def display(self, path: Path, resolved: bool = False) -> str:
         r"""A path for messages and metadata: relative to the asset folder, or ``<search-path N>/rel``.
 
         Bytes of names that are not UTF-8 are shown as ``\xNN`` (see :func:`printable`).
+
+        Args:
+            path: The file.
+            resolved: ``path`` is already a real path (a :attr:`Resolution.found`): it is shown as it is,
+                never looked up again (a link swapped in since must not change what is recorded).
         """
         embedded = self._embedded_paths.get(path)
         if embedded is not None:
             return embedded[0]
-        real = _realpath(path) or Path(os.path.abspath(path))
+        real = Path(os.path.abspath(path)) if resolved else (_realpath(path) or Path(os.path.abspath(path)))
         for n, root in enumerate(self.roots):
             if real == root or root in real.parents:
                 rel = printable(real.relative_to(root).as_posix())
@@ -250,17 +296,17 @@ class Resolver:
             path = self._walk(start, rel, exact)
             if path is None:
                 continue
-            if not self.inside(path):
+            real = _realpath(path)  # looked up once: containment, kind and the record all use this path
+            if real is None:
+                continue
+            if self._root_of(real) is None:
                 escaped = True
                 continue
-            mode = _mode(path)
-            if mode is None or stat.S_ISDIR(mode):
+            mode = _lmode(real)
+            if mode is None or stat.S_ISDIR(mode) or stat.S_ISLNK(mode):  # a link: it changed since; skip
                 continue
             if not stat.S_ISREG(mode):
                 special = special or describe_mode(mode)
-                continue
-            real = _realpath(path)
-            if real is None:
                 continue
             res.found, res.rule = real, rule
             break
@@ -291,7 +337,7 @@ class Resolver:
             res.findings.append(
                 info(
                     f"{kind}-reference-repaired",
-                    f"{kind} {shown!r} found as {self.display(res.found)!r} (rule: {res.rule})",
+                    f"{kind} {shown!r} found as {self.display(res.found, resolved=True)!r} (rule: {res.rule})",
                     origin,
                     line,
                 )
@@ -368,6 +414,14 @@ def _realpath(path: str | os.PathLike[str]) -> Path | None:
     """``os.path.realpath``, or ``None`` when a link changed under it (it raises ``OSError`` then)."""
     try:
         return Path(os.path.realpath(path))
+    except (OSError, ValueError):
+        return None
+
+
+def _lmode(path: Path) -> int | None:
+    """``st_mode`` of ``path`` itself (a symbolic link is not followed), ``None`` when it cannot be looked up."""
+    try:
+        return os.lstat(path).st_mode
     except (OSError, ValueError):
         return None
 

@@ -411,3 +411,94 @@ def test_many_mtllib_names_list_the_folder_once(tmp_path, monkeypatch):
         assert res.found == (root / "m.mtl").resolve() and res.rule == "basename"
         counts.append(len(calls))
     assert counts[0] == counts[1] <= 3
+
+
+class LoopSwapper(threading.Thread):
+    """Replaces ``target`` atomically, alternating between the two ``make`` functions, until stopped."""
+
+    def __init__(self, target: Path, make_a: Callable[[Path], None], make_b: Callable[[Path], None]) -> None:
+        super().__init__(daemon=True)
+        self.target, self.makers, self.done = target, (make_a, make_b), 0
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        scratch = self.target.with_name(".swap-" + self.target.name)
+        while not self.stop.is_set():
+            self.makers[self.done % 2](scratch)
+            os.replace(scratch, self.target)
+            self.done += 1
+
+
+NORMALISE_TRIES = 300
+
+
+def test_race_asset_json_records_only_what_was_read(tmp_path):
+    """The verifier's attack on the whole normalisation: ``tex.png`` alternates between a PNG inside the
+    root and a symbolic link to a PNG outside it while the asset is normalised NORMALISE_TRIES times.
+
+    No outside byte may reach the output, and the manifest (asset.json) must describe what was read: every
+    recorded resolution and source names a path inside the root, and a texture whose read was refused is
+    recorded as refused, with a finding.
+    """
+    import io
+
+    from PIL import Image
+
+    def png(colour: tuple[int, int, int]) -> bytes:
+        buf = io.BytesIO()
+        Image.new("RGB", (8, 8), colour).save(buf, format="PNG")
+        return buf.getvalue()
+
+    inside_png, outside_png = png((10, 200, 30)), png((255, 0, 0))
+    obj = write_asset(tmp_path / "asset", png=inside_png)
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "secret.png").write_bytes(outside_png)
+    swapper = LoopSwapper(obj.parent / "tex.png", regular(inside_png), link(outside / "secret.png"))
+    seen = {"read": 0, "refused": 0, "unresolved": 0}
+    swapper.start()
+    try:
+        for _ in range(NORMALISE_TRIES):
+            asset = prepare(obj)
+            text = json.dumps(asset.manifest)
+            assert "secret" not in text and str(tmp_path) not in text, text
+            (tex,) = [r for r in asset.manifest["resolutions"] if r["kind"] == "texture"]
+            for r in asset.manifest["resolutions"]:
+                assert r["found"] is None or not r["found"].startswith(("/", "<", "..")), r
+            for s in asset.manifest["sources"]:
+                assert not s["path"].startswith(("/", "..")), s
+            for data in asset.textures.values():
+                assert Image.open(io.BytesIO(data)).convert("RGB").getpixel((0, 0)) == (10, 200, 30)
+            if tex["rule"] == "refused":
+                assert tex["found"] is None and not asset.textures
+                assert "texture-unreadable" in codes(asset.findings)
+                seen["refused"] += 1
+            elif tex["found"] is None:
+                assert not asset.textures
+                seen["unresolved"] += 1
+            else:
+                assert tex["found"] == "tex.png" and len(asset.textures) == 1
+                seen["read"] += 1
+    finally:
+        swapper.stop.set()
+        swapper.join()
+    assert seen["read"] > 0 and swapper.done > 0
+
+
+def test_read_resolution_records_the_file_opened_or_the_refusal(arena):
+    """Deterministic halves of the race: what a resolution records after its read."""
+    tex = arena / "tex.png"
+    tex.write_bytes(INSIDE)
+    resolver = Resolver(arena)
+    res = resolver.resolve("tex.png", arena, "texture", "m.mtl", 3)
+    assert res.found == tex and res.rule == "exact"
+    tex.unlink()
+    os.symlink(arena.parent / "outside.png", tex)  # swapped after the lookup: refused, recorded as refused
+    with pytest.raises(ResolveError):
+        resolver.read_resolution(res)
+    assert res.found is None and res.rule == "refused" and res.refused
+    assert resolver.display(tex, resolved=True) == "tex.png"  # a recorded path is never looked up again
+    tex.unlink()
+    os.symlink("inside.png", tex)  # a link that stays inside: the file read is the one recorded
+    res = resolver.resolve("tex.png", arena, "texture", "m.mtl", 3)
+    assert resolver.read_resolution(res) == INSIDE and res.found == arena / "inside.png"

@@ -271,8 +271,8 @@ class _Reader:
                 hint="add its folder with --search-path" if outside else "put the file beside the glTF",
                 code="gltf-buffer-missing",
             )
-        data = self.resolver.read(res.found, "other")
-        shown = self.resolver.display(res.found)
+        data = self.resolver.read_resolution(res, "other")
+        shown = self.resolver.display(res.found, resolved=True) if res.found is not None else uri
         self.sources.append({"role": kind, "path": shown, "sha256": hashlib.sha256(data).hexdigest()})
         return data
 
