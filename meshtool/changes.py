@@ -32,6 +32,11 @@ DATA_CHANGING_INFO = frozenset(
 )
 
 
+#: Info codes that change nothing but are told by default, once per command, as a ``note:`` line: what a
+#: consumer of the output silently ignores (MuJoCo's renderer and normal maps).
+TOLD_NOTES = frozenset({"mujoco-ignores-map"})
+
+
 def changes_data(finding: Finding) -> bool:
     """Whether ``finding`` changed or dropped data (every warning and error does)."""
     return finding.severity is not Severity.INFO or finding.code in DATA_CHANGING_INFO

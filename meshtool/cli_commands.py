@@ -19,7 +19,7 @@ from typing import Any
 import click
 
 from meshtool import __version__
-from meshtool.changes import split_findings
+from meshtool.changes import TOLD_NOTES, split_findings
 from meshtool.cli_common import VocabularyCommand, exit_on_bug, progress_enabled
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
 from meshtool.errors import MeshtoolError, OptionsError, PackFormatError
@@ -299,6 +299,7 @@ def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as
         for r in results:
             if r.status == "failed":
                 click.echo(f"error: {r.error}", err=True)
+        _echo_told([f for r in results for f in r.findings if f.code in TOLD_NOTES])
         click.echo(f"{counts['written']} written, {counts['unchanged']} unchanged, {counts['failed']} failed")
     if counts["failed"]:
         sys.exit(EXIT_INPUT)
@@ -474,6 +475,7 @@ def _made(make: Callable[[Any], bytes], packed: Any, file: Path) -> bytes:
 def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float | None, force: bool) -> None:
     """Write a MuJoCo model for SRC (an .mbin, or a folder searched for .mbin files)."""
     from meshtool.mjcf import MjcfOptions, build_mjcf
+    from meshtool.normalmaps import mujoco_findings
 
     with _guard(False):
         options = MjcfOptions(free_joint=free_joint, density=density, mass=mass)
@@ -484,13 +486,16 @@ def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float
         clash = next((p for p, n in zip(sources, stems, strict=True) if stems.count(n) > 1), None)
         if clash is not None:
             raise OptionsError(f"two .mbin files would both become {safe_file_stem(clash.stem)!r}", hint="rename one")
+        told: list[Finding] = []
         for path in sources:
             name = safe_file_stem(path.stem) or "asset"
             with load(path) as packed:
                 files = build_mjcf(packed, name, options)
+                told += mujoco_findings(packed.materials, path.name)
             manifest = json.dumps({"source": str(path)}).encode()
             folder = write_folder(out_dir, name, {**files, "asset.json": manifest}, force=force, inputs=sources)
             click.echo(f"wrote {folder / (safe_identifier(name, 'asset') + '.xml')}")
+    _echo_told(told)
 
 
 def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str, ...]) -> tuple[tuple[str, Path], ...]:
@@ -562,12 +567,24 @@ def _report(status: str, output: Path, findings: list[Finding], stats: dict[str,
 
 
 def _echo_findings(findings: list[Finding]) -> None:
-    shown, notes = split_findings(findings)
+    told = [f for f in findings if f.code in TOLD_NOTES]
+    shown, notes = split_findings(f for f in findings if f.code not in TOLD_NOTES)
     verbose = bool(os.environ.get("MESHTOOL_VERBOSE"))
-    for finding in findings if verbose else shown:
+    for finding in [*shown, *notes] if verbose else shown:
         click.echo(finding.one_line(), err=True)
+    _echo_told(told)
     if notes and not verbose:
         click.echo(f"note: {len(notes)} more finding(s) that changed nothing (MESHTOOL_VERBOSE=1 shows them)", err=True)
+
+
+def _echo_told(told: list[Finding]) -> None:
+    """The :data:`~meshtool.changes.TOLD_NOTES` as ``note:`` lines, one per code for the whole command."""
+    for code in sorted({f.code for f in told}):
+        same = [f for f in told if f.code == code]
+        first = same[0]
+        where = f"{first.where}: " if first.where else ""
+        more = f" (and in {len(same) - 1} more file(s))" if len(same) > 1 else ""
+        click.echo(f"note: {where}{first.message}{more} [{code}]", err=True)
 
 
 @contextlib.contextmanager

@@ -23,6 +23,7 @@ from meshtool.errors import MeshtoolError, OutputError, PackFormatError, StrictM
 from meshtool.findings import Finding
 from meshtool.hulls import HullOptions, compute_hulls, quality
 from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
+from meshtool.normalmaps import mujoco_findings
 from meshtool.outdir import check_output, refuse_inputs, write_file
 from meshtool.packfile import load, pack
 from meshtool.progress import report as report_progress
@@ -104,6 +105,7 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
         first = next(f for f in hull_set.findings if f.severity.value == "warning")
         raise StrictModeError(f"hull warning in strict mode: {first.one_line()}", path=src.name)
     data = pack(asset, options.quantize, options.fingerprint(), hull_set.hulls, report)
+    findings += mujoco_findings(asset.materials, src.name)  # about MuJoCo's use of the pack: not stored in it
     checked = "off"
     if options.check:  # before anything is written: a pack MuJoCo refuses is an error, not an output
         report_progress("checking in MuJoCo")

@@ -158,6 +158,44 @@ def export_findings(packed: Any, kind: str) -> list[Finding]:
     return findings
 
 
+#: Map keys MuJoCo's renderer does not read: the normal map and the bump (height, or Blender's normal) map.
+MUJOCO_IGNORED = {"norm": "normal map", "bump": "bump map"}
+
+
+def mujoco_findings(materials: Any, path: str | None = None) -> list[Finding]:
+    """A ``mujoco-ignores-map`` note when materials going to MuJoCo carry normal or bump maps.
+
+    MuJoCo's renderer (and so simrun) shows a material's colour map only: the maps stay in the ``.mbin``
+    for the GLB and USD exports, but the MJCF written from it shades the surface without them.
+
+    Args:
+        materials: :class:`meshtool.obj.mtl.Material` objects, or a pack's material dicts.
+        path: The source file the note is about.
+
+    Returns:
+        Zero or one info finding.
+    """
+    found: list[str] = []
+    for material in materials:
+        if isinstance(material, dict):
+            name = str(material.get("name", "material"))
+            maps = {k: str(v.get("file")) for k, v in material.get("maps", {}).items()}
+        else:
+            name, maps = material.name, {k: v.file for k, v in material.maps.items()}
+        found += [f"{maps[key]} ({role} of {name!r})" for key, role in MUJOCO_IGNORED.items() if key in maps]
+    if not found:
+        return []
+    shown = ", ".join(found[:3]) + (f" and {len(found) - 3} more" if len(found) > 3 else "")
+    return [
+        info(
+            "mujoco-ignores-map",
+            f"MuJoCo ignores normal and bump maps: {shown} have no effect in MuJoCo or simrun "
+            "(kept in the .mbin for the GLB/USD exports)",
+            path,
+        )
+    ]
+
+
 def _role(key: str) -> str:
     return {
         "bump": "height map",

@@ -22,6 +22,7 @@ from meshtool.hulls import Hull, HullOptions, compute_hulls, quality
 from meshtool.mesh import safe_identifier
 from meshtool.mjcf import MeshParts, mesh_parts
 from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare, safe_file_stem
+from meshtool.normalmaps import mujoco_findings
 from meshtool.packfile import pack
 from meshtool.packfile.read import parse
 from meshtool.readers import MESH_SUFFIXES
@@ -87,7 +88,7 @@ def load_mesh(
         asset = _scaled(asset, s)
     hull_set = compute_hulls(asset.mesh, hulls, found.name)
     report = quality(asset.mesh, hull_set.hulls) if hull_set.hulls else None
-    findings += [*asset.findings, *hull_set.findings]
+    findings += [*asset.findings, *hull_set.findings, *mujoco_findings(asset.materials, found.name)]
     meta = {"urdf_scale": [float(v) for v in s], "hulls": hulls.fingerprint()}
     data = pack(asset, False, meta, list(hull_set.hulls), report)
     parts = mesh_parts(parse(data, f"{prefix}.mbin"), prefix, hulls.max_hull_vertices)
