@@ -1,7 +1,7 @@
 """Kill rate per module from mutmut's results (mutants/**/*.py.meta), and the surviving mutants.
 
 Usage: python scripts/mutation_summary.py [MODULE ...]   (default: the modules `make mutants` mutates)
-       python scripts/mutation_summary.py --sample K MODULE   (every K-th mutant name of MODULE, for
+       python scripts/mutation_summary.py --sample K MODULE [OFFSET]   (every K-th mutant name of MODULE, for
        `mutmut run NAME...` when there is no time for all of them; mutmut must have generated the mutants)
 
 Killed: a test failed (or pytest hit an internal error, or the mutant ran past its CPU-time limit: a mutant
@@ -22,16 +22,16 @@ SURVIVED = {0}
 NO_TESTS = {5, 33}
 
 
-def sample(every: int, module: str) -> int:
-    """Print every ``every``-th mutant of ``module`` in mutmut's order (deterministic)."""
+def sample(every: int, module: str, offset: int = 0) -> int:
+    """Print every ``every``-th mutant of ``module`` in mutmut's order, from ``offset`` (deterministic)."""
     codes = json.loads((Path("mutants") / "simrun" / f"{module}.py.meta").read_text())["exit_code_by_key"]
-    print(" ".join(name for k, name in enumerate(codes) if k % every == 0))
+    print(" ".join(name for k, name in enumerate(codes) if k % every == offset % every))
     return 0
 
 
 def main() -> int:
     if sys.argv[1:2] == ["--sample"]:
-        return sample(int(sys.argv[2]), sys.argv[3])
+        return sample(int(sys.argv[2]), sys.argv[3], int(sys.argv[4]) if len(sys.argv) > 4 else 0)
     modules = sys.argv[1:] or MODULES
     print("| module | mutants | killed | survived | no tests | not run | kill rate |")
     print("|---|---|---|---|---|---|---|")

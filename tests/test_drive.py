@@ -1008,6 +1008,7 @@ def test_ray_exclusion_modes_and_continuation_past_the_robot():
     world = World()
     world.insert(Ground(name="ground"))
     world.insert(Box(name="wall", dimensions=(0.1, 4.0, 1.0), pose=Pose((1.05, 0, 0.5))))
+    world.insert(Box(name="side", dimensions=(0.5, 0.1, 1.0), pose=Pose((0, 1.05, 0.5))))
     world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001))))
     # 3 cm up, looking back through the robot's own chassis, caster and wheels, and ahead at the wall
     robot = LaserRangeFinder(world, "bot", height=0.03, fov_deg=360, rays=8, max_range=3.0)
@@ -1018,7 +1019,8 @@ def test_ray_exclusion_modes_and_continuation_past_the_robot():
     assert robot.reading.ranges[ahead] == pytest.approx(1.0 - x, abs=2e-3)
     assert none.reading.ranges[ahead] == pytest.approx(0.045, abs=1e-3)  # from inside: its own chassis' front face
     left = int(np.argmin(np.abs(robot.angles - np.pi / 2)))
-    assert robot.reading.ranges[left] == 3.0  # past its own wheel: nothing
+    y = world.body("bot").xpos[1]
+    assert robot.reading.ranges[left] == pytest.approx(1.0 - y, abs=2e-3)  # on past its own wheel to the wall
     assert none.reading.ranges[left] < 0.06
     clean = LaserRangeFinder(world, "bot", height=0.3, fov_deg=60, rays=5, max_range=3.0)
     noisy = LaserRangeFinder(world, "bot", height=0.3, fov_deg=60, rays=5, max_range=3.0, noise=0.01)
