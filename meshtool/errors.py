@@ -35,7 +35,7 @@ class MeshtoolError(Exception):
         self.message = message
         self.code = code
         self.path = path
-        self.line = line
+        self.line = line if line is None or line >= 1 else None  # 1-based: 0 (a format without lines) is none
         self.offset = offset
         self.hint = hint
         super().__init__(self.one_line())

@@ -38,6 +38,10 @@ class Finding:
     path: str | None = None
     line: int | None = None
 
+    def __post_init__(self) -> None:
+        if self.line is not None and self.line < 1:  # formats without lines (COLLADA, glTF) say 0: no line
+            object.__setattr__(self, "line", None)
+
     @property
     def where(self) -> str:
         """``path:line``, ``path`` or an empty string."""

@@ -107,7 +107,19 @@ def decide_up(
     for word, name in Y_UP_EXPORTERS.items():
         if word in lowered:
             return UpDecision("y", "exporter", f"exported by {name}, whose OBJ export is Y-up by default")
-    return UpDecision("y", "default", "no evidence of the frame: the OBJ convention (Y-up) assumed")
+    return UpDecision("y", "default", f"no evidence of the frame: {_default_reason(src)}")
+
+
+#: Formats read with the OBJ default (no up axis of their own), by suffix.
+_NO_CONVENTION = {".ply": "PLY", ".stl": "STL"}
+
+
+def _default_reason(src: Path) -> str:
+    """Why Y-up, naming the format: OBJ's convention, or a format that has none and is read like OBJ."""
+    name = _NO_CONVENTION.get(src.suffix.lower())
+    if name is None:
+        return "the OBJ convention (Y-up) assumed"
+    return f"{name} defines no up axis; Y-up assumed, as for OBJ"
 
 
 def _geometry(positions: FloatArray) -> UpDecision | None:

@@ -21,6 +21,7 @@ written.
 
 from __future__ import annotations
 
+import importlib
 import io
 import os
 import stat
@@ -127,7 +128,31 @@ def import_urdf(path: Path, options: UrdfOptions | None = None) -> UrdfImport:
         robot = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False).robot
     except Exception as exc:  # yourdfpy raises lxml and ValueError variants for malformed files
         raise UrdfError(f"not a valid URDF: {str(exc).splitlines()[0]}", path=str(path)) from None
-    return _Builder(path, text, options).build(robot)
+    return _Builder(path, text, options, element_lines(data)).build(robot)
+
+
+def element_lines(data: bytes) -> dict[tuple[str, str], int]:
+    """The 1-based source line of each ``<link>`` and ``<joint>`` of the robot (by name) and ``<mesh>`` (by file).
+
+    Keys are ``("link", name)``, ``("joint", name)`` (children of ``<robot>`` only: a ``<transmission>``'s
+    ``<joint>`` is a reference) and ``("mesh", filename)``; the first element wins. lxml (yourdfpy's parser)
+    keeps each element's ``sourceline``; entities are not resolved and nothing is fetched.
+    """
+    etree: Any = importlib.import_module("lxml.etree")  # installed with yourdfpy; no type stubs
+
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
+    try:
+        root = etree.fromstring(data, parser)
+    except etree.XMLSyntaxError:
+        return {}
+    lines: dict[tuple[str, str], int] = {}
+    for element in root:
+        if element.tag in ("link", "joint") and element.get("name") is not None and element.sourceline:
+            lines.setdefault((str(element.tag), str(element.get("name"))), int(element.sourceline))
+    for mesh in root.iter("mesh"):
+        if mesh.get("filename") is not None and mesh.sourceline:
+            lines.setdefault(("mesh", str(mesh.get("filename"))), int(mesh.sourceline))
+    return lines
 
 
 def write_import(result: UrdfImport, out_dir: Path, *, force: bool | None = None) -> list[Path]:
@@ -196,8 +221,11 @@ def _previous_import(xml: Path) -> dict[str, str] | None:
 
 
 class _Builder:
-    def __init__(self, path: Path, text: str, options: UrdfOptions) -> None:
+    def __init__(
+        self, path: Path, text: str, options: UrdfOptions, lines: dict[tuple[str, str], int] | None = None
+    ) -> None:
         self.path, self.text, self.options = path, text, options
+        self.lines = lines or {}
         self.urdf_dir = Path(path).resolve().parent
         self.packages = {name: Path(folder).resolve() for name, folder in options.package_dirs}
         self.meshes: dict[tuple[str, tuple[float, float, float]], LoadedMesh] = {}
@@ -222,7 +250,9 @@ class _Builder:
         for joint in robot.joints:
             if joint.parent not in links or joint.child not in links:
                 missing = joint.parent if joint.parent not in links else joint.child
-                raise UrdfError(f"joint {joint.name!r} names unknown link {missing!r}", **self._where(joint.name))
+                raise UrdfError(
+                    f"joint {joint.name!r} names unknown link {missing!r}", **self._element("joint", joint.name)
+                )
             by_parent.setdefault(joint.parent, []).append(joint)
         model = ModelDesc(name, inertia_from_geoms=False)
         order: list[str] = []
@@ -232,7 +262,7 @@ class _Builder:
             # The world link is MuJoCo's world body: its geoms are fixed to the world, its children top level.
             if root.inertial is not None and root.inertial.mass:
                 self.findings.append(
-                    warning("urdf-world-mass", "the world link's inertial is ignored", **self._at(WORLD))
+                    warning("urdf-world-mass", "the world link's inertial is ignored", **self._element("link", WORLD))
                 )
             model.world_geoms = self._geoms_of(root)
             for joint in by_parent.get(root.name, []):
@@ -266,7 +296,7 @@ class _Builder:
             if joint is not None and joint.parent != WORLD:
                 raise UrdfError(
                     f"joint {joint.name!r} of type 'floating' is only supported from the world link",
-                    **self._where(joint.name),
+                    **self._element("joint", joint.name),
                     hint="use --free-base for a floating root, or split the robot",
                 )
             body.free = self.options.free_base or joint is not None
@@ -289,12 +319,12 @@ class _Builder:
         if kind == "planar":
             raise UrdfError(
                 f"joint {joint.name!r} of type 'planar' is not supported",
-                **self._where(joint.name),
+                **self._element("joint", joint.name),
                 hint="replace it by two prismatic joints and a revolute one",
             )
         axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
         if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
-            raise UrdfError(f"joint {joint.name!r} has a zero axis", **self._where(joint.name))
+            raise UrdfError(f"joint {joint.name!r} has a zero axis", **self._element("joint", joint.name))
         described = JointDesc(joint.name, "slide" if kind == "prismatic" else "hinge", _vec3(axis))
         limit = joint.limit
         if kind in ("revolute", "prismatic") and limit is not None and limit.lower is not None:
@@ -306,7 +336,7 @@ class _Builder:
                     warning(
                         "urdf-empty-range",
                         f"joint {joint.name!r}: limits [{lower:g}, {upper:g}] leave no motion; imported unlimited",
-                        **self._at(joint.name),
+                        **self._element("joint", joint.name),
                     )
                 )
         if limit is not None and limit.effort:
@@ -334,7 +364,7 @@ class _Builder:
                     "urdf-inertia-fixed",
                     f"link {link.name!r}: principal moments {_fmt(moments)} kg m^2 are not physical "
                     f"(MuJoCo needs all > 0 and A + B >= C); replaced by {_fmt(balanced)} as balanceinertia does",
-                    **self._at(link.name),
+                    **self._element("link", link.name),
                 )
             )
         rotation = origin[:3, :3] @ axes
@@ -349,7 +379,7 @@ class _Builder:
             if mimic.joint not in moving or joint.name not in moving:
                 raise UrdfError(
                     f"joint {joint.name!r} mimics {mimic.joint!r}, which is not a moving joint",
-                    **self._where(joint.name),
+                    **self._element("joint", joint.name),
                 )
             offset = float(mimic.offset or 0.0)
             multiplier = float(mimic.multiplier if mimic.multiplier is not None else 1.0)
@@ -367,9 +397,9 @@ class _Builder:
 
     def _locations(self, links: dict[str, Any], joints: list[Any]) -> dict[str, tuple[str, int | None]]:
         where: dict[str, tuple[str, int | None]] = {}
-        for name in [*links, *(j.name for j in joints)]:
-            found = self._where(name)
-            where[name] = (str(self.path), found.get("line"))
+        for kind, names in (("joint", [j.name for j in joints]), ("link", list(links))):
+            for name in names:  # a link's line wins over a joint of the same name (MuJoCo names bodies after links)
+                where[name] = (str(self.path), self._element(kind, name).get("line"))
         return where
 
     # -- geometry -------------------------------------------------------------------------------------
@@ -396,12 +426,12 @@ class _Builder:
         if geometry.sphere is not None:
             return [GeomDesc(role, "sphere", (float(geometry.sphere.radius),), rgba=rgba, **common)]
         if geometry.mesh is None:
-            raise UrdfError(f"a {role} of link {link!r} has no geometry", **self._where(link))
+            raise UrdfError(f"a {role} of link {link!r} has no geometry", **self._element("link", link))
         loaded = self._mesh(geometry.mesh)
         self.used[loaded.prefix].add(role)
         parts = loaded.parts.visual if role == "visual" else loaded.parts.collision
         if not parts:
-            raise UrdfError(f"{role} mesh {geometry.mesh.filename!r} gave no geoms", **self._where(link))
+            raise UrdfError(f"{role} mesh {geometry.mesh.filename!r} gave no geoms", **self._element("link", link))
         out = []
         for part in parts:
             material = part.material if (loaded.own_materials or rgba is None) else None
@@ -439,7 +469,7 @@ class _Builder:
         if scale is None:
             raise UrdfError(
                 f"mesh {ref!r} has scale {_fmt(mesh.scale)}; a scale must be finite and not zero",
-                **self._where(ref),
+                **self._element("mesh", ref),
                 hint="fix the scale attribute",
             )
         found, root = self._locate(ref)
@@ -465,7 +495,7 @@ class _Builder:
                 if found_root is None:
                     raise UrdfError(
                         f"package {package!r} of mesh {ref!r} not found",
-                        **self._where(ref),
+                        **self._element("mesh", ref),
                         hint=f"pass --package-dir {package}=FOLDER",
                     )
                 root = found_root
@@ -479,13 +509,13 @@ class _Builder:
         if not self.options.allow_outside and not Resolver(root).inside(resolved):
             raise UrdfError(
                 f"mesh {ref!r} is outside the robot's folder {root}",
-                **self._where(ref),
+                **self._element("mesh", ref),
                 hint="move it into the package, or pass --allow-outside",
             )
         if not is_file(resolved):
-            raise UrdfError(f"mesh {ref!r} not found (looked for {resolved})", **self._where(ref))
+            raise UrdfError(f"mesh {ref!r} not found (looked for {resolved})", **self._element("mesh", ref))
         if resolved.suffix.lower() not in MESH_TYPES:
-            raise UrdfError(f"mesh {ref!r}: unsupported type {resolved.suffix!r}", **self._where(ref))
+            raise UrdfError(f"mesh {ref!r}: unsupported type {resolved.suffix!r}", **self._element("mesh", ref))
         return resolved, (root if not self.options.allow_outside else resolved.parent)
 
     def _package_root(self) -> Path:
@@ -501,13 +531,20 @@ class _Builder:
                 return {"path": str(self.path), "line": number}
         return {"path": str(self.path)}
 
+    def _element(self, kind: str, name: str) -> dict[str, Any]:
+        """``path`` and ``line`` of the ``<link>``/``<joint>`` named ``name``, or of ``<mesh filename=name>``."""
+        line = self.lines.get((kind, name))
+        if line is not None:
+            return {"path": str(self.path), "line": line}
+        return self._where(name) if kind == "mesh" else self._at(name)
+
     def _at(self, name: str) -> dict[str, Any]:
         """``path`` and ``line`` of the element whose ``name="..."`` is ``name`` (for findings)."""
         for quote in ('"', "'"):
             found = self._where(f"name={quote}{name}{quote}")
             if "line" in found:
                 return found
-        return self._where(name)
+        return {"path": str(self.path)}  # no line rather than the first line that happens to hold the text
 
 
 def _pose(matrix: Any) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:

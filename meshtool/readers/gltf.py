@@ -29,6 +29,7 @@ import base64
 import hashlib
 import json
 import math
+import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,6 +53,9 @@ from meshtool.readers.model import (
     transform_points,
 )
 from meshtool.resolve import Resolver
+
+#: A URI with a scheme (``file://``), an absolute path, or a Windows drive path: outside any asset's root.
+_ABSOLUTE = re.compile(r"^(?:[A-Za-z][A-Za-z0-9+.-]*://|/|\\|[A-Za-z]:[\\/])")
 
 FRAME = SourceFrame(1.0, "glTF 2.0 (metres by the specification)", "y", "glTF 2.0 (+Y up by the specification)")
 COMPRESSION = {"KHR_draco_mesh_compression": "Draco", "EXT_meshopt_compression": "meshopt"}
@@ -265,10 +269,15 @@ class _Reader:
         if res.found is None:
             outside = any(f.code == "reference-outside-root" for f in res.findings)
             reason = "is outside the asset folder" if outside else "was not found"
+            hint = "add its folder with --search-path" if outside else "put the file beside the glTF"
+            if _ABSOLUTE.match(uri):  # never read where it points: only looked for by name inside the roots
+                name = unquote(uri).replace("\\", "/").rstrip("/").rsplit("/", 1)[-1]
+                reason = f"is an absolute URI outside the asset's root ({name!r} is not inside it either)"
+                hint = "make the uri relative to the glTF and put the file there, or add its folder with --search-path"
             raise FormatError(
                 f"{what} {uri!r} {reason}; the geometry cannot be read without it",
                 path=self.path,
-                hint="add its folder with --search-path" if outside else "put the file beside the glTF",
+                hint=hint,
                 code="gltf-buffer-missing",
             )
         data = self.resolver.read_resolution(res, "other")
