@@ -11,9 +11,10 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import re
 import unicodedata
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -80,7 +81,7 @@ class NormaliseOptions:
 
 @dataclass(slots=True)
 class NormalisedAsset:
-    """A normalised asset in memory.
+    r"""A normalised asset in memory.
 
     Attributes:
         name: Folder and file stem.
@@ -91,6 +92,9 @@ class NormalisedAsset:
         mesh: The triangle mesh in metres, Z-up, triangles ordered by material.
         materials: Output materials in the order of ``mesh.material_names``, textures renamed.
         textures: PNG file name to bytes.
+        source_paths: Each source's path as ``asset.json`` shows it -> the file actually read (absolute,
+            symbolic links resolved). Shown names are printable (``\xNN`` for bytes that are not UTF-8) and
+            relative to the asset folder; these are the real names, for callers that look at the files again.
     """
 
     name: str
@@ -100,6 +104,7 @@ class NormalisedAsset:
     mesh: TriMesh
     materials: list[Material]
     textures: dict[str, bytes]
+    source_paths: dict[str, Path] = field(default_factory=dict)
 
     @property
     def stats(self) -> dict[str, Any]:
@@ -173,6 +178,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
     obj = read_mesh(src, data, source_name, resolver)  # OBJ, STL, PLY, glTF/GLB or COLLADA
     findings = [*obj.findings, *root_findings]
     sources: list[dict[str, str]] = source_entries(obj, source_name, _sha256(data))  # the file, glTF buffers
+    source_paths = {source_name: Path(os.path.realpath(src))}
     resolutions: list[Resolution] = []
 
     normalised_before = any(_MARKER.match(c) for c in obj.header_comments[:1])
@@ -190,6 +196,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         assert res.found is not None
         shown = resolver.display(res.found, resolved=True)
         sources.append({"role": "mtl", "path": shown, "sha256": _sha256(mtl_bytes)})
+        source_paths[shown] = res.found
         mtl = parse_mtl(mtl_bytes, shown)
         findings.extend(mtl.findings)
         for material in mtl.materials:
@@ -244,7 +251,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         )
     if library or obj.material_names:
         out_materials, textures = _materials(
-            mesh, library, resolver, source_name, findings, resolutions, sources, files
+            mesh, library, resolver, source_name, findings, resolutions, (sources, source_paths), files
         )
         findings.extend(f for m in out_materials if (f := opaque_if_invisible(m, source_name)) is not None)
         tag_textures(out_materials, files)  # colour maps sRGB, data maps linear, in the PNG itself
@@ -293,7 +300,7 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
             hint="fix the input or drop --strict",
         )
     textures_out = {n: files[n] for n in textures}
-    return NormalisedAsset(name, files, manifest, findings, mesh, out_materials, textures_out)
+    return NormalisedAsset(name, files, manifest, findings, mesh, out_materials, textures_out, source_paths)
 
 
 def check_coordinate_range(obj: ObjData, units: str | None, scale: float) -> None:
@@ -383,10 +390,13 @@ def _materials(
     source_name: str,
     findings: list[Finding],
     resolutions: list[Resolution],
-    sources: list[dict[str, str]],
+    sources: tuple[list[dict[str, str]], dict[str, Path]],
     files: dict[str, bytes],
 ) -> tuple[list[Material], list[str]]:
-    """Output materials (safe names, textures converted and renamed) in first-use order."""
+    """Output materials (safe names, textures converted and renamed) in first-use order.
+
+    ``sources``: the ``asset.json`` source entries and :attr:`NormalisedAsset.source_paths`, both extended.
+    """
     out_names = unique_names(mesh.material_names, "material")
     converted: dict[Path, tuple[str | None, Path | None, str | None]] = {}
     texture_names: set[str] = set()
@@ -430,7 +440,7 @@ def _convert_texture(
     res: Resolution,
     resolver: Resolver,
     findings: list[Finding],
-    sources: list[dict[str, str]],
+    sources: tuple[list[dict[str, str]], dict[str, Path]],
     files: dict[str, bytes],
     taken: set[str],
 ) -> str | None:
@@ -445,7 +455,8 @@ def _convert_texture(
     assert res.found is not None
     found = res.found
     shown = resolver.display(found, resolved=True)
-    sources.append({"role": "texture", "path": shown, "sha256": _sha256(data)})
+    sources[0].append({"role": "texture", "path": shown, "sha256": _sha256(data)})
+    sources[1][shown] = found
     try:
         png = to_png(data, shown)
     except MeshtoolError as exc:

@@ -20,6 +20,7 @@ from PIL import Image
 import meshtool
 from meshtool import surface
 from meshtool.packfile import PackedMesh
+from meshtool.safeopen import printable
 from simrun.errors import EntityError
 from simrun.safeio import FileReadError, check_regular, read_regular
 
@@ -78,7 +79,8 @@ class AssetLibrary:
         if key in self.added_meshes:
             return self.added_meshes[key]
         p = self.packed(path)
-        base = f"{path.stem}@{scale:g}" if scale != 1.0 else path.stem
+        stem = printable(path.stem)  # MuJoCo names are UTF-8: a non-UTF-8 file name's bytes become \xNN
+        base = f"{stem}@{scale:g}" if scale != 1.0 else stem
         while any(a.name == base for a in self.added_meshes.values()):
             base += "_"
         textures = []
@@ -143,7 +145,7 @@ class AssetLibrary:
         """A material showing the PNG ``file`` (relative to ``base_dir``), added once."""
         path = (base_dir / file).resolve()
         if path not in self.added_textures:
-            name = f"texture:{path.stem}"
+            name = f"texture:{printable(path.stem)}"
             tex = self.add_texture(name, self.read_image(path, file))
             mat = self.spec.add_material(name=f"{name}/material")
             mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex

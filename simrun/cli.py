@@ -17,6 +17,7 @@ import numpy as np
 from PIL import Image
 
 from meshtool.cli_common import VocabularyGroup, progress_enabled
+from meshtool.safeopen import printable
 from simrun import __version__
 from simrun.archive import save_mjz
 from simrun.doctor import check_environment
@@ -67,8 +68,11 @@ class _Group(VocabularyGroup):
 
 
 def _one_line(text: str) -> str:
-    """Messages (MuJoCo's among them) may hold line breaks; the error stays on one line."""
-    return "; ".join(part.strip() for part in text.splitlines() if part.strip())
+    r"""Messages (MuJoCo's among them) may hold line breaks; the error stays on one line.
+
+    File names that are not UTF-8 show their stray bytes as ``\xNN`` (as meshtool's messages do).
+    """
+    return printable("; ".join(part.strip() for part in text.splitlines() if part.strip()))
 
 
 class _Number(click.ParamType):  # type: ignore[type-arg]
@@ -425,7 +429,7 @@ def replay(
 
         with _guard(), output_policy(force, [log]):
             for item in export_recording(log, outputs, fps, tolerance):
-                click.echo(f"wrote {item.path} ({item.size} bytes, {item.keyframes} keyframes) from {log}")
+                click.echo(f"wrote {item.path} ({item.size} bytes, {item.keyframes} keyframes) from {printable(log)}")
     if video is None:
         return
     fps = 15.0 if fps is None else fps
@@ -446,7 +450,7 @@ def replay(
             write_bytes(video, encode_gif(frames, fps))
         else:
             encode_mp4(frames, fps, video)
-    click.echo(f"wrote {video}: {len(frames)} frame(s) replayed from {log}")
+    click.echo(f"wrote {video}: {len(frames)} frame(s) replayed from {printable(log)}")
 
 
 @main.command("resim")
@@ -476,7 +480,7 @@ def resim(log: Path, start: float, controller: Path | None) -> None:
         compared, mismatch = run_resim(log, start, controller)
         if mismatch is not None:
             raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
-    click.echo(f"{log}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
+    click.echo(f"{printable(log)}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
 
 
 @main.command("view")

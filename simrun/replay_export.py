@@ -11,6 +11,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from meshtool.safeopen import printable
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes, write_text
 from simrun.replay_glb import recording_gltf
@@ -91,7 +92,7 @@ def export_recording(
         elif kind == "usd":
             export_recording_usd(world, tracks, keys, path)
         else:
-            write_text(path, recording_html(world, tracks, keys, log_path.stem))
+            write_text(path, recording_html(world, tracks, keys, printable(log_path.stem)))  # bytes as \xNN
         seconds = time.perf_counter() - start
         written.append(Written(path, path.stat().st_size, seconds, count))
     return written

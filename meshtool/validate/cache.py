@@ -49,7 +49,7 @@ class ResultCache:
     def key(self, task: AssetTask, content_sha256: str) -> str:
         """The entry key of an asset with the given content hash."""
         text = f"{self.salt}\n{task.path.resolve()}\n{content_sha256}"
-        return hashlib.sha256(text.encode("utf-8")).hexdigest()
+        return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()  # non-UTF-8 names: raw bytes
 
     def lookup(self, task: AssetTask) -> AssetResult | None:
         """The cached result, if every file it depends on is unchanged (and it has a thumbnail if asked)."""

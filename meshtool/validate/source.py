@@ -12,6 +12,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from meshtool.findings import Finding
+from meshtool.safeopen import printable
 from meshtool.validate.rules import hit
 
 #: Normaliser finding code -> rule ID (codes not listed are repairs that need no attention).
@@ -57,6 +58,7 @@ FROM_NORMALISER: dict[str, str] = {
 
 _ABSOLUTE = re.compile(r"^([A-Za-z]:[\\/]|[\\/]|[A-Za-z][A-Za-z0-9+.-]*://)")
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-/]+$")
+_RAW_BYTE = re.compile(r"\\x([89a-f][0-9a-f])")  # a byte that is not UTF-8, as printable() shows it
 _REPAIRED = ("backslash", "case-insensitive", "basename", "search-path")
 
 
@@ -97,13 +99,18 @@ def reference_findings(resolutions: Iterable[dict[str, Any]]) -> list[Finding]:
 
 
 def name_findings(names: Iterable[str]) -> list[Finding]:
-    """S009 for every file name (relative paths, ``/``-separated) with unsafe characters."""
+    r"""S009 for every file name (relative paths, ``/``-separated) with unsafe characters.
+
+    A name's bytes that are not UTF-8 (surrogate escapes, or ``\xNN`` as :func:`printable` spells them)
+    are named as bytes.
+    """
     out = []
-    for name in sorted(set(names)):
+    for name in sorted({printable(n) for n in names}):
         if name.startswith("<") or _SAFE_NAME.match(name):
             continue
-        bad = sorted({c for c in name if not _SAFE_NAME.match(c)})
-        shown = " ".join("space" if c == " " else repr(c) for c in bad)
+        raw = sorted(set(_RAW_BYTE.findall(name)))
+        bad = sorted({c for c in _RAW_BYTE.sub("", name) if not _SAFE_NAME.match(c)})
+        shown = " ".join([*(f"byte 0x{b} (not UTF-8)" for b in raw), *("space" if c == " " else repr(c) for c in bad)])
         out.append(hit("S009", f"file name '{name}' has unsafe characters: {shown}", name))
     return out
 

@@ -26,7 +26,7 @@ from meshtool.hulls import Hull, HullOptions, compute_hulls
 from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
 from meshtool.packfile import pack, parse
 from meshtool.readers import format_of
-from meshtool.resolve import Resolver, file_sha256
+from meshtool.resolve import Resolver, file_sha256, printable
 from meshtool.units import scale_findings
 from meshtool.validate.collision import collision_findings
 from meshtool.validate.config import Limits
@@ -185,32 +185,38 @@ def _special_file(path: Path) -> str | None:
 def _read_obj(read: ReadAsset) -> None:
     task, result = read.task, read.result
     src = task.path
-    name = src.name
+    shown = printable(src.name)
     resolver = Resolver(src.parent)
     data = resolver.read_source(src)
     result.deps[str(src.resolve())] = hashlib.sha256(data).hexdigest()
     if format_of(src) == "obj":  # binary formats (STL, PLY, GLB) are no text
-        result.findings.extend(encoding_findings(name, data))
+        result.findings.extend(encoding_findings(shown, data))
     try:
         asset = prepare(src, NormaliseOptions())
     except MeshtoolError as exc:
         rule = {"non-finite": "G001", "gltf-buffer-missing": "S013"}.get(str(exc.code), "S001")
-        result.findings.append(hit(rule, exc.message, exc.path or name, exc.line))
-        result.findings.extend(name_findings([name]))
+        result.findings.append(hit(rule, exc.message, exc.path or shown, exc.line))
+        result.findings.extend(name_findings([shown]))
         read.done = True
         return
     read.asset = asset
     manifest = asset.manifest
     for source in manifest["sources"]:
-        if source["role"] == "texture" and source["path"].split("/", 1)[0] == name:
+        if source["role"] == "texture" and source["path"].split("/", 1)[0] == shown:
             continue  # an image embedded in the glTF/GLB: the file's own digest covers it
-        result.deps[str((src.parent / source["path"]).resolve())] = source["sha256"]
+        real = asset.source_paths.get(source["path"]) or (src.parent / source["path"]).resolve()
+        result.deps[str(real)] = source["sha256"]  # the real name: shown names spell stray bytes as \xNN
     result.findings.extend(from_normaliser(asset.findings))
     result.findings.extend(reference_findings(manifest["resolutions"]))
     result.findings.extend(name_findings(s["path"] for s in manifest["sources"]))
     for source in manifest["sources"][1:]:
-        if source["role"] == "mtl":
-            result.findings.extend(encoding_findings(source["path"], resolver.read(src.parent / source["path"])))
+        real = asset.source_paths.get(source["path"])
+        if source["role"] == "mtl" and real is not None:
+            try:  # the file the normaliser read, by its real name (not its shown one)
+                mtl_bytes = resolver.read(real, "mtl")
+            except MeshtoolError:
+                continue  # an MTL in a model root above the OBJ's folder, or changed since: read once is enough
+            result.findings.extend(encoding_findings(source["path"], mtl_bytes))
 
 
 def _judge_obj(read: ReadAsset) -> None:

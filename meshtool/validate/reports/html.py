@@ -11,6 +11,7 @@ from html import escape
 
 from meshtool import __version__
 from meshtool.validate.reports.machine import status
+from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
 from meshtool.validate.task import AssetResult
@@ -49,6 +50,7 @@ _PILLS = {"error": "with errors", "warning": "with warnings", "info": "with note
 
 def to_html(report: ValidationReport, strict: bool = False, title: str = "meshtool validate") -> str:
     """The report as one HTML document."""
+    report = printable_report(report)
     counts = report.counts()
     groups: dict[str, list[AssetResult]] = {k: [] for k in _TITLES}
     for a in report.assets:

@@ -12,6 +12,7 @@ from xml.etree import ElementTree as ET
 
 from meshtool import __version__
 from meshtool.findings import Finding, Severity
+from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
 from meshtool.validate.task import AssetResult
@@ -46,6 +47,7 @@ def finding_dict(f: Finding) -> dict[str, Any]:
 
 def to_json(report: ValidationReport, strict: bool = False) -> str:
     """One object: ``summary`` and ``assets`` (one object per asset); see ``docs/validate-report.schema.json``."""
+    report = printable_report(report)
     counts = report.counts()
     document = {
         "format": FORMAT,
@@ -79,6 +81,7 @@ def to_json(report: ValidationReport, strict: bool = False) -> str:
 
 def to_junit(report: ValidationReport, strict: bool = False) -> str:
     """JUnit XML: one ``testcase`` per asset; errors (and warnings with ``strict``) are failures, X001 an error."""
+    report = printable_report(report)
     fails = {Severity.ERROR, Severity.WARNING} if strict else {Severity.ERROR}
     suite = ET.Element("testsuite", name="meshtool validate")
     failures = errors = 0
@@ -120,6 +123,7 @@ def to_junit(report: ValidationReport, strict: bool = False) -> str:
 
 def to_github(report: ValidationReport, strict: bool = False) -> str:
     """GitHub Actions workflow commands: ``::error``/``::warning``/``::notice`` per finding, file and line."""
+    report = printable_report(report)
     command = {Severity.ERROR: "error", Severity.WARNING: "warning", Severity.INFO: "notice"}
     lines = []
     for a in report.assets:

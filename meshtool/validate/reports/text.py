@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from meshtool.validate.reports.machine import status
+from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
 
@@ -20,6 +21,7 @@ def to_text(report: ValidationReport, strict: bool = False, colour: bool = False
         colour: ANSI colours (for a terminal).
         verbose: Also list clean assets and the notes of every asset.
     """
+    report = printable_report(report)
 
     def paint(text: str, key: str) -> str:
         return f"{_COLOUR[key]}{text}{_RESET}" if colour else text

@@ -1,0 +1,113 @@
+"""Issue 21 follow-ups: attacks an independent verifier re-ran after the first hardening round.
+
+Each test builds its hostile input in ``tmp_path`` and runs the installed command line (or the library)
+the way the verifier did; each must end with exit 0/1 and at most one ``error:`` line, never exit 3, a
+traceback or a stray library warning.
+"""
+
+import io
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from PIL import Image
+
+BIN = Path(sys.executable).parent
+BOX = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+TEXTURED = (
+    b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 0 1\n"
+    b"usemtl x\nf 1/1 3/3 2/2\nf 1/1 2/2 4/3\nf 1/1 4/3 3/2\nf 2/1 3/2 4/3\n"
+)
+
+
+def png(size: tuple[int, int] = (8, 8), colour: tuple[int, int, int] = (10, 200, 30)) -> bytes:
+    buf = io.BytesIO()
+    Image.new("RGB", size, colour).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def run(*args: object, cwd: Path | None = None) -> subprocess.CompletedProcess[bytes]:
+    """Run an installed command (``meshtool``, ``obj2bin``, ``simrun``) without debug variables."""
+    env = {k: v for k, v in os.environ.items() if k not in ("MESHTOOL_DEBUG", "SIMRUN_DEBUG", "MESHTOOL_VERBOSE")}
+    argv = [os.fspath(BIN / str(args[0])), *(a if isinstance(a, bytes) else os.fspath(a) for a in args[1:])]  # type: ignore[arg-type]
+    return subprocess.run(argv, capture_output=True, timeout=300, env=env, cwd=cwd, check=False)
+
+
+def clean_exit(proc: subprocess.CompletedProcess[bytes], code: int) -> str:
+    """The stderr of a run that ended with ``code`` and, when it failed, exactly one ``error:`` line."""
+    stderr = proc.stderr.decode("utf-8")  # strict: a name's stray bytes are shown as \xNN
+    assert "Traceback" not in stderr and "internal error" not in stderr, stderr
+    assert proc.returncode == code, stderr
+    if code in (1, 2):
+        lines = [line for line in stderr.splitlines() if line.strip()]
+        assert len(lines) == 1 and lines[0].startswith(("error:", "usage error:", "Error:")), stderr
+    return stderr
+
+
+# -- 2. non-UTF-8 file names --------------------------------------------------------------------------------
+
+
+def test_validate_a_folder_with_a_non_utf8_obj_name(tmp_path):
+    folder = tmp_path / "nu"
+    folder.mkdir()
+    (folder / os.fsdecode(b"plain\xff.obj")).write_bytes(BOX)
+    proc = run("meshtool", "validate", "nu", cwd=tmp_path)
+    stdout = proc.stdout.decode("utf-8")
+    clean_exit(proc, 0)
+    assert "X001" not in stdout and "nu/plain\\xff.obj" in stdout
+    assert "byte 0xff (not UTF-8)" in stdout  # S009 names the byte, not the backslash of its spelling
+    for fmt in ("html", "json", "junit", "github"):
+        proc = run("meshtool", "validate", "nu", "--format", fmt, "-o", f"r.{fmt}", cwd=tmp_path)
+        clean_exit(proc, 0)
+        text = (tmp_path / f"r.{fmt}").read_bytes().decode("utf-8")
+        assert "plain\\xff.obj" in text or "plain\\\\xff.obj" in text, fmt
+        assert "X001" not in text
+    document = json.loads((tmp_path / "r.json").read_bytes())
+    (entry,) = document["assets"]
+    assert entry["path"] == "nu/plain\\xff.obj"
+
+
+def test_validate_resolves_a_latin1_mtllib_like_normalize(tmp_path):
+    """``mtllib t\\xe9x.mtl`` (Latin-1 bytes) naming a file whose name has those bytes."""
+    folder = tmp_path / "a"
+    folder.mkdir()
+    (folder / "box.obj").write_bytes(TEXTURED.replace(b"mtllib m.mtl", b"mtllib t\xe9x.mtl"))
+    (folder / os.fsdecode(b"t\xe9x.mtl")).write_bytes(b"newmtl x\nKd 1 0 0\nmap_Kd tex.png\n")
+    (folder / "tex.png").write_bytes(png())
+    normalize = run("meshtool", "normalize", folder / "box.obj", "-o", tmp_path / "out")
+    clean_exit(normalize, 0)
+    proc = run("meshtool", "validate", "a", "--format", "json", cwd=tmp_path)
+    clean_exit(proc, 0)
+    (entry,) = json.loads(proc.stdout)["assets"]
+    rules = {f["rule"] for f in entry["findings"]}
+    assert "X001" not in rules and "S002" not in rules, entry["findings"]
+    assert "S010" in rules  # Latin-1 text, said once
+    # the cache key covers the MTL by its real name: a second run is served from the cache
+    cache = tmp_path / "cache"
+    first = run("meshtool", "validate", "a", "--cache-dir", cache, cwd=tmp_path)
+    second = run("meshtool", "validate", "a", "--cache-dir", cache, cwd=tmp_path)
+    clean_exit(first, 0)
+    clean_exit(second, 0)
+    assert "1 from cache" in second.stdout.decode("utf-8")
+
+
+SCENES = Path(__file__).resolve().parents[1] / "fixtures" / "scenes"
+
+
+def test_replay_of_a_recording_with_a_non_utf8_name(tmp_path):
+    from simrun.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
+
+    log = os.fsdecode(b"r\xff.simlog")
+    clean_exit(run("simrun", "play", SCENES / "boebot.toml", "--duration", "0.2", "--record", log, cwd=tmp_path), 0)
+    missing = run("simrun", "replay", os.fsdecode(b"x\xfe.simlog"), "--html", "ok.html", cwd=tmp_path)
+    assert "x\\xfe.simlog" in clean_exit(missing, 1)
+    if not (os.environ.get(VIEWER_VARIABLE) or DEFAULT_BUNDLE.is_file()):
+        pytest.skip("the three.js viewer bundle is not installed: run scripts/install_three_viewer.sh")
+    proc = run("simrun", "replay", log, "--html", "ok.html", cwd=tmp_path)
+    clean_exit(proc, 0)
+    assert "from r\\xff.simlog" in proc.stdout.decode("utf-8")
+    page = (tmp_path / "ok.html").read_bytes().decode("utf-8")
+    assert "<title>r\\xff - simrun recording</title>" in page
