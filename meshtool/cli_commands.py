@@ -361,7 +361,7 @@ def _info_lines(file: Path, summary: dict[str, Any]) -> list[str]:
         shape = "x".join(str(d) for d in s["shape"])
         lines.append(
             f"  {s['kind']:<5}{s['index']:>3} {s['dtype']:>5} {shape:>12} at {s['offset']:>10} "
-            f"{s['bytes']:>10} bytes {s['encoding']:>11}  crc {s['crc32']} {s['checksum']}"
+            f"{s['bytes']:>10} bytes {s['encoding']:>11}  {summary['checksum_algorithm']} {s['crc']} {s['checksum']}"
         )
     meta = summary["meta"]
     if meta.get("hull_quality"):

@@ -224,6 +224,8 @@ def describe(packed: PackedMesh) -> dict[str, Any]:
         "materials": [m.get("name") for m in packed.materials],
         "textures": list(packed.meta.get("textures", [])),
         "hulls": len(packed.hulls),
+        # what each section's "crc" holds (docs/mbin-spec.md section 2)
+        "checksum_algorithm": "crc32" if packed.version[1] == 0 else "xxh3-64-low32",
         "sections": [
             {
                 "kind": s.kind.strip(),
@@ -235,7 +237,7 @@ def describe(packed: PackedMesh) -> dict[str, Any]:
                 "encoding": ("plain", "u16-box", "oct-snorm16", "deflate")[s.encoding]
                 if s.encoding < 4
                 else s.encoding,
-                "crc32": f"{s.crc:08x}",
+                "crc": f"{s.crc:08x}",
                 "checksum": {True: "ok", False: "BAD", None: "not checked"}[s.crc_ok],
             }
             for s in packed.sections
