@@ -200,7 +200,7 @@ def test_the_service_moves_the_robot_only_through_its_actuators(robot):
 def test_non_finite_commands_are_refused_and_nothing_moves(call, bad):
     world, drive = boebot_world()
     start = world.body("bot").xpos.copy()
-    with pytest.raises(EntityError, match="finite"):
+    with pytest.raises(EntityError, match=f"^{call}: .* must be a finite number"):
         getattr(drive, call)(bad, 0.5) if call != "drive_distance" else drive.drive_distance(bad)
     if call in ("drive_distance", "rotate_degrees"):
         with pytest.raises(EntityError, match="power"):
@@ -1044,3 +1044,57 @@ def test_laser_defaults_and_default_noise_seed():
     assert a.reading.position == b.reading.position and c.reading.angles == d.reading.angles
     np.testing.assert_array_equal(e.reading.ranges, g.reading.ranges)
     del f
+
+
+def test_negative_power_drives_backwards_and_turns_run_at_half_the_drive_speed():
+    world, drive, _ = make(Pioneer3DX)
+    drive.set_drive_power(-0.5, -0.5)
+    world.run(2.0)
+    before = world.body("r").xpos[0]
+    world.run(0.5)
+    assert (world.body("r").xpos[0] - before) / 0.5 == pytest.approx(-0.6, rel=0.1)  # half of 1.2 m/s, backwards
+    world, drive, _ = make(Pioneer3DX)
+    drive.rotate_degrees(180, power=0.5)  # wheels at half of 0.5 x min(0.5 m/s limit, 1.2 m/s motor)
+    world.run(2.0)
+    before = heading(world, "r")
+    world.run(0.2)
+    rate = math.radians(heading(world, "r") - before) / 0.2
+    assert rate == pytest.approx(2 * 0.125 / 0.3335, rel=0.05)
+
+
+def test_world_reset_forgets_a_running_cmd_vel():
+    world, drive, _ = make(BoeBot)
+    drive.cmd_vel(0.1, 0.0)
+    world.run(0.3)
+    world.reset()
+    start = world.body("r").xpos.copy()
+    world.run(0.5)
+    assert np.linalg.norm(world.body("r").xpos[:2] - start[:2]) < 1e-3
+
+
+def test_switching_to_cmd_vel_keeps_the_speed_the_robot_has():
+    world, drive, _ = make(Pioneer3DX)
+    drive.drive_speed(0.4, 0.4)
+    world.run(3.0)
+    drive.cmd_vel(0.4, 0.0)
+    for _ in range(5):
+        before = world.body("r").xpos[0]
+        world.run(0.1)
+        assert (world.body("r").xpos[0] - before) / 0.1 == pytest.approx(0.4, rel=0.03)  # no dip, no ramp from 0
+
+
+def test_checkpoint_in_an_arc_continues_bit_for_bit():
+    world, drive, _ = make(LegoNxtTribot)
+    drive.limits = DriveLimits(command_timeout=10.0)
+    drive.cmd_vel(0.2, 1.0)
+    world.run(0.3)  # still ramping: the two wheels' targets differ
+    state = drive.snapshot()
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    physics = np.zeros(mujoco.mj_stateSize(world.model, spec))
+    mujoco.mj_getState(world.model, world.data, physics, spec)
+    world.run(0.5)
+    expected = world.data.qpos.copy()
+    mujoco.mj_setState(world.model, world.data, physics, spec)
+    drive.restore(state)
+    world.run(0.5)
+    np.testing.assert_array_equal(world.data.qpos, expected)
