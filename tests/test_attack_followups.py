@@ -36,12 +36,17 @@ def run(*args: object, cwd: Path | None = None) -> subprocess.CompletedProcess[b
     return subprocess.run(argv, capture_output=True, timeout=300, env=env, cwd=cwd, check=False)
 
 
-def clean_exit(proc: subprocess.CompletedProcess[bytes], code: int) -> str:
-    """The stderr of a run that ended with ``code`` and, when it failed, exactly one ``error:`` line."""
+def clean_exit(proc: subprocess.CompletedProcess[bytes], code: int, report: bool = False) -> str:
+    """The stderr of a run that ended with ``code`` and, when it failed, exactly one ``error:`` line.
+
+    ``report``: the command reports findings on stdout (``validate``): exit 1 comes with no error line.
+    """
     stderr = proc.stderr.decode("utf-8")  # strict: a name's stray bytes are shown as \xNN
     assert "Traceback" not in stderr and "internal error" not in stderr, stderr
     assert proc.returncode == code, stderr
-    if code in (1, 2):
+    if report:
+        assert stderr == "", stderr
+    elif code in (1, 2):
         lines = [line for line in stderr.splitlines() if line.strip()]
         assert len(lines) == 1 and lines[0].startswith(("error:", "usage error:", "Error:")), stderr
     return stderr
@@ -111,3 +116,19 @@ def test_replay_of_a_recording_with_a_non_utf8_name(tmp_path):
     assert "from r\\xff.simlog" in proc.stdout.decode("utf-8")
     page = (tmp_path / "ok.html").read_bytes().decode("utf-8")
     assert "<title>r\\xff - simrun recording</title>" in page
+
+
+# -- 3. files over the read limit ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("name", "rule"), [("big.obj", "S001"), ("big.stl", "S001"), ("big.mbin", "K001")])
+def test_validate_a_3_gb_sparse_file_is_a_finding(tmp_path, name, rule):
+    big = tmp_path / name
+    big.write_bytes(b"v 0 0 0\n" if name.endswith(".obj") else b"")
+    os.truncate(big, 3 << 30)  # sparse: no disk space used
+    proc = run("meshtool", "validate", name, "--format", "json", "--no-cache", cwd=tmp_path)
+    clean_exit(proc, 1, report=True)
+    (entry,) = json.loads(proc.stdout)["assets"]
+    rules = [f["rule"] for f in entry["findings"]]
+    assert rules == [rule], entry["findings"]
+    assert "is 3 GiB, over the 1 GiB limit" in entry["findings"][0]["message"]

@@ -187,7 +187,13 @@ def _read_obj(read: ReadAsset) -> None:
     src = task.path
     shown = printable(src.name)
     resolver = Resolver(src.parent)
-    data = resolver.read_source(src)
+    try:
+        data = resolver.read_source(src)
+    except MeshtoolError as exc:  # over the read limit, unreadable, changed while read: a finding, not a bug
+        result.findings.append(hit("S001", exc.message, shown))
+        result.findings.extend(name_findings([shown]))
+        read.done = True
+        return
     result.deps[str(src.resolve())] = hashlib.sha256(data).hexdigest()
     if format_of(src) == "obj":  # binary formats (STL, PLY, GLB) are no text
         result.findings.extend(encoding_findings(shown, data))
@@ -243,7 +249,12 @@ def _read_mbin(read: ReadAsset) -> None:
     task, result = read.task, read.result
     path = task.path
     name = path.name
-    data = Resolver(path.parent).read_source(path)
+    try:
+        data = Resolver(path.parent).read_source(path, "other")
+    except MeshtoolError as exc:  # over the read limit or unreadable: the pack cannot be checked (as a FIFO)
+        result.findings.append(hit("K001", exc.message, name))
+        read.done = True
+        return
     result.deps[str(path.resolve())] = hashlib.sha256(data).hexdigest()
     try:
         packed = parse(data, name, verify=True)
