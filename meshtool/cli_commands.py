@@ -243,7 +243,7 @@ def obj2bin(
             _convert_folder(src, out, options, jobs, as_json, force)
             return
         default_name = f"{safe_file_stem(src.stem) or 'asset'}.mbin"
-        target = out / default_name if out is not None and out.is_dir() else out or Path(default_name)
+        target = out / default_name if out is not None and _is_folder(out) else out or Path(default_name)
         result = convert(src, target, options, force=force)
     if as_json:
         click.echo(json.dumps(_report("ok", result.output, result.findings, result.stats)))

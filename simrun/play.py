@@ -6,9 +6,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -245,6 +247,10 @@ def encode_mp4(frames: list[np.ndarray], fps: float, path: Path) -> None:
         raise SimrunError("no frames to encode")
     height, width = frames[0].shape[:2]
     tmp = path.with_name(f".{path.name}.tmp.mp4")
+    try:  # a path that cannot be written (too long a name, no folder) fails here, before ffmpeg says so itself
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o644))
+    except (OSError, ValueError) as exc:
+        raise SimrunError(f"cannot write {path}: {getattr(exc, 'strerror', None) or exc}") from None
     try:
         writer = imageio_ffmpeg.write_frames(
             str(tmp),
@@ -261,5 +267,6 @@ def encode_mp4(frames: list[np.ndarray], fps: float, path: Path) -> None:
         writer.close()
         tmp.replace(path)
     except (OSError, RuntimeError) as exc:
-        tmp.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
         raise SimrunError(f"cannot write {path}: {exc}") from None

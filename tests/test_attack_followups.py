@@ -132,3 +132,41 @@ def test_validate_a_3_gb_sparse_file_is_a_finding(tmp_path, name, rule):
     rules = [f["rule"] for f in entry["findings"]]
     assert rules == [rule], entry["findings"]
     assert "is 3 GiB, over the 1 GiB limit" in entry["findings"][0]["message"]
+
+
+# -- 4. over-long output and input names ---------------------------------------------------------------------
+
+LONG = "y" * 300  # over NAME_MAX (255): every lookup of it fails with ENAMETOOLONG
+LONG_NAME_COMMANDS = {
+    "obj2bin-o-file": ["obj2bin", "box.obj", "-o", f"{LONG}.mbin"],
+    "obj2bin-o-in-folder": ["obj2bin", "box.obj", "-o", f"{LONG}/x.mbin"],
+    "obj2bin-folder": ["obj2bin", "in", "-o", LONG],
+    "obj2bin-src": ["obj2bin", f"{LONG}.obj"],
+    "normalize-o": ["meshtool", "normalize", "box.obj", "-o", LONG],
+    "mjcf-o": ["meshtool", "mjcf", "box.mbin", "-o", LONG],
+    "export-glb": ["meshtool", "export", "box.mbin", "--glb", f"{LONG}.glb"],
+    "unpack-o": ["meshtool", "unpack", "box.mbin", "-o", LONG],
+    "info": ["meshtool", "info", f"{LONG}.mbin"],
+    "simrun-record": ["simrun", "play", "SCENE", "--duration", "0.1", "--record", f"{LONG}.simlog"],
+    "simrun-video": ["simrun", "play", "SCENE", "--duration", "0.1", "--video", f"{LONG}.mp4"],
+    "simrun-scene": ["simrun", "play", f"{LONG}.toml"],
+}
+
+
+@pytest.fixture(scope="module")
+def long_name_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("long")
+    (folder / "box.obj").write_bytes(BOX)
+    (folder / "in").mkdir()
+    (folder / "in" / "box.obj").write_bytes(BOX)
+    clean_exit(run("obj2bin", "box.obj", "-o", "box.mbin", cwd=folder), 0)
+    return folder
+
+
+@pytest.mark.parametrize("command", sorted(LONG_NAME_COMMANDS))
+def test_a_300_character_name_is_one_error_line(long_name_folder, command):
+    args = [str(SCENES / "boebot.toml") if a == "SCENE" else a for a in LONG_NAME_COMMANDS[command]]
+    before = sorted(p.name for p in long_name_folder.iterdir())
+    stderr = clean_exit(run(*args, cwd=long_name_folder), 1)
+    assert "too long" in stderr
+    assert sorted(p.name for p in long_name_folder.iterdir()) == before  # nothing left behind
