@@ -200,7 +200,7 @@ def _is_glb(path: Path, size: int) -> bool:
     try:
         tree = json.loads((body or b"")[20:])
         generator = tree["asset"]["generator"]
-    except (ValueError, KeyError, TypeError):
+    except (ValueError, KeyError, TypeError, RecursionError):  # not a GLB meshtool wrote
         return False
     return isinstance(generator, str) and generator.startswith(GENERATORS)
 
@@ -351,7 +351,7 @@ def replaceable_folder(target: Path) -> str | None:
     data = _read_head(target / MARKER, 16 << 20)
     try:
         manifest = json.loads(data) if data is not None else None
-    except ValueError:
+    except (ValueError, RecursionError):  # not an asset.json meshtool wrote
         manifest = None
     if not isinstance(manifest, dict):
         return "exists and was not written by meshtool (no asset.json of meshtool's)"

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from meshtool.nesting import NestingError, bounded
 from simrun.errors import SceneError, SimrunError
 from simrun.registry import REGISTRY, names
 from simrun.safeio import FileReadError, read_regular
@@ -90,7 +91,9 @@ def load_commands(path: Path) -> list[Command]:
         line = raw[: exc.start].count(b"\n") + 1
         raise SceneError(f"not UTF-8 (byte {exc.start}); save it as UTF-8", name, line=line) from None
     try:
-        doc = tomllib.loads(text)
+        doc = bounded(lambda: tomllib.loads(text))
+    except NestingError as exc:
+        raise SceneError(str(exc), name) from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"not valid TOML: {exc}", name, line=toml_error_line(exc)) from None
     lines = key_lines(text)

@@ -18,6 +18,7 @@ from typing import Any
 
 import tomli_w
 
+from meshtool.nesting import NestingError, bounded
 from simrun.commands import toml_error_line
 from simrun.entity import Entity, Material
 from simrun.errors import EntityError, SceneError, SimrunError
@@ -130,7 +131,9 @@ class _Loader:
             line = raw[: exc.start].count(b"\n") + 1
             raise SceneError(f"not UTF-8 (byte {exc.start}); save the scene as UTF-8", self.name, line=line) from None
         try:
-            doc = tomllib.loads(text)
+            doc = bounded(lambda: tomllib.loads(text))
+        except NestingError as exc:
+            raise SceneError(str(exc), self.name) from None
         except tomllib.TOMLDecodeError as exc:
             raise SceneError(f"not valid TOML: {exc}", self.name, line=toml_error_line(exc)) from None
         self.lines = key_lines(text)

@@ -16,6 +16,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from meshtool.nesting import bounded
 from simrun.errors import EntityError
 from simrun.world import World
 
@@ -101,8 +102,8 @@ def apply_state(world: World, table: dict[str, Any], fail: Any) -> None:
         world.service(binding["type"], binding["entity"])
     raw = table.get("controllers", "{}")
     try:
-        snapshots = json.loads(raw, parse_constant=_no_nan) if isinstance(raw, str) else None
-    except ValueError as exc:
+        snapshots = bounded(lambda: json.loads(raw, parse_constant=_no_nan)) if isinstance(raw, str) else None
+    except ValueError as exc:  # NestingError included
         raise fail(f"not a JSON object of controller snapshots ({exc})", "controllers") from None
     if not isinstance(snapshots, dict):
         raise fail("expected a JSON object of controller snapshots (a string)", "controllers")

@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from meshtool.nesting import NestingError, bounded
 from simrun.commands import Command, parse_command
 from simrun.errors import SimrunError
 from simrun.safeio import FileReadError, open_regular, read_regular
@@ -246,7 +247,9 @@ class Simlog:
             raise SimlogError(f"{path}: byte 12: header length {length} runs past the end of the file")
         raw = self._file.read(length)
         try:
-            header = json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant)
+            header = bounded(lambda: json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant))
+        except NestingError as exc:
+            raise SimlogError(f"{path}: byte 16: header {exc}") from None
         except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as exc:
             raise SimlogError(f"{path}: byte 16: corrupt header ({exc})") from None
         if not isinstance(header, dict):
@@ -392,8 +395,10 @@ class Simlog:
 
     def _json(self, raw: bytes, offset: int, what: str) -> Any:
         try:
-            return json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant)
-        except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+            return bounded(lambda: json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant))
+        except NestingError as exc:
+            raise SimlogError(f"{self.path}: byte {offset}: {what} {exc}") from None
+        except (UnicodeDecodeError, ValueError) as exc:
             raise SimlogError(f"{self.path}: byte {offset}: corrupt {what} ({exc})") from None
 
     def close(self) -> None:

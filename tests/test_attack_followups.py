@@ -170,3 +170,96 @@ def test_a_300_character_name_is_one_error_line(long_name_folder, command):
     stderr = clean_exit(run(*args, cwd=long_name_folder), 1)
     assert "too long" in stderr
     assert sorted(p.name for p in long_name_folder.iterdir()) == before  # nothing left behind
+
+
+# -- 5. deeply nested TOML and JSON --------------------------------------------------------------------------
+
+DEEP_TOML = ("x = " + "[" * 600 + "]" * 600 + "\n").encode()  # about 1 KB
+
+
+def simlog_with_header(header: bytes) -> bytes:
+    import struct
+
+    from simrun.simlog import MAGIC, MAJOR, MINOR
+
+    return MAGIC + struct.pack("<HHI", MAJOR, MINOR, len(header)) + header
+
+
+def deep_scene(folder: Path) -> list[object]:
+    (folder / "deep.toml").write_bytes(DEEP_TOML)
+    return ["simrun", "check", "deep.toml"]
+
+
+def deep_scene_table(folder: Path) -> list[object]:  # parses (depth < the parser's stack), then refused
+    (folder / "deep.toml").write_bytes(b"[world]\ngravity = " + b"[" * 100 + b"]" * 100 + b"\n")
+    return ["simrun", "play", "deep.toml", "--duration", "0.1"]
+
+
+def deep_commands(folder: Path) -> list[object]:
+    (folder / "deep.commands.toml").write_bytes(DEEP_TOML)
+    return ["simrun", "play", SCENES / "boebot.toml", "--duration", "0.1", "--commands", "deep.commands.toml"]
+
+
+def deep_simlog(folder: Path) -> list[object]:
+    (folder / "deep.simlog").write_bytes(simlog_with_header(b'{"a":' * 10000))
+    return ["simrun", "replay", "deep.simlog", "--glb", "x.glb"]
+
+
+def deep_simlog_resim(folder: Path) -> list[object]:
+    (folder / "deep.simlog").write_bytes(simlog_with_header(b"[" * 10000 + b"]" * 10000))
+    return ["simrun", "resim", "deep.simlog"]
+
+
+def deep_meshtool_toml(folder: Path) -> list[object]:
+    (folder / "a").mkdir()
+    (folder / "a" / "box.obj").write_bytes(BOX)
+    (folder / "meshtool.toml").write_bytes(b"[validate]\n" + DEEP_TOML)
+    return ["meshtool", "validate", "a"]
+
+
+def deep_pyproject(folder: Path) -> list[object]:
+    (folder / "a").mkdir()
+    (folder / "a" / "box.obj").write_bytes(BOX)
+    (folder / "pyproject.toml").write_bytes(b"[tool.meshtool.validate]\n" + DEEP_TOML)
+    return ["meshtool", "validate", "a"]
+
+
+def deep_gltf(folder: Path) -> list[object]:
+    (folder / "deep.gltf").write_bytes(b'{"asset": {"version": "2.0"}, "extras": ' + b"[" * 200 + b"]" * 200 + b"}")
+    return ["meshtool", "normalize", "deep.gltf", "-o", "out"]
+
+
+DEEP = {
+    "scene": (deep_scene, 1),
+    "scene-parsed": (deep_scene_table, 1),
+    "commands": (deep_commands, 1),
+    "simlog-header": (deep_simlog, 1),
+    "simlog-header-resim": (deep_simlog_resim, 1),
+    "meshtool-toml": (deep_meshtool_toml, 2),
+    "pyproject": (deep_pyproject, 2),
+    "gltf": (deep_gltf, 1),
+}
+
+
+@pytest.mark.parametrize("attack", sorted(DEEP))
+def test_deep_nesting_is_one_error_line(tmp_path, attack):
+    make, code = DEEP[attack]
+    args = make(tmp_path)
+    stderr = clean_exit(run(*args, cwd=tmp_path), code)
+    assert "nested more than 64 levels deep" in stderr
+    assert "deep" in stderr or "meshtool.toml" in stderr or "pyproject.toml" in stderr  # names the file
+
+
+def test_nesting_limit_is_the_same_through_every_parser():
+    import json
+    import tomllib
+
+    from meshtool.nesting import MAX_NESTING, NestingError, bounded, nesting_depth
+
+    assert nesting_depth({"a": [1, [2, {}]]}) == 4 and nesting_depth(3) == 0
+    inside = "[" * (MAX_NESTING - 1) + "]" * (MAX_NESTING - 1)  # the document itself is one level
+    assert nesting_depth(bounded(lambda: json.loads(inside))) == MAX_NESTING - 1
+    assert nesting_depth(bounded(lambda: tomllib.loads(f"x = {inside}"))) == MAX_NESTING
+    for n in (MAX_NESTING + 1, 400, 100_000):  # parsed and counted, or the parser's stack ran out
+        with pytest.raises(NestingError, match=f"nested more than {MAX_NESTING} levels"):
+            bounded(lambda n=n: json.loads("[" * n + "]" * n))

@@ -40,6 +40,7 @@ import numpy as np
 
 from meshtool.errors import FormatError, MeshtoolError
 from meshtool.findings import Finding, info, warning
+from meshtool.nesting import NestingError, bounded
 from meshtool.obj.mtl import Material, TextureMap
 from meshtool.readers.model import (
     FloatArray,
@@ -126,8 +127,10 @@ def _container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None]:
     else:
         text = data
     try:
-        doc = json.loads(text.decode("utf-8-sig"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        doc = bounded(lambda: json.loads(text.decode("utf-8-sig")))
+    except NestingError as exc:
+        raise FormatError(f"glTF JSON {exc}", path=path) from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         line = getattr(exc, "lineno", None)
         raise FormatError(f"glTF JSON cannot be read: {str(exc).splitlines()[0][:100]}", path=path, line=line) from None
     if not isinstance(doc, dict):
