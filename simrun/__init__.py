@@ -21,15 +21,61 @@ from simrun.headless import import_mujoco as _import_mujoco
 
 _import_mujoco()  # headless OpenGL by default: MUJOCO_GL is decided before anything imports mujoco
 
-from simrun.entity import Entity, Material
-from simrun.environment import Camera, Ground, HeightField, Light, Sky
-from simrun.errors import CompileError, EntityError, SceneError, SimrunError
-from simrun.mesh_entity import MeshEntity
-from simrun.pose import Pose
-from simrun.scene import load_scene, save_scene, scene_text
-from simrun.shapes import Box, Capsule, Cylinder, Sphere
-from simrun.urdf_robot import UrdfRobot
-from simrun.world import World, WorldOptions
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from simrun.entity import Entity, Material
+    from simrun.environment import Camera, Ground, HeightField, Light, Sky
+    from simrun.errors import CompileError, EntityError, SceneError, SimrunError
+    from simrun.mesh_entity import MeshEntity
+    from simrun.pose import Pose
+    from simrun.scene import load_scene, save_scene, scene_text
+    from simrun.shapes import Box, Capsule, Cylinder, Sphere
+    from simrun.urdf_robot import UrdfRobot
+    from simrun.world import World, WorldOptions
+
+#: Public name -> the module that defines it, imported on first use (PEP 562): a tool that needs one part
+#: of simrun (meshtool's MuJoCo load check imports ``simrun.mjcf_builder``) does not import all of it.
+_LAZY = {
+    "Entity": "simrun.entity",
+    "Material": "simrun.entity",
+    "Camera": "simrun.environment",
+    "Ground": "simrun.environment",
+    "HeightField": "simrun.environment",
+    "Light": "simrun.environment",
+    "Sky": "simrun.environment",
+    "CompileError": "simrun.errors",
+    "EntityError": "simrun.errors",
+    "SceneError": "simrun.errors",
+    "SimrunError": "simrun.errors",
+    "MeshEntity": "simrun.mesh_entity",
+    "Pose": "simrun.pose",
+    "load_scene": "simrun.scene",
+    "save_scene": "simrun.scene",
+    "scene_text": "simrun.scene",
+    "Box": "simrun.shapes",
+    "Capsule": "simrun.shapes",
+    "Cylinder": "simrun.shapes",
+    "Sphere": "simrun.shapes",
+    "UrdfRobot": "simrun.urdf_robot",
+    "World": "simrun.world",
+    "WorldOptions": "simrun.world",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'simrun' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
+
 
 __all__ = [
     "Box",
