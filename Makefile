@@ -42,6 +42,7 @@ lint: $(STAMP)
 
 test: $(STAMP) lint
 	bash scripts/install_gl.sh
+	sh scripts/install_test_tools.sh
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q
 
 bench: $(STAMP) $(PEERS)/.installed

@@ -1,0 +1,29 @@
+#!/bin/sh
+# Install the consuming tools the test suite checks our outputs with, when this machine can:
+#   - the Khronos glTF validator (npm gltf-validator) into tools/gltf-validator/ (git-ignored);
+#   - the three.js viewer bundle `simrun replay --html` inlines, into tools/three-viewer/ (git-ignored);
+#   - Chromium (Debian package `chromium`) for the recording-page test.
+# Each step is skipped when already done. A step that cannot run here (no npm, no apt, no network) prints
+# one line and the tests that need it skip, saying why; it never fails `make test`.
+set -u
+here=$(cd "$(dirname "$0")/.." && pwd)
+if [ -f "$here/tools/gltf-validator/node_modules/gltf-validator/package.json" ]; then :; else
+    sh "$here/scripts/install_gltf_validator.sh" >/dev/null 2>&1 \
+        || echo "note: glTF validator not installed (needs npm); the GLB validator tests will skip"
+fi
+if [ -f "$here/tools/three-viewer/dist/viewer.js" ]; then :; else
+    sh "$here/scripts/install_three_viewer.sh" >/dev/null 2>&1 \
+        || echo "note: three.js viewer bundle not installed (needs npm); the HTML recording tests will skip"
+fi
+if command -v chromium >/dev/null 2>&1; then :; else
+    sudo=""
+    [ "$(id -u)" = 0 ] || sudo="sudo -n"
+    if command -v apt-get >/dev/null 2>&1 \
+        && $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium >/dev/null 2>&1; then :
+    else
+        ($sudo apt-get update -q >/dev/null 2>&1 \
+            && $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium >/dev/null 2>&1) \
+            || echo "note: Chromium not installed (apt-get install chromium); the HTML recording tests will skip"
+    fi
+fi
+exit 0
