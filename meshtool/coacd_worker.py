@@ -14,7 +14,6 @@ outlive the supervisor either. Writes the hulls' vertices as ``hull_0``, ``hull_
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import json
 import os
 import select
@@ -28,23 +27,11 @@ from types import FrameType
 
 import numpy as np
 
-PR_SET_PDEATHSIG = 1
+from meshtool.lifeline import set_parent_death_signal
+
 #: Seconds between checks of the parent and the grandchild.
 POLL_S = 0.05
 _stop = False
-
-
-def set_parent_death_signal(sig: int) -> bool:
-    """Ask the kernel to send ``sig`` to this process when its parent dies (Linux ``prctl``).
-
-    Returns:
-        Whether the call succeeded (``False`` on other systems; the re-parenting check still works).
-    """
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        return int(libc.prctl(PR_SET_PDEATHSIG, sig, 0, 0, 0)) == 0
-    except (OSError, AttributeError):
-        return False
 
 
 def run(job: str, out: str) -> None:

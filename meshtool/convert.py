@@ -7,12 +7,7 @@ process changes, so a killed ``obj2bin -j N`` leaves no worker behind.
 
 from __future__ import annotations
 
-import ctypes
 import os
-import signal
-import sys
-import threading
-import time
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
@@ -22,6 +17,7 @@ from typing import Any
 from meshtool.errors import MeshtoolError, OutputError, PackFormatError, StrictModeError
 from meshtool.findings import Finding
 from meshtool.hulls import HullOptions, compute_hulls, quality
+from meshtool.lifeline import die_with_parent
 from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
 from meshtool.normalmaps import mujoco_findings
 from meshtool.outdir import check_output, refuse_inputs, write_file
@@ -235,32 +231,3 @@ def convert_tree(
         futures = [pool.submit(_run, src, out, options, force) for src, out in work]
         for future in as_completed(futures):
             yield future.result()
-
-
-#: Seconds between two checks of the watchdog thread.
-WATCH_PERIOD_S = 0.5
-_PR_SET_PDEATHSIG = 1
-
-
-def die_with_parent(parent_pid: int) -> None:
-    """Worker initializer: make this process exit when ``parent_pid`` dies.
-
-    On Linux, ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` asks the kernel to kill the worker when its parent
-    goes; everywhere (and in case the parent died before the call), a daemon thread polls ``os.getppid()``
-    and exits the process when the parent changes (the worker was re-parented).
-    """
-    if sys.platform.startswith("linux"):
-        try:
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-        except (OSError, AttributeError):  # no libc prctl: the watchdog below still works
-            pass
-    if os.getppid() != parent_pid:
-        os._exit(1)
-    threading.Thread(target=_watch_parent, args=(parent_pid,), name="meshtool-parent-watch", daemon=True).start()
-
-
-def _watch_parent(parent_pid: int) -> None:
-    while os.getppid() == parent_pid:
-        time.sleep(WATCH_PERIOD_S)
-    os._exit(1)

@@ -17,11 +17,9 @@ One stuck asset must not block a run of hundreds: every check has a deadline (``
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import multiprocessing
 import os
 import signal
-import sys
 import threading
 import time
 from collections import deque
@@ -29,14 +27,10 @@ from collections.abc import Callable, Iterator
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
+from meshtool.lifeline import die_with_parent
 from meshtool.validate.plugins import physics_plugin
 from meshtool.validate.rules import hit
 from meshtool.validate.task import AssetResult, AssetTask, ReadAsset, check_asset, judge_asset, read_asset
-
-#: Linux ``prctl`` option: the signal a process gets when its parent thread exits.
-PR_SET_PDEATHSIG = 1
-#: Seconds between the watchdog's looks at the parent process id.
-WATCHDOG_PERIOD = 0.5
 
 Check = Callable[[AssetTask], AssetResult]
 #: What a worker sends once it has started and imported what checks need.
@@ -56,24 +50,6 @@ def died(task: AssetTask, exitcode: int | None) -> AssetResult:
     how = f"signal {-exitcode}" if exitcode is not None and exitcode < 0 else f"exit code {exitcode}"
     message = f"the worker process checking it died ({how}); the asset was not checked"
     return AssetResult(task.display, task.kind, [hit("X001", message, task.path.name)])
-
-
-def die_with_parent(parent_pid: int) -> None:
-    """Make this process end when ``parent_pid`` does (called first thing in every worker)."""
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-    if os.getppid() != parent_pid:  # the parent went before the signal was armed
-        os._exit(1)
-
-    def watch() -> None:
-        while True:
-            time.sleep(WATCHDOG_PERIOD)
-            if os.getppid() != parent_pid:
-                os._exit(1)
-
-    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
 def _worker(conn: Connection, parent_pid: int, check: Check) -> None:

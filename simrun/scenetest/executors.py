@@ -3,7 +3,7 @@
 - In this process (``jobs`` == 1, local executor).
 - In worker processes (``jobs`` > 1): started with ``spawn`` (MuJoCo and GL contexts are not fork-safe),
   each dies with this process (``PR_SET_PDEATHSIG`` and a watchdog:
-  :func:`meshtool.validate.pool.die_with_parent`). A worker takes one run at a time; a scene's bundle is
+  :func:`meshtool.lifeline.die_with_parent`). A worker takes one run at a time; a scene's bundle is
   sent to a worker once, with its first run there. A worker that dies (a native crash) gives an internal
   error for its run and is replaced; a run past ``timeout`` seconds is killed the same way.
 - On Dask (``dask.distributed``): a client of ``scheduler``, or of a LocalCluster of ``jobs`` workers; each
@@ -38,7 +38,7 @@ def run_here(tasks: list[RunTask], bundles: dict[str, Bundle]) -> Iterator[tuple
 
 
 def _worker(conn: Connection, parent_pid: int) -> None:
-    from meshtool.validate.pool import die_with_parent
+    from meshtool.lifeline import die_with_parent
 
     die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle; it stops the workers
