@@ -417,6 +417,18 @@ def _materials(
         material, mtl_file = entry
         clean = Material(out_name, material.line, dict(material.colors), dict(material.scalars), material.illum)
         origin = resolver.display(mtl_file, resolved=True)
+        for key, rgb in material.colors.items():  # colours are 0..1 (MuJoCo, glTF, the .mbin spec)
+            if not all(0.0 <= c <= 1.0 for c in rgb):
+                clean.colors[key] = (min(max(rgb[0], 0.0), 1.0), min(max(rgb[1], 0.0), 1.0), min(max(rgb[2], 0.0), 1.0))
+                findings.append(
+                    warning(
+                        "material-color-clamped",
+                        f"material {source_material!r}: {key} {' '.join(f'{c:g}' for c in rgb)} is outside 0..1; "
+                        f"clamped to {' '.join(f'{c:g}' for c in clean.colors[key])}",
+                        origin,
+                        material.line or None,
+                    )
+                )
         for key, tex in material.maps.items():
             res = resolver.resolve(tex.file, mtl_file.parent, "texture", origin, tex.line)
             resolutions.append(res)

@@ -27,17 +27,13 @@ from PIL import Image, UnidentifiedImageError
 
 from meshtool.errors import TextureError
 from meshtool.findings import Finding, warning
+from meshtool.pnginfo import MAX_PIXELS, MAX_SIDE, over_limit, png_end
+
+__all__ = ["MAX_PIXELS", "MAX_SIDE", "PngTexture", "to_png"]
 
 _PASS_MODES = ("RGB", "RGBA")
 
-MAX_SIDE = 16384
-"""Most pixels along either side of a texture."""
-MAX_PIXELS = 1 << 27
-"""Most pixels in a texture (134,217,728: 512 MiB as 8-bit RGBA, e.g. 16384 x 8192)."""
-
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_OVERHEAD = 1 << 16  # bytes a passed-through PNG may hold beyond its raw pixels (chunks, zlib framing)
-_PNG_MAX_CHUNKS = 100_000  # a PNG with more chunks than this is re-encoded instead of walked further
 _JPEG_HUFFMAN_SOF = frozenset({0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7})
 _JPEG_LOSSLESS_SOF = frozenset({0xC3, 0xC7})
 
@@ -90,12 +86,9 @@ def to_png(data: bytes, name: str, max_side: int = MAX_SIDE, max_pixels: int = M
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             image = Image.open(io.BytesIO(data))
             width, height = image.size
-            if width > max_side or height > max_side or width * height > max_pixels:
-                raise TextureError(
-                    f"{width}x{height} pixels is over the texture limit ({max_side} per side, {max_pixels} in all)",
-                    path=name,
-                    hint="downscale the image",
-                )
+            too_big = over_limit(width, height, max_side, max_pixels)
+            if too_big:
+                raise TextureError(too_big, path=name, hint="downscale the image")
             if image.format == "JPEG":
                 _check_jpeg_length(data, width, height, name)
             image.load()
@@ -115,7 +108,7 @@ def to_png(data: bytes, name: str, max_side: int = MAX_SIDE, max_pixels: int = M
     fmt = image.format or "unknown"
     source_mode = image.mode
     if fmt == "PNG" and source_mode in _PASS_MODES and _is_8bit_png(data):
-        end = _png_end(data)
+        end = png_end(data)
         width, height = image.size
         channels = len(source_mode)
         if end is not None and end > width * height * channels * 1.01 + height + _PNG_OVERHEAD:
@@ -133,22 +126,6 @@ def to_png(data: bytes, name: str, max_side: int = MAX_SIDE, max_pixels: int = M
     out = io.BytesIO()
     rgb.save(out, format="PNG", compress_level=6)
     return PngTexture(out.getvalue(), fmt, source_mode, rgb.mode, rgb.size, True)
-
-
-def _png_end(data: bytes) -> int | None:
-    """Offset just past the ``IEND`` chunk, found by walking the chunks; ``None`` if the walk fails."""
-    if not data.startswith(_PNG_SIGNATURE):
-        return None
-    pos = len(_PNG_SIGNATURE)
-    for _ in range(_PNG_MAX_CHUNKS):
-        if pos + 12 > len(data):
-            return None
-        length = int.from_bytes(data[pos : pos + 4], "big")
-        kind = data[pos + 4 : pos + 8]
-        pos += 12 + length
-        if kind == b"IEND":
-            return pos if pos <= len(data) else None
-    return None
 
 
 def _check_jpeg_length(data: bytes, width: int, height: int, name: str) -> None:

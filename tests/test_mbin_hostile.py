@@ -169,6 +169,22 @@ def replace_texture(blob):
     return attack
 
 
+def png_claiming(width: int, height: int) -> bytes:
+    """A PNG whose IHDR declares ``width`` x ``height`` grey pixels, with one tiny IDAT (not decodable in full).
+
+    The 30000 x 30000 texture bomb of the verifier: an 879 KB ``.mbin`` whose PNG decodes to 900 MB. The
+    reader must refuse it from the header (bytes 16..24), before any decoding.
+    """
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return (
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(bytes(1000))) + chunk(b"IEND", b"")
+    )
+
+
 def set_quant(array, key, value):
     def change(meta):
         meta["quantization"][array][key] = value
@@ -228,6 +244,11 @@ ATTACKS = [
     ("meta-not-object", "lossless", meta_text("[]"), "JSON dict"),
     ("meta-not-utf8", "lossless", meta_text("\udcff"), "UTF-8"),
     ("texture-not-png", "lossless", replace_texture(b"GIF89a" + bytes(60)), "not a PNG"),
+    ("texture-30000px", "lossless", replace_texture(png_claiming(30000, 30000)), "30000x30000 pixels is over"),
+    ("texture-wide", "lossless", replace_texture(png_claiming(16385, 1)), "16385x1 pixels is over"),
+    ("texture-2^27", "lossless", replace_texture(png_claiming(16384, 8193)), "16384x8193 pixels is over"),
+    ("material-colour-range", "lossless", edit_matl(lambda m: m[0]["colors"].update(Kd=[1e308, -5, 1e-320])), "0..1"),
+    ("material-colour-above-1", "lossless", edit_matl(lambda m: m[1]["colors"].update(Ke=[1, 1, 1.5])), "colors.Ke"),
     ("flags-mismatch", "lossless", set_flags(1), "quantised flag"),
     ("flags-unknown", "lossless", set_flags(0x80), "unknown header flags"),
 ]
@@ -334,3 +355,23 @@ def test_a_texture_with_a_png_signature_that_does_not_decode_is_an_input_error(b
     assert result.exit_code == 1, result.output
     assert result.stderr.startswith(f"error: {path}: a texture cannot be decoded") and "Traceback" not in result.output
     assert not (tmp_path / "x.glb").exists()
+
+
+def test_texture_within_the_limits_passes_and_the_bomb_offset_is_the_ihdr(bases, tmp_path):
+    """16384 x 8192 (2^27 pixels) is the largest accepted; the refusal points at the IHDR width."""
+    parse(hostile(bases, "lossless", replace_texture(png_claiming(16384, 8192))))
+    data = hostile(bases, "lossless", replace_texture(png_claiming(30000, 30000)))
+    with pytest.raises(PackFormatError) as info:
+        parse(data, "bomb.mbin")
+    assert data[info.value.offset : info.value.offset + 8] == struct.pack(">II", 30000, 30000)
+
+
+def test_validate_reports_a_texture_bomb_as_a_corrupt_pack(bases, tmp_path):
+    from meshtool.cli import main
+
+    (tmp_path / "bomb.mbin").write_bytes(hostile(bases, "lossless", replace_texture(png_claiming(30000, 30000))))
+    result = CliRunner().invoke(main, ["validate", str(tmp_path / "bomb.mbin"), "--format", "json", "--no-cache"])
+    assert result.exit_code == 1, result.output
+    (asset,) = json.loads(result.stdout)["assets"]
+    assert [f["rule"] for f in asset["findings"]] == ["K001"]
+    assert "over the texture limit" in asset["findings"][0]["message"]

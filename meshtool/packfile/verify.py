@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from meshtool.errors import PackFormatError
+from meshtool.pnginfo import IHDR_WIDTH_OFFSET, over_limit, png_size
 
 HINT = "the file is damaged or was not written by meshtool; convert the source again"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -181,7 +182,8 @@ def check_materials(materials: list[Any], n_textures: int, name: str, offset: in
         j.expect(m, dict, at, "an object")
         j.expect(m.get("name"), str, f"{at}.name", "a string")
         for key, value in (j.optional(m, "colors", dict, "an object", at) or {}).items():
-            j.numbers(value, f"{at}.colors.{key}", 3)
+            if not all(0.0 <= c <= 1.0 for c in j.numbers(value, f"{at}.colors.{key}", 3)):
+                raise j.fail(f"{at}.colors.{key}", f"is {value!r}, not three numbers in 0..1")
         for key, value in (j.optional(m, "scalars", dict, "an object", at) or {}).items():
             if not _number(value):
                 raise j.fail(f"{at}.scalars.{key}", "is not a number")
@@ -312,7 +314,7 @@ def check_hulls(
 
 
 def check_png(data: memoryview, index: int, name: str, offset: int) -> None:
-    """A ``TEX`` section starts with the PNG signature.
+    """A ``TEX`` section starts with the PNG signature and its IHDR declares a size within the texture limits.
 
     The image itself is not decoded here (that is the consumer's job, and a consumer reports an image it
     cannot decode as an input error, not a crash): fixtures such as ``P001_mujoco_compile`` rely on a file
@@ -320,3 +322,7 @@ def check_png(data: memoryview, index: int, name: str, offset: int) -> None:
     """
     if bytes(data[:8]) != PNG_SIGNATURE:
         raise fail(f"section 'TEX ' {index} is not a PNG file (no PNG signature)", name, offset)
+    size = png_size(data)  # the IHDR's width and height, read without decoding (a 879 KB bomb decodes to 900 MB)
+    too_big = over_limit(*size) if size is not None else None
+    if too_big:
+        raise fail(f"section 'TEX ' {index}: {too_big}", name, offset + IHDR_WIDTH_OFFSET)

@@ -129,7 +129,7 @@ def _container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None]:
     try:
         doc = bounded(lambda: json.loads(text.decode("utf-8-sig")))
     except NestingError as exc:
-        raise FormatError(f"glTF JSON {exc}", path=path) from None
+        raise FormatError(f"glTF JSON cannot be read: {exc}", path=path) from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         line = getattr(exc, "lineno", None)
         raise FormatError(f"glTF JSON cannot be read: {str(exc).splitlines()[0][:100]}", path=path, line=line) from None
