@@ -20,6 +20,7 @@ from PIL import Image
 import meshtool
 from meshtool import surface
 from meshtool.packfile import PackedMesh
+from meshtool.pnginfo import png_end
 from meshtool.safeopen import printable
 from simrun.errors import EntityError
 from simrun.safeio import FileReadError, check_regular, read_regular
@@ -85,7 +86,8 @@ class AssetLibrary:
             base += "_"
         textures = []
         for k, data in enumerate(p.textures):
-            textures.append(self.add_texture(f"{base}/tex{k}", bytes(data)))
+            png = png_without_tail(bytes(data), f"{printable(path.name)}: texture {k}")
+            textures.append(self.add_texture(f"{base}/tex{k}", png))
         materials = []
         for k, m in enumerate(p.materials):
             name = f"{base}/mat{k}"
@@ -155,7 +157,7 @@ class AssetLibrary:
     def read_image(self, path: Path, shown: str) -> bytes:
         """The bytes of a PNG file, read once and checked to decode."""
         if path not in self.images:
-            data = read_image_file(path, shown)
+            data = png_without_tail(read_image_file(path, shown), f"texture {shown!r}")
             _decode(data)
             self.images[path] = data
         return self.images[path]
@@ -190,6 +192,25 @@ def read_image_file(path: Path, shown: str) -> bytes:
         return read_regular(path, f"image {shown!r}", MAX_IMAGE_BYTES)
     except FileReadError as exc:
         raise EntityError(str(exc)) from None
+
+
+def png_without_tail(data: bytes, shown: str) -> bytes:
+    """``data`` when it is not a PNG or ends with its ``IEND`` chunk; refused when bytes follow ``IEND``.
+
+    Textures are handed to MuJoCo and copied into exports byte for byte: bytes after the image (a PNG
+    followed by 20 MB of zeros) would be copied too. meshtool cuts them when it converts a texture
+    (``texture-trailing-data``); simrun, which has no findings channel, refuses the file.
+
+    Raises:
+        EntityError: Bytes follow the PNG's ``IEND`` chunk (the message gives their count and offset).
+    """
+    end = png_end(data)
+    if end is not None and end < len(data):
+        raise EntityError(
+            f"{shown}: {len(data) - end} bytes after the end of the PNG image (from byte {end}); "
+            "re-save the image without them (meshtool normalize cuts them)"
+        )
+    return data
 
 
 def open_image(data: bytes, shown: str = "texture") -> Image.Image:

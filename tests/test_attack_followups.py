@@ -263,3 +263,62 @@ def test_nesting_limit_is_the_same_through_every_parser():
     for n in (MAX_NESTING + 1, 400, 100_000):  # parsed and counted, or the parser's stack ran out
         with pytest.raises(NestingError, match=f"nested more than {MAX_NESTING} levels"):
             bounded(lambda n=n: json.loads("[" * n + "]" * n))
+
+
+# -- 7. a PNG with trailing bytes in simrun -------------------------------------------------------------------
+
+TEXTURED_SCENE = """[[entities]]
+type = "Ground"
+name = "floor"
+
+[[entities]]
+type = "Sphere"
+name = "globe"
+free = true
+mass = 1.0
+radius = 0.1
+texture = "tex.png"
+"""
+
+
+def test_simrun_refuses_a_png_with_trailing_bytes(tmp_path):
+    """The verifier's attack: 20 MB of zeros after IEND were copied into `simrun export` output."""
+    (tmp_path / "scene.toml").write_text(TEXTURED_SCENE)
+    (tmp_path / "tex.png").write_bytes(png() + bytes(20 << 20))
+    for args in (["export", "scene.toml", "--mjcf", "out/scene.xml"], ["check", "scene.toml"]):
+        stderr = clean_exit(run("simrun", *args, cwd=tmp_path), 1)
+        assert "tex.png" in stderr and f"{20 << 20} bytes after the end of the PNG image" in stderr
+        assert f"byte {len(png())}" in stderr
+    assert not (tmp_path / "out").exists()
+    (tmp_path / "tex.png").write_bytes(png())  # the same image without the tail is fine
+    clean_exit(run("simrun", "export", "scene.toml", "--mjcf", "out/scene.xml", cwd=tmp_path), 0)
+    assert max(p.stat().st_size for p in (tmp_path / "out").iterdir()) < 1 << 20
+
+
+def test_simrun_refuses_an_mbin_texture_with_trailing_bytes(tmp_path):
+    """A pack's TEX section with bytes after IEND (checksums valid) is not copied into simrun's outputs."""
+    from meshtool.packfile import parse
+
+    folder = tmp_path / "a"
+    folder.mkdir()
+    (folder / "box.obj").write_bytes(TEXTURED)
+    (folder / "m.mtl").write_bytes(b"newmtl x\nKd 1 0 0\nmap_Kd tex.png\n")
+    (folder / "tex.png").write_bytes(png())
+    clean_exit(run("obj2bin", folder / "box.obj", "-o", tmp_path / "box.mbin"), 0)
+    sys.path.insert(0, str(Path(__file__).parent))
+    try:
+        from test_mbin_hostile import assemble, entry, read_sections
+    finally:
+        sys.path.pop(0)
+    entries, flags = read_sections((tmp_path / "box.mbin").read_bytes())
+    tex = entry(entries, b"TEX ")
+    tex[7] = bytearray(bytes(tex[7]) + bytes(4096))
+    tex[4] = len(tex[7])
+    data = assemble(entries, flags)
+    parse(data)  # a valid pack as far as the container goes
+    (tmp_path / "box.mbin").write_bytes(data)
+    (tmp_path / "scene.toml").write_text(
+        '[assets]\nbox = "box.mbin"\n\n[[entities]]\ntype = "MeshEntity"\nname = "box"\nasset = "box"\n'
+    )
+    stderr = clean_exit(run("simrun", "export", "scene.toml", "--mjcf", "out/scene.xml", cwd=tmp_path), 1)
+    assert "4096 bytes after the end of the PNG image" in stderr
