@@ -9,7 +9,8 @@ Every command of the three gets, from :class:`VocabularyGroup` / :class:`Vocabul
 - ``-q/--quiet``: nothing on stdout unless ``--json`` (errors still on stderr, the exit code says the rest);
 - ``-v/--verbose``: more detail (``MESHTOOL_VERBOSE=1``: every finding); ``-vv`` also the traceback of an
   internal error (``MESHTOOL_DEBUG=1`` / ``SIMRUN_DEBUG=1``);
-- the exit codes of :data:`EXIT_CODES`, and one ``error:`` line on stderr for a mistake.
+- the exit codes of :data:`EXIT_CODES`, and one ``error:`` line on stderr for a mistake: libraries'
+  warnings and log records (numpy, trimesh, yourdfpy) are shown only with -v (:func:`quiet_libraries`).
 
 Progress displays go to stderr and only when stderr is a terminal (:func:`progress_enabled`).
 """
@@ -19,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import logging
 import os
 import sys
 import warnings
@@ -190,8 +192,42 @@ class _Tee(io.StringIO):
 
 
 @contextlib.contextmanager
+def quiet_libraries() -> Iterator[None]:
+    """Keep what libraries say off stderr: Python warnings and log records nobody configured.
+
+    Python warnings are numpy's ``RuntimeWarning: overflow``, trimesh's...; log records yourdfpy's ``Using
+    different parsing approach.``. A command's own output is its ``error:`` line and findings; -v (or the
+    debug variable) shows the rest.
+    """
+    root = logging.getLogger()
+    handler = logging.NullHandler()  # a handler on the root: logging's last-resort stderr printer stays unused
+    root.addHandler(handler)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        root.removeHandler(handler)
+
+
+@contextlib.contextmanager
 def vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
-    """Run one command with the shared ``--json`` / ``-q`` / ``-v`` behaviour (see the module)."""
+    """Run one command with the shared ``--json`` / ``-q`` / ``-v`` behaviour (see the module).
+
+    Without -v (or the program's debug variable) libraries' warnings and log records are not shown
+    (:func:`quiet_libraries`).
+    """
+    verbose = _flags(args)[2]
+    loud = verbose >= 1 or bool(os.environ.get(DEBUG_VARIABLES.get(program, "MESHTOOL_DEBUG")))
+    with contextlib.ExitStack() as stack:
+        if not loud:
+            stack.enter_context(quiet_libraries())
+        with _vocabulary(program, name, args):
+            yield
+
+
+@contextlib.contextmanager
+def _vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
     as_json, quiet, verbose = _flags(args)
     if verbose >= 1 and program in ("meshtool", "obj2bin"):
         os.environ["MESHTOOL_VERBOSE"] = "1"

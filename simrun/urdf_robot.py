@@ -10,7 +10,10 @@ mobile robot. A URDF ``world`` link becomes a body ``NAME/world_link`` fixed to 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import logging
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -49,7 +52,8 @@ class UrdfRobot(Entity):
         packages = tuple((name, ctx.base_dir / folder) for name, folder in sorted(self.package_dirs.items()))
         options = UrdfOptions(packages, HullOptions(mode=self.hulls), self.actuators)
         try:
-            result = import_urdf(ctx.base_dir / self.urdf, options)
+            with _xml_parser_quiet():
+                result = import_urdf(ctx.base_dir / self.urdf, options)
             model = result.model
             if model.world_geoms:  # a URDF 'world' link: a body fixed to the entity's body, named 'world_link'
                 world = BodyDesc("world_link", geoms=model.world_geoms, children=model.bodies)
@@ -63,3 +67,20 @@ class UrdfRobot(Entity):
         for root in child.worldbody.bodies:
             frame.attach_body(root, f"{ctx.full_name}/", "")
         ctx.assets.vfs.update(files)
+
+
+@contextlib.contextmanager
+def _xml_parser_quiet() -> Iterator[None]:
+    """Silence yourdfpy's log records while a URDF is imported.
+
+    For a file lxml refuses (an undefined entity, an XXE attempt) yourdfpy logs ``Entity 'x' not defined``
+    and ``Using different parsing approach.`` as errors before meshtool raises its own one-line error; a
+    library must not print, so the records are dropped here (the error that follows says what is wrong).
+    """
+    logger = logging.getLogger("yourdfpy")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)

@@ -322,3 +322,64 @@ def test_simrun_refuses_an_mbin_texture_with_trailing_bytes(tmp_path):
     )
     stderr = clean_exit(run("simrun", "export", "scene.toml", "--mjcf", "out/scene.xml", cwd=tmp_path), 1)
     assert "4096 bytes after the end of the PNG image" in stderr
+
+
+# -- 8. no stray library warnings before the error line -------------------------------------------------------
+
+
+def inf_stl(folder: Path) -> list[object]:
+    import struct
+
+    import numpy as np
+
+    tris = np.array([[0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0], [0, 0, 1, 0, 0, 0, 3e38, 0, 0, 0, 3e38, 0]], "<f4")
+    tris[1, 3] = np.inf
+    body = b"".join(t.tobytes() + b"\0\0" for t in tris)
+    (folder / "inf.stl").write_bytes(b"\0" * 80 + struct.pack("<I", 2) + body)
+    return ["meshtool", "normalize", "inf.stl", "-o", "out"]
+
+
+def xxe_urdf(folder: Path) -> list[object]:
+    (folder / "xxe.urdf").write_text(
+        '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>\n'
+        '<robot name="r"><link name="a">&x;</link></robot>\n'
+    )
+    return ["meshtool", "urdf", "xxe.urdf", "-o", "out"]
+
+
+def xxe_urdf_simrun(folder: Path) -> list[object]:
+    xxe_urdf(folder)
+    (folder / "scene.toml").write_text('[[entities]]\ntype = "UrdfRobot"\nname = "r"\nurdf = "xxe.urdf"\n')
+    return ["simrun", "check", "scene.toml"]
+
+
+@pytest.mark.parametrize("attack", [inf_stl, xxe_urdf, xxe_urdf_simrun], ids=lambda f: f.__name__)
+def test_no_library_chatter_on_stderr(tmp_path, attack):
+    args = attack(tmp_path)
+    proc = run(*args, cwd=tmp_path)
+    stderr = proc.stderr.decode("utf-8")
+    assert "Traceback" not in stderr and "internal error" not in stderr, stderr
+    for chatter in ("RuntimeWarning", "Warning:", "Entity 'x' not defined", "Using different parsing approach"):
+        assert chatter not in stderr, stderr
+    assert all(line.startswith(("error:", "warning:", "note:", "info:")) for line in stderr.splitlines()), stderr
+
+
+def test_library_warnings_show_with_verbose(tmp_path):
+    """-v keeps what libraries say (for a bug report); only the default run is quiet."""
+    inf_stl(tmp_path)
+    proc = run("meshtool", "normalize", "inf.stl", "-o", "out", "-v", cwd=tmp_path)
+    assert "RuntimeWarning" in proc.stderr.decode("utf-8")
+
+
+def test_urdf_robot_keeps_the_xml_parser_quiet(tmp_path, caplog):
+    """The library itself (not only the CLI) drops yourdfpy's chatter about a refused XML entity."""
+    import contextlib
+    import logging
+
+    from simrun.errors import SimrunError
+    from simrun.scene import load_scene
+
+    xxe_urdf_simrun(tmp_path)
+    with caplog.at_level(logging.DEBUG), contextlib.suppress(SimrunError):
+        load_scene(tmp_path / "scene.toml").compile()
+    assert not [r for r in caplog.records if r.name.startswith("yourdfpy")], caplog.text
