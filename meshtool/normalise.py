@@ -43,6 +43,8 @@ _MARKER = re.compile(r"^meshtool \S+ normalized OBJ: units=m up=z\b")
 #: file is refused: such coordinates are a wrong unit or corrupt data, qhull cannot hull them, and float32
 #: (the ``.mbin`` positions) keeps less than a decimetre of precision there and overflows past 3.4e38.
 MAX_COORDINATE_M = 1e6
+#: Smallest extent (largest bounding-box side) a mesh may have after --units and --scale, metres.
+MIN_EXTENT_M = 1e-9
 _SAFE_FILE_CHARS = re.compile(r"[^a-z0-9_.-]+")
 
 
@@ -233,7 +235,9 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
     check_coordinate_range(obj, units, frame.scale)
     findings.extend(frame.findings)
     sources.extend(frame.sources(src.parent))
+    source_extent = float(np.ptp(mesh.positions, axis=0).max())
     mesh.positions = to_z_up(apply_scale(mesh.positions, units, frame.scale), up) + 0.0  # no -0.0
+    check_extent(source_extent, float(np.ptp(mesh.positions, axis=0).max()), units, frame.scale, source_name)
     mesh.normals = to_z_up(mesh.normals, up) + 0.0
     findings.extend(fix_small_parts(mesh, source_name))
 
@@ -301,6 +305,31 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         )
     textures_out = {n: files[n] for n in textures}
     return NormalisedAsset(name, files, manifest, findings, mesh, out_materials, textures_out, source_paths)
+
+
+def check_extent(source: float, scaled: float, units: str, scale: float, path: str) -> None:
+    """Refuse units/scale that shrink a mesh with some size to under :data:`MIN_EXTENT_M` across.
+
+    ``.mbin`` positions are float32 and every consumer works in metres: ``--scale 1e-300`` would collapse
+    every vertex to 0 (a mesh whose source has no size at all is left to the geometry findings).
+
+    Args:
+        source: Largest bounding-box side of the mesh as read, in source units.
+        scaled: The same in metres, after ``units`` and ``scale``.
+        units: The unit applied.
+        scale: The extra scale applied.
+        path: The file, for the message.
+
+    Raises:
+        OptionsError: ``scaled`` is under :data:`MIN_EXTENT_M` while ``source`` is not 0.
+    """
+    if source > 0.0 and scaled < MIN_EXTENT_M:
+        raise OptionsError(
+            f"the mesh is {scaled:.3g} m across after units {units} and scale {scale:g}, under the "
+            f"{MIN_EXTENT_M:g} m minimum: float32 positions would collapse its vertices",
+            path=path,
+            hint="pass a larger --scale or the right --units",
+        )
 
 
 def check_coordinate_range(obj: ObjData, units: str | None, scale: float) -> None:

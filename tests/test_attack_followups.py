@@ -383,3 +383,33 @@ def test_urdf_robot_keeps_the_xml_parser_quiet(tmp_path, caplog):
     with caplog.at_level(logging.DEBUG), contextlib.suppress(SimrunError):
         load_scene(tmp_path / "scene.toml").compile()
     assert not [r for r in caplog.records if r.name.startswith("yourdfpy")], caplog.text
+
+
+# -- 9. a scale that collapses the mesh ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["obj2bin", "box.obj", "-o", "s.mbin", "--scale", "1e-300", "--no-check"],
+        ["obj2bin", "box.obj", "-o", "s.mbin", "--scale", "1e-300"],
+        ["meshtool", "normalize", "box.obj", "-o", "out", "--scale", "1e-300"],
+        ["obj2bin", "box.obj", "-o", "s.mbin", "--units", "mm", "--scale", "1e-7", "--no-check"],
+    ],
+    ids=["obj2bin-no-check", "obj2bin", "normalize", "units-and-scale"],
+)
+def test_a_scale_that_collapses_the_mesh_is_refused(tmp_path, args):
+    (tmp_path / "box.obj").write_bytes(BOX)
+    stderr = clean_exit(run(*args, cwd=tmp_path), 1)
+    assert "under the 1e-09 m minimum" in stderr and "--scale" in stderr
+    assert not (tmp_path / "s.mbin").exists() and not (tmp_path / "out").exists()
+
+
+def test_a_small_but_resolvable_scale_still_converts(tmp_path):
+    """10 nm across is kept: float32 resolves it (the hull and positions are not all zero)."""
+    from meshtool.packfile import load
+
+    (tmp_path / "box.obj").write_bytes(BOX)
+    clean_exit(run("obj2bin", "box.obj", "-o", "s.mbin", "--scale", "1e-8", "--no-check", cwd=tmp_path), 0)
+    with load(tmp_path / "s.mbin") as packed:
+        assert float(abs(packed.positions).max()) == pytest.approx(1e-8, rel=1e-6)
