@@ -1,21 +1,30 @@
-"""Benchmark: ``simrun test`` on the Boe-Bot square over many seeds: in this process, 2 workers, a Dask cluster.
+"""Benchmark: ``simrun test`` on the Boe-Bot square over many seeds: in one process, 2 workers, a Dask cluster.
 
 Runs fixtures/scenes/boebot_square.toml (40 s simulated per run, 8 expectations, pose jitter per seed)
-once per configuration and reports runs per second, the scaling efficiency of 2 workers over 1
-(rate(2) / (2 x rate(1))), and the peak memory (RSS) of a worker: the process itself for -j 1, the
-largest worker process for -j 2 (``RUSAGE_CHILDREN``), every Dask worker (asked through the client). The
-report of each configuration must be byte-identical (JSON), or the benchmark stops.
+with each configuration and reports runs per second, the scaling efficiency of 2 workers over 1
+(rate(2) / (2 x rate(1))), the CPU seconds a run costs, and the memory (RSS) of a worker.
 
-Usage: python bench/scenetest.py [--seeds 200] [--out docs/benchmarks.md]
+The machine this runs on may be shared, so the seeds are split into rounds and every round runs the three
+configurations one after the other in a rotating order, each in a fresh ``python`` process (timed from the
+scene check to the last result: the worker pool's start-up is in every round, the Dask cluster is started
+once and kept). Every round's JSON report must be byte-identical across the configurations, or the
+benchmark stops. Memory: the peak RSS of the process (-j 1), of the largest worker process (-j 2), and the
+RSS of each Dask worker after the last round.
+
+Usage: python bench/scenetest.py [--seeds 200] [--rounds 4] [--out docs/benchmarks.md] [--json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import logging
 import os
 import platform
 import resource
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -24,11 +33,46 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from _report import write_section
 
-from simrun.scenetest import TestOptions, run_tests
-from simrun.scenetest.reports import render
-
 BEGIN, END = "<!-- scenetest:begin -->", "<!-- scenetest:end -->"
 SCENE = Path(__file__).resolve().parent.parent / "fixtures" / "scenes" / "boebot_square.toml"
+CONFIGS = {
+    "j1": "in one process (-j 1)",
+    "j2": "2 worker processes (-j 2)",
+    "dask": "Dask LocalCluster, 2 workers",
+}
+
+
+def _cpu(who: int) -> float:
+    usage = resource.getrusage(who)
+    return usage.ru_utime + usage.ru_stime
+
+
+def child(config: str, first: int, last: int, scheduler: str | None) -> None:
+    """One configuration over seeds first..last-1 in this process: prints one JSON line of measurements."""
+    from simrun.scenetest import TestOptions, run_tests
+    from simrun.scenetest.reports import render
+
+    seeds = list(range(first, last))
+    if config == "dask":
+        options = TestOptions(seeds=seeds, executor="dask", scheduler=scheduler, jobs=2)
+    else:
+        options = TestOptions(seeds=seeds, jobs=1 if config == "j1" else 2)
+    cpu = _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN)  # after the imports
+    started = time.perf_counter()
+    report = run_tests([SCENE], options)
+    seconds = time.perf_counter() - started
+    assert not report.failed(), f"{config}: runs failed"
+    text = render(report, "json")
+    peak = resource.getrusage(resource.RUSAGE_SELF if config == "j1" else resource.RUSAGE_CHILDREN).ru_maxrss
+    result = {
+        "seconds": seconds,
+        "runs": len(report.runs),
+        "cpu": _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN) - cpu,
+        "memory": peak / 1024,
+        "sha": hashlib.sha256(text.encode()).hexdigest(),
+        "report": json.loads(text)["runs"],
+    }
+    print(json.dumps(result))
 
 
 def _worker_stats() -> tuple[float, float]:
@@ -40,91 +84,90 @@ def _worker_stats() -> tuple[float, float]:
     return float(process.memory_info().rss) / 2**20, float(cpu.user + cpu.system)
 
 
-def _cpu(who: int) -> float:
-    usage = resource.getrusage(who)
-    return usage.ru_utime + usage.ru_stime
-
-
-def run(label: str, options: TestOptions, cluster: Any = None) -> dict[str, Any]:
-    load = os.getloadavg()[0]
-    cpu_self, cpu_children = _cpu(resource.RUSAGE_SELF), _cpu(resource.RUSAGE_CHILDREN)
-    started = time.perf_counter()
-    report = run_tests([SCENE], options)
-    seconds = time.perf_counter() - started
-    assert not report.failed(), f"{label}: runs failed"
-    cpu = _cpu(resource.RUSAGE_SELF) - cpu_self + _cpu(resource.RUSAGE_CHILDREN) - cpu_children
-    memory: list[float] = []
-    if cluster is not None:
-        from distributed import Client
-
-        with Client(cluster) as client:
-            stats = sorted(client.run(_worker_stats).values())
-        memory = [m for m, _ in stats]
-        cpu += sum(c for _, c in stats)
-    elif options.jobs > 1:
-        memory = [resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024]
-    else:
-        memory = [resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024]
-    return {
-        "label": label,
-        "runs": len(report.runs),
-        "seconds": seconds,
-        "json": render(report, "json"),
-        "memory": memory,
-        "rate": len(report.runs) / seconds,
-        "cpu": cpu / len(report.runs),
-        "load": (load, os.getloadavg()[0]),
-    }
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--seeds", type=int, default=200)
+    parser.add_argument("--rounds", type=int, default=4)
     parser.add_argument("--out", type=Path, default=Path("docs/benchmarks.md"))
-    parser.add_argument("--json", type=Path, default=None, help="also write the (common) JSON report here")
+    parser.add_argument("--json", type=Path, default=None, help="also write every run of the report here")
+    parser.add_argument("--child", nargs=4, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    seeds = list(range(args.seeds))
-    rows = [run("in this process (-j 1)", TestOptions(seeds=seeds, jobs=1))]
-    rows.append(run("2 worker processes (-j 2)", TestOptions(seeds=seeds, jobs=2)))
-    from distributed import LocalCluster
+    if args.child:
+        config, first, last, scheduler = args.child
+        child(config, int(first), int(last), scheduler if scheduler != "-" else None)
+        return
+    from distributed import Client, LocalCluster
 
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
-    ) as cluster:
-        options = TestOptions(seeds=seeds, executor="dask", scheduler=cluster.scheduler_address, jobs=2)
-        rows.append(run("Dask LocalCluster, 2 workers", options, cluster))
-    assert len({r["json"] for r in rows}) == 1, "reports differ between executors"
+    totals: dict[str, dict[str, Any]] = {
+        c: {"seconds": 0.0, "runs": 0, "cpu": 0.0, "memory": 0.0, "load": []} for c in CONFIGS
+    }
+    runs: list[Any] = []
+    edges = [round(k * args.seeds / args.rounds) for k in range(args.rounds + 1)]
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        for r in range(args.rounds):
+            order = list(CONFIGS)[r % 3 :] + list(CONFIGS)[: r % 3]
+            shas = set()
+            for config in order:
+                before = sum(c for _, c in client.run(_worker_stats).values()) if config == "dask" else 0.0
+                load = os.getloadavg()[0]
+                command = [sys.executable, __file__, "--child", config, str(edges[r]), str(edges[r + 1])]
+                out = subprocess.run([*command, cluster.scheduler_address], capture_output=True, text=True)
+                if out.returncode != 0:
+                    sys.exit(f"round {r}, {config}: the run failed:\n{out.stderr[-3000:]}")
+                result = json.loads(out.stdout.strip().splitlines()[-1])
+                total = totals[config]
+                total["seconds"] += result["seconds"]
+                total["runs"] += result["runs"]
+                total["cpu"] += result["cpu"]
+                total["load"].append(load)
+                if config == "dask":
+                    stats = list(client.run(_worker_stats).values())
+                    total["cpu"] += sum(c for _, c in stats) - before
+                    total["memory"] = [m for m, _ in sorted(stats)]
+                else:
+                    total["memory"] = max(total["memory"], result["memory"])
+                shas.add(result["sha"])
+                if config == "j1":
+                    runs.extend(result["report"])
+            assert len(shas) == 1, f"round {r}: reports differ between executors"
     if args.json is not None:
-        args.json.write_text(rows[0]["json"], encoding="utf-8")
-    base = rows[0]["rate"]
+        args.json.write_text(json.dumps({"runs": runs}, indent=1) + "\n", encoding="utf-8")
+    base = totals["j1"]["runs"] / totals["j1"]["seconds"]
     lines = [
         BEGIN,
         "## Scene tests: `simrun test` on the Boe-Bot square",
         "",
-        f"`python bench/scenetest.py --seeds {args.seeds}`: fixtures/scenes/boebot_square.toml (40 s simulated, "
-        f"8 expectations, start jitter per seed) over {args.seeds} seeds, each configuration once, timed from "
-        "the scene check to the last result (workers' start-up included). JSON reports byte-identical across "
-        "the three. Scaling efficiency: runs/s over (workers x runs/s of -j 1). CPU s per run: user + system "
-        "time of every process involved (this one, the workers, the Dask workers) over the runs: what a run "
-        "costs whatever else the machine does. Memory: peak RSS of the one process (-j 1), of the largest "
-        "worker process (-j 2), and RSS of each Dask worker after the runs. Load: the 1-minute load average "
-        "before and after (the machine's other jobs compete for the same CPUs).",
+        f"`python bench/scenetest.py --seeds {args.seeds} --rounds {args.rounds}`: fixtures/scenes/boebot_square.toml "
+        f"(40 s simulated, 8 expectations, start jitter per seed) over {args.seeds} seeds per configuration, in "
+        f"{args.rounds} rounds that run the three configurations in turn (rotating order, each a fresh process; the "
+        "pool's start-up is paid every round, the Dask cluster is started once). Every round's JSON report was "
+        "byte-identical across the three. Wall s: from the scene check to the last result, summed over the rounds. "
+        "Scaling efficiency: runs/s over (2 x runs/s of -j 1). CPU s per run: user + system time of every process "
+        "involved (the test process, its workers, the Dask workers), which does not depend on what else the machine "
+        "runs. Memory: peak RSS of the process (-j 1), of the largest worker process (-j 2), RSS of each Dask worker "
+        "after the last round. Load: the 1-minute load average before each round (other jobs share the CPUs).",
         "",
         "| configuration | runs | wall s | runs/s | scaling efficiency | CPU s per run | memory per worker (MiB) "
-        "| load before, after |",
+        "| load average |",
         "|---|---:|---:|---:|---:|---:|---|---|",
     ]
-    for k, r in enumerate(rows):
-        efficiency = "1.00 (base)" if k == 0 else f"{r['rate'] / (2 * base):.2f}"
-        memory = ", ".join(f"{m:.0f}" for m in r["memory"])
+    for config, label in CONFIGS.items():
+        t = totals[config]
+        rate = t["runs"] / t["seconds"]
+        efficiency = "1.00 (base)" if config == "j1" else f"{rate / (2 * base):.2f}"
+        memory = t["memory"] if isinstance(t["memory"], list) else [t["memory"]]
         lines.append(
-            f"| {r['label']} | {r['runs']} | {r['seconds']:.1f} | {r['rate']:.2f} | {efficiency} | {r['cpu']:.2f} "
-            f"| {memory} | {r['load'][0]:.1f}, {r['load'][1]:.1f} |"
+            f"| {label} | {t['runs']} | {t['seconds']:.1f} | {rate:.2f} | {efficiency} | {t['cpu'] / t['runs']:.2f} "
+            f"| {', '.join(f'{m:.0f}' for m in memory)} | {', '.join(f'{x:.1f}' for x in t['load'])} |"
         )
     lines += [
         "",
-        f"Machine: {platform.machine()}, {os.cpu_count()} CPUs (shared with other jobs while measured), Python "
-        f"{platform.python_version()}.",
+        f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}.",
         END,
     ]
     write_section(args.out, "\n".join(lines), BEGIN, END)
