@@ -507,3 +507,32 @@ def test_scene_segment_offset_reaches_the_model(tmp_path):
     )
     world = load_scene(path)
     np.testing.assert_allclose(world.model.body("arm/a").pos, [0.02, 0.0, 0.05 + 0.01])
+
+
+def test_arm_model_details_and_scene_flags(tmp_path):
+    from simrun import SceneError, load_scene
+
+    world = World()
+    world.insert(ArticulatedArm(name="a", base_mass=2.5, segments=(Segment("s", 0.1),)))
+    service = ArmService(world, "a")
+    assert world.model.body_mass[world.model.body("a").id] == pytest.approx(2.5)  # the base, as given
+    world.run(0.1)
+    assert service.joint_states().time == pytest.approx(world.time)
+    for bad, message in (
+        ({"base_height": 0.0}, "base_height must be a positive number"),
+        ({"segments": (Segment("s", 0.1, radius=0.0),)}, "radius must be a positive number"),
+    ):
+        broken = World()
+        broken.insert(ArticulatedArm(name="b", **({"segments": (Segment("s", 0.1),)} | bad)))
+        with pytest.raises(EntityError, match=message):
+            broken.compile()
+    path = tmp_path / "arm.toml"
+    path.write_text(
+        "[[entities]]\ntype = 'ArticulatedArm'\nname = 'arm'\n\n[[entities.segments]]\nname = 'a'\nlength = 0.1\n"
+        "joint = { gravity_compensation = false }\n"
+    )
+    loaded = load_scene(path)
+    assert loaded.model.body_gravcomp[loaded.model.body("arm/a").id] == 0.0
+    path.write_text("[[entities]]\ntype = 'ArticulatedArm'\nname = 'arm'\nsegments = [3]\n")
+    with pytest.raises(SceneError, match=r"\[0\]: expected a table"):
+        load_scene(path)

@@ -121,12 +121,12 @@ def test_range_cone_direction_offset_and_cone_in_the_body_frame():
 
 def test_stereo_rig_cameras_sit_a_baseline_apart_and_look_along_x():
     world = World()
-    world.insert(StereoRig(name="eyes", baseline=0.2, fovy=45.0, resolution=(64, 48), pose=Pose((0, 0, 0.5))))
+    world.insert(StereoRig(name="eyes", baseline=0.2, fovy=50.0, resolution=(64, 48), pose=Pose((0, 0, 0.5))))
     model, data = world.model, world.data
     left, right = model.camera("eyes/left"), model.camera("eyes/right")
     np.testing.assert_allclose(left.pos, [0, 0.1, 0])
     np.testing.assert_allclose(right.pos, [0, -0.1, 0])
-    assert left.fovy[0] == 45.0 and tuple(model.cam_resolution[left.id]) == (64, 48)
+    assert left.fovy[0] == 50.0 and right.fovy[0] == 50.0 and tuple(model.cam_resolution[left.id]) == (64, 48)
     view = data.cam_xmat[left.id].reshape(3, 3)
     np.testing.assert_allclose(-view[:, 2], [1, 0, 0], atol=1e-9)  # MuJoCo cameras look along their -Z
     np.testing.assert_allclose(view[:, 1], [0, 0, 1], atol=1e-9)  # image up is world up
@@ -181,6 +181,9 @@ def test_cameras_reuse_their_renderer_and_render_depth_for_both_eyes():
     renderer = stereo.left._renderer
     world.step(1)
     assert stereo.left._renderer is renderer  # one context per camera, not one per frame
+    assert stereo.rate == 0.0 and StereoCamera(world, "eyes").rate == 15.0
+    assert stereo.reading.left.time == pytest.approx(world.time - 0.002)  # taken before the last step
+    assert plain.reading.time == pytest.approx(world.time - 0.002)
     assert stereo.reading.left.depth is not None and stereo.reading.right.depth is not None
     for eye in (stereo.reading.left, stereo.reading.right):
         assert eye.depth[12].min() == pytest.approx(0.95, abs=0.05)  # the post's near face, in both eyes

@@ -1098,3 +1098,20 @@ def test_checkpoint_in_an_arc_continues_bit_for_bit():
     drive.restore(state)
     world.run(0.5)
     np.testing.assert_array_equal(world.data.qpos, expected)
+
+
+def test_sensor_defaults_and_downward_ranges_see_the_floor():
+    from simrun.cameras import IRDistance, Sonar
+
+    world, drive, _ = make(Pioneer3DX)
+    bumper, imu = Bumper(world, "r"), IMU(world, "r", rate=0)
+    assert bumper.rate == 50.0 and imu.rate == 0.0 and IMU(world, "r").rate == 100.0
+    down = Sonar(world, "r", offset=(0.3, 0.0, 0.3), direction=(0.0, 0.0, -1.0), rate=0)  # past the chassis front
+    a, b = IRDistance(world, "r", noise=0.01), IRDistance(world, "r", noise=0.01)
+    drive.drive_speed(-0.2, 0.2)
+    world.run(1.0)
+    assert down.reading.distance == pytest.approx(0.3 + world.body("r").xpos[2], abs=0.01)  # the ground plane
+    assert a.reading.distance == b.reading.distance  # the default seed is fixed
+    # sampled before the last step (controllers tick before each step): one step of turning behind
+    assert imu.reading.time == pytest.approx(world.time - 0.002)
+    np.testing.assert_allclose(imu.reading.orientation, world.body("r").xquat, atol=2e-3)  # turned about Z
