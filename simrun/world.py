@@ -278,7 +278,9 @@ class World:
         ticks the steps run inside MuJoCo (``mj_step`` with ``nstep``), so a controller at 100 Hz costs one
         Python call per 10 ms of simulated time, not one per step.
         """
-        model, data = self.model, self.data
+        model, data = self._model, self._data
+        if model is None or data is None:
+            model, data = self.model, self.data
         dt = model.opt.timestep
         controllers, hooked, mj_step = self.controllers, self._hooked, mujoco.mj_step
         remaining = n
@@ -298,6 +300,8 @@ class World:
             if hooked:
                 for entity in hooked:
                     entity.before_step(model, data)
+                count = 1
+            elif remaining == 1:
                 count = 1
             elif upcoming < math.inf:
                 count = min(remaining, max(1, round((upcoming - data.time) / dt)))
