@@ -107,7 +107,9 @@ def main() -> int:
             "",
             "Targets: full stack >= 0.8x raw, also in single steps, the laser alone costing <= 5 %. The drive's "
             "motors are MuJoCo actuators (DC-motor gain and back-EMF bias), so no Python runs per physics step: "
-            "controllers tick at their own rates and the steps between ticks run inside `mj_step`.",
+            "controllers tick at their own rates and the steps between ticks run inside `mj_step`. A loop of single "
+            "steps also pays `World.step`'s own call and its scan of the controllers' schedules on every step "
+            "(about 1 us here, against about 7 us for the physics of this scene).",
             END,
         ]
     )
