@@ -136,12 +136,12 @@ def test_command(
     except OSError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(EXIT_FAILED)
+    click.echo(session_line(report), err=True)
     if output is None:
         click.echo(text, nl=False)
-    else:
+    else:  # the verdict last: it is the message of --json's envelope when the report went to a file
         click.echo(f"wrote {output}", err=True)
         click.echo(verdict_line(report), err=True)
-    click.echo(session_line(report), err=True)
     if report.internal():
         sys.exit(EXIT_INTERNAL)
     sys.exit(EXIT_FAILED if report.failed() else EXIT_OK)
