@@ -119,7 +119,7 @@ def _digest(files: dict[str, bytes]) -> str:
     h = hashlib.sha256()
     for name in sorted(files):
         data = files[name]
-        h.update(f"{name}\0{len(data)}\0".encode())
+        h.update(f"{name}\0{len(data)}\0".encode("utf-8", "surrogateescape"))
         h.update(data)
     return h.hexdigest()
 

@@ -15,6 +15,7 @@ from typing import Any
 
 import click
 
+from meshtool.safeopen import printable
 from simrun.errors import SimrunError
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
@@ -111,7 +112,8 @@ def test_command(
             _usage("--vary: a key is given twice")
         with output_policy(force, list(paths)):
             report = run_tests(list(paths), options, _progress_bar())
-        text = to_text(report, verbose) if fmt == "text" else render(report, fmt)
+        # names on disk that are not UTF-8 (surrogate escapes) are shown as \xNN, as everywhere else
+        text = printable(to_text(report, verbose) if fmt == "text" else render(report, fmt))
         if output is not None:
             write_file(output, text.encode("utf-8"))
     except (SpecError, VaryError) as exc:

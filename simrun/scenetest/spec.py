@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from meshtool.nesting import NestingError, bounded
 from simrun.commands import Command, check_commands, load_commands, toml_error_line
 from simrun.errors import SceneError, SimrunError
 from simrun.expect import Expectation, check_against, parse_expectations
@@ -114,8 +115,9 @@ def _is_scene(path: Path, named: bool = False) -> bool:
 def _peek(path: Path) -> dict[str, Any] | None:
     """The document of a TOML file found in a folder, ``None`` when it is not readable TOML (not ours)."""
     try:
-        return tomllib.loads(read_regular(path, "scene").decode("utf-8"))
-    except (FileReadError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        text = read_regular(path, "scene").decode("utf-8")
+        return bounded(lambda: tomllib.loads(text))
+    except (FileReadError, UnicodeDecodeError, tomllib.TOMLDecodeError, NestingError):
         return None
 
 
@@ -135,9 +137,11 @@ def _parse(path: Path) -> tuple[dict[str, Any], dict[KeyPath, int]]:
         line = raw[: exc.start].count(b"\n") + 1
         raise SceneError(f"not UTF-8 (byte {exc.start}); save it as UTF-8", str(path), line=line) from None
     try:
-        doc = tomllib.loads(text)
+        doc = bounded(lambda: tomllib.loads(text))
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"not valid TOML: {exc}", str(path), line=toml_error_line(exc)) from None
+    except NestingError as exc:
+        raise SceneError(str(exc), str(path)) from None
     return doc, key_lines(text)
 
 
