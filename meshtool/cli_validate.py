@@ -16,7 +16,7 @@ import click
 import platformdirs
 
 from meshtool.cli_common import exit_on_bug
-from meshtool.errors import MeshtoolError
+from meshtool.errors import MeshtoolError, OutputError
 from meshtool.outdir import write_file
 from meshtool.validate import FORMATS, ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
 from meshtool.validate import validate as run_validate
@@ -125,6 +125,9 @@ def validate_command(
             _usage(exc.one_line())
         click.echo(f"error: {exc.one_line()}", err=True)
         sys.exit(exc.exit_code)
+    except OutputError as exc:  # the report could not be written where -o says: the user's to fix
+        click.echo(f"error: {exc.one_line()}", err=True)
+        sys.exit(EXIT_FINDINGS)
     except MeshtoolError as exc:
         click.echo(f"error: {exc.one_line()}", err=True)
         sys.exit(EXIT_INTERNAL)

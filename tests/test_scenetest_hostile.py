@@ -51,3 +51,16 @@ def test_a_deeply_nested_scene_is_one_error_line(tmp_path: Path) -> None:
     errors = [line for line in result.stderr.splitlines() if line.startswith(("error:", "usage error:"))]
     assert len(errors) == 1 and "deep.toml" in errors[0] and "nested more than" in errors[0], result.stderr
     assert "Traceback" not in result.output and "internal error" not in result.stderr
+
+
+def test_validate_with_300_character_names_is_one_error_line_exit_1(tmp_path: Path) -> None:
+    """`meshtool validate LONG.obj` and `-o LONG.txt` once ended in `internal error` (ENAMETOOLONG, exit 3)."""
+    from meshtool.cli import main as meshtool_main
+
+    long = "a" * 300
+    fixture = Path(__file__).resolve().parent.parent / "fixtures" / "validate" / "clean"
+    for args in ([str(tmp_path / f"{long}.obj")], [str(fixture), "-o", str(tmp_path / f"{long}.txt")]):
+        result = CliRunner().invoke(meshtool_main, ["validate", "--no-cache", *args])
+        assert result.exit_code == 1, result.output
+        errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
+        assert len(errors) == 1 and "internal error" not in result.stderr, result.stderr

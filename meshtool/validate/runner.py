@@ -7,6 +7,7 @@ identical whatever the executor and the number of workers.
 
 from __future__ import annotations
 
+import errno
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -17,6 +18,7 @@ from meshtool.errors import MeshtoolError
 from meshtool.findings import Severity
 from meshtool.readers import MESH_SUFFIXES
 from meshtool.resolve import find_files
+from meshtool.safeopen import printable
 from meshtool.validate.cache import ResultCache
 from meshtool.validate.config import ValidateConfig
 from meshtool.validate.pool import run_here, run_workers
@@ -143,6 +145,13 @@ def discover(paths: list[Path]) -> list[tuple[Path, Path]]:
     """
     found: dict[Path, tuple[Path, Path]] = {}
     for path in paths:
+        try:
+            os.stat(path)
+        except OSError as exc:
+            if exc.errno == errno.ENOENT:
+                raise ValidateError("no such file or folder", exit_code=1, path=str(path)) from None  # docs/cli.md
+            reason = exc.strerror or type(exc).__name__
+            raise ValidateError(f"cannot be read: {reason}", exit_code=1, path=printable(path)) from None
         if path.is_dir():
             for suffix in SUFFIXES:
                 for file in find_files(path, suffix, special=True):
