@@ -25,12 +25,9 @@ Locations of findings count triangles in file order.
 
 from __future__ import annotations
 
-import base64
 import hashlib
-import json
 import math
 import re
-import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,8 +37,8 @@ import numpy as np
 
 from meshtool.errors import FormatError, MeshtoolError
 from meshtool.findings import Finding, info, warning
-from meshtool.nesting import NestingError, bounded
 from meshtool.obj.mtl import Material, TextureMap
+from meshtool.readers.gltf_container import GLB_MAGIC, data_uri, read_container
 from meshtool.readers.model import (
     FloatArray,
     IntArray,
@@ -66,9 +63,6 @@ _NORMALISE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
 _MAX_DEPTH = 256
 #: Most elements of an accessor without a bufferView (all zeros): such an accessor costs no bytes in the file.
 _MAX_UNBACKED = 1 << 24
-_GLB_MAGIC = b"glTF"
-_JSON_CHUNK = 0x4E4F534A
-_BIN_CHUNK = 0x004E4942
 _MIME_SUFFIX = {"image/png": ".png", "image/jpeg": ".jpg", "image/webp": ".webp", "image/ktx2": ".ktx2"}
 
 
@@ -88,59 +82,16 @@ def read_gltf(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMe
         FormatError: Not glTF 2.0, damaged JSON or binary chunks, a buffer that is missing, outside the
             asset folder or too short, an accessor out of range, or compression meshtool cannot decode.
     """
-    doc, glb_bin = _container(data, path)
+    doc, glb_bin = read_container(data, path)
     reader = _Reader(doc, glb_bin, path, src, resolver)
     try:
-        return reader.read("glb" if data[:4] == _GLB_MAGIC else "gltf")
+        return reader.read("glb" if data[:4] == GLB_MAGIC else "gltf")
     except MeshtoolError:
         raise
     except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError) as exc:
         # a value of the wrong JSON type or range somewhere (a string where a count belongs, ...)
         what = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
         raise FormatError(f"malformed glTF: {what}", path=path, hint="the file is damaged; export it again") from None
-
-
-def _container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None]:
-    """The JSON document and, for GLB, the binary chunk."""
-    glb_bin = None
-    if data[:4] == _GLB_MAGIC:
-        if len(data) < 20:
-            raise FormatError("GLB shorter than its 12-byte header and first chunk", path=path, offset=0)
-        version, length = struct.unpack_from("<II", data, 4)
-        if version != 2:
-            raise FormatError(f"GLB version {version}: only glTF 2.0 is supported", path=path, offset=4)
-        if length > len(data):
-            raise FormatError(
-                f"GLB truncated: the header says {length} bytes, the file has {len(data)}", path=path, offset=8
-            )
-        offset, chunks = 12, []
-        while offset + 8 <= length:
-            size, kind = struct.unpack_from("<II", data, offset)
-            if offset + 8 + size > length:
-                raise FormatError(f"GLB chunk of {size} bytes runs past the end", path=path, offset=offset)
-            chunks.append((kind, data[offset + 8 : offset + 8 + size], offset))
-            offset += 8 + size + (-size % 4)
-        if not chunks or chunks[0][0] != _JSON_CHUNK:
-            raise FormatError("GLB without a JSON chunk first", path=path, offset=12)
-        text = chunks[0][1]
-        glb_bin = next((c[1] for c in chunks[1:] if c[0] == _BIN_CHUNK), None)
-    else:
-        text = data
-    try:
-        doc = bounded(lambda: json.loads(text.decode("utf-8-sig")))
-    except NestingError as exc:
-        raise FormatError(f"glTF JSON cannot be read: {exc}", path=path) from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        line = getattr(exc, "lineno", None)
-        raise FormatError(f"glTF JSON cannot be read: {str(exc).splitlines()[0][:100]}", path=path, line=line) from None
-    if not isinstance(doc, dict):
-        raise FormatError("glTF JSON is not an object", path=path, line=1)
-    version = str((doc.get("asset") or {}).get("version", ""))
-    if not version.startswith("2."):
-        raise FormatError(
-            f"glTF version {version or '(none)'}: only glTF 2.0 is supported", path=path, hint="convert it to glTF 2.0"
-        )
-    return doc, glb_bin
 
 
 @dataclass(slots=True)
@@ -253,7 +204,7 @@ class _Reader:
                 raise FormatError(f"buffer {index} has no uri and there is no GLB binary chunk", path=self.path)
             data = self.glb_bin
         elif str(uri).startswith("data:"):
-            data = _data_uri(str(uri), self.path, f"buffer {index}")
+            data = data_uri(str(uri), self.path, f"buffer {index}")
         else:
             data = self._external(str(uri), "buffer", f"buffer {index}")
         length = int(buffer.get("byteLength", len(data)))
@@ -522,7 +473,7 @@ class _Reader:
         else:
             try:
                 if uri is not None:
-                    blob = _data_uri(str(uri), self.path, f"image {source}")
+                    blob = data_uri(str(uri), self.path, f"image {source}")
                     mime = str(uri)[5:].split(";", 1)[0].split(",", 1)[0]
                 else:
                     data, start, length, _ = self._view(int(image.get("bufferView", -1)))
@@ -592,16 +543,6 @@ def _triangles(indices: IntArray, mode: int) -> IntArray:
         return np.stack([np.full(n, indices[0]), indices[k], indices[k + 1]], axis=1)
     m = indices.size // 3
     return indices[: m * 3].reshape(m, 3)
-
-
-def _data_uri(uri: str, path: str, what: str) -> bytes:
-    head, _, payload = uri.partition(",")
-    try:
-        return (
-            base64.b64decode(payload, validate=True) if head.endswith(";base64") else unquote(payload).encode("latin-1")
-        )
-    except (ValueError, UnicodeEncodeError):
-        raise FormatError(f"{what}: malformed data URI", path=path, hint="the file is damaged") from None
 
 
 def _unit(value: Any) -> float:
