@@ -89,13 +89,15 @@ def supervise(parent: int, folder: str, job: str, out: str) -> int:
             os._exit(1)
         for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
             signal.signal(sig, signal.SIG_DFL)
+        status = 1
         try:
             run(job, out)
-        except BaseException:
+            status = 0
+        except Exception:  # CoACD's own failure: the supervisor reads it from stderr
             traceback.print_exc()
+        finally:  # a forked child never unwinds into its parent's stack, whatever was raised
             sys.stderr.flush()
-            os._exit(1)
-        os._exit(0)
+            os._exit(status)
     exited = _exit_waiter(child)
     try:
         while True:

@@ -162,14 +162,15 @@ def _run_worker(args: list[str], timeout_s: float) -> tuple[int | None, bytes]:
         stderr=subprocess.PIPE,
         start_new_session=True,
     )
+    finished = False
     try:
         _, stderr = proc.communicate(timeout=max(timeout_s, 0.001))
+        finished = True
     except subprocess.TimeoutExpired:
-        _kill_group(proc)
         return None, b""
-    except BaseException:
-        _kill_group(proc)
-        raise
+    finally:
+        if not finished:  # timeout, Ctrl-C or any error here: no CoACD run may survive
+            _kill_group(proc)
     return proc.returncode, stderr
 
 

@@ -38,6 +38,7 @@ def open_regular(path: Path, what: str = "file") -> BinaryIO:
         raise FileReadError(f"{path}: {what} cannot be read: {exc.strerror}") from None
     except ValueError:  # a NUL byte in the name: no file can have it
         raise FileReadError(f"{path!r}: {what} name contains a NUL byte; name a file") from None
+    handed_over = False
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
@@ -45,10 +46,12 @@ def open_regular(path: Path, what: str = "file") -> BinaryIO:
             raise FileReadError(f"{path}: {what} is a {kind}, not a regular file; name a file")
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
-        return os.fdopen(fd, "rb")
-    except BaseException:
-        os.close(fd)
-        raise
+        file = os.fdopen(fd, "rb")
+        handed_over = True
+        return file
+    finally:
+        if not handed_over:  # refused or failed: the descriptor is ours to close
+            os.close(fd)
 
 
 def read_regular(path: Path, what: str = "file", limit: int = MAX_FILE_BYTES) -> bytes:

@@ -229,11 +229,13 @@ class Simlog:
         except FileReadError as exc:
             raise SimlogError(str(exc)) from None
         self._size = os.fstat(self._file.fileno()).st_size
+        complete = False
         try:
             self._read_header()
-        except BaseException:
-            self._file.close()
-            raise
+            complete = True
+        finally:
+            if not complete:  # a refused header: do not leave the file open
+                self._file.close()
 
     def _read_header(self) -> None:
         path = self.path

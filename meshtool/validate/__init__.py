@@ -4,7 +4,7 @@ Library use::
 
     from meshtool.validate import ValidateOptions, validate, render
     report = validate([Path("assets")], ValidateOptions(jobs=4))
-    print(render(report, "text"))
+    text = render(report, "text")  # the CLI writes it; library code never prints
 
 Rules are listed in :mod:`meshtool.validate.rules` and ``docs/validate-rules.md``.
 """
