@@ -10,8 +10,8 @@ the outcome to output and an exit code:
 * 2: usage error (click);
 * 3: meshtool itself failed (a bug: please report it; set ``MESHTOOL_DEBUG=1`` for the traceback).
 
-Start-up: this module imports click and nothing else heavy. The commands live in
-:mod:`meshtool.cli_commands` and :mod:`meshtool.cli_validate` and are imported when one of them runs, so
+Start-up: this module imports click and nothing else heavy. The commands live in :mod:`meshtool.cli_commands`,
+:mod:`meshtool.cli_pack` and :mod:`meshtool.cli_validate` and are imported when one of them runs, so
 ``meshtool --version`` and ``meshtool --help`` never import numpy, trimesh or Pillow.
 """
 
@@ -30,13 +30,13 @@ EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 #: Command name -> (``module:attribute``, the first paragraph of its help, shown by ``meshtool --help``).
 #: tests/test_startup.py checks that each summary is the command's own.
 COMMANDS: dict[str, tuple[str, str]] = {
-    "export": ("meshtool.cli_commands:export", "Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."),
+    "export": ("meshtool.cli_pack:export", "Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."),
     "hulls": (
         "meshtool.cli_commands:hulls",
         "Compute the collision hulls of SRC (a mesh file) and report their quality; writes nothing.",
     ),
     "info": (
-        "meshtool.cli_commands:info",
+        "meshtool.cli_pack:info",
         "Describe an .mbin file: counts, sections, sizes, checksums and metadata.",
     ),
     "mjcf": (
@@ -47,7 +47,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "meshtool.cli_commands:normalize",
         "Normalise SRC (OBJ, STL, PLY, glTF/GLB or COLLADA) into OUTPUT/NAME/: metres, Z-up, PNG textures.",
     ),
-    "unpack": ("meshtool.cli_commands:unpack", "Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."),
+    "unpack": ("meshtool.cli_pack:unpack", "Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."),
     "urdf": (
         "meshtool.cli_commands:urdf",
         "Import ROBOT (a URDF): every mesh normalised, packed and hulled; an MJCF of the robot.",

@@ -22,12 +22,12 @@ from meshtool import __version__
 from meshtool.changes import TOLD_NOTES, split_findings
 from meshtool.cli_common import VocabularyCommand, exit_on_bug, progress_enabled
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
-from meshtool.errors import MeshtoolError, OptionsError, PackFormatError
+from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, Severity
 from meshtool.hulls import MODES, PRESETS, HullOptions, compute_hulls, quality
 from meshtool.mesh import safe_identifier
 from meshtool.normalise import NormaliseOptions, normalise_to, prepare, safe_file_stem
-from meshtool.outdir import check_output, overwrite_allowed, write_folder, write_output
+from meshtool.outdir import overwrite_allowed, write_folder
 from meshtool.packfile import load
 from meshtool.resolve import find_files
 from meshtool.units import UNIT_FACTORS
@@ -39,6 +39,18 @@ force_option = click.option(
     is_flag=True,
     help="Replace an existing output that meshtool did not write (an input is never replaced).",
 )
+
+
+def output_dir_option(help_text: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The required ``-o/--output`` folder option (``out_dir``), with the command's own help."""
+    return click.option(
+        "-o",
+        "--output",
+        "out_dir",
+        required=True,
+        type=click.Path(path_type=Path, file_okay=False),
+        help=help_text,
+    )
 
 
 def normalise_options(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -170,14 +182,7 @@ def _hull_options(kw: dict[str, Any]) -> HullOptions:
 
 @click.command("normalize")
 @click.argument("src", type=click.Path(path_type=Path, dir_okay=False))
-@click.option(
-    "-o",
-    "--output",
-    "out_dir",
-    required=True,
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Folder to write NAME/ into (created when missing).",
-)
+@output_dir_option("Folder to write NAME/ into (created when missing).")
 @click.option("--name", default=None, help="Output folder and file stem (default: the source stem made safe).")
 @force_option
 @normalise_options
@@ -336,138 +341,9 @@ def _hull_summary(report: dict[str, Any]) -> str:
     return text
 
 
-@click.command("info")
-@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def info(file: Path, as_json: bool) -> None:
-    """Describe an .mbin file: counts, sections, sizes, checksums and metadata."""
-    from meshtool.packfile.export import describe
-
-    with _guard(as_json):  # everything that reads the file's content, META included, is inside the guard
-        with load(file, verify=True) as packed:
-            summary = describe(packed)
-        text = json.dumps(summary) if as_json else "\n".join(_info_lines(file, summary))
-    click.echo(text)
-
-
-def _info_lines(file: Path, summary: dict[str, Any]) -> list[str]:
-    lines = [
-        f"{file}: mbin {summary['version']}{' quantized' if summary['quantized'] else ''}, "
-        f"{summary['vertices']} vertices, {summary['triangles']} triangles ({summary['index_type']}), "
-        f"{summary['submeshes']} submesh(es), {len(summary['materials'])} material(s), "
-        f"{len(summary['textures'])} texture(s), {summary['hulls']} hull(s)"
-    ]
-    for s in summary["sections"]:
-        shape = "x".join(str(d) for d in s["shape"])
-        lines.append(
-            f"  {s['kind']:<5}{s['index']:>3} {s['dtype']:>5} {shape:>12} at {s['offset']:>10} "
-            f"{s['bytes']:>10} bytes {s['encoding']:>11}  {summary['checksum_algorithm']} {s['crc']} {s['checksum']}"
-        )
-    meta = summary["meta"]
-    if meta.get("hull_quality"):
-        lines.append(f"  hulls: {_hull_summary(meta['hull_quality'])}")
-    t = meta.get("transform") or {}
-    lines.append(
-        f"  source units {t.get('units')} (x{t.get('unit_scale')}), scale {t.get('scale')}, up {t.get('up')}; "
-        f"tool {(meta.get('tool') or {}).get('version')}"
-    )
-    return lines
-
-
-@click.command("unpack")
-@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
-@click.option(
-    "-o",
-    "--output",
-    "out_dir",
-    required=True,
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Folder to write NAME/ into.",
-)
-@force_option
-def unpack(file: Path, out_dir: Path, force: bool) -> None:
-    """Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."""
-    from meshtool.packfile.export import unpack_files
-
-    with _guard(False), load(file, verify=True) as packed:
-        name = safe_file_stem(file.stem) or "asset"
-        files = unpack_files(packed, name)
-        files["asset.json"] = (json.dumps(packed.meta, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
-        folder = write_folder(out_dir, name, files, force=force, inputs=[file])
-    click.echo(f"wrote {folder}: {', '.join(sorted(files))}")
-
-
-@click.command("export")
-@click.argument("file", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--glb", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write glTF binary.")
-@click.option("--msh", type=click.Path(path_type=Path, dir_okay=False), default=None, help="Write MuJoCo MSH.")
-@click.option(
-    "--usd",
-    type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
-    help="Write USD (.usda/.usdc), PNG textures beside it.",
-)
-@force_option
-def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, force: bool) -> None:
-    """Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."""
-    from meshtool.normalmaps import export_findings
-    from meshtool.packfile.export import to_glb, to_msh
-    from meshtool.packfile.usd import export_usd
-
-    if glb is None and msh is None and usd is None:
-        raise click.UsageError("give --glb, --msh and/or --usd")
-    targets = [p for p in (glb, msh, usd) if p is not None]
-    if len({os.path.normcase(os.path.abspath(p)) for p in targets}) != len(targets):
-        raise click.UsageError("--glb, --msh and --usd must name different files")
-    with _guard(False), load(file, verify=True) as packed:
-        for path, kind, make in ((glb, "glb", to_glb), (msh, "msh", to_msh)):
-            if path is not None:
-                data = _made(make, packed, file)
-                write_output(path, data, kind, force=force, inputs=[file])
-                click.echo(f"wrote {path} ({len(data)} bytes)")
-                if kind == "glb":
-                    _echo_findings(export_findings(packed, "glb"))  # maps glTF has no slot for
-        if usd is not None:
-            check_output(usd, "usd", force=force, inputs=[file])
-            names = list(packed.meta.get("textures", []))
-            for name, texture in zip(names, packed.textures, strict=True):  # the PNGs written beside the USD
-                check_output(usd.parent / name, None, force=force, inputs=[file], data=bytes(texture))
-            written = export_usd(packed, usd, safe_file_stem(file.stem) or "asset")
-            click.echo(f"wrote {', '.join(str(p) for p in written)}")
-            _echo_findings(export_findings(packed, "usd"))
-
-
-def _made(make: Callable[[Any], bytes], packed: Any, file: Path) -> bytes:
-    """``make(packed)``, with a texture Pillow cannot decode reported as an input error (exit 1).
-
-    Loading verifies a texture's PNG signature only; decoding it is the exporter's first touch of the image.
-    """
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        return make(packed)
-    except PackFormatError as exc:  # the exporter's own refusal: name the file when it could not
-        if exc.path is not None:
-            raise
-        raise PackFormatError(exc.message, path=str(file), hint=exc.hint) from None
-    except (UnidentifiedImageError, Image.DecompressionBombError, OSError) as exc:
-        raise PackFormatError(
-            f"a texture cannot be decoded as an image ({type(exc).__name__}: {exc})",
-            path=str(file),
-            hint="re-pack the asset from a valid image",
-        ) from None
-
-
 @click.command("mjcf")
 @click.argument("src", type=click.Path(path_type=Path))  # a missing file: exit 1 (docs/cli.md)
-@click.option(
-    "-o",
-    "--output",
-    "out_dir",
-    required=True,
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Folder to write NAME/ (NAME.xml, meshes, textures) into, per asset.",
-)
+@output_dir_option("Folder to write NAME/ (NAME.xml, meshes, textures) into, per asset.")
 @click.option("--free-joint", is_flag=True, help="Give each body a free joint.")
 @click.option("--density", type=float, default=1000.0, show_default=True, help="Collision density, kg/m^3.")
 @click.option("--mass", type=float, default=None, help="Total body mass in kg (overrides --density).")
@@ -510,14 +386,7 @@ def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str
 
 @click.command("urdf")
 @click.argument("robot", type=click.Path(path_type=Path, dir_okay=False))
-@click.option(
-    "-o",
-    "--output",
-    "out_dir",
-    required=True,
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Folder for NAME.xml (MJCF), its .msh meshes and PNG textures, and meshes/*.mbin.",
-)
+@output_dir_option("Folder for NAME.xml (MJCF), its .msh meshes and PNG textures, and meshes/*.mbin.")
 @click.option(
     "--package-dir",
     "package_dirs",
