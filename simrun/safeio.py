@@ -12,6 +12,7 @@ import stat
 from pathlib import Path
 from typing import BinaryIO
 
+from meshtool.safeopen import describe_mode
 from simrun.errors import SimrunError
 
 #: Default largest file simrun reads whole (scenes, commands, textures, height-field images), bytes.
@@ -42,8 +43,7 @@ def open_regular(path: Path, what: str = "file") -> BinaryIO:
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
-            kind = _kind(mode)
-            raise FileReadError(f"{path}: {what} is a {kind}, not a regular file; name a file")
+            raise FileReadError(f"{path}: {what} is {describe_mode(mode)}, not a regular file; name a file")
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
         file = os.fdopen(fd, "rb")
@@ -76,15 +76,3 @@ def read_regular(path: Path, what: str = "file", limit: int = MAX_FILE_BYTES) ->
 def check_regular(path: Path, what: str = "file") -> None:
     """Refuse a path that does not name a readable regular file (opens it, never reads it)."""
     open_regular(path, what).close()
-
-
-def _kind(mode: int) -> str:
-    if stat.S_ISDIR(mode):
-        return "folder"
-    if stat.S_ISFIFO(mode):
-        return "FIFO (named pipe)"
-    if stat.S_ISSOCK(mode):
-        return "socket"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "device"
-    return "special file"
