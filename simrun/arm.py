@@ -441,6 +441,7 @@ class ArmService:
             None if move is None else (float(move[0]), float(move[1]), np.asarray(move[2]), np.asarray(move[3]))
         )
         self.next_time = float(state["next_time"])
+        self.world.reschedule()  # next_time may have moved earlier
 
     def _check(self, values: Any) -> None:
         if len(values) != len(self.joints):

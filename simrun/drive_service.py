@@ -127,7 +127,8 @@ class DriveService:
         self._model_id = 0
         self._encoder_zero = np.zeros(2)
         self._last = np.zeros(2)
-        self._odom = Odometry(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        #: Odometry fields as a plain tuple (time, x, y, theta, linear, angular): built into an Odometry on request
+        self._odom: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         self.period = 1.0 / rate
         self.next_time = world.time
         world.controllers.append(self)
@@ -211,7 +212,7 @@ class DriveService:
         model, data = self.world.model, self.world.data
         raw = self._raw_encoders(model, data)
         self._encoder_zero, self._last = raw.copy(), np.zeros(2)
-        self._odom = Odometry(float(data.time), 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._odom = (float(data.time), 0.0, 0.0, 0.0, 0.0, 0.0)
 
     # -- state ---------------------------------------------------------------------------------------------
 
@@ -228,7 +229,7 @@ class DriveService:
 
     def odometry(self) -> Odometry:
         """The latest odometry estimate: the body origin (the axle midpoint) in the frame of the last reset."""
-        return self._odom
+        return Odometry(*self._odom)
 
     def speed_loop(self) -> dict[str, float]:
         """The wheel-speed loop's design, from the compiled model (see docs/robots.md, "Speed loop").
@@ -272,20 +273,20 @@ class DriveService:
 
     def _integrate(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Odometry: integrate the encoder change since the last update (midpoint heading)."""
-        ids, qpos, zero, last, radius = self._ids, data.qpos, self._encoder_zero, self._last, self.radius
+        ids, qpos, radius = self._ids, data.qpos, self.radius
         assert ids is not None
-        left = (float(qpos[ids[4]]) - float(zero[0])) * radius
-        right = (float(qpos[ids[5]]) - float(zero[1])) * radius
-        dl, dr = left - float(last[0]), right - float(last[1])
-        last[0], last[1] = left, right
+        zero_left, zero_right = self._encoder_zero.tolist()
+        last_left, last_right = self._last.tolist()
+        left = (qpos.item(ids[4]) - zero_left) * radius
+        right = (qpos.item(ids[5]) - zero_right) * radius
+        dl, dr = left - last_left, right - last_right
+        self._last[0], self._last[1] = left, right
         ds, dtheta = (dl + dr) / 2, (dr - dl) / self.separation
-        o = self._odom
-        heading = o.theta + dtheta / 2
-        now = float(data.time)
-        dt = max(now - o.time, self._timestep)
-        self._odom = Odometry(
-            now, o.x + ds * math.cos(heading), o.y + ds * math.sin(heading), o.theta + dtheta, ds / dt, dtheta / dt
-        )
+        then, x, y, theta = self._odom[:4]
+        heading = theta + dtheta / 2
+        now = data.time
+        dt = max(now - then, self._timestep)
+        self._odom = (now, x + ds * math.cos(heading), y + ds * math.sin(heading), theta + dtheta, ds / dt, dtheta / dt)
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """After ``World.reset``: idle, encoders and odometry at zero."""
@@ -293,13 +294,12 @@ class DriveService:
         self._integral, self._wheel_targets, self._vel = [0.0, 0.0], (0.0, 0.0), (0.0, 0.0)
         self._encoder_zero = self._raw_encoders(model, data)
         self._last = np.zeros(2)
-        self._odom = Odometry(float(data.time), 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._odom = (float(data.time), 0.0, 0.0, 0.0, 0.0, 0.0)
 
     # -- recording ------------------------------------------------------------------------------------------
 
     def snapshot(self) -> dict[str, Any]:
         """Everything that shapes future controls, as JSON-ready values (for checkpoints)."""
-        o = self._odom
         return {
             "enabled": self.enabled,
             "mode": self._mode,
@@ -313,7 +313,7 @@ class DriveService:
             "integral": list(self._integral),
             "encoder_zero": [float(v) for v in self._encoder_zero],
             "last": [float(v) for v in self._last],
-            "odom": [o.time, o.x, o.y, o.theta, o.linear, o.angular],
+            "odom": list(self._odom),
             "next_time": self.next_time,
             "rested": self._rested,
         }
@@ -328,8 +328,10 @@ class DriveService:
         self._integral = [float(v) for v in state["integral"]]
         self._encoder_zero = np.asarray(state["encoder_zero"], dtype=float)
         self._last = np.array(state["last"], dtype=float)
-        self._odom = Odometry(*(float(v) for v in state["odom"]))
+        t, x, y, theta, linear, angular = (float(v) for v in state["odom"])
+        self._odom = (t, x, y, theta, linear, angular)
         self.next_time = float(state["next_time"])
+        self.world.reschedule()  # next_time may have moved earlier
         self._rested = bool(state.get("rested", True))
 
     # -- internals -----------------------------------------------------------------------------------------

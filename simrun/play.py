@@ -96,6 +96,7 @@ class PythonController:
     def restore(self, state: dict[str, Any]) -> None:
         """Inverse of :meth:`snapshot`."""
         self.next_time = float(state["next_time"])
+        self.world.reschedule()  # next_time may have moved earlier
 
 
 @dataclass

@@ -117,6 +117,7 @@ def apply_state(world: World, table: dict[str, Any], fail: Any) -> None:
             controllers[key].restore(snapshot)
         except (EntityError, KeyError, TypeError, ValueError, IndexError) as exc:
             raise fail(f"{key}: snapshot does not fit ({type(exc).__name__}: {exc})", "controllers") from None
+    world.reschedule()
 
 
 def _no_nan(name: str) -> float:

@@ -29,6 +29,12 @@ FloatArray = npt.NDArray[np.float64]
 EXCLUDES = ("robot", "body", "none")
 
 
+#: Most robot surfaces one ray is continued through (``RayCaster.cast``); a ray that meets more sees nothing.
+MAX_CONTINUATIONS = 256
+#: How far (m) a continued ray starts inside the next robot body when two bodies share the boundary it left.
+NUDGE = 1e-6
+
+
 class RayCaster:
     """Casts rays from one point, ignoring the geoms of the robot the sensor is mounted on.
 
@@ -82,17 +88,25 @@ class RayCaster:
         mujoco.mj_multiRay(model, data, origin, directions, None, 1, skip, geomid, dist, None, n, cutoff)
         if self.exclude != "robot":
             return
-        own = self._own[geomid]  # the mask ends with False, which a miss (-1) indexes
+        own = self._own.take(geomid)  # the mask ends with False, which a miss (-1) indexes
         if not own.any():
             return
         for k in np.flatnonzero(own):
             direction = directions[3 * k : 3 * k + 3]
             travelled, gid = float(dist[k]), int(geomid[k])
-            while gid >= 0 and self._own[gid] and travelled < cutoff:
+            for _ in range(MAX_CONTINUATIONS):
+                if gid < 0 or not self._own[gid] or travelled >= cutoff:
+                    break
                 start = origin + direction * travelled
                 step = mujoco.mj_ray(model, data, start, direction, None, 1, int(model.geom_bodyid[gid]), self._hit)
                 gid = int(self._hit[0]) if step >= 0 else -1
                 travelled += step if step >= 0 else 0.0
+                if gid >= 0 and self._own[gid] and step < NUDGE:
+                    # two of the robot's bodies meet where the ray leaves one: from that boundary each one's
+                    # surface is 0 away and excluding one finds the other; start inside it instead
+                    travelled += NUDGE
+            else:
+                gid = -1  # still inside the robot after MAX_CONTINUATIONS surfaces: nothing outside is seen
             if gid < 0 or travelled > cutoff:
                 geomid[k], dist[k] = -1, -1.0
             else:
@@ -138,6 +152,7 @@ class Sensor(abc.ABC):
     def restore(self, state: dict[str, Any]) -> None:
         """Inverse of :meth:`snapshot` (the last reading is not kept)."""
         self.next_time, self.samples = float(state["next_time"]), int(state["samples"])
+        self.world.reschedule()  # next_time may have moved earlier
         self.rng.bit_generator.state = state["rng"]
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -265,7 +280,7 @@ class Bumper(Sensor):
             self._model_id = id(model)
         touching: tuple[str, ...] = ()
         pairs = data.contact.geom[: data.ncon]
-        if self._gid in pairs:
+        if self._gid in pairs.ravel().tolist():  # a list's `in` is cheaper than numpy's for a few contacts
             mine = pairs[(pairs[:, 0] == self._gid) | (pairs[:, 1] == self._gid)]
             others = np.where(mine[:, 0] == self._gid, mine[:, 1], mine[:, 0])
             others = others[~self._own[others]]
@@ -305,10 +320,10 @@ class Encoders(Sensor):
             ids = [model.joint(j).id for j in self.joints]
             self._qpos, self._qvel = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
             self._model_id = id(model)
-        angles = data.qpos[self._qpos]
+        angles = data.qpos.take(self._qpos)
         if self.noise:
             angles = self._noisy(angles)
-        return EncoderReading(float(data.time), tuple(angles.tolist()), tuple(data.qvel[self._qvel].tolist()))
+        return EncoderReading(data.time, tuple(angles.tolist()), tuple(data.qvel.take(self._qvel).tolist()))
 
 
 @dataclass(frozen=True, slots=True)
@@ -337,10 +352,13 @@ class GPS(Sensor):
     ) -> None:
         super().__init__(world, entity, rate, noise, seed)
         self.origin = origin
+        self._body, self._model_id = -1, 0
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> GPSReading:
         """Noisy position (and latitude/longitude)."""
-        p = self._noisy(np.array(data.body(self.entity).xpos, dtype=np.float64))
+        if self._model_id != id(model):
+            self._body, self._model_id = model.body(self.entity).id, id(model)
+        p = self._noisy(data.xpos[self._body].copy())
         lat = lon = None
         if self.origin is not None:
             lat0, lon0 = self.origin

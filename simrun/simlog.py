@@ -517,6 +517,7 @@ def resimulate(world: World, log: Simlog, start: float) -> tuple[int, float | No
                 f"{log.path}: checkpoint at t = {checkpoint.time:g} s: snapshot {k} does not fit "
                 f"{type(controller).__name__} ({type(exc).__name__}: {exc})"
             ) from None
+    world.reschedule()
     comparator = _Comparator(later, log.frame_period, checkpoint.time)
     world.controllers.append(comparator)
     commands = [c for c in log.commands() if c.t > checkpoint.time + 1e-12]

@@ -37,6 +37,9 @@ MIN_TIMESTEP, MAX_TIMESTEP = 1e-5, 0.1
 MAX_BODIES = 10_000
 
 
+_mj_step = mujoco.mj_step  # bound once: World.step's single-step path is timed against raw mj_step
+
+
 @dataclass(frozen=True, slots=True)
 class WorldOptions:
     """Physics options.
@@ -77,6 +80,10 @@ class World:
         self._data: mujoco.MjData | None = None
         self._assets = AssetLibrary(mujoco.MjSpec())
         self._hooked: list[Entity] = []
+        self._sched_list: list[Controller] = []  # single-step fast path (step/reschedule)
+        self._sched_time = math.nan
+        self._sched_half = self._sched_dt = 0.0
+        self._sched_until = -math.inf
         #: Compiled-model cache (simrun/model_cache.py; ``SIMRUN_MODEL_CACHE``); ``None`` compiles every time.
         self.model_cache: model_cache.ModelCache | None = model_cache.default()
         self.services: list[dict[str, Any]] = []
@@ -162,6 +169,7 @@ class World:
 
     def _invalidate(self) -> None:
         self._spec = self._model = self._data = None
+        self.reschedule()
 
     def build_spec(self) -> mujoco.MjSpec:
         """A fresh spec with every entity built into it (assets added once, from memory)."""
@@ -233,6 +241,7 @@ class World:
         if main:
             model.vis.global_.cameraid = model.camera(main[0]).id  # the main view renders from this camera
         self._spec, self._model, self._data = spec, model, mujoco.MjData(model)
+        self.reschedule()
         self._hooked = [e for e in self._entities.values() if type(e).before_step is not Entity.before_step]
         mujoco.mj_forward(model, self._data)
         return model, self._data
@@ -276,17 +285,30 @@ class World:
         Entity ``before_step`` hooks run before every step. Controllers (services, sensors) run when due on
         the simulation clock (``tick`` every ``period`` seconds; controls hold between ticks); between
         ticks the steps run inside MuJoCo (``mj_step`` with ``nstep``), so a controller at 100 Hz costs one
-        Python call per 10 ms of simulated time, not one per step.
+        Python call per 10 ms of simulated time, not one per step. A single step between ticks is one
+        ``mj_step`` call: the world remembers when the next controller is due (see :meth:`reschedule`).
         """
-        model, data = self._model, self._data
+        data = self._data
+        if n == 1 and data is not None:
+            now = data.time
+            if (
+                now == self._sched_time  # time moved only by this world's own steps since the schedule
+                and now + self._sched_half < self._sched_until  # the scan's own test: no controller is due
+                and self.controllers == self._sched_list  # same controllers, same order (identity compares)
+            ):
+                _mj_step(self._model, data)
+                self._sched_time = now + self._sched_dt  # MuJoCo's own `time += timestep`
+                return
+        model = self._model
         if model is None or data is None:
             model, data = self.model, self.data
         dt = model.opt.timestep
         controllers, hooked, mj_step = self.controllers, self._hooked, mujoco.mj_step
-        remaining = n
-        while remaining > 0:  # per-step Python kept minimal: a loop of single steps must stay near raw mj_step
-            now = data.time + 0.5 * dt  # ticks do not advance time
-            upcoming = math.inf
+        remaining, half = n, 0.5 * dt
+        upcoming, scanned = math.inf, self._sched_list
+        while remaining > 0:
+            now = data.time + half  # ticks do not advance time
+            upcoming, scanned = math.inf, list(controllers)
             for controller in controllers:
                 due = controller.next_time
                 if now >= due:
@@ -309,6 +331,22 @@ class World:
                 count = remaining
             mj_step(model, data, count)
             remaining -= count
+        if hooked or n < 1:
+            self.reschedule()
+        else:  # single steps skip the scan while data.time + dt / 2 < upcoming and the scanned list is unchanged
+            self._sched_list, self._sched_time, self._sched_until = scanned, data.time, upcoming
+            self._sched_half, self._sched_dt = half, dt
+
+    def reschedule(self) -> None:
+        """Forget the remembered next-due time, so the next :meth:`step` scans every controller.
+
+        Call it after changing a controller's ``next_time`` (``restore`` from a snapshot) without moving the
+        simulation time; adding or removing controllers and any change of ``data.time`` other than this
+        world's steps (``reset``, ``mj_setState``) are noticed without it.
+        """
+        self._sched_list = []
+        self._sched_time = math.nan
+        self._sched_until = -math.inf
 
     def run(self, seconds: float) -> None:
         """Step until ``seconds`` of simulated time have passed."""
@@ -399,6 +437,7 @@ class World:
         for controller in self.controllers:
             controller.reset(self.model, self.data)
             controller.next_time = 0.0
+        self.reschedule()
 
     def warnings(self) -> dict[str, int]:
         """MuJoCo warnings raised so far, by name."""

@@ -395,6 +395,27 @@ def test_a_low_laser_does_not_see_its_own_wheels_or_mounted_arm():
         LaserRangeFinder(world, "bot", exclude="wheels")
 
 
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+@pytest.mark.parametrize("height", [0.01, 0.03, 0.05, 0.08])
+def test_a_laser_inside_the_robot_sees_past_it_and_returns(robot, height):
+    """Where two of the robot's bodies meet (wheel and chassis), a continued ray once bounced between them forever.
+
+    Ground truth: the box's near face is at x = 0.5 m (centre 0.6, half size 0.1), the ray straight ahead starts
+    at the simulator's body position plus ``height`` along the body's z axis.
+    """
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(robot(name="r", pose=Pose((0, 0, 0.001))))
+    world.insert(Box(name="box", dimensions=(0.2, 0.2, 0.4), pose=Pose((0.6, 0, 0.2))))
+    laser = LaserRangeFinder(world, "r", height=height, fov_deg=360, rays=36, max_range=3.0)
+    world.step(1)
+    body = world.body("r")
+    origin = body.xpos + body.xmat.reshape(3, 3)[:, 2] * height
+    ahead = int(np.argmin(np.abs(laser.angles)))
+    assert laser.reading.ranges[ahead] == pytest.approx(0.5 - origin[0], abs=1e-6)
+    assert np.all(laser.reading.ranges[np.abs(laser.angles) > 1.0] == 3.0)  # nothing else within 3 m
+
+
 def test_sensor_noise_is_seeded_and_deterministic():
     readings = []
     for _ in range(2):

@@ -1,0 +1,124 @@
+"""World.step's single-step path: between controller ticks one ``world.step()`` is one ``mj_step``.
+
+The world remembers when the next controller is due. These tests hold it to what the full scan does: the same
+ticks at the analytic times (a controller at ``rate`` Hz ticks at 0, 1/rate, 2/rate ... s), the same states bit
+for bit as batched ``world.step(n)``, and a controller that is added, swapped, restored to an earlier time or
+overtaken by a time jump ticks on the very next step.
+"""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from test_drive import IDS, ROBOTS
+
+from simrun import Box, Ground, Pose, World
+from simrun.drive_service import DriveService
+from simrun.sensors import GPS, Bumper, Encoders, LaserRangeFinder
+
+SECONDS = 1.0
+
+
+def stack(robot):
+    """A robot with a drive command and sensors at 50 and 10 Hz (the drive benchmark's stack, 36 rays)."""
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(robot(name="r", pose=Pose((0, 0, 0.001))))
+    world.insert(Box(name="box", dimensions=(0.2, 0.2, 0.2), mass=5.0, free=True, pose=Pose((0.6, 0, 0.1))))
+    world.compile()
+    drive = DriveService(world, "r")
+    sensors = [
+        Bumper(world, "r"),
+        Encoders(world, "r", rate=50),
+        GPS(world, "r", rate=10, noise=0.01, seed=3),
+        LaserRangeFinder(world, "r", height=0.05, fov_deg=360, rays=36, rate=10),
+    ]
+    drive.cmd_vel(0.2, 0.5)
+    return world, drive, sensors
+
+
+def state(world):
+    data = world.data
+    return data.time, data.qpos.copy(), data.qvel.copy(), data.ctrl.copy()
+
+
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_single_steps_tick_at_the_analytic_times_and_match_batched_steps(robot):
+    single, drive, sensors = stack(robot)
+    batched, _, batched_sensors = stack(robot)
+    steps = round(SECONDS / single.options.timestep)
+    times = {id(s): [] for s in sensors}
+    for _ in range(steps):
+        single.step()
+        for s in sensors:
+            if s.reading is not None and (not times[id(s)] or times[id(s)][-1] != s.reading.time):
+                times[id(s)].append(s.reading.time)
+    batched.step(steps)
+    t1, q1, v1, c1 = state(single)
+    t2, q2, v2, c2 = state(batched)
+    assert t1 == t2 and np.array_equal(q1, q2) and np.array_equal(v1, v2) and np.array_equal(c1, c2)
+    for s, b in zip(sensors, batched_sensors, strict=True):
+        rate = s.rate
+        expected = [k / rate for k in range(math.ceil(SECONDS * rate - 1e-9))]  # 0, 1/rate, ... < SECONDS
+        assert s.samples == b.samples == len(expected), type(s).__name__
+        assert times[id(s)] == pytest.approx(expected, abs=0.5 * single.options.timestep)
+    assert drive.odometry().time == pytest.approx(SECONDS - 0.02, abs=1e-9)  # last 50 Hz tick before 1 s
+
+
+def test_a_controller_added_between_single_steps_ticks_on_the_next_step():
+    world, _, _ = stack(ROBOTS[0])
+    for _ in range(7):  # 14 ms: between the 50 Hz ticks at 0 and 20 ms
+        world.step()
+    added_at = world.time
+    gps = GPS(world, "r", rate=10)
+    world.step()
+    assert gps.samples == 1 and gps.reading.time == added_at
+    # swap one controller for another: the list has the same length, the newcomer still ticks at once
+    world.controllers.remove(gps)
+    encoders = Encoders(world, "r", rate=50)
+    swapped_at = world.time
+    world.step()
+    assert encoders.samples == 1 and encoders.reading.time == swapped_at
+
+
+def test_a_controller_restored_to_an_earlier_clock_ticks_on_the_next_step():
+    world, _, sensors = stack(ROBOTS[0])
+    gps = sensors[2]
+    world.step()  # GPS ticked at 0; next due at 0.1 s
+    snap = gps.snapshot()
+    for _ in range(5):
+        world.step()
+    assert gps.samples == 1
+    snap["next_time"] = world.time  # due now, as a checkpoint taken at this time would say
+    gps.restore(snap)
+    world.step()
+    assert gps.samples == 2
+
+
+def test_time_moved_outside_the_world_is_noticed():
+    world, _, sensors = stack(ROBOTS[0])
+    encoders = sensors[1]
+    for _ in range(3):
+        world.step()
+    assert encoders.samples == 1
+    world.data.time += 0.05  # a user's jump past the next 50 Hz tick (20 ms)
+    world.step()
+    assert encoders.samples == 2  # the full scan ran and found the encoders due
+    mujoco.mj_resetData(world.model, world.data)  # back to t = 0 behind the world's back: no tick is due
+    before = encoders.samples
+    world.step()
+    assert encoders.samples == before and world.time == world.options.timestep
+
+
+def test_reset_and_recompile_forget_the_schedule():
+    world, _, sensors = stack(ROBOTS[0])
+    encoders = sensors[1]
+    for _ in range(3):
+        world.step()
+    world.reset()  # controllers back to next_time 0: they tick on the first step
+    world.step()
+    assert encoders.samples == 1
+    world.insert(Box(name="extra", dimensions=(0.1, 0.1, 0.1), pose=Pose((-1, 0, 0.05))))  # a new model
+    world.step()  # compiles the new model (time 0 again); the encoders are next due at 20 ms
+    assert world.time == world.options.timestep and encoders.samples == 1
