@@ -138,9 +138,9 @@ def hull_options(func: Callable[..., Any]) -> Callable[..., Any]:
             "--cache-dir",
             type=click.Path(path_type=Path, file_okay=False),
             default=None,
-            help="Decomposition cache (default: the user cache folder).",
+            help="Cache of decompositions and passed MuJoCo checks (default: the user cache folder).",
         ),
-        click.option("--no-cache", is_flag=True, help="Do not read or write the decomposition cache."),
+        click.option("--no-cache", is_flag=True, help="Do not read or write the caches."),
     ]
     for decorator in reversed(decorators):
         func = decorator(func)
@@ -158,6 +158,16 @@ def _user_cache() -> Path:
     import platformdirs
 
     return Path(platformdirs.user_cache_dir("meshtool"))
+
+
+def _check_cache(hull_cache: Path | None) -> Path | None:
+    """Where passing MuJoCo checks are remembered.
+
+    ``checks`` beside the default ``hulls`` cache, or inside a ``--cache-dir``; nothing with ``--no-cache``.
+    """
+    if hull_cache is None:
+        return None
+    return hull_cache.parent / "checks" if hull_cache == _user_cache() / "hulls" else hull_cache / "checks"
 
 
 def _hull_options(kw: dict[str, Any]) -> HullOptions:
@@ -241,7 +251,10 @@ def obj2bin(
 ) -> None:
     """Convert SRC (OBJ, STL, PLY, glTF/GLB, COLLADA; or a folder of them) to .mbin: normalised, hulls, packed."""
     with _guard(as_json):
-        options = ConvertOptions(_normalise_options(kw), quantize, _hull_options(kw), check=not no_check)
+        hulls = _hull_options(kw)
+        options = ConvertOptions(
+            _normalise_options(kw), quantize, hulls, check=not no_check, check_cache=_check_cache(hulls.cache_dir)
+        )
         if _is_folder(src):
             if out is None:
                 raise OptionsError("a folder needs -o OUTDIR")

@@ -37,12 +37,15 @@ class ConvertOptions:
         check: Compile the packed asset in MuJoCo before writing it (:mod:`meshtool.loadcheck`; skipped with
             a note when simrun is not installed) and refuse one MuJoCo rejects. Not part of the
             fingerprint: it never changes the bytes written.
+        check_cache: Folder where passing checks are remembered (:func:`meshtool.loadcheck.check_pack`);
+            ``None`` compiles every time.
     """
 
     normalise: NormaliseOptions = field(default_factory=NormaliseOptions)
     quantize: bool = False
     hulls: HullOptions = field(default_factory=HullOptions)
     check: bool = True
+    check_cache: Path | None = None
 
     def fingerprint(self) -> dict[str, Any]:
         """The options as recorded in the file's metadata (paths as strings)."""
@@ -107,9 +110,8 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
         report_progress("checking in MuJoCo")
         from meshtool.loadcheck import check_pack
 
-        skipped = check_pack(data, src.name)
+        checked, skipped = check_pack(data, src.name, options.check_cache)
         findings += skipped
-        checked = "skipped" if skipped else "compiled"
     roots = [src.parent, *options.normalise.search_paths]
     used = [_source_path(str(s.get("path", "")), roots) for s in _files(asset.manifest.get("sources", []))]
     check_output(out, "mbin", force=force, inputs=[src, *(p for p in used if p is not None)], data=data)

@@ -8,16 +8,31 @@ nothing is simulated, so the check costs one MuJoCo compile (mesh inertias, hull
 
 meshtool never imports MuJoCo: without the plugin (simrun not installed) the check is skipped with a
 ``mujoco-check-skipped`` note.
+
+Passing checks are remembered in a cache folder (``obj2bin``: the user cache, ``--no-cache`` turns it off):
+one empty-ish marker per SHA-256 of the ``.mbin`` bytes together with the plugin's identity (its distribution,
+version and the size and modification time of every file of its package) and the MuJoCo distribution's
+version. The same bytes checked by the same plugin and MuJoCo compile the same way, so a hit skips the
+compile and MuJoCo's import; any change of the pack, of simrun or of MuJoCo is a miss. Refusals are never
+cached (the next run states the reason again).
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import importlib.util
+import os
 import re
+from importlib import metadata
+from pathlib import Path
 
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, info
-from meshtool.model import BodyDesc, ModelDesc, ModelError, TextureDesc, check_model
+from meshtool.model import GROUP, BodyDesc, ModelDesc, ModelError, TextureDesc, check_model
+from meshtool.outdir import write_file
 from meshtool.packfile.read import PackedMesh
+from meshtool.resolve import read_cache
 
 #: The name every element of the checked model starts with.
 PREFIX = "asset"
@@ -27,19 +42,24 @@ _ELEMENT = re.compile(r"\s*\(element '([^']*)'\)$")
 _REFUSES = "MuJoCo refuses the model: "
 
 
-def check_pack(data: bytes, source: str) -> list[Finding]:
+def check_pack(data: bytes, source: str, cache_dir: Path | None = None) -> tuple[str, list[Finding]]:
     """Compile the packed asset ``data`` in MuJoCo through the installed plugin.
 
     Args:
         data: ``.mbin`` bytes.
         source: The input file, as the user named it (for the error and the finding).
+        cache_dir: Folder of remembered passing checks; ``None`` compiles every time.
 
     Returns:
-        ``[]`` when MuJoCo compiled it; a ``mujoco-check-skipped`` note when no plugin is installed.
+        ``("compiled", [])`` when MuJoCo compiled it, ``("cached", [])`` when these bytes passed before with
+        the same plugin and MuJoCo, ``("skipped", [note])`` when no plugin is installed.
 
     Raises:
         ModelError: MuJoCo refuses the asset: its message, the part, hull or texture at fault, and a hint.
     """
+    marker = _marker(cache_dir, data)
+    if marker is not None and read_cache(marker) is not None:
+        return "cached", []
     from meshtool.packfile import parse
 
     with parse(data, source, verify=False) as packed:  # the packer's own bytes
@@ -56,7 +76,7 @@ def check_pack(data: bytes, source: str) -> list[Finding]:
     except ModelError as exc:
         raise _refusal(exc, names, source) from None
     if not checked:
-        return [
+        return "skipped", [
             info(
                 "mujoco-check-skipped",
                 "not compiled in MuJoCo: no MJCF check plugin is installed (install simrun to have obj2bin check "
@@ -64,7 +84,50 @@ def check_pack(data: bytes, source: str) -> list[Finding]:
                 source,
             )
         ]
-    return []
+    if marker is not None:
+        with contextlib.suppress(MeshtoolError):  # an unwritable cache costs the next run a compile, nothing else
+            write_file(marker, b"compiled\n")
+    return "compiled", []
+
+
+def plugin_identity() -> str | None:
+    """What a cached check depends on, without importing the plugin or MuJoCo; ``None`` without a plugin.
+
+    The check plugin's entry point, its distribution and version, every file of its top-level package (path,
+    size, modification time in ns) and the installed MuJoCo distribution's version.
+    """
+    points = list(metadata.entry_points(group=GROUP, name="check"))
+    if not points:
+        return None
+    point = points[0]
+    dist = getattr(point, "dist", None)
+    parts = [point.value, f"{dist.name} {dist.version}" if dist is not None else "?"]
+    spec = importlib.util.find_spec(point.value.split(":")[0].split(".")[0])  # a top-level name: not imported
+    for folder in (spec.submodule_search_locations or []) if spec is not None else []:
+        for root, dirs, files in os.walk(folder):
+            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+            for name in sorted(files):
+                if name.endswith(".py"):
+                    path = os.path.join(root, name)
+                    stat = os.stat(path)
+                    parts.append(f"{os.path.relpath(path, folder)} {stat.st_size} {stat.st_mtime_ns}")
+    for name in ("mujoco-core", "mujoco"):
+        try:
+            parts.append(f"{name} {metadata.version(name)}")
+        except metadata.PackageNotFoundError:
+            continue
+    return "\n".join(parts)
+
+
+def _marker(cache_dir: Path | None, data: bytes) -> Path | None:
+    """Where a passing check of ``data`` is remembered (``None``: no cache or no plugin)."""
+    if cache_dir is None:
+        return None
+    identity = plugin_identity()
+    if identity is None:
+        return None
+    digest = hashlib.sha256(identity.encode() + b"\0" + data).hexdigest()
+    return cache_dir / digest[:2] / f"{digest}.ok"
 
 
 def _describe(packed: PackedMesh, textures: list[TextureDesc]) -> dict[str, str]:

@@ -86,7 +86,10 @@ def test_a_part_under_4_vertices_is_refused_by_the_check() -> None:
     with pytest.raises(ModelError) as caught:
         check_pack(data, "triangle.obj")
     assert "at least 4 vertices required (visual mesh 0: part 'default')" in caught.value.message
-    assert check_pack(pack(prepare(source, NormaliseOptions()), False, {}, [], None), "triangle.obj") == []
+    assert check_pack(pack(prepare(source, NormaliseOptions()), False, {}, [], None), "triangle.obj") == (
+        "compiled",
+        [],
+    )
 
 
 def test_without_the_plugin_the_check_is_skipped_with_a_note(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -125,3 +128,66 @@ def test_the_check_does_not_change_the_bytes(tmp_path: Path) -> None:
     unchecked = convert(TILE, tmp_path / "b.mbin", ConvertOptions(check=False))
     assert (checked.stats["mujoco_check"], unchecked.stats["mujoco_check"]) == ("compiled", "off")
     assert (tmp_path / "a.mbin").read_bytes() == (tmp_path / "b.mbin").read_bytes()
+
+
+# -- remembered checks (issue 17: a cached obj2bin does not pay for MuJoCo's import and compile) ----------------
+
+_REPORT_MUJOCO = (
+    "import sys; from meshtool.cli import obj2bin\n"
+    "try: obj2bin()\n"
+    "except SystemExit as exc: code = exc.code\n"
+    "print('mujoco imported' if 'mujoco' in sys.modules else 'mujoco not imported', file=sys.stderr)\n"
+    "sys.exit(code)"
+)
+
+
+def _obj2bin_reporting(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-c", _REPORT_MUJOCO, *args], capture_output=True, text=True, env=dict(os.environ), timeout=300
+    )
+
+
+def test_a_passing_check_is_remembered_and_the_next_run_does_not_import_mujoco(tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    runs = [
+        _obj2bin_reporting(str(TILE), "-o", str(tmp_path / f"{k}.mbin"), "--cache-dir", str(cache), "--json")
+        for k in range(2)
+    ]
+    assert [r.returncode for r in runs] == [0, 0], runs[0].stderr
+    assert [json.loads(r.stdout)["stats"]["mujoco_check"] for r in runs] == ["compiled", "cached"]
+    assert "mujoco imported" in runs[0].stderr.splitlines() and "mujoco not imported" in runs[1].stderr.splitlines()
+    assert (tmp_path / "0.mbin").read_bytes() == (tmp_path / "1.mbin").read_bytes()
+    assert len(list((cache / "checks").rglob("*.ok"))) == 1
+    # other bytes (another scale) are another question: compiled again, remembered apart
+    other = _obj2bin_reporting(str(TILE), "-o", str(tmp_path / "s.mbin"), "--cache-dir", str(cache), "--scale", "2")
+    assert other.returncode == 0 and "mujoco imported" in other.stderr.splitlines()
+    assert len(list((cache / "checks").rglob("*.ok"))) == 2
+    # --no-cache neither reads nor writes: MuJoCo compiles it, and nothing appears in the user cache either
+    bare = _obj2bin_reporting(str(TILE), "-o", str(tmp_path / "n.mbin"), "--no-cache", "--json")
+    assert json.loads(bare.stdout)["stats"]["mujoco_check"] == "compiled"
+    assert not (Path(os.environ["XDG_CACHE_HOME"]) / "meshtool" / "checks").exists()
+
+
+def test_the_default_cache_sits_beside_the_decomposition_cache(tmp_path: Path) -> None:
+    run = _obj2bin_reporting(str(TILE), "-o", str(tmp_path / "t.mbin"))
+    assert run.returncode == 0, run.stderr
+    assert len(list((Path(os.environ["XDG_CACHE_HOME"]) / "meshtool" / "checks").rglob("*.ok"))) == 1
+
+
+def test_a_refusal_is_never_remembered(tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    for _ in range(2):
+        run = _obj2bin(str(MICRO), "-o", str(tmp_path / "micro.mbin"), "--cache-dir", str(cache))
+        assert run.returncode == 1 and "MuJoCo refuses the converted asset" in run.stderr
+    assert not list(cache.rglob("*.ok"))
+
+
+def test_the_remembered_check_names_the_plugin_files_and_mujoco_version() -> None:
+    from meshtool.loadcheck import plugin_identity
+
+    identity = plugin_identity()
+    assert identity is not None
+    builder = ROOT / "simrun" / "mjcf_builder.py"
+    stat = builder.stat()
+    assert f"mjcf_builder.py {stat.st_size} {stat.st_mtime_ns}" in identity.splitlines()
+    assert any(line.endswith(f" {mujoco.__version__}") and "mujoco" in line for line in identity.splitlines())
