@@ -14,7 +14,7 @@ import numpy.typing as npt
 
 from meshtool.errors import ObjParseError
 from meshtool.findings import Finding, info, warning
-from meshtool.obj.lines import F, IntArray, Lines, gather, numbers, strip_comment, token_counts, tokens
+from meshtool.obj.lines import F, IntArray, Lines, gather, numbers, strip_comment, tokens, values_per_line
 
 #: Most corners one ``f`` statement may have (a polygon is triangulated in one piece; larger ones are refused).
 MAX_FACE_CORNERS = 65_536
@@ -64,9 +64,11 @@ def read_faces(
 
 def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] | None:
     if b"/" not in block:  # plain "f a b c ...": every token after the keyword is one vertex index
-        sizes = token_counts(block) - 1
         values = numbers(block, b"f", np.int64)
-        if values is None or values.size != int(sizes.sum()):
+        if values is None:
+            return None
+        sizes = values_per_line(block, values.size)
+        if values.size != int(sizes.sum()):
             return None
         cv = values.astype(np.int64, copy=False)
         if (cv == 0).any() or _out_of_range(cv):

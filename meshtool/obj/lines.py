@@ -11,7 +11,6 @@ import math
 import re
 from dataclasses import dataclass
 
-import fastnumbers
 import numpy as np
 import numpy.typing as npt
 
@@ -163,22 +162,59 @@ def tokens(block: bytes) -> tuple[npt.NDArray[np.uint8], IntArray, IntArray, Int
 def numbers(
     block: bytes, keyword: bytes, dtype: type[np.generic], blank_slashes: bool = False
 ) -> npt.NDArray[np.generic] | None:
-    """Every number of a block in order, or ``None`` when the block needs the line-by-line path."""
-    if b"#" in block or not block.isascii():  # an inline comment, or non-ASCII digits: the line-by-line path
+    """Every number of a block in order, or ``None`` when the block needs the line-by-line path.
+
+    One ``np.fromstring`` call over the block with its keywords (and, for faces, slashes) blanked: numpy's
+    text parser reads Python's float syntax (correctly rounded) and raises on anything else, including two
+    numbers glued together (``3-4``) or a token that is not a number, so when it succeeds every
+    whitespace-separated token was exactly one number. No Python object is made per number.
+    """
+    if b"#" in block or b"(" in block or not block.isascii():  # inline comment, nan(...), non-ASCII digits
         return None
-    blank = b" " * len(keyword)
-    text = blank + block[len(keyword) :].replace(b"\n" + keyword, b"\n" + blank)
-    if blank_slashes:
-        text = text.replace(b"/", b" ")
+    text = _blank(block, keyword, blank_slashes)
     try:
-        if dtype is np.float64:  # fast_float via fastnumbers: about twice numpy's text parser
-            values: npt.NDArray[np.generic] = fastnumbers.try_array(
-                text.split(), dtype=np.float64, on_fail=fastnumbers.RAISE
-            )
-            return values
-        return np.fromstring(text, dtype=dtype, sep=" ")
+        values: npt.NDArray[np.generic] = np.fromstring(text, dtype=dtype, sep=" ")
     except (ValueError, TypeError):
         return None
+    return values
+
+
+_BLANK_TABLES: dict[tuple[bytes, bool], bytes] = {}
+
+
+def _blank(block: bytes, keyword: bytes, slashes: bool) -> bytes:
+    """The block with each line's keyword (and every ``/`` when ``slashes``) replaced by spaces.
+
+    One ``bytes.translate`` pass when the keyword's letters occur once per line (so only in the keywords:
+    checked by counting them); a ``replace`` of each line's keyword otherwise.
+    """
+    lines = block.count(b"\n")
+    if all(block.count(bytes([c])) == lines for c in set(keyword)):
+        table = _BLANK_TABLES.get((keyword, slashes))
+        if table is None:
+            chars = keyword + (b"/" if slashes else b"")
+            table = _BLANK_TABLES[(keyword, slashes)] = bytes.maketrans(chars, b" " * len(chars))
+        return block.translate(table)
+    blank = b" " * len(keyword)
+    text = blank + block[len(keyword) :].replace(b"\n" + keyword, b"\n" + blank)
+    return text.replace(b"/", b" ") if slashes else text
+
+
+def values_per_line(block: bytes, total: int) -> IntArray:
+    """Numbers on each line of a block (tokens after the keyword), given that ``total`` were read from it.
+
+    Where tokens are separated by single spaces, a line holds as many numbers as spaces: counted in one pass,
+    and accepted when the counts add up to ``total`` (extra spaces would only add to them, so equal sums mean
+    every line is exact). Otherwise (tabs, doubled or trailing spaces) the tokens are counted.
+    """
+    if b"\t" not in block and b"\v" not in block and b"\f" not in block:
+        a = np.frombuffer(block, dtype=np.uint8)
+        spaces = np.equal(a, 32).view(np.uint8)
+        counts: IntArray = np.add.reduceat(spaces, _line_starts(a), dtype=np.int64)
+        if int(counts.sum()) == total:
+            return counts
+    exact: IntArray = token_counts(block) - 1
+    return exact
 
 
 def slow_numbers(lines: Lines, line_numbers: IntArray, keyword: str, path: str) -> tuple[FloatArray, IntArray]:
@@ -230,9 +266,11 @@ def vector_block(lines: Lines, kind: int, keyword: str, path: str) -> tuple[Floa
     block, line_numbers = gather(lines, kind)
     if not block:
         return np.zeros(0), np.zeros(0, dtype=np.int64), line_numbers
-    counts = token_counts(block) - 1
     values = numbers(block, keyword.encode(), np.float64)
-    if values is None or values.size != int(counts.sum()):
+    if values is None:
+        return (*slow_numbers(lines, line_numbers, keyword, path), line_numbers)
+    counts = values_per_line(block, values.size)
+    if values.size != int(counts.sum()):
         return (*slow_numbers(lines, line_numbers, keyword, path), line_numbers)
     return values.astype(np.float64, copy=False), counts, line_numbers
 
