@@ -260,7 +260,8 @@ class Pioneer3DX(DifferentialDrive):
         "motor": "Adept MobileRobots P3-DX datasheet: max. speed 1.2 m/s (no-load wheel speed 1.2 / 0.0975 "
         "rad/s); stall torque 6 N m per wheel estimated as twice the torque to climb the published 25 % grade "
         "with the published 17 kg payload",
-        "axle_offset": "estimate: axle 0.05 m ahead of the chassis centre (P3-DX drawing)",
+        "axle_offset": "axle 0.05 m ahead of the chassis centre: MSRS's Pioneer3DX entity, FRONT_AXLE_DEPTH_OFFSET "
+        "= -0.05 ('distance of the axle from the center of robot')",
     }
     mass: float = 9.0 - 2 * 0.4 - 0.001
     chassis_dimensions: tuple[float, float, float] = (0.455, 0.276, 0.177)
