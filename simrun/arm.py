@@ -403,11 +403,22 @@ class ArmService:
         self._apply(np.asarray(targets, dtype=float))
 
     def move_to(self, joint_positions: list[float] | tuple[float, ...], duration: float) -> None:
-        """Move smoothly (cosine profile in joint space) to ``joint_positions`` over ``duration`` seconds."""
+        """Move smoothly (cosine profile in joint space) to ``joint_positions`` over ``duration`` seconds.
+
+        A position-driven joint's move starts from its current servo target, not from where the joint is: a
+        gripper closed on an object (held short of its target) keeps squeezing, and a joint sagging under load
+        does not get a jump in its command. Other joints start where they are.
+        """
         self._check(joint_positions)
         if not (math.isfinite(duration) and duration > 0):
             raise EntityError("move duration must be a positive number of seconds")
         start = np.asarray(self.joint_states().positions)
+        model, data = self.world.model, self.world.data
+        drives = {name: joint.drive for segment in self.arm.segments for name, joint in segment.dofs(self.name)}
+        names = _actuator_names(model)
+        for k, joint in enumerate(self.joints):
+            if drives.get(joint) == "position" and joint in names:
+                start[k] = data.ctrl[model.actuator(joint).id]
         t0 = float(self.world.data.time)
         self._move = (t0, duration, start, np.asarray(joint_positions, dtype=float))
 

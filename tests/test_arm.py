@@ -217,8 +217,9 @@ def test_lynx_gripper_closes_both_fingers_and_holds_a_box_under_gravity():
     arm.move_to([0.8, 0.3, 0.3, 0, 0.5, 0.004], duration=1.0)  # swing it around
     world.run(1.5)
     moved = in_hand()
-    assert np.linalg.norm(moved[:2]) < 0.001  # still centred between the fingers
-    assert 0.03 + 0.008 - 0.001 < moved[2] <= held[2] + 1e-4  # at most slid down onto the wrist, not out
+    # the move starts from the gripper's target, not from where the box stopped the fingers: the grip holds
+    # through the swing (it once opened to the box's width and let it slide 7 mm down onto the wrist)
+    assert np.linalg.norm(moved - held) < 0.001
     box = world.body("box").xpos.copy()
     arm.set_joint_targets([0.8, 0.3, 0.3, 0, 0.5, 0.015])  # open: it falls
     world.run(0.5)

@@ -122,3 +122,49 @@ def test_reset_and_recompile_forget_the_schedule():
     world.insert(Box(name="extra", dimensions=(0.1, 0.1, 0.1), pose=Pose((-1, 0, 0.05))))  # a new model
     world.step()  # compiles the new model (time 0 again); the encoders are next due at 20 ms
     assert world.time == world.options.timestep and encoders.samples == 1
+
+
+class ReadCountingController:
+    """A controller (the registry's protocol, no mock) at 50 Hz that counts how often its schedule is read."""
+
+    def __init__(self, world):
+        self.period, self.ticks, self.reads, self._next = 0.02, 0, 0, world.time
+        world.controllers.append(self)
+
+    @property
+    def next_time(self):
+        self.reads += 1
+        return self._next
+
+    @next_time.setter
+    def next_time(self, value):
+        self._next = value
+
+    def tick(self, model, data):
+        self.ticks += 1
+
+    def reset(self, model, data):
+        self.ticks = 0
+
+    def snapshot(self):
+        return {"next_time": self._next}
+
+    def restore(self, state):
+        self._next = float(state["next_time"])
+
+
+@pytest.mark.parametrize("robot", ROBOTS, ids=IDS)
+def test_a_single_step_between_ticks_does_not_look_at_the_controllers(robot):
+    world, _, _ = stack(robot)
+    counter = ReadCountingController(world)
+    world.step()  # t = 0: everything ticks, the schedule is remembered
+    assert counter.ticks == 1
+    steps_per_tick = round(counter.period / world.options.timestep)
+    for _ in range(3):
+        reads = counter.reads
+        for _ in range(steps_per_tick - 1):  # the steps strictly between two ticks
+            world.step()
+        assert counter.reads == reads, "a step between ticks scanned the controllers"
+        world.step()  # the tick
+        assert counter.reads > reads
+    assert counter.ticks == 4
