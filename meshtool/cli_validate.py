@@ -17,9 +17,11 @@ import platformdirs
 
 from meshtool.cli_common import exit_on_bug
 from meshtool.errors import MeshtoolError, OutputError
-from meshtool.outdir import write_file
+from meshtool.outdir import is_within, read_head, same_file, write_file
+from meshtool.readers import MESH_SUFFIXES
 from meshtool.validate import FORMATS, ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
 from meshtool.validate import validate as run_validate
+from meshtool.validate.reports import is_report
 from meshtool.validate.reports.text import summary_lines, to_text
 from meshtool.validate.task import AssetResult
 
@@ -41,7 +43,13 @@ def default_jobs() -> int:
     help="pyproject.toml or meshtool.toml (default: the first found from the working folder upwards).",
 )
 @click.option("--format", "fmt", type=click.Choice(FORMATS), default="text", show_default=True, help="Report format.")
-@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), help="Write the report here.")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Write the report here (replaces an earlier report; anything else only with --force).",
+)
+@click.option("--force", is_flag=True, help="Let -o replace a file that is not an earlier report (never an input).")
 @click.option("-j", "--jobs", type=click.IntRange(1, 256), default=None, help="Workers (default: CPUs, at most 8).")
 @click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True)
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); needs dask.")
@@ -89,6 +97,7 @@ def validate_command(
     no_cache: bool,
     thumbnails: bool | None,
     verbose: bool,
+    force: bool,
 ) -> None:
     """Check OBJ sources and .mbin packs under PATHS against the rules of docs/validate-rules.md."""
     if scheduler and executor != "dask":
@@ -98,6 +107,8 @@ def validate_command(
     want_thumbnails = fmt == "html" if thumbnails is None else thumbnails
     # The OpenGL backend of thumbnails is chosen by the physics plugin (simrun): EGL, then OSMesa, headless.
     try:
+        if output is not None:  # before the run: a refused -o costs nothing
+            check_report_output(output, paths, force)
         config = load_config(config_file or find_config(Path.cwd()))
         options = ValidateOptions(
             config=config,
@@ -142,6 +153,43 @@ def validate_command(
     if report.internal_errors():
         sys.exit(EXIT_INTERNAL)
     sys.exit(EXIT_FINDINGS if report.failed(strict) else EXIT_OK)
+
+
+#: Suffixes of what validate reads under its PATHS (meshes, packs, materials, textures, robot descriptions).
+INPUT_SUFFIXES = (*MESH_SUFFIXES, ".mbin", ".mtl", ".bin", ".png", ".jpg", ".jpeg", ".tga", ".bmp", ".urdf", ".xacro")
+
+
+def check_report_output(output: Path, paths: tuple[Path, ...], force: bool) -> None:
+    """Refuse a report path that would destroy something.
+
+    An input of the run is refused always; another existing file that is not an earlier ``meshtool validate``
+    report, unless ``force``.
+
+    Raises:
+        OutputError: With the reason and how to fix it.
+    """
+    if not output.exists() and not output.is_symlink():
+        return
+    if output.is_dir():
+        raise OutputError("is a folder, not a file", path=str(output), hint="name a report file")
+    inside = any(
+        same_file(output, path) or (path.is_dir() and is_within(output, path)) for path in paths if path.exists()
+    )
+    if inside and output.suffix.lower() in INPUT_SUFFIXES:
+        raise OutputError(
+            "is an input of this run; refusing to overwrite it",
+            path=str(output),
+            hint="write the report elsewhere (--force does not override this)",
+        )
+    if force:
+        return
+    head = read_head(output, 1 << 16)
+    if head is None or (head and not is_report(head)):  # an empty file holds nothing (a clean GitHub report)
+        raise OutputError(
+            "exists and is not an earlier meshtool validate report; not replacing it",
+            path=str(output),
+            hint="choose another path, remove it, or pass --force to replace it",
+        )
 
 
 def _usage(message: str) -> None:

@@ -81,6 +81,14 @@ def same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def is_within(path: Path, folder: Path) -> bool:
+    """Whether ``path`` (once its links are resolved) lies inside ``folder`` (also resolved)."""
+    try:
+        return Path(os.path.realpath(path)).is_relative_to(os.path.realpath(folder))
+    except (OSError, ValueError):
+        return False
+
+
 def refuse_inputs(out: Path, inputs: Iterable[Path]) -> None:
     """Refuse ``out`` when it is one of ``inputs`` (always, whatever ``--force`` says).
 
@@ -136,7 +144,7 @@ def check_output(
             hint=FORCE_HINT,
         )
     kind = kind or KINDS.get(out.suffix.lower())
-    if data is not None and info.st_size == len(data) and _read_head(out, len(data)) == data:
+    if data is not None and info.st_size == len(data) and read_head(out, len(data)) == data:
         return
     if kind is None or not _RECOGNISERS[kind](out, info.st_size):
         what = f"a meshtool {kind} output" if kind else "written by meshtool"
@@ -151,7 +159,7 @@ def write_output(
     write_file(out, data)
 
 
-def _read_head(path: Path, limit: int) -> bytes | None:
+def read_head(path: Path, limit: int) -> bytes | None:
     """Up to ``limit`` bytes of a regular file (never follows a link, never blocks on a pipe)."""
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
@@ -179,7 +187,7 @@ def _is_mbin(path: Path, size: int) -> bool:
     from meshtool.packfile.format import MAGIC
     from meshtool.packfile.read import load
 
-    if _read_head(path, len(MAGIC)) != MAGIC:
+    if read_head(path, len(MAGIC)) != MAGIC:
         return False
     try:
         with load(path, verify=False) as packed:
@@ -190,13 +198,13 @@ def _is_mbin(path: Path, size: int) -> bool:
 
 
 def _is_glb(path: Path, size: int) -> bool:
-    head = _read_head(path, 20)
+    head = read_head(path, 20)
     if head is None or len(head) < 20 or head[:4] != b"glTF":
         return False
     version, _, json_length, chunk = struct.unpack("<IIII", head[4:20])
     if version != 2 or chunk != 0x4E4F534A or json_length > min(size, _HEAD_LIMIT):
         return False
-    body = _read_head(path, 20 + json_length)
+    body = read_head(path, 20 + json_length)
     try:
         tree = json.loads((body or b"")[20:])
         generator = tree["asset"]["generator"]
@@ -206,7 +214,7 @@ def _is_glb(path: Path, size: int) -> bool:
 
 
 def _is_usd(path: Path, size: int) -> bool:
-    head = _read_head(path, 16) or b""
+    head = read_head(path, 16) or b""
     if not (head.startswith(b"#usda ") or head.startswith(b"PXR-USDC")):
         return False
     try:
@@ -221,7 +229,7 @@ def _is_usd(path: Path, size: int) -> bool:
 
 def _is_msh(path: Path, size: int) -> bool:
     """MuJoCo's legacy MSH has no magic or metadata: the four counts must account for the size exactly."""
-    head = _read_head(path, 16)
+    head = read_head(path, 16)
     if head is None or len(head) < 16:
         return False
     nv, nn, nt, nf = struct.unpack("<4i", head)
@@ -348,7 +356,7 @@ def replaceable_folder(target: Path) -> str | None:
     """
     if os.path.islink(target) or not target.is_dir():
         return "exists and is not a folder"
-    data = _read_head(target / MARKER, 16 << 20)
+    data = read_head(target / MARKER, 16 << 20)
     try:
         manifest = json.loads(data) if data is not None else None
     except (ValueError, RecursionError):  # not an asset.json meshtool wrote
