@@ -203,20 +203,21 @@ def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
     rank[part_order.astype(np.int64)] = np.arange(len(part_names_all))
     if material.size and (material.min() != material.max() or part.min() != part.max()):
         order = np.lexsort((rank[part], material))
-    else:
-        order = np.arange(material.size)
+        faces, uv, nrm, material, part, lines = (a[order] for a in (faces, uv, nrm, material, part, lines))
+    else:  # one material and part: the order stands; copies, so the mesh shares no memory with ``obj``
+        faces, uv, nrm, material, part, lines = (a.copy() for a in (faces, uv, nrm, material, part, lines))
     return (
         TriMesh(
             positions=positions,
             colors=colors,
             texcoords=texcoords,
             normals=normals,
-            faces=faces[order],
-            face_uv=uv[order],
-            face_normal=nrm[order],
-            face_material=material[order],
-            face_part=part[order],
-            face_lines=lines[order],
+            faces=faces,
+            face_uv=uv,
+            face_normal=nrm,
+            face_material=material,
+            face_part=part,
+            face_lines=lines,
             material_names=material_names,
             part_names=part_names_all,
             source_polygons=int(obj.face_sizes.size),

@@ -7,8 +7,10 @@ back to :func:`slow_numbers`, which reads line by line and names the bad line.
 
 from __future__ import annotations
 
+import io
 import math
 import re
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -179,6 +181,26 @@ def numbers(
     return values
 
 
+def float_table(block: bytes, keyword: bytes) -> FloatArray | None:
+    """The block's numbers as a (lines, columns) table when every line holds the same count, else ``None``.
+
+    numpy's ``loadtxt`` (a C tokenizer; Python's float syntax, correctly rounded, anything else an error) reads
+    the keyword-blanked block; a line with another count of values, or none, means ``None`` (the caller reads
+    the block number by number instead).
+    """
+    if b"#" in block or b"(" in block or not block.isascii():
+        return None
+    try:
+        with warnings.catch_warnings():  # "input contained no data" when every line is a bare keyword
+            warnings.simplefilter("ignore", UserWarning)
+            table: FloatArray = np.loadtxt(io.BytesIO(_blank(block, keyword, False)), dtype=np.float64, ndmin=2)
+    except ValueError:
+        return None
+    if table.shape[0] != block.count(b"\n") or table.shape[1] == 0:
+        return None  # a line with the keyword alone is blank to loadtxt, which skips it
+    return table
+
+
 _BLANK_TABLES: dict[tuple[bytes, bool], bytes] = {}
 
 
@@ -266,6 +288,9 @@ def vector_block(lines: Lines, kind: int, keyword: str, path: str) -> tuple[Floa
     block, line_numbers = gather(lines, kind)
     if not block:
         return np.zeros(0), np.zeros(0, dtype=np.int64), line_numbers
+    table = float_table(block, keyword.encode())
+    if table is not None:  # the usual case: the same number of values on every line
+        return table.ravel(), np.full(table.shape[0], table.shape[1], dtype=np.int64), line_numbers
     values = numbers(block, keyword.encode(), np.float64)
     if values is None:
         return (*slow_numbers(lines, line_numbers, keyword, path), line_numbers)
