@@ -168,3 +168,43 @@ def test_a_single_step_between_ticks_does_not_look_at_the_controllers(robot):
         world.step()  # the tick
         assert counter.reads > reads
     assert counter.ticks == 4
+
+
+class Hovering(Box):
+    """A user's entity with a per-step hook: an upward force equal to its weight, so it hovers where it starts."""
+
+    calls = 0
+
+    def before_step(self, model, data):
+        body = model.body(self.name).id
+        data.xfrc_applied[body, 2] = -model.opt.gravity[2] * model.body_mass[body]
+        Hovering.calls += 1
+
+
+@pytest.mark.parametrize("single", [True, False], ids=["single steps", "batched"])
+def test_entity_hooks_run_before_every_step_whatever_the_controllers(single):
+    world, _, sensors = stack(ROBOTS[0])
+    world.insert(Hovering(name="drone", dimensions=(0.1, 0.1, 0.1), mass=1.0, free=True, pose=Pose((-1, 0, 0.5))))
+    sensors = [GPS(world, "r", rate=10), Encoders(world, "r", rate=50)]  # the world was rebuilt: new sensors
+    Hovering.calls = 0
+    steps = 250
+    if single:
+        for _ in range(steps):
+            world.step()
+    else:
+        world.step(steps)
+    assert Hovering.calls == steps
+    assert world.body("drone").xpos[2] == pytest.approx(0.5, abs=1e-9)  # the simulator: it did not fall
+    assert [s.samples for s in sensors] == [5, 25]  # 0.5 s at 10 and 50 Hz
+
+
+def test_zero_steps_change_nothing_and_forget_nothing():
+    world, _, sensors = stack(ROBOTS[0])
+    encoders = sensors[1]
+    world.step()
+    world.step(0)
+    for _ in range(9):
+        world.step()
+    assert encoders.samples == 1  # 0 to 18 ms: only the first tick
+    world.step()
+    assert encoders.samples == 2 and encoders.reading.time == pytest.approx(0.02)
