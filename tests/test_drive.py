@@ -416,6 +416,24 @@ def test_a_laser_inside_the_robot_sees_past_it_and_returns(robot, height):
     assert np.all(laser.reading.ranges[np.abs(laser.angles) > 1.0] == 3.0)  # nothing else within 3 m
 
 
+def test_a_ray_still_inside_the_robot_after_the_continuation_cap_sees_nothing(monkeypatch):
+    """With no continuation allowed, every ray that meets its own robot first reports nothing (max range)."""
+    import simrun.sensors
+
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(BoeBot(name="r", pose=Pose((0, 0, 0.001))))
+    world.insert(Box(name="box", dimensions=(0.2, 0.2, 0.4), pose=Pose((0.6, 0, 0.2))))
+    laser = LaserRangeFinder(world, "r", height=0.01, fov_deg=360, rays=36, max_range=3.0, exclude="robot")
+    wheels = LaserRangeFinder(world, "r", height=0.01, fov_deg=360, rays=36, max_range=3.0, exclude="body")
+    world.step(1)
+    assert (wheels.reading.ranges < 0.1).sum() >= 4  # at this height the wheels are in the way of some rays
+    assert laser.reading.ranges.min() > 0.1  # continued past the robot: the box at 0.5 m at the nearest
+    monkeypatch.setattr(simrun.sensors, "MAX_CONTINUATIONS", 0)
+    world.step(1)
+    assert laser.reading.ranges.min() > 0.1  # no continuation: those rays see nothing, never the robot itself
+
+
 def test_sensor_noise_is_seeded_and_deterministic():
     readings = []
     for _ in range(2):
