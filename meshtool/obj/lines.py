@@ -114,10 +114,19 @@ def gather(lines: Lines, kind: int) -> tuple[bytes, IntArray]:
     first = idx[np.concatenate([[0], breaks + 1])]
     last = idx[np.concatenate([breaks, [idx.size - 1]])]
     raw = lines.raw
-    block = b"".join(
-        raw[s:e] for s, e in zip(lines.starts[first].tolist(), (lines.ends[last] + 1).tolist(), strict=True)
-    )
+    if first.size > _JOIN_RUNS:  # interleaved statements (v, vt, vn per vertex): select the bytes in one pass
+        lengths = lines.ends - lines.starts + 1
+        mask = np.repeat(lines.kinds == kind, lengths)
+        block = np.frombuffer(raw, dtype=np.uint8)[: mask.size][mask].tobytes()
+    else:
+        block = b"".join(
+            raw[s:e] for s, e in zip(lines.starts[first].tolist(), (lines.ends[last] + 1).tolist(), strict=True)
+        )
     return block, idx.astype(np.int64, copy=False) + 1
+
+
+#: Runs of consecutive lines up to which :func:`gather` joins slices; beyond, it selects bytes with a mask.
+_JOIN_RUNS = 64
 
 
 def _token_starts(a: npt.NDArray[np.uint8], block: bytes) -> npt.NDArray[np.bool_]:
