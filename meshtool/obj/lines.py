@@ -10,7 +10,6 @@ from __future__ import annotations
 import io
 import math
 import re
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,7 +189,7 @@ def numbers(
     return values
 
 
-def float_table(block: bytes, keyword: bytes) -> FloatArray | None:
+def float_table(block: bytes, keyword: bytes, lines: int) -> FloatArray | None:
     """The block's numbers as a (lines, columns) table when every line holds the same count, else ``None``.
 
     numpy's ``loadtxt`` (a C tokenizer; Python's float syntax, correctly rounded, anything else an error) reads
@@ -199,13 +198,14 @@ def float_table(block: bytes, keyword: bytes) -> FloatArray | None:
     """
     if b"#" in block or b"(" in block or not block.isascii():
         return None
+    text = _blank(block, keyword, False, lines)
+    if text.isspace():  # every line a bare keyword (loadtxt would warn "input contained no data")
+        return None
     try:
-        with warnings.catch_warnings():  # "input contained no data" when every line is a bare keyword
-            warnings.simplefilter("ignore", UserWarning)
-            table: FloatArray = np.loadtxt(io.BytesIO(_blank(block, keyword, False)), dtype=np.float64, ndmin=2)
+        table: FloatArray = np.loadtxt(io.BytesIO(text), dtype=np.float64, ndmin=2)
     except ValueError:
         return None
-    if table.shape[0] != block.count(b"\n") or table.shape[1] == 0:
+    if table.shape[0] != lines or table.shape[1] == 0:
         return None  # a line with the keyword alone is blank to loadtxt, which skips it
     return table
 
@@ -213,13 +213,14 @@ def float_table(block: bytes, keyword: bytes) -> FloatArray | None:
 _BLANK_TABLES: dict[tuple[bytes, bool], bytes] = {}
 
 
-def _blank(block: bytes, keyword: bytes, slashes: bool) -> bytes:
+def _blank(block: bytes, keyword: bytes, slashes: bool, lines: int | None = None) -> bytes:
     """The block with each line's keyword (and every ``/`` when ``slashes``) replaced by spaces.
 
     One ``bytes.translate`` pass when the keyword's letters occur once per line (so only in the keywords:
     checked by counting them); a ``replace`` of each line's keyword otherwise.
     """
-    lines = block.count(b"\n")
+    if lines is None:
+        lines = block.count(b"\n")
     if all(block.count(bytes([c])) == lines for c in set(keyword)):
         table = _BLANK_TABLES.get((keyword, slashes))
         if table is None:
@@ -297,7 +298,7 @@ def vector_block(lines: Lines, kind: int, keyword: str, path: str) -> tuple[Floa
     block, line_numbers = gather(lines, kind)
     if not block:
         return np.zeros(0), np.zeros(0, dtype=np.int64), line_numbers
-    table = float_table(block, keyword.encode())
+    table = float_table(block, keyword.encode(), line_numbers.size)
     if table is not None:  # the usual case: the same number of values on every line
         return table.ravel(), np.full(table.shape[0], table.shape[1], dtype=np.int64), line_numbers
     values = numbers(block, keyword.encode(), np.float64)
