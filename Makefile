@@ -80,7 +80,8 @@ clean:
 # Mutation testing of the robot modules (docs/testing.md, "Mutation testing"); slow, not part of make test.
 # One module at a time, each against its tests (pyproject [tool.mutmut]); LP_NUM_THREADS=0 keeps Mesa's
 # renderer single-threaded so mutmut's forked test runs cannot deadlock. MUTATE=simrun.arm.* for one module.
-MUTATE ?= simrun.drive.* simrun.drive_service.* simrun.arm.* simrun.sensors.* simrun.cameras.*
+MUTATE ?= simrun.drive.* simrun.drive_service.* simrun.arm.* simrun.arm_joints.* simrun.sensors.* simrun.cameras.* \
+	simrun.world.xǁWorldǁstep__* simrun.world.xǁWorldǁreschedule__*
 mutants: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e ".[test,mutation]"
 	bash scripts/install_gl.sh

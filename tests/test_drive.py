@@ -430,7 +430,8 @@ def test_a_ray_still_inside_the_robot_after_the_continuation_cap_sees_nothing(mo
     assert (wheels.reading.ranges < 0.1).sum() >= 4  # at this height the wheels are in the way of some rays
     assert laser.reading.ranges.min() > 0.1  # continued past the robot: the box at 0.5 m at the nearest
     monkeypatch.setattr(simrun.sensors, "MAX_CONTINUATIONS", 0)
-    world.step(1)
+    world.run(0.1)  # the next scan (10 Hz)
+    assert laser.samples == 2
     assert laser.reading.ranges.min() > 0.1  # no continuation: those rays see nothing, never the robot itself
 
 
