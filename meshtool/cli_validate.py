@@ -8,6 +8,7 @@ An unreachable Dask scheduler is exit 1 (one ``error:`` line with a hint).
 from __future__ import annotations
 
 import os
+import stat
 import sys
 from pathlib import Path
 from typing import Any
@@ -168,13 +169,13 @@ def check_report_output(output: Path, paths: tuple[Path, ...], force: bool) -> N
     Raises:
         OutputError: With the reason and how to fix it.
     """
-    if not output.exists() and not output.is_symlink():
+    try:
+        info = os.lstat(output)
+    except OSError:  # missing, or a name the system refuses: writing it says why (OutputError)
         return
-    if output.is_dir():
+    if stat.S_ISDIR(info.st_mode):
         raise OutputError("is a folder, not a file", path=str(output), hint="name a report file")
-    inside = any(
-        same_file(output, path) or (path.is_dir() and is_within(output, path)) for path in paths if path.exists()
-    )
+    inside = any(same_file(output, path) or (_is_dir(path) and is_within(output, path)) for path in paths)
     if inside and output.suffix.lower() in INPUT_SUFFIXES:
         raise OutputError(
             "is an input of this run; refusing to overwrite it",
@@ -190,6 +191,14 @@ def check_report_output(output: Path, paths: tuple[Path, ...], force: bool) -> N
             path=str(output),
             hint="choose another path, remove it, or pass --force to replace it",
         )
+
+
+def _is_dir(path: Path) -> bool:
+    """Whether ``path`` is a folder (``False`` for a missing path or a name the system refuses)."""
+    try:
+        return stat.S_ISDIR(os.stat(path).st_mode)
+    except OSError:
+        return False
 
 
 def _usage(message: str) -> None:
