@@ -8,7 +8,6 @@ An unreachable Dask scheduler is exit 1 (one ``error:`` line with a hint).
 from __future__ import annotations
 
 import os
-import stat
 import sys
 from pathlib import Path
 from typing import Any
@@ -18,11 +17,10 @@ import platformdirs
 
 from meshtool.cli_common import exit_on_bug
 from meshtool.errors import MeshtoolError, OutputError
-from meshtool.outdir import is_within, read_head, same_file, write_file
-from meshtool.readers import MESH_SUFFIXES
+from meshtool.outdir import write_file
 from meshtool.validate import FORMATS, ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
 from meshtool.validate import validate as run_validate
-from meshtool.validate.reports import is_report
+from meshtool.validate.reports import check_report_output
 from meshtool.validate.reports.text import summary_lines, to_text
 from meshtool.validate.task import AssetResult
 
@@ -109,7 +107,7 @@ def validate_command(
     # The OpenGL backend of thumbnails is chosen by the physics plugin (simrun): EGL, then OSMesa, headless.
     try:
         if output is not None:  # before the run: a refused -o costs nothing
-            check_report_output(output, paths, force)
+            check_report_output(output, list(paths), force)
         config = load_config(config_file or find_config(Path.cwd()))
         options = ValidateOptions(
             config=config,
@@ -154,51 +152,6 @@ def validate_command(
     if report.internal_errors():
         sys.exit(EXIT_INTERNAL)
     sys.exit(EXIT_FINDINGS if report.failed(strict) else EXIT_OK)
-
-
-#: Suffixes of what validate reads under its PATHS (meshes, packs, materials, textures, robot descriptions).
-INPUT_SUFFIXES = (*MESH_SUFFIXES, ".mbin", ".mtl", ".bin", ".png", ".jpg", ".jpeg", ".tga", ".bmp", ".urdf", ".xacro")
-
-
-def check_report_output(output: Path, paths: tuple[Path, ...], force: bool) -> None:
-    """Refuse a report path that would destroy something.
-
-    An input of the run is refused always; another existing file that is not an earlier ``meshtool validate``
-    report, unless ``force``.
-
-    Raises:
-        OutputError: With the reason and how to fix it.
-    """
-    try:
-        info = os.lstat(output)
-    except OSError:  # missing, or a name the system refuses: writing it says why (OutputError)
-        return
-    if stat.S_ISDIR(info.st_mode):
-        raise OutputError("is a folder, not a file", path=str(output), hint="name a report file")
-    inside = any(same_file(output, path) or (_is_dir(path) and is_within(output, path)) for path in paths)
-    if inside and output.suffix.lower() in INPUT_SUFFIXES:
-        raise OutputError(
-            "is an input of this run; refusing to overwrite it",
-            path=str(output),
-            hint="write the report elsewhere (--force does not override this)",
-        )
-    if force:
-        return
-    head = read_head(output, 1 << 16)
-    if head is None or (head and not is_report(head)):  # an empty file holds nothing (a clean GitHub report)
-        raise OutputError(
-            "exists and is not an earlier meshtool validate report; not replacing it",
-            path=str(output),
-            hint="choose another path, remove it, or pass --force to replace it",
-        )
-
-
-def _is_dir(path: Path) -> bool:
-    """Whether ``path`` is a folder (``False`` for a missing path or a name the system refuses)."""
-    try:
-        return stat.S_ISDIR(os.stat(path).st_mode)
-    except OSError:
-        return False
 
 
 def _usage(message: str) -> None:

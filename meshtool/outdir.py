@@ -31,7 +31,7 @@ import shutil
 import stat
 import struct
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -111,6 +111,7 @@ def check_output(
     force: bool | None = None,
     inputs: Iterable[Path] = (),
     data: bytes | None = None,
+    recognise: tuple[str, Callable[[bytes], bool]] | None = None,
 ) -> None:
     """Refuse to replace ``out`` unless it is a meshtool output of ``kind`` (see the module docstring).
 
@@ -122,6 +123,8 @@ def check_output(
             :func:`overwrite_allowed`'s setting.
         inputs: Files this run reads; ``out`` may never be one of them.
         data: The bytes about to be written; an existing file with exactly these bytes may be replaced.
+        recognise: For outputs without a kind of their own (reports): what they are called and a test of an
+            existing file's first 64 KiB that says it is one (then it may be replaced).
 
     Raises:
         OutputError: ``out`` is an input, not a regular file, or an existing file meshtool did not write.
@@ -145,6 +148,11 @@ def check_output(
         )
     kind = kind or KINDS.get(out.suffix.lower())
     if data is not None and info.st_size == len(data) and read_head(out, len(data)) == data:
+        return
+    if recognise is not None:
+        what, test = recognise
+        if not test(read_head(out, 1 << 16) or b""):
+            raise OutputError(f"exists and is not {what}; not replacing it", path=str(out), hint=FORCE_HINT)
         return
     if kind is None or not _RECOGNISERS[kind](out, info.st_size):
         what = f"a meshtool {kind} output" if kind else "written by meshtool"

@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import re
+import stat
+from pathlib import Path
 
+from meshtool.outdir import check_output, is_within
+from meshtool.readers import MESH_SUFFIXES
 from meshtool.validate.reports.html import to_html
 from meshtool.validate.reports.machine import to_github, to_json, to_junit
 from meshtool.validate.reports.text import to_text
@@ -47,4 +52,48 @@ def is_report(head: bytes) -> bool:
     return bool(lines) and all(line.startswith(b"::") for line in lines)
 
 
-__all__ = ["FORMATS", "is_report", "render", "to_github", "to_html", "to_json", "to_junit", "to_text"]
+#: Suffixes of what validate reads under its PATHS (meshes, packs, materials, textures, robot descriptions).
+INPUT_SUFFIXES = (*MESH_SUFFIXES, ".mbin", ".mtl", ".bin", ".png", ".jpg", ".jpeg", ".tga", ".bmp", ".urdf", ".xacro")
+
+
+def check_report_output(output: Path, paths: list[Path], force: bool) -> None:
+    """Refuse a report path that would destroy something (:func:`meshtool.outdir.check_output`).
+
+    A file the run reads (one of ``paths``, or a file with an input suffix inside one of them) is refused
+    always; another existing file that is not an earlier report (:func:`is_report`, or empty) unless ``force``.
+
+    Raises:
+        OutputError: With the reason and how to fix it.
+    """
+    inside = any(stat.S_ISDIR(_mode(p) or 0) and is_within(output, p) for p in paths)
+    reads = inside and output.suffix.lower() in INPUT_SUFFIXES and _mode(output) is not None
+    inputs = [output] if reads else paths
+    check_output(
+        output, force=force, inputs=inputs, recognise=("an earlier meshtool validate report", _report_or_empty)
+    )
+
+
+def _report_or_empty(head: bytes) -> bool:
+    return not head or is_report(head)  # an empty file holds nothing (a clean GitHub report is empty)
+
+
+def _mode(path: Path) -> int | None:
+    """``st_mode`` of ``path`` (links followed), ``None`` for a missing path or a name the system refuses."""
+    try:
+        return os.stat(path).st_mode
+    except OSError:
+        return None
+
+
+__all__ = [
+    "FORMATS",
+    "INPUT_SUFFIXES",
+    "check_report_output",
+    "is_report",
+    "render",
+    "to_github",
+    "to_html",
+    "to_json",
+    "to_junit",
+    "to_text",
+]
