@@ -82,11 +82,12 @@ def same_file(a: Path, b: Path) -> bool:
 
 
 def is_within(path: Path, folder: Path) -> bool:
-    """Whether ``path`` (once its links are resolved) lies inside ``folder`` (also resolved)."""
+    """Whether ``path`` lies strictly inside ``folder``, both with links resolved and case folded as the system does."""
     try:
-        return Path(os.path.realpath(path)).is_relative_to(os.path.realpath(folder))
+        real, root = os.path.normcase(os.path.realpath(path)), os.path.normcase(os.path.realpath(folder))
     except (OSError, ValueError):
         return False
+    return real.startswith(root.rstrip(os.sep) + os.sep)
 
 
 def refuse_inputs(out: Path, inputs: Iterable[Path]) -> None:
@@ -289,7 +290,7 @@ def write_folder(
     files = {**files, MARKER: with_marker(files)}
     target = parent / name
     for source in inputs:
-        if same_file(target, source) or _inside(Path(source), target):
+        if same_file(target, source) or is_within(Path(source), target):
             raise OutputError(
                 f"would replace a folder holding an input ({source})",
                 path=str(target),
@@ -418,14 +419,6 @@ def _sha256(path: Path) -> str | None:
     finally:
         os.close(fd)
     return digest.hexdigest()
-
-
-def _inside(path: Path, folder: Path) -> bool:
-    try:
-        real, root = os.path.normcase(os.path.realpath(path)), os.path.normcase(os.path.realpath(folder))
-    except (OSError, ValueError):
-        return False
-    return real.startswith(root.rstrip(os.sep) + os.sep)
 
 
 def write_file(out: Path, data: bytes) -> None:

@@ -11,16 +11,13 @@ from __future__ import annotations
 
 import inspect
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from meshtool.nesting import NestingError, bounded
 from simrun.errors import SceneError, SimrunError
 from simrun.registry import REGISTRY, names
-from simrun.safeio import FileReadError, read_regular
-from simrun.tomlpos import key_lines, line_of
+from simrun.tomlpos import line_of, read_toml
 from simrun.world import World
 
 #: Largest commands file read, bytes.
@@ -81,22 +78,7 @@ def load_commands(path: Path) -> list[Command]:
         SceneError: Unreadable file, bad TOML, or a bad command, naming the file, line and key.
     """
     name = str(path)
-    try:
-        raw = read_regular(path, "commands file", MAX_COMMANDS_BYTES)
-    except FileReadError as exc:
-        raise SceneError(str(exc)) from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw[: exc.start].count(b"\n") + 1
-        raise SceneError(f"not UTF-8 (byte {exc.start}); save it as UTF-8", name, line=line) from None
-    try:
-        doc = bounded(lambda: tomllib.loads(text))
-    except NestingError as exc:
-        raise SceneError(str(exc), name) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"not valid TOML: {exc}", name, line=toml_error_line(exc)) from None
-    lines = key_lines(text)
+    doc, lines = read_toml(path, "commands file", MAX_COMMANDS_BYTES)
     unknown = [k for k in doc if k not in ("commands", "expect")]  # [[expect]]: read by simrun test
     if unknown:
         raise SceneError("unknown key (known: commands, expect)", name, unknown[0], line_of(lines, (unknown[0],)))
@@ -188,17 +170,3 @@ def check_commands(world: World, commands: list[Command]) -> None:
                 f"{command._where()}no {command.service} is bound to {command.entity!r} in the scene; "
                 "add it under [[services]]"
             )
-
-
-def toml_error_line(exc: tomllib.TOMLDecodeError) -> int | None:
-    """The line number in a ``tomllib`` error (its message ends ``(at line L, column C)``)."""
-    line = getattr(exc, "lineno", None)
-    if isinstance(line, int):
-        return line
-    text = str(exc)
-    marker = "(at line "
-    if marker in text:
-        digits = text.split(marker, 1)[1].split(",", 1)[0].rstrip(")")
-        if digits.isdigit():
-            return int(digits)
-    return None

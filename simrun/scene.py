@@ -10,7 +10,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import tomllib
 import types
 import typing
 from pathlib import Path
@@ -18,17 +17,15 @@ from typing import Any
 
 import tomli_w
 
-from meshtool.nesting import NestingError, bounded
-from simrun.commands import toml_error_line
 from simrun.entity import Entity, Material
 from simrun.errors import EntityError, SceneError, SimrunError
 from simrun.mesh_entity import MeshEntity
 from simrun.outfile import write_text
 from simrun.pose import Pose
 from simrun.registry import REGISTRY, names, scene_type, service_parameters
-from simrun.safeio import FileReadError, check_regular, read_regular
+from simrun.safeio import FileReadError, check_regular
 from simrun.scene_state import KEYS, apply_state, state_table
-from simrun.tomlpos import KeyPath, key_lines, line_of
+from simrun.tomlpos import KeyPath, line_of, read_toml
 from simrun.urdf_robot import UrdfRobot
 from simrun.world import MAX_TIMESTEP, MIN_TIMESTEP, World, WorldOptions
 
@@ -121,22 +118,7 @@ class _Loader:
         return world
 
     def read(self) -> dict[str, Any]:
-        try:
-            raw = read_regular(self.path, "scene", MAX_SCENE_BYTES)
-        except FileReadError as exc:
-            raise SceneError(str(exc)) from None
-        try:
-            text = raw.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            line = raw[: exc.start].count(b"\n") + 1
-            raise SceneError(f"not UTF-8 (byte {exc.start}); save the scene as UTF-8", self.name, line=line) from None
-        try:
-            doc = bounded(lambda: tomllib.loads(text))
-        except NestingError as exc:
-            raise SceneError(str(exc), self.name) from None
-        except tomllib.TOMLDecodeError as exc:
-            raise SceneError(f"not valid TOML: {exc}", self.name, line=toml_error_line(exc)) from None
-        self.lines = key_lines(text)
+        doc, self.lines = read_toml(self.path, "scene", MAX_SCENE_BYTES, self.name)
         return doc
 
     def world_options(self, table: Any) -> WorldOptions:

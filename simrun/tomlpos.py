@@ -5,13 +5,20 @@ parsed document would index it (``("entities", 3, "pose", "position", 1)``), to 
 value starts. Error messages use it to name the line of the value they refuse (:func:`line_of` falls back to
 the nearest enclosing key that has a line). The scan understands the whole TOML 1.0 syntax that matters for
 positions: table and array-of-table headers (nested ones too), dotted and quoted keys, inline tables,
-arrays over several lines, the four kinds of strings and comments.
+arrays over several lines, the four kinds of strings and comments. :func:`read_toml` reads a scene, commands
+or test file into its document and key lines, every failure a :class:`~simrun.errors.SceneError` with the line.
 """
 
 from __future__ import annotations
 
 import bisect
 import tomllib
+from pathlib import Path
+from typing import Any
+
+from meshtool.nesting import NestingError, bounded
+from simrun.errors import SceneError
+from simrun.safeio import MAX_FILE_BYTES, FileReadError, read_regular
 
 KeyPath = tuple[str | int, ...]
 _BARE = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-")
@@ -197,3 +204,51 @@ class _Scanner:
             text = self.text
             while self.i < len(text) and text[self.i] not in ",]}\n#":
                 self.i += 1
+
+
+def read_toml(
+    path: Path, what: str = "file", limit: int = MAX_FILE_BYTES, name: str | None = None
+) -> tuple[dict[str, Any], dict[KeyPath, int]]:
+    """A TOML file's document and the lines of its keys (:func:`key_lines`).
+
+    Args:
+        path: The file (a regular file: :func:`simrun.safeio.read_regular`).
+        what: What it is, for the messages (``scene``, ``commands file``).
+        limit: Most bytes read.
+        name: How messages name the file (default ``str(path)``).
+
+    Raises:
+        SceneError: Unreadable, too large, not UTF-8 (with the line of the bad byte), not TOML (with its line)
+            or nested too deep.
+    """
+    name = str(path) if name is None else name
+    try:
+        raw = read_regular(path, what, limit)
+    except FileReadError as exc:
+        raise SceneError(str(exc)) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise SceneError(f"not UTF-8 (byte {exc.start}); save it as UTF-8", name, line=line) from None
+    try:
+        doc = bounded(lambda: tomllib.loads(text))
+    except NestingError as exc:
+        raise SceneError(str(exc), name) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"not valid TOML: {exc}", name, line=toml_error_line(exc)) from None
+    return doc, key_lines(text)
+
+
+def toml_error_line(exc: tomllib.TOMLDecodeError) -> int | None:
+    """The line number in a ``tomllib`` error (its message ends ``(at line L, column C)``)."""
+    line = getattr(exc, "lineno", None)
+    if isinstance(line, int):
+        return line
+    text = str(exc)
+    marker = "(at line "
+    if marker in text:
+        digits = text.split(marker, 1)[1].split(",", 1)[0].rstrip(")")
+        if digits.isdigit():
+            return int(digits)
+    return None

@@ -24,13 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from meshtool.nesting import NestingError, bounded
-from simrun.commands import Command, check_commands, load_commands, toml_error_line
+from simrun.commands import Command, check_commands, load_commands
 from simrun.errors import SceneError, SimrunError
 from simrun.expect import Expectation, check_against, parse_expectations
 from simrun.safeio import FileReadError, read_regular
 from simrun.scenetest.bundle import Bundle, collect
 from simrun.session import prepare
-from simrun.tomlpos import KeyPath, key_lines, line_of
+from simrun.tomlpos import KeyPath, line_of, read_toml
 
 #: Simulated seconds of a scene whose ``[test]`` table gives no duration.
 DEFAULT_DURATION = 5.0
@@ -127,22 +127,7 @@ def _parse(path: Path) -> tuple[dict[str, Any], dict[KeyPath, int]]:
     Raises:
         SceneError: Unreadable, not UTF-8 or not TOML, with the line.
     """
-    try:
-        raw = read_regular(path, "file")
-    except FileReadError as exc:
-        raise SceneError(str(exc)) from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw[: exc.start].count(b"\n") + 1
-        raise SceneError(f"not UTF-8 (byte {exc.start}); save it as UTF-8", str(path), line=line) from None
-    try:
-        doc = bounded(lambda: tomllib.loads(text))
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"not valid TOML: {exc}", str(path), line=toml_error_line(exc)) from None
-    except NestingError as exc:
-        raise SceneError(str(exc), str(path)) from None
-    return doc, key_lines(text)
+    return read_toml(path)
 
 
 def load_case(path: Path) -> Case:
