@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cache
 from importlib.metadata import entry_points
-from typing import Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -221,13 +221,18 @@ class MjcfBuilder(Protocol):
         ...
 
 
+def load_plugin(group: str, name: str) -> Any:
+    """What the first installed entry point ``name`` of ``group`` names (loaded), or ``None``."""
+    for point in entry_points(group=group, name=name):
+        return point.load()
+    return None
+
+
 @cache
 def mjcf_builder() -> MjcfBuilder | None:
     """The installed MJCF builder plugin, or ``None``."""
-    for point in entry_points(group=GROUP, name="builder"):
-        loaded: MjcfBuilder = point.load()
-        return loaded
-    return None
+    builder: MjcfBuilder | None = load_plugin(GROUP, "builder")
+    return builder
 
 
 class ModelChecker(Protocol):
@@ -245,10 +250,8 @@ class ModelChecker(Protocol):
 @cache
 def mjcf_checker() -> ModelChecker | None:
     """The installed model check plugin (entry point ``meshtool.mjcf:check``), or ``None``."""
-    for point in entry_points(group=GROUP, name="check"):
-        loaded: ModelChecker = point.load()
-        return loaded
-    return None
+    checker: ModelChecker | None = load_plugin(GROUP, "check")
+    return checker
 
 
 def check_model(model: ModelDesc) -> bool:

@@ -14,6 +14,7 @@ from importlib.metadata import PackageNotFoundError, entry_points, version
 from typing import Any, Protocol
 
 from meshtool.findings import Finding
+from meshtool.model import load_plugin
 
 GROUP = "meshtool.validate"
 #: Libraries whose versions change what rules compute (hulls, volumes, decoding, simulation).
@@ -55,10 +56,8 @@ class PhysicsCheck(Protocol):
 @cache
 def physics_plugin() -> PhysicsCheck | None:
     """The installed ``physics`` plugin, or ``None``."""
-    for point in entry_points(group=GROUP, name="physics"):
-        loaded: PhysicsCheck = point.load()
-        return loaded
-    return None
+    plugin: PhysicsCheck | None = load_plugin(GROUP, "physics")
+    return plugin
 
 
 def environment() -> dict[str, Any]:
