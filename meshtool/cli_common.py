@@ -55,6 +55,34 @@ def exit_on_bug(exc: Exception) -> NoReturn:
     sys.exit(EXIT_INTERNAL)
 
 
+def executor_options(func: Any) -> Any:
+    """Add ``-j/--jobs``, ``--executor``, ``--scheduler`` and ``--scheduler-timeout``.
+
+    The options of the commands that spread work over processes or a Dask cluster (``validate``, ``simrun test``).
+    """
+    for decorator in reversed(
+        [
+            click.option(
+                "-j", "--jobs", type=click.IntRange(1, 256), default=None, help="Workers (default: CPUs, at most 8)."
+            ),
+            click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True),
+            click.option(
+                "--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); needs dask."
+            ),
+            click.option(
+                "--scheduler-timeout",
+                type=click.FloatRange(0, min_open=True),
+                default=30.0,
+                show_default=True,
+                metavar="SECONDS",
+                help="How long to try reaching --scheduler.",
+            ),
+        ]
+    ):
+        func = decorator(func)
+    return func
+
+
 def progress_enabled() -> bool:
     """Whether to draw progress: only on a terminal's stderr (never into a pipe, a log or a JSON stream)."""
     try:

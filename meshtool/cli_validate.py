@@ -15,7 +15,7 @@ from typing import Any
 import click
 import platformdirs
 
-from meshtool.cli_common import exit_on_bug
+from meshtool.cli_common import executor_options, exit_on_bug
 from meshtool.errors import MeshtoolError, OutputError
 from meshtool.outdir import write_file
 from meshtool.validate import FORMATS, ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
@@ -49,17 +49,7 @@ def default_jobs() -> int:
     help="Write the report here (replaces an earlier report; anything else only with --force).",
 )
 @click.option("--force", is_flag=True, help="Let -o replace a file that is not an earlier report (never an input).")
-@click.option("-j", "--jobs", type=click.IntRange(1, 256), default=None, help="Workers (default: CPUs, at most 8).")
-@click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True)
-@click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); needs dask.")
-@click.option(
-    "--scheduler-timeout",
-    type=click.FloatRange(0, min_open=True),
-    default=30.0,
-    show_default=True,
-    metavar="SECONDS",
-    help="How long to try reaching --scheduler.",
-)
+@executor_options
 @click.option(
     "--timeout",
     type=click.FloatRange(0, max_open=False),

@@ -15,6 +15,7 @@ from typing import Any
 
 import click
 
+from meshtool.cli_common import executor_options
 from meshtool.safeopen import printable
 from simrun.errors import SimrunError
 
@@ -36,17 +37,7 @@ def _jobs() -> int:
     help="Vary NAME.PARAMETER: START:STOP:COUNT (a grid), uniform(A,B), normal(MEAN,SD), choice(V1,...) or a "
     "number. Repeatable.",
 )
-@click.option("-j", "--jobs", type=click.IntRange(1, 256), default=None, help="Workers (default: CPUs, at most 8).")
-@click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True)
-@click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); needs dask.")
-@click.option(
-    "--scheduler-timeout",
-    type=click.FloatRange(0, min_open=True),
-    default=30.0,
-    show_default=True,
-    metavar="SECONDS",
-    help="How long to try reaching --scheduler.",
-)
+@executor_options
 @click.option(
     "--timeout",
     type=click.FloatRange(0, min_open=True),
