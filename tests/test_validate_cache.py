@@ -125,7 +125,10 @@ def test_physics_plugin_removed(tmp_path, monkeypatch):
     png(obj.parent / "tex.png")
     first = warm([obj], tmp_path / "cache")
     assert "physics" in first.assets[0].stats
-    monkeypatch.setattr(plugins_module, "entry_points", lambda **kw: [])
+    import meshtool.model
+
+    for module in (plugins_module, meshtool.model):  # the plugin's lookup and the environment's version lookup
+        monkeypatch.setattr(module, "entry_points", lambda **kw: [])
     plugins_module.physics_plugin.cache_clear()
     try:
         cached, _ = agree([obj], tmp_path / "cache")
