@@ -24,6 +24,9 @@ def test_blank_keeps_keyword_letters_inside_values() -> None:
     """'t' of ``infinity`` is not the keyword's: only each line's leading keyword is blanked."""
     assert _blank(b"vt 1 infinity\nvt 2 3\n", b"vt", False) == b"   1 infinity\n   2 3\n"
     assert _blank(b"vn 1 nan 0\n", b"vn", False) == b"   1 nan 0\n"
+    assert _blank(b"v 1 v 2\n", b"v", False) == b"  1 v 2\n"  # garbage stays garbage (the parser refuses it)
+    faces = b"f 1/2 3/4 5/6\nf 4/5 6/7 8/9 inf\n"  # the 'f' of inf: the keyword is replaced line by line
+    assert _blank(faces, b"f", True) == b"  1 2 3 4 5 6\n  4 5 6 7 8 9 inf\n"
 
 
 def test_float_table_reads_a_regular_block() -> None:
@@ -32,6 +35,8 @@ def test_float_table_reads_a_regular_block() -> None:
     assert table.tolist() == [[1.0, 2.0, 3.0], [4.5, -0.6, 7.0]]
     one = float_table(b"vt 0.25 0.75\n", b"vt", 1)
     assert one is not None and one.shape == (1, 2)
+    column = float_table(b"vt 0.5\nvt 0.25\n", b"vt", 2)
+    assert column is not None and column.tolist() == [[0.5], [0.25]]
 
 
 @pytest.mark.parametrize(
@@ -43,8 +48,11 @@ def test_float_table_reads_a_regular_block() -> None:
         b"v nan(1) 2 3\n",
         b"v 1 2 \xc2\xb3\n",  # a non-ASCII digit
         b"v 1 2 3x\n",
+        b"v 1 2 3\nv\n",  # one bare keyword among values: loadtxt would skip the line
+        b"v 1/2 3 4\n",  # a slash is not part of a vertex
+        b"v 1 2 3 X\n",
     ],
-    ids=["ragged", "bare", "comment", "nan-payload", "non-ascii", "garbage"],
+    ids=["ragged", "bare", "comment", "nan-payload", "non-ascii", "garbage", "one-bare", "slash", "letter"],
 )
 def test_float_table_leaves_irregular_blocks_to_the_caller(block: bytes) -> None:
     assert float_table(block, b"v", block.count(b"\n")) is None
@@ -67,8 +75,9 @@ def test_numbers_reads_every_token_or_nothing() -> None:
         (b"v 1 2 3\nv 4 5\n", 5, [3, 2]),
         (b"v 1  2 3\nv 4 5 6 \n", 6, [3, 3]),  # doubled and trailing spaces: counted token by token
         (b"v\t1 2\t3\n", 3, [3]),  # tabs
+        (b"v 1\t2 3\nv 4  5 6\n", 6, [3, 3]),  # a tab and a doubled space whose space counts add up to 6
     ],
-    ids=["single spaces", "extra spaces", "tabs"],
+    ids=["single spaces", "extra spaces", "tabs", "compensating"],
 )
 def test_values_per_line(block: bytes, total: int, expected: list[int]) -> None:
     assert values_per_line(block, total).tolist() == expected
@@ -93,6 +102,7 @@ def test_gather_picks_the_lines_of_one_kind(runs: int) -> None:
         block, numbers_ = gather(lines, kind)
         expected_block, expected_lines = _reference(text, keyword)
         assert block == expected_block and numbers_.tolist() == expected_lines
+    assert gather(classify(b"v 1 2 3\n"), F)[0] == b""  # no statement of that kind: an empty block
 
 
 def test_vector_block_counts_come_with_the_values() -> None:
@@ -102,3 +112,8 @@ def test_vector_block_counts_come_with_the_values() -> None:
     assert numbers_.tolist() == [1, 2]
     values, counts, numbers_ = block_of(lines, VT, "vt", "x.obj")
     assert values.tolist() == [0.5, 0.25, 1, 0] and counts.tolist() == [2, 2] and numbers_.tolist() == [3, 4]
+    values, counts, numbers_ = block_of(lines, VN, "vn", "x.obj")  # no normals: three empty arrays
+    assert values.shape == (0,) and counts.shape == (0,) and numbers_.shape == (0,)
+    ragged = classify(b"v 1 2 3\nv 4\tnan 5 6\n")  # no table (counts differ, a tab): numbers, then token counts
+    values, counts, _ = block_of(ragged, V, "v", "x.obj")
+    assert np.array_equal(values, [1, 2, 3, 4, np.nan, 5, 6], equal_nan=True) and counts.tolist() == [3, 4]

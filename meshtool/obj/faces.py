@@ -67,9 +67,7 @@ def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] |
         values = numbers(block, b"f", np.int64)
         if values is None:
             return None
-        sizes = values_per_line(block, values.size)
-        if values.size != int(sizes.sum()):
-            return None
+        sizes = values_per_line(block, values.size)  # one number per token: the sizes add up to values.size
         cv = values.astype(np.int64, copy=False)
         if (cv == 0).any() or _out_of_range(cv):
             return None  # an explicit index 0 or a huge one: the line-by-line path reports its line

@@ -304,10 +304,8 @@ def vector_block(lines: Lines, kind: int, keyword: str, path: str) -> tuple[Floa
     values = numbers(block, keyword.encode(), np.float64)
     if values is None:
         return (*slow_numbers(lines, line_numbers, keyword, path), line_numbers)
-    counts = values_per_line(block, values.size)
-    if values.size != int(counts.sum()):
-        return (*slow_numbers(lines, line_numbers, keyword, path), line_numbers)
-    return values.astype(np.float64, copy=False), counts, line_numbers
+    # numbers() read exactly one number per token, so the counts add up to values.size
+    return values.astype(np.float64, copy=False), values_per_line(block, values.size), line_numbers
 
 
 def columns(values: FloatArray, counts: IntArray, columns: list[int]) -> FloatArray:
