@@ -125,8 +125,8 @@ class DriveService:
         self._integral = [0.0, 0.0]
         self._ids: tuple[int, ...] | None = None
         self._model_id = 0
-        self._encoder_zero = np.zeros(2)
-        self._last = np.zeros(2)
+        self._encoder_zero = (0.0, 0.0)  # raw wheel angles (rad) at the last reset
+        self._last = (0.0, 0.0)  # wheel travel (m) at the last odometry update
         #: Odometry fields as a plain tuple (time, x, y, theta, linear, angular): built into an Odometry on request
         self._odom: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         self.period = 1.0 / rate
@@ -210,8 +210,7 @@ class DriveService:
     def reset_encoders(self) -> None:
         """Encoders read 0 from now on (odometry restarts at the origin)."""
         model, data = self.world.model, self.world.data
-        raw = self._raw_encoders(model, data)
-        self._encoder_zero, self._last = raw.copy(), np.zeros(2)
+        self._encoder_zero, self._last = self._raw_encoders(model, data), (0.0, 0.0)
         self._odom = (float(data.time), 0.0, 0.0, 0.0, 0.0, 0.0)
 
     # -- state ---------------------------------------------------------------------------------------------
@@ -224,8 +223,8 @@ class DriveService:
     def encoders(self) -> tuple[float, float]:
         """Wheel travel since the last reset, metres (left, right)."""
         model, data = self.world.model, self.world.data
-        travel = (self._raw_encoders(model, data) - self._encoder_zero) * self.radius
-        return float(travel[0]), float(travel[1])
+        (left, right), (zero_left, zero_right) = self._raw_encoders(model, data), self._encoder_zero
+        return (left - zero_left) * self.radius, (right - zero_right) * self.radius
 
     def odometry(self) -> Odometry:
         """The latest odometry estimate: the body origin (the axle midpoint) in the frame of the last reset."""
@@ -260,7 +259,7 @@ class DriveService:
         qvel, ctrl, integrals = data.qvel, data.ctrl, self._integral
         for k, act, dof in ((0, left_act, left_dof), (1, right_act, right_dof)):
             wanted = targets[k] / radius
-            error = wanted - float(qvel[dof])
+            error = wanted - qvel.item(dof)
             # feed-forward (the motor's steady state) plus PI on wheel speed; the integral stops while the
             # output is saturated in the error's direction (no wind-up)
             integral = integrals[k] + error * h
@@ -275,12 +274,12 @@ class DriveService:
         """Odometry: integrate the encoder change since the last update (midpoint heading)."""
         ids, qpos, radius = self._ids, data.qpos, self.radius
         assert ids is not None
-        zero_left, zero_right = self._encoder_zero.tolist()
-        last_left, last_right = self._last.tolist()
+        zero_left, zero_right = self._encoder_zero
+        last_left, last_right = self._last
         left = (qpos.item(ids[4]) - zero_left) * radius
         right = (qpos.item(ids[5]) - zero_right) * radius
         dl, dr = left - last_left, right - last_right
-        self._last[0], self._last[1] = left, right
+        self._last = (left, right)
         ds, dtheta = (dl + dr) / 2, (dr - dl) / self.separation
         then, x, y, theta = self._odom[:4]
         heading = theta + dtheta / 2
@@ -293,7 +292,7 @@ class DriveService:
         self._mode, self._goal, self._rested = "idle", {}, False
         self._integral, self._wheel_targets, self._vel = [0.0, 0.0], (0.0, 0.0), (0.0, 0.0)
         self._encoder_zero = self._raw_encoders(model, data)
-        self._last = np.zeros(2)
+        self._last = (0.0, 0.0)
         self._odom = (float(data.time), 0.0, 0.0, 0.0, 0.0, 0.0)
 
     # -- recording ------------------------------------------------------------------------------------------
@@ -326,8 +325,8 @@ class DriveService:
         self._cmd_time, self._vel = float(state["cmd_time"]), (state["vel"][0], state["vel"][1])
         self._wheel_targets = (state["wheel_targets"][0], state["wheel_targets"][1])
         self._integral = [float(v) for v in state["integral"]]
-        self._encoder_zero = np.asarray(state["encoder_zero"], dtype=float)
-        self._last = np.array(state["last"], dtype=float)
+        self._encoder_zero = (float(state["encoder_zero"][0]), float(state["encoder_zero"][1]))
+        self._last = (float(state["last"][0]), float(state["last"][1]))
         t, x, y, theta, linear, angular = (float(v) for v in state["odom"])
         self._odom = (t, x, y, theta, linear, angular)
         self.next_time = float(state["next_time"])
@@ -478,10 +477,11 @@ class DriveService:
             kp, ki = 0.0, (1 - pole) * (1 - a / pole) / (g * h)
         return {"inertia": inertia, "time_constant": tau, "gain": kp, "integral_gain": ki, "pole": pole}
 
-    def _raw_encoders(self, model: mujoco.MjModel, data: mujoco.MjData) -> Any:
+    def _raw_encoders(self, model: mujoco.MjModel, data: mujoco.MjData) -> tuple[float, float]:
+        """Wheel joint angles (rad): left, right."""
         self._lookup(model)
         assert self._ids is not None
-        return data.qpos[[self._ids[4], self._ids[5]]]
+        return data.qpos.item(self._ids[4]), data.qpos.item(self._ids[5])
 
     def _time(self) -> float:
         return float(self.world.data.time)

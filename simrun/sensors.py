@@ -279,7 +279,7 @@ class Bumper(Sensor):
             self._own = model.body_rootid[model.geom_bodyid] == root
             self._model_id = id(model)
         touching: tuple[str, ...] = ()
-        pairs = data.contact.geom[: data.ncon]
+        pairs = data.contact.geom  # (ncon, 2): data.contact holds the ncon active contacts
         if self._gid in pairs.ravel().tolist():  # a list's `in` is cheaper than numpy's for a few contacts
             mine = pairs[(pairs[:, 0] == self._gid) | (pairs[:, 1] == self._gid)]
             others = np.where(mine[:, 0] == self._gid, mine[:, 1], mine[:, 0])
@@ -311,19 +311,22 @@ class Encoders(Sensor):
     ) -> None:
         super().__init__(world, entity, rate, noise, seed)
         self.joints = tuple(f"{entity}/{j}" for j in joints)
-        self._qpos = self._qvel = np.zeros(0, dtype=np.intp)
+        self._qpos: list[int] = []  # qpos and dof addresses of the joints (for the bound model)
+        self._qvel: list[int] = []
         self._model_id = 0
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> EncoderReading:
         """Angles and velocities of the joints."""
         if self._model_id != id(model):
             ids = [model.joint(j).id for j in self.joints]
-            self._qpos, self._qvel = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
+            self._qpos, self._qvel = model.jnt_qposadr[ids].tolist(), model.jnt_dofadr[ids].tolist()
             self._model_id = id(model)
-        angles = data.qpos.take(self._qpos)
+        qpos, qvel = data.qpos, data.qvel
         if self.noise:
-            angles = self._noisy(angles)
-        return EncoderReading(data.time, tuple(angles.tolist()), tuple(data.qvel.take(self._qvel).tolist()))
+            angles = tuple(self._noisy(qpos.take(self._qpos)).tolist())
+        else:
+            angles = tuple([qpos.item(i) for i in self._qpos])
+        return EncoderReading(data.time, angles, tuple([qvel.item(i) for i in self._qvel]))
 
 
 @dataclass(frozen=True, slots=True)
