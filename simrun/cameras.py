@@ -171,10 +171,10 @@ class _Eye:
     def __init__(self, camera: str, width: int, height: int, depth: bool) -> None:
         self.camera, self.width, self.height, self.depth = camera, width, height, depth
         self._renderer: Any = None
-        self._model_id = 0
+        self._bound: mujoco.MjModel | None = None  # the model the cached ids are for (held: a freed id is reused)
 
     def render(self, model: mujoco.MjModel, data: mujoco.MjData) -> Frame:
-        if self._renderer is None or self._model_id != id(model):
+        if self._renderer is None or self._bound is not model:
             try:
                 self._renderer = mujoco.Renderer(model, self.height, self.width)
             except Exception as exc:  # any GL failure: say how to get a context
@@ -182,7 +182,7 @@ class _Eye:
                     f"no OpenGL context for camera {self.camera!r} ({exc}); on a headless machine install Mesa "
                     "(scripts/install_gl.sh) and set MUJOCO_GL=egl or osmesa before importing mujoco"
                 ) from None
-            self._model_id = id(model)
+            self._bound = model
         renderer = self._renderer
         renderer.update_scene(data, camera=self.camera)
         rgb = renderer.render().copy()

@@ -124,7 +124,7 @@ class DriveService:
         self._wheel_targets = (0.0, 0.0)
         self._integral = [0.0, 0.0]
         self._ids: tuple[int, ...] | None = None
-        self._model_id = 0
+        self._bound: mujoco.MjModel | None = None  # the model the cached ids are for (held: a freed id is reused)
         self._encoder_zero = (0.0, 0.0)  # raw wheel angles (rad) at the last reset
         self._last = (0.0, 0.0)  # wheel travel (m) at the last odometry update
         #: Odometry fields as a plain tuple (time, x, y, theta, linear, angular): built into an Odometry on request
@@ -419,7 +419,7 @@ class DriveService:
         return abs(_clip(power)) * min(self.limits.max_linear, self.max_wheel_speed * self.radius)
 
     def _lookup(self, model: mujoco.MjModel) -> tuple[int, int, int, int]:
-        if self._ids is None or self._model_id != id(model):
+        if self._ids is None or self._bound is not model:
             n = self.name
             self._ids = (
                 model.actuator(f"{n}/left_motor").id,
@@ -429,7 +429,7 @@ class DriveService:
                 int(model.joint(f"{n}/left_wheel").qposadr[0]),
                 int(model.joint(f"{n}/right_wheel").qposadr[0]),
             )
-            self._model_id = id(model)
+            self._bound = model
             self._timestep = float(model.opt.timestep)
             self._design = self._speed_loop(model)
             fixed_gain, fixed_ki = self._fixed_gains

@@ -49,12 +49,12 @@ class RayCaster:
         self.entity, self.exclude = entity, exclude
         self.body = -1
         self._own = np.zeros(0, dtype=bool)
-        self._model_id = 0
+        self._bound: mujoco.MjModel | None = None  # the model the cached ids are for (held: a freed id is reused)
         self._hit = np.zeros(1, dtype=np.int32)
 
     def bind(self, model: mujoco.MjModel) -> int:
         """The mounting body's id (and the geoms to ignore) for ``model``."""
-        if self._model_id != id(model):
+        if self._bound is not model:
             body = model.body(self.entity).id
             if self.exclude == "robot":
                 root = model.body_rootid[body]
@@ -64,7 +64,7 @@ class RayCaster:
             else:
                 own = np.zeros(model.ngeom, dtype=bool)
             self._own = np.append(own, False)
-            self.body, self._model_id = body, id(model)
+            self.body, self._bound = body, model
         return self.body
 
     def cast(
@@ -269,15 +269,16 @@ class Bumper(Sensor):
     def __init__(self, world: World, entity: str, geom: str = "chassis", rate: float = 50.0) -> None:
         super().__init__(world, entity, rate)
         self.geom = f"{entity}/{geom}"
-        self._gid, self._own, self._model_id = -1, np.zeros(0, dtype=bool), 0
+        self._gid, self._own = -1, np.zeros(0, dtype=bool)
+        self._bound: mujoco.MjModel | None = None
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> BumperReading:
         """Names of the geoms touching the bumper geom (excluding the robot's own)."""
-        if self._model_id != id(model):
+        if self._bound is not model:
             self._gid = model.geom(self.geom).id
             root = model.body_rootid[model.geom_bodyid[self._gid]]
             self._own = model.body_rootid[model.geom_bodyid] == root
-            self._model_id = id(model)
+            self._bound = model
         touching: tuple[str, ...] = ()
         pairs = data.contact.geom  # (ncon, 2): data.contact holds the ncon active contacts
         if self._gid in pairs.ravel().tolist():  # a list's `in` is cheaper than numpy's for a few contacts
@@ -313,14 +314,14 @@ class Encoders(Sensor):
         self.joints = tuple(f"{entity}/{j}" for j in joints)
         self._qpos: list[int] = []  # qpos and dof addresses of the joints (for the bound model)
         self._qvel: list[int] = []
-        self._model_id = 0
+        self._bound: mujoco.MjModel | None = None  # the model the cached ids are for (held: a freed id is reused)
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> EncoderReading:
         """Angles and velocities of the joints."""
-        if self._model_id != id(model):
+        if self._bound is not model:
             ids = [model.joint(j).id for j in self.joints]
             self._qpos, self._qvel = model.jnt_qposadr[ids].tolist(), model.jnt_dofadr[ids].tolist()
-            self._model_id = id(model)
+            self._bound = model
         qpos, qvel = data.qpos, data.qvel
         if self.noise:
             angles = tuple(self._noisy(qpos.take(self._qpos)).tolist())
@@ -355,12 +356,13 @@ class GPS(Sensor):
     ) -> None:
         super().__init__(world, entity, rate, noise, seed)
         self.origin = origin
-        self._body, self._model_id = -1, 0
+        self._body = -1
+        self._bound: mujoco.MjModel | None = None
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> GPSReading:
         """Noisy position (and latitude/longitude)."""
-        if self._model_id != id(model):
-            self._body, self._model_id = model.body(self.entity).id, id(model)
+        if self._bound is not model:
+            self._body, self._bound = model.body(self.entity).id, model
         p = self._noisy(data.xpos[self._body].copy())
         lat = lon = None
         if self.origin is not None:
