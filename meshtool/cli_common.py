@@ -307,7 +307,12 @@ def _emit_json(name: str, out: str, err: str, code: int) -> None:
             sys.stdout.flush()
             return
     prefixes = ("error: ", "usage error: ", "internal error: ", "Error: ")  # the last is click's usage message
-    errors = [line[len(p) :] for line in err.splitlines() for p in prefixes if line.startswith(p)]
+    errors = [
+        line if p == "FAILED: " else line[len(p) :]  # a report's verdict (validate, simrun test) stays whole
+        for line in err.splitlines()
+        for p in (*prefixes, "FAILED: ")
+        if line.startswith(p)
+    ]
     document: dict[str, Any] = {"status": "ok" if code == EXIT_OK else "error", "command": name, "exit_code": code}
     document["output"] = [line for line in out.splitlines() if line.strip()]
     if code != EXIT_OK:

@@ -199,3 +199,14 @@ def test_progress_goes_to_a_terminal_stderr_only(tmp_path):
     assert b"collision hulls" not in plain.stderr and b"\x1b" not in plain.stderr  # not a terminal: silent
     code, out, err = _run_with_terminal_stderr([*args, "--force", "-q"])
     assert code == 0 and out == b"" and b"packing" not in err
+
+
+def test_json_envelope_of_a_failed_report_written_to_a_file_names_the_verdict(tmp_path):
+    report = tmp_path / "report.json"
+    folder = ROOT / "fixtures" / "validate" / "S001_obj_unreadable"
+    result = _invoke("meshtool", ["validate", str(folder), "--format", "json", "-o", str(report), "--no-cache"])
+    assert result.exit_code == 1, result.output
+    document = json.loads(result.stdout)
+    assert document["status"] == "error" and document["exit_code"] == 1
+    assert document["error"]["message"].startswith("FAILED: 1 assets, 0 clean; 1 errors"), document
+    assert json.loads(report.read_text())["summary"]["errors"] == 1
