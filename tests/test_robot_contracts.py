@@ -198,15 +198,18 @@ def test_a_move_ends_exactly_on_its_goal_between_ticks():
 
 
 def test_ready_arms_have_their_joint_limits():
-    """KUKA LBR3-style: +-170 degrees on the rotating axes, +-120 on the bending ones; Lynx L6-style: +-90
-    base and shoulder, +-135 elbow (docs/robots.md, "Arms")."""
-    for arm, limits in ((KukaLBR3, [170, 120, 170, 120, 170, 120, 170]), (LynxL6, [90, 90, 135])):
+    """The ranges docs/robots.md ("Arms") states: KUKA +-170 degrees on the roll axes, +-120 on the pitch axes;
+    Lynx +-90 but +-135 at the elbow, fingers 0 to 15 mm."""
+    for arm, limits in ((KukaLBR3, [170, 120, 170, 120, 170, 120, 170]), (LynxL6, [90, 90, 135, 90, 90])):
         world = World()
         world.insert(arm(name="a"))
         model = world.model
         for j, degrees in enumerate(limits):
             assert model.jnt_limited[j], (arm.__name__, j)
             np.testing.assert_allclose(model.jnt_range[j], np.radians([-degrees, degrees]))
+        if arm is LynxL6:
+            for finger in ("a/finger_left", "a/finger_right"):
+                np.testing.assert_allclose(model.joint(finger).range, [0.0, 0.015])
 
 
 @pytest.mark.parametrize(
