@@ -7,8 +7,8 @@ its workers behind. Two mechanisms, both armed by :func:`die_with_parent` as the
 - everywhere (and for a parent that died before the call), a daemon thread polls ``os.getppid()`` and
   exits the process once it has been re-parented.
 
-Used by ``obj2bin``'s pool (:mod:`meshtool.convert`), ``meshtool validate``'s pool
-(:mod:`meshtool.validate.pool`), the CoACD worker (:mod:`meshtool.coacd_worker`) and ``simrun test``.
+Used by ``obj2bin``'s pool (:mod:`meshtool.convert`), the worker pool of ``meshtool validate`` and
+``simrun test`` (:mod:`meshtool.workpool`) and the CoACD worker (:mod:`meshtool.coacd_worker`).
 """
 
 from __future__ import annotations
