@@ -110,9 +110,11 @@ def main() -> int:
             "controllers tick at their own rates and the steps between ticks run inside `mj_step`. In a loop of "
             "single steps, a step between ticks is one `mj_step` call behind a few comparisons: the world remembers "
             "when the next controller is due (`World.step`, `World.reschedule`). What remains is the controllers' "
-            "own work: per tick, the 360-ray scan about 30 us (20 us of it MuJoCo's `mj_multiRay`), the drive "
-            "service 3 us, bumper and encoders 2 us each; about 1.5 us per physics step in all, against about 7 us "
-            "for the physics of this scene.",
+            "own work: per tick, the 360-ray scan about 25 us (18 us of it MuJoCo's `mj_multiRay`), the drive "
+            "service 2.3 us, the bumper 1.5 us, the encoders 1.2 us; about 1.1 us per physics step in all, plus "
+            "0.2 us for the single-step check, against about 7 us for the physics of this scene (measured with "
+            "`timeit` on each `tick`). The laser's ray casting alone is 5 % of the physics: a single-step loop has "
+            "little room above 0.8x while it scans 360 rays at 10 Hz.",
             f"Load average at the time: {load_average()}.",
             END,
         ]
