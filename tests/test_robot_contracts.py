@@ -13,10 +13,10 @@ import pytest
 
 from simrun import Box, EntityError, Ground, Pose, World, WorldOptions
 from simrun.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment
-from simrun.cameras import RangeCone, StereoRig, Webcam
+from simrun.cameras import IRDistance, RangeCone, Sonar, StereoRig, Webcam
 from simrun.drive import BoeBot, IRobotCreate, LegoNxtTribot, Pioneer3DX
-from simrun.drive_service import DriveService
-from simrun.sensors import Encoders, LaserRangeFinder, RayCaster
+from simrun.drive_service import DriveLimits, DriveService
+from simrun.sensors import GPS, IMU, Encoders, LaserRangeFinder, RayCaster
 
 ROBOTS = [BoeBot, Pioneer3DX, IRobotCreate, LegoNxtTribot]
 
@@ -319,3 +319,299 @@ def test_stereo_rig_refuses_a_bad_field_of_view_and_webcam_defaults():
     world.insert(StereoRig(name="rig"))
     webcam = Webcam(world, "rig/left")
     assert (webcam.eye.width, webcam.eye.height, webcam.rate) == (320, 240, 15.0)
+
+
+# -- second round: survivors of the full run (docs/testing.md) ------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("call", "args"),
+    [("set_drive_power", (0.2, math.nan)), ("drive_speed", (0.1, math.inf)), ("cmd_vel", (0.1, -math.inf))],
+)
+def test_a_non_finite_right_or_angular_value_is_refused_too(call, args):
+    world, _ = _world()
+    drive = DriveService(world, "r")
+    with pytest.raises(EntityError, match=f"{call}: .* must be a finite number"):
+        getattr(drive, call)(*args)
+
+
+@pytest.mark.parametrize("call", ["drive_distance", "rotate_degrees"])
+def test_a_bad_power_names_the_command(call):
+    world, _ = _world()
+    drive = DriveService(world, "r")
+    with pytest.raises(EntityError, match=f"{call}: power must be a positive finite number"):
+        getattr(drive, call)(0.1, power=0.0)
+
+
+def test_snapshot_restore_is_the_identity_with_every_field_distinct():
+    """Left and right values that differ, mid-command: restoring a snapshot gives the same snapshot back."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.set_drive_power(0.2, 0.4)
+    world.run(0.3)
+    drive.reset_encoders()  # zeros at two different wheel angles
+    world.run(0.2)
+    drive.drive_speed(0.1, 0.3)
+    world.run(0.3)
+    state = drive.snapshot()
+    assert state["speed"][0] != state["speed"][1] and state["power"][0] != state["power"][1]
+    assert state["encoder_zero"][0] != state["encoder_zero"][1] and state["last"][0] != state["last"][1]
+    other = DriveService(world, "r")
+    other.restore(state)
+    assert other.snapshot() == state
+
+
+def test_a_second_distance_counts_from_where_the_first_ended():
+    """Two drive_distance(0.2) in a row: 0.4 m in all (the goal counts from the encoders at its start)."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    start = world.body("r").xpos[0]
+    for _ in range(2):
+        drive.drive_distance(0.2)
+        assert world.run_until(lambda: not drive.busy, timeout=10)
+    assert world.body("r").xpos[0] - start == pytest.approx(0.4, abs=0.01)
+
+
+def _velocity(world, name="r"):
+    """Body linear speed along its heading (m/s) and yaw rate (rad/s) from the simulator's free joint."""
+    model, data = world.model, world.data
+    dof = model.jnt_dofadr[model.body_jntadr[model.body(name).id]]
+    v = data.qvel[dof : dof + 6]
+    rotation = data.body(name).xmat.reshape(3, 3)
+    return float(rotation[:, 0] @ v[:3]), float(v[5])
+
+
+def test_cmd_vel_decelerates_and_stops_turning_at_its_limits():
+    """Going to zero from 0.4 m/s and from 1 rad/s takes at least speed / limit: no instant stop."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.limits = DriveLimits(command_timeout=100.0, max_angular_accel=1.0)
+    drive.cmd_vel(0.4, 0.0)
+    world.run(3.0)
+    drive.cmd_vel(0.0, 0.0)
+    world.run(0.4)
+    linear, _ = _velocity(world)
+    assert linear == pytest.approx(0.4 - 0.4 * drive.limits.max_linear_accel, abs=0.03)
+    drive.cmd_vel(0.0, 1.0)
+    world.run(3.0)
+    drive.cmd_vel(0.0, 0.0)
+    world.run(0.2)
+    _, yaw = _velocity(world)
+    assert yaw == pytest.approx(1.0 - 0.2 * drive.limits.max_angular_accel, abs=0.05)
+
+
+def test_switching_from_a_turn_to_cmd_vel_keeps_the_turn_rate():
+    """cmd_vel starts its ramp from the measured (linear, angular) velocity: a turning robot keeps turning."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    drive.limits = type(drive.limits)(command_timeout=100.0)
+    world.run(0.3)
+    drive.drive_speed(-0.2, 0.2)
+    world.run(2.0)
+    _, before = _velocity(world)
+    drive.cmd_vel(0.0, before)
+    world.run(0.1)
+    _, after = _velocity(world)
+    assert before > 0.5 and after == pytest.approx(before, rel=0.05)
+
+
+def test_switching_from_power_to_a_speed_starts_from_the_measured_speed():
+    """From set_drive_power the speed ramp starts at the wheels' speed: no dip while the target ramps up."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.set_drive_power(0.5, 0.5)
+    world.run(3.0)
+    before, _ = _velocity(world)
+    drive.drive_speed(before, before)
+    world.run(0.1)
+    after, _ = _velocity(world)
+    assert after == pytest.approx(before, rel=0.03)
+
+
+@pytest.mark.parametrize("robot", ROBOTS, ids=lambda r: r.__name__)
+def test_half_power_distance_cruises_at_half_the_top_speed(robot):
+    """drive_distance(power=0.5) cruises at half the robot's top speed (its motor's no-load speed on its wheel)."""
+    world, entity = _world(robot)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    top = min(drive.limits.max_linear, entity.wheel_speed_limit * entity.wheel_radius)
+    drive.drive_distance(0.5 * top * 6, power=0.5)  # six seconds at cruising speed
+    world.run(3.0)
+    before = world.body("r").xpos.copy()
+    world.run(1.0)
+    assert float(np.linalg.norm(world.body("r").xpos - before)) == pytest.approx(0.5 * top, rel=0.05)
+
+
+def test_a_distance_decelerates_within_the_acceleration_limit():
+    """The approach to a goal brakes no harder than max_linear_accel (speeds from the simulator, 20 ms apart)."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.drive_distance(1.0)
+    speeds = []
+    while drive.busy and world.time < 10:
+        world.run(0.02)
+        speeds.append(_velocity(world)[0])
+    braking = -np.diff(speeds).max() / 0.02
+    assert max(speeds) > 0.25 and braking <= drive.limits.max_linear_accel * 1.25
+
+
+def test_odometry_reports_the_turn_rate():
+    """Odometry's angular speed is the heading change per second (the simulator's yaw rate when turning)."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.drive_speed(-0.2, 0.2)
+    world.run(2.0)
+    _, yaw = _velocity(world)
+    assert drive.odometry().angular == pytest.approx(yaw, rel=0.05)
+
+
+def test_a_command_right_after_world_reset_waits_for_the_robot_to_settle():
+    world, _ = _world(BoeBot)
+    drive = DriveService(world, "r")
+    world.run(0.5)
+    world.reset()  # back to the initial pose, 1 mm up
+    start = world.body("r").xpos.copy()
+    drive.drive_distance(0.2)
+    assert world.run_until(lambda: not drive.busy, timeout=10)
+    assert world.body("r").xpos[0] - start[0] == pytest.approx(0.2, abs=0.01)
+
+
+def test_disabling_ends_a_running_distance():
+    world, _ = _world()
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.drive_distance(1.0)
+    world.run(0.2)
+    drive.enable(False)
+    assert not drive.busy
+
+
+def test_arm_service_defaults_and_idle_round_trip():
+    world = World()
+    world.insert(LynxL6(name="a"))
+    service = ArmService(world, "a")
+    assert service.period == pytest.approx(0.02)  # 50 Hz
+    state = service.snapshot()
+    assert state["move"] is None
+    service.restore(state)
+    assert not service.busy
+
+
+def test_a_move_started_later_is_half_way_at_half_time():
+    """The cosine profile counts from the move's start time (here 0.5 s into the run)."""
+    world = World()
+    world.insert(KukaLBR3(name="k"))
+    service = ArmService(world, "k")
+    world.run(0.5)
+    service.move_to([0.6, 0, 0, 0, 0, 0, 0], 1.0)
+    world.run(0.5)
+    assert world.data.ctrl[world.model.actuator("k/link1").id] == pytest.approx(0.3, abs=0.02)
+
+
+def test_servo_design_covers_exactly_the_position_servos():
+    world = World()
+    world.insert(LynxL6(name="a"))
+    design = ArmService(world, "a").servo_design()
+    assert set(design) == {
+        "a/base_rotate",
+        "a/shoulder",
+        "a/elbow",
+        "a/wrist",
+        "a/wrist_rotate",
+        "a/finger_left",
+    }  # finger_right mimics finger_left
+
+
+def test_segment_tables_leave_defaults_out_and_keep_every_offset():
+    assert Segment("a", 0.1).to_scene() == {"name": "a", "length": 0.1}
+    joint = Segment("a", 0.1, joint=ArmJoint(kp=30.0)).to_scene()["joint"]
+    assert joint == {"kp": 30.0}
+    for offset in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
+        assert Segment.from_scene(Segment("a", 0.1, offset=offset).to_scene(), "t").offset == offset
+
+
+@pytest.mark.parametrize("key", ["radius", "mass"])
+def test_a_segment_table_with_a_bad_number_names_it(key):
+    with pytest.raises(EntityError, match=f"t.{key}: expected a number"):
+        Segment.from_scene({"name": "a", "length": 0.1, key: "x"}, "t")
+
+
+def test_joint_limits_must_span_a_range():
+    world = World()
+    world.insert(ArticulatedArm(name="bad", segments=(Segment("a", 0.1, joint=ArmJoint(limits=(0.5, 0.5))),)))
+    with pytest.raises(EntityError, match="low < high"):
+        world.compile()
+
+
+def test_exclude_none_still_sees_every_other_body():
+    """A wall inserted first (the model's body 1) is seen by a laser that excludes nothing."""
+    world = World()
+    world.insert(Box(name="wall", dimensions=(0.1, 4.0, 1.0), pose=Pose((1.0, 0, 0.5))))
+    world.insert(Ground(name="ground"))
+    world.insert(Pioneer3DX(name="r", pose=Pose((0, 0, 0.001))))
+    laser = LaserRangeFinder(world, "r", fov_deg=2, rays=3, height=0.3, rate=0, exclude="none")
+    assert world.model.body("wall").id == 1
+    world.step()
+    assert laser.reading.ranges[1] == pytest.approx(0.95, abs=1e-6)
+
+
+def test_a_ray_through_the_robot_reports_the_floor_below_it():
+    """A downward cone inside the chassis: its rays pass through the robot and hit the ground plane (geom 0)."""
+    world, _ = _world(Pioneer3DX)
+    down = RangeCone(world, "r", offset=(-0.05, 0, 0.15), direction=(0, 0, -1), max_range=1.0, rate=0)
+    world.run(0.3)
+    assert down.reading.distance == pytest.approx(0.15 + world.body("r").xpos[2], abs=1e-3)
+
+
+def test_noise_is_reproducible_after_a_world_reset_and_present_at_one_metre():
+    world, _ = _world()
+    gps = GPS(world, "r", noise=1.0, rate=0)
+    world.step()
+    first = gps.reading.position
+    assert first != tuple(world.body("r").xpos)  # noise of 1 m is applied
+    world.reset()
+    world.step()
+    assert gps.reading.position == first
+
+
+def test_noisy_short_ranges_are_not_lifted():
+    """Noise of 1 cm on a wall 0.4 m away reads about 0.4 m (clipped to [0, max_range], nothing more)."""
+    world, _ = _world(Pioneer3DX)
+    world.insert(Box(name="wall", dimensions=(0.1, 4.0, 1.0), pose=Pose((0.45, 0, 0.5))))
+    laser = LaserRangeFinder(world, "r", fov_deg=20, rays=21, noise=0.01, rate=0)
+    narrow = LaserRangeFinder(world, "r", fov_deg=0.5, rays=3, rate=0, seed=7)
+    world.step()
+    assert laser.reading.ranges.mean() == pytest.approx(0.4 / math.cos(math.radians(5)), abs=0.01)
+    assert narrow.seed == 7 and narrow.reading.ranges[1] == pytest.approx(0.4, abs=1e-6)
+
+
+def test_imu_noise_and_seeds():
+    world, _ = _world()
+    a, b = IMU(world, "r", noise=0.1, rate=0), IMU(world, "r", noise=0.1, rate=0)
+    c = IMU(world, "r", noise=0.1, rate=0, seed=3)
+    quiet = IMU(world, "r", rate=0)
+    world.step()
+    assert a.seed == 0 and c.seed == 3
+    assert a.reading.gyro == b.reading.gyro != c.reading.gyro
+    assert a.reading.gyro != quiet.reading.gyro
+
+
+def test_range_cone_readings_and_documented_cones():
+    """A reading's value is its distance without a response table, at the simulation time; the documented
+    cones: IRDistance 2 degrees, Sonar 30 degrees (the outermost ray's angle from the axis is half of it)."""
+    world, _ = _world()
+    cone, default = RangeCone(world, "r", rate=0), RangeCone(world, "r")
+    ir, sonar = IRDistance(world, "r"), Sonar(world, "r")
+    world.run(0.1)
+    assert cone.reading.value == cone.reading.distance and cone.reading.time == pytest.approx(world.time - 0.002)
+    assert (default.rate, default.max_range, default.min_range, len(default._local)) == (20.0, 1.0, 0.0, 1)
+    for sensor, degrees in ((ir, 2.0), (sonar, 30.0)):
+        spread = math.degrees(math.acos(np.clip(sensor._local @ np.array([1.0, 0.0, 0.0]), -1, 1).min()))
+        edge = math.degrees(math.hypot(math.radians(degrees / 2), math.radians(degrees / 2)))
+        assert spread == pytest.approx(edge, rel=1e-9)
