@@ -1,8 +1,10 @@
 """The World: one MjSpec built from named entities, compiled lazily, stepped and reset.
 
 Entities are kept in insertion order; the spec is rebuilt from them whenever they change, so removing an
-entity is exact and the same entities always give the same model. Names: a top-level entity ``box`` owns
-the body ``box`` and elements ``box/...``; a child ``wheel`` of ``robot`` is ``robot/wheel``.
+entity is exact and the same entities always give the same model. A rebuilt world starts again at time 0 from
+the initial poses; controllers keep their settings, and their clocks restart so each ticks at the first step.
+Names: a top-level entity ``box`` owns the body ``box`` and elements ``box/...``; a child ``wheel`` of
+``robot`` is ``robot/wheel``.
 """
 
 from __future__ import annotations
@@ -241,6 +243,8 @@ class World:
         if main:
             model.vis.global_.cameraid = model.camera(main[0]).id  # the main view renders from this camera
         self._spec, self._model, self._data = spec, model, mujoco.MjData(model)
+        for controller in self.controllers:
+            controller.next_time = 0.0  # a new model starts at time 0: every clock restarts (after a rebuild too)
         self.reschedule()
         self._hooked = [e for e in self._entities.values() if type(e).before_step is not Entity.before_step]
         mujoco.mj_forward(model, self._data)

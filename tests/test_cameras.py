@@ -188,3 +188,32 @@ def test_cameras_reuse_their_renderer_and_render_depth_for_both_eyes():
     for eye in (stereo.reading.left, stereo.reading.right):
         assert eye.depth[12].min() == pytest.approx(0.95, abs=0.05)  # the post's near face, in both eyes
     assert plain.reading.depth is None
+
+
+@needs_gl
+def test_a_webcam_follows_its_world_through_rebuilds_and_nested_rigs():
+    """A rig mounted on a robot: camera ``bot/rig/left`` belongs to entity ``bot/rig``. After the world is
+    rebuilt (a red box added in view) the next frame shows the new scene, from a renderer for the new model."""
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(BoeBot(name="bot", pose=Pose((0, 0, 0.001))))
+    world.insert(StereoRig(name="rig", parent="bot", pose=Pose((0.0, 0.0, 0.15))))
+    cam = Webcam(world, "bot/rig/left", width=32, height=24, rate=0)
+    assert cam.entity == "bot/rig"
+    world.step(1)
+    before = cam.reading.rgb[12, 16].astype(int)
+    world.insert(Box(name="red", dimensions=(0.2, 1.0, 0.5), color=(1, 0, 0, 1), pose=Pose((0.6, 0, 0.25))))
+    world.step(1)
+    after = cam.reading.rgb[12, 16].astype(int)
+    assert not (before[0] > 2 * before[1]) and after[0] > 120 and after[0] > 2 * after[1]
+
+
+@needs_gl
+def test_stereo_camera_defaults():
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(StereoRig(name="rig", pose=Pose((0, 0, 0.3)), resolution=(32, 24)))
+    stereo = StereoCamera(world, "rig", rate=0)
+    world.step(1)
+    frame = stereo.reading
+    assert frame.time == 0.0 and frame.left.depth is None and frame.right.depth is None

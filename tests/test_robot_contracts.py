@@ -615,3 +615,30 @@ def test_range_cone_readings_and_documented_cones():
         spread = math.degrees(math.acos(np.clip(sensor._local @ np.array([1.0, 0.0, 0.0]), -1, 1).min()))
         edge = math.degrees(math.hypot(math.radians(degrees / 2), math.radians(degrees / 2)))
         assert spread == pytest.approx(edge, rel=1e-9)
+
+
+def test_joint_tables_keep_limits_and_flags():
+    table = {"name": "a", "length": 0.1, "joint": {"limits": [-1.0, 1.0], "gravity_compensation": False}}
+    joint = Segment.from_scene(table, "t").joint
+    assert joint.limits == (-1.0, 1.0) and joint.gravity_compensation is False
+    assert Segment.from_scene({"name": "a", "length": 0.1, "joint": {"locked": True}}, "t").joint.locked is True
+
+
+def test_gps_samples_once_a_second_by_default():
+    """docs/robots.md, "Sensors": GPS 1 Hz."""
+    world, _ = _world()
+    gps = GPS(world, "r")
+    world.run(2.5)
+    assert gps.rate == 1.0 and gps.samples == 3  # at 0, 1 and 2 s
+
+
+def test_sensors_sample_at_the_first_step_of_a_rebuilt_world():
+    """A rebuilt world starts again at time 0: a 1 Hz GPS last sampled at 5 s samples at once, not 5 s later."""
+    world, _ = _world()
+    gps = GPS(world, "r")
+    world.run(5.5)
+    assert gps.samples == 6
+    world.insert(Box(name="crate", dimensions=(0.1, 0.1, 0.1), pose=Pose((1.0, 0, 0.05))))
+    world.step()
+    assert gps.samples == 7 and gps.reading.time == 0.0
+    assert gps.reading.position == pytest.approx(tuple(world.body("r").xpos), abs=1e-3)

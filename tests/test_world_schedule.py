@@ -120,8 +120,12 @@ def test_reset_and_recompile_forget_the_schedule():
     world.step()
     assert encoders.samples == 1
     world.insert(Box(name="extra", dimensions=(0.1, 0.1, 0.1), pose=Pose((-1, 0, 0.05))))  # a new model
-    world.step()  # compiles the new model (time 0 again); the encoders are next due at 20 ms
-    assert world.time == world.options.timestep and encoders.samples == 1
+    world.step()  # compiles the new model (time 0 again): every clock restarts, so the encoders sample at once
+    assert world.time == world.options.timestep and encoders.samples == 2
+    world.step(9)
+    assert encoders.samples == 2  # next at 20 ms of the new model's time
+    world.step()
+    assert encoders.samples == 3
 
 
 class ReadCountingController:
