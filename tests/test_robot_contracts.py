@@ -642,3 +642,20 @@ def test_sensors_sample_at_the_first_step_of_a_rebuilt_world():
     world.step()
     assert gps.samples == 7 and gps.reading.time == 0.0
     assert gps.reading.position == pytest.approx(tuple(world.body("r").xpos), abs=1e-3)
+
+
+def test_odometry_after_a_world_reset_follows_the_next_drive():
+    """After World.reset the odometry restarts at the origin and then tracks the robot (simulator ground truth)."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.drive_speed(0.2, 0.3)
+    world.run(1.0)
+    world.reset()
+    world.run(0.3)
+    start = world.body("r").xpos.copy()
+    drive.drive_distance(0.3)
+    assert world.run_until(lambda: not drive.busy, timeout=10)
+    moved = world.body("r").xpos - start
+    odometry = drive.odometry()
+    assert odometry.x == pytest.approx(moved[0], abs=0.01) and odometry.y == pytest.approx(moved[1], abs=0.01)
