@@ -135,9 +135,9 @@ class ArticulatedArm(Entity):
             if parent.name != body.name:
                 ctx.spec.add_exclude(bodyname1=ctx.name(segment.name), bodyname2=body.name)
             built[segment.name] = (child, segment.length, float(child.gravcomp))
-        self._couple(ctx, built)
+        self._couple(ctx)
 
-    def _couple(self, ctx: BuildContext, built: dict[str, tuple[Any, float, float]]) -> None:
+    def _couple(self, ctx: BuildContext) -> None:
         """Equality constraints of mimicking joints (a gripper's second finger); sibling fingers don't collide."""
         for segment in self.segments:
             for name, joint in segment.dofs(ctx.full_name):

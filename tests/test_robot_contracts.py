@@ -499,6 +499,8 @@ def test_arm_service_defaults_and_idle_round_trip():
     assert service.period == pytest.approx(0.02)  # 50 Hz
     state = service.snapshot()
     assert state["move"] is None
+    states = service.joint_states()
+    assert states.names == tuple(service.joints) and len(states.positions) == len(service.joints)
     service.restore(state)
     assert not service.busy
 
