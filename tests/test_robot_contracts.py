@@ -663,3 +663,23 @@ def test_odometry_after_a_world_reset_follows_the_next_drive():
     moved = world.body("r").xpos - start
     odometry = drive.odometry()
     assert odometry.x == pytest.approx(moved[0], abs=0.01) and odometry.y == pytest.approx(moved[1], abs=0.01)
+
+
+def test_beyond_full_reverse_is_full_reverse_and_beyond_full_power_cruises_at_full():
+    """A speed past the motors' reach saturates at full reverse; a distance at power 3 cruises as at power 1."""
+    world, entity = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.drive_speed(-3.0, -3.0)  # past the 1.2 m/s motors, backwards
+    world.run(6.0)
+    linear, _ = _velocity(world)
+    assert linear == pytest.approx(-entity.wheel_speed_limit * entity.wheel_radius, rel=0.1)
+    cruise = []
+    for power in (1.0, 3.0):
+        world, _ = _world(Pioneer3DX)
+        drive = DriveService(world, "r")
+        world.run(0.3)
+        drive.drive_distance(2.0, power=power)
+        world.run(3.0)
+        cruise.append(_velocity(world)[0])
+    assert cruise[1] == pytest.approx(cruise[0], rel=1e-9) and cruise[0] > 0.3
