@@ -420,6 +420,7 @@ class DriveService:
 
     def _lookup(self, model: mujoco.MjModel) -> tuple[int, int, int, int]:
         if self._ids is None or self._bound is not model:
+            rebuilt = self._bound is not None  # a new model: the world restarted at time 0 from the initial poses
             n = self.name
             self._ids = (
                 model.actuator(f"{n}/left_motor").id,
@@ -435,6 +436,9 @@ class DriveService:
             fixed_gain, fixed_ki = self._fixed_gains
             self.gain = self._design["gain"] if fixed_gain is None else fixed_gain
             self.ki = self._design["integral_gain"] if fixed_ki is None else fixed_ki
+            if rebuilt:  # so do the encoders and odometry (the command in progress carries on)
+                self._encoder_zero = (float(model.qpos0[self._ids[4]]), float(model.qpos0[self._ids[5]]))
+                self._last, self._odom = (0.0, 0.0), (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         ids = self._ids
         return ids[0], ids[1], ids[2], ids[3]
 

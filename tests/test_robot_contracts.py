@@ -683,3 +683,21 @@ def test_beyond_full_reverse_is_full_reverse_and_beyond_full_power_cruises_at_fu
         world.run(3.0)
         cruise.append(_velocity(world)[0])
     assert cruise[1] == pytest.approx(cruise[0], rel=1e-9) and cruise[0] > 0.3
+
+
+def test_odometry_restarts_with_a_rebuilt_world():
+    """After an arc, adding an entity rebuilds the world (time 0, initial pose): odometry and encoders restart
+    there instead of integrating the jump of the wheel angles back to zero."""
+    world, _ = _world(Pioneer3DX)
+    drive = DriveService(world, "r")
+    world.run(0.3)
+    drive.drive_speed(0.1, 0.3)
+    world.run(2.0)
+    drive.all_stop()
+    world.run(1.0)
+    world.insert(Box(name="crate", dimensions=(0.1, 0.1, 0.1), pose=Pose((2.0, 2.0, 0.05))))
+    world.run(0.3)
+    odometry = drive.odometry()
+    xpos = world.body("r").xpos
+    assert odometry.x == pytest.approx(xpos[0], abs=1e-3) and odometry.y == pytest.approx(xpos[1], abs=1e-3)
+    assert abs(odometry.linear) < 0.02 and drive.encoders() == pytest.approx((0.0, 0.0), abs=0.005)  # settling
