@@ -427,6 +427,9 @@ class ArmService:
         if self._move is None:
             return
         t0, duration, start, goal = self._move
+        if data.time < t0:  # the world was rebuilt (time 0 again): the move starts over on the new clock
+            t0 = float(data.time)
+            self._move = (t0, duration, start, goal)
         s = min(1.0, (data.time - t0) / duration)
         blend = 0.5 - 0.5 * math.cos(math.pi * s)
         self._apply(start + (goal - start) * blend, model, data)

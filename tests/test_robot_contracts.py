@@ -701,3 +701,20 @@ def test_odometry_restarts_with_a_rebuilt_world():
     xpos = world.body("r").xpos
     assert odometry.x == pytest.approx(xpos[0], abs=1e-3) and odometry.y == pytest.approx(xpos[1], abs=1e-3)
     assert abs(odometry.linear) < 0.02 and drive.encoders() == pytest.approx((0.0, 0.0), abs=0.005)  # settling
+
+
+def test_a_move_in_progress_starts_over_in_a_rebuilt_world():
+    """A 1 s move started at 0.5 s, rebuilt 0.3 s into it: the world restarts at time 0 and the move runs its
+    profile again from there (not from a negative elapsed time on the old clock)."""
+    world = World()
+    world.insert(KukaLBR3(name="k"))
+    service = ArmService(world, "k")
+    world.run(0.5)
+    service.move_to([0.6, 0, 0, 0, 0, 0, 0], 1.0)
+    world.run(0.3)
+    world.insert(Box(name="crate", dimensions=(0.1, 0.1, 0.1), pose=Pose((1.0, 1.0, 0.05))))
+    world.run(0.5)  # half of the move on the new clock
+    target = world.data.ctrl[world.model.actuator("k/link1").id]
+    assert target == pytest.approx(0.3, abs=0.02) and service.busy
+    world.run(0.6)
+    assert not service.busy and world.data.ctrl[world.model.actuator("k/link1").id] == 0.6
