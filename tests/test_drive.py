@@ -1011,6 +1011,13 @@ def test_odometry_restarts_cleanly_after_reset_encoders_and_world_reset():
     assert math.degrees(odometry.theta) == pytest.approx(heading(world, "r") - start_heading, abs=0.5)
     world.reset()
     assert drive.odometry() == Odometry(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    origin = world.body("r").xpos.copy()  # and from the initial pose it tracks the next motions
+    for command in (lambda: drive.drive_distance(0.2), lambda: drive.rotate_degrees(30.0)):
+        command()
+        assert world.run_until(lambda: not drive.busy, timeout=10)
+    odometry, moved = drive.odometry(), world.body("r").xpos - origin
+    assert odometry.x == pytest.approx(moved[0], abs=0.01) and odometry.y == pytest.approx(moved[1], abs=0.01)
+    assert math.degrees(odometry.theta) == pytest.approx(heading(world, "r"), abs=0.5)
 
 
 def test_service_follows_its_robot_when_the_world_is_rebuilt():

@@ -28,6 +28,20 @@ def _world(robot=BoeBot, name="r"):
     return world, entity
 
 
+def _driving(robot=Pioneer3DX, settle=0.3):
+    """A robot with its drive service, after ``settle`` seconds standing on its wheels."""
+    world, entity = _world(robot)
+    drive = DriveService(world, "r")
+    world.run(settle)
+    return world, drive, entity
+
+
+def _arm(cls, name="a"):
+    world = World()
+    world.insert(cls(name=name))
+    return world, ArmService(world, name)
+
+
 # -- drive service ---------------------------------------------------------------------------------------------
 
 
@@ -187,9 +201,7 @@ def test_a_slide_carrying_two_links_designs_for_both():
 
 def test_a_move_ends_exactly_on_its_goal_between_ticks():
     """A duration that is no multiple of the service's period: the last tick lands past the end, on the goal."""
-    world = World()
-    world.insert(KukaLBR3(name="a"))
-    service = ArmService(world, "a")
+    world, service = _arm(KukaLBR3, "a")
     goal = [0.3, -0.2, 0.1, 0.4, -0.1, 0.2, 0.05]
     service.move_to(goal, duration=0.1234)
     world.run(0.5)
@@ -220,9 +232,7 @@ def test_ready_arms_have_their_joint_limits():
     ],
 )
 def test_move_to_refusals_say_what_is_wrong(change, message):
-    world = World()
-    world.insert(LynxL6(name="a"))
-    service = ArmService(world, "a")
+    _, service = _arm(LynxL6, "a")
     with pytest.raises(EntityError, match=message):
         service.move_to([0.0] * len(service.joints), **change)
 
@@ -345,9 +355,7 @@ def test_a_bad_power_names_the_command(call):
 
 def test_snapshot_restore_is_the_identity_with_every_field_distinct():
     """Left and right values that differ, mid-command: restoring a snapshot gives the same snapshot back."""
-    world, _ = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, _ = _driving(Pioneer3DX)
     drive.set_drive_power(0.2, 0.4)
     world.run(0.3)
     drive.reset_encoders()  # zeros at two different wheel angles
@@ -364,9 +372,7 @@ def test_snapshot_restore_is_the_identity_with_every_field_distinct():
 
 def test_a_second_distance_counts_from_where_the_first_ended():
     """Two drive_distance(0.2) in a row: 0.4 m in all (the goal counts from the encoders at its start)."""
-    world, _ = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, _ = _driving(Pioneer3DX)
     start = world.body("r").xpos[0]
     for _ in range(2):
         drive.drive_distance(0.2)
@@ -385,22 +391,15 @@ def _velocity(world, name="r"):
 
 def test_cmd_vel_decelerates_and_stops_turning_at_its_limits():
     """Going to zero from 0.4 m/s and from 1 rad/s takes at least speed / limit: no instant stop."""
-    world, _ = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
-    drive.limits = DriveLimits(command_timeout=100.0, max_angular_accel=1.0)
-    drive.cmd_vel(0.4, 0.0)
-    world.run(3.0)
-    drive.cmd_vel(0.0, 0.0)
-    world.run(0.4)
-    linear, _ = _velocity(world)
-    assert linear == pytest.approx(0.4 - 0.4 * drive.limits.max_linear_accel, abs=0.03)
-    drive.cmd_vel(0.0, 1.0)
-    world.run(3.0)
-    drive.cmd_vel(0.0, 0.0)
-    world.run(0.2)
-    _, yaw = _velocity(world)
-    assert yaw == pytest.approx(1.0 - 0.2 * drive.limits.max_angular_accel, abs=0.05)
+    world, drive, _ = _driving(Pioneer3DX)
+    drive.limits = limits = DriveLimits(command_timeout=100.0, max_angular_accel=1.0)
+    cases = [((0.4, 0.0), 0.4, limits.max_linear_accel, 0.03), ((0.0, 1.0), 0.2, limits.max_angular_accel, 0.05)]
+    for axis, (command, seconds, accel, tolerance) in enumerate(cases):
+        drive.cmd_vel(*command)
+        world.run(3.0)
+        drive.cmd_vel(0.0, 0.0)
+        world.run(seconds)
+        assert _velocity(world)[axis] == pytest.approx(command[axis] - seconds * accel, abs=tolerance)
 
 
 def test_switching_from_a_turn_to_cmd_vel_keeps_the_turn_rate():
@@ -420,9 +419,7 @@ def test_switching_from_a_turn_to_cmd_vel_keeps_the_turn_rate():
 
 def test_switching_from_power_to_a_speed_starts_from_the_measured_speed():
     """From set_drive_power the speed ramp starts at the wheels' speed: no dip while the target ramps up."""
-    world, _ = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, _ = _driving(Pioneer3DX)
     drive.set_drive_power(0.5, 0.5)
     world.run(3.0)
     before, _ = _velocity(world)
@@ -435,9 +432,7 @@ def test_switching_from_power_to_a_speed_starts_from_the_measured_speed():
 @pytest.mark.parametrize("robot", ROBOTS, ids=lambda r: r.__name__)
 def test_half_power_distance_cruises_at_half_the_top_speed(robot):
     """drive_distance(power=0.5) cruises at half the robot's top speed (its motor's no-load speed on its wheel)."""
-    world, entity = _world(robot)
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, entity = _driving(robot)
     top = min(drive.limits.max_linear, entity.wheel_speed_limit * entity.wheel_radius)
     drive.drive_distance(0.5 * top * 6, power=0.5)  # six seconds at cruising speed
     world.run(3.0)
@@ -448,9 +443,7 @@ def test_half_power_distance_cruises_at_half_the_top_speed(robot):
 
 def test_a_distance_decelerates_within_the_acceleration_limit():
     """The approach to a goal brakes no harder than max_linear_accel (speeds from the simulator, 20 ms apart)."""
-    world, _ = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, _ = _driving(Pioneer3DX)
     drive.drive_distance(1.0)
     speeds = []
     while drive.busy and world.time < 10:
@@ -462,9 +455,7 @@ def test_a_distance_decelerates_within_the_acceleration_limit():
 
 def test_odometry_reports_the_turn_rate():
     """Odometry's angular speed is the heading change per second (the simulator's yaw rate when turning)."""
-    world, _ = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, _ = _driving(Pioneer3DX)
     drive.drive_speed(-0.2, 0.2)
     world.run(2.0)
     _, yaw = _velocity(world)
@@ -483,9 +474,7 @@ def test_a_command_right_after_world_reset_waits_for_the_robot_to_settle():
 
 
 def test_disabling_ends_a_running_distance():
-    world, _ = _world()
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, _ = _driving(BoeBot)
     drive.drive_distance(1.0)
     world.run(0.2)
     drive.enable(False)
@@ -493,9 +482,7 @@ def test_disabling_ends_a_running_distance():
 
 
 def test_arm_service_defaults_and_idle_round_trip():
-    world = World()
-    world.insert(LynxL6(name="a"))
-    service = ArmService(world, "a")
+    _, service = _arm(LynxL6, "a")
     assert service.period == pytest.approx(0.02)  # 50 Hz
     state = service.snapshot()
     assert state["move"] is None
@@ -507,9 +494,7 @@ def test_arm_service_defaults_and_idle_round_trip():
 
 def test_a_move_started_later_is_half_way_at_half_time():
     """The cosine profile counts from the move's start time (here 0.5 s into the run)."""
-    world = World()
-    world.insert(KukaLBR3(name="k"))
-    service = ArmService(world, "k")
+    world, service = _arm(KukaLBR3, "k")
     world.run(0.5)
     service.move_to([0.6, 0, 0, 0, 0, 0, 0], 1.0)
     world.run(0.25)
@@ -648,28 +633,9 @@ def test_sensors_sample_at_the_first_step_of_a_rebuilt_world():
     assert gps.reading.position == pytest.approx(tuple(world.body("r").xpos), abs=1e-3)
 
 
-def test_odometry_after_a_world_reset_follows_the_next_drive():
-    """After World.reset the odometry restarts at the origin and then tracks the robot (simulator ground truth)."""
-    world, _ = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
-    drive.drive_speed(0.2, 0.3)
-    world.run(1.0)
-    world.reset()
-    world.run(0.3)
-    start = world.body("r").xpos.copy()
-    drive.drive_distance(0.3)
-    assert world.run_until(lambda: not drive.busy, timeout=10)
-    moved = world.body("r").xpos - start
-    odometry = drive.odometry()
-    assert odometry.x == pytest.approx(moved[0], abs=0.01) and odometry.y == pytest.approx(moved[1], abs=0.01)
-
-
 def test_beyond_full_reverse_is_full_reverse_and_beyond_full_power_cruises_at_full():
     """A speed past the motors' reach saturates at full reverse; a distance at power 3 cruises as at power 1."""
-    world, entity = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, entity = _driving(Pioneer3DX)
     drive.drive_speed(-3.0, -3.0)  # past the 1.2 m/s motors, backwards
     world.run(6.0)
     linear, _ = _velocity(world)
@@ -688,9 +654,7 @@ def test_beyond_full_reverse_is_full_reverse_and_beyond_full_power_cruises_at_fu
 def test_odometry_restarts_with_a_rebuilt_world():
     """After an arc, adding an entity rebuilds the world (time 0, initial pose): odometry and encoders restart
     there instead of integrating the jump of the wheel angles back to zero."""
-    world, _ = _world(Pioneer3DX)
-    drive = DriveService(world, "r")
-    world.run(0.3)
+    world, drive, _ = _driving(Pioneer3DX)
     drive.drive_speed(0.1, 0.3)
     world.run(2.0)
     drive.all_stop()
@@ -706,9 +670,7 @@ def test_odometry_restarts_with_a_rebuilt_world():
 def test_a_move_in_progress_starts_over_in_a_rebuilt_world():
     """A 1 s move started at 0.5 s, rebuilt 0.3 s into it: the world restarts at time 0 and the move runs its
     profile again from there (not from a negative elapsed time on the old clock)."""
-    world = World()
-    world.insert(KukaLBR3(name="k"))
-    service = ArmService(world, "k")
+    world, service = _arm(KukaLBR3, "k")
     world.run(0.5)
     service.move_to([0.6, 0, 0, 0, 0, 0, 0], 1.0)
     world.run(0.3)
