@@ -4,6 +4,7 @@ Ground truth is the simulator's body poses (``data.xpos`` / ``data.xquat``) and 
 robots are built from, never the drive service's own estimates.
 """
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -414,6 +415,23 @@ def test_a_laser_inside_the_robot_sees_past_it_and_returns(robot, height):
     ahead = int(np.argmin(np.abs(laser.angles)))
     assert laser.reading.ranges[ahead] == pytest.approx(0.5 - origin[0], abs=1e-6)
     assert np.all(laser.reading.ranges[np.abs(laser.angles) > 1.0] == 3.0)  # nothing else within 3 m
+
+
+def test_a_ray_leaving_the_chassis_where_a_wheel_begins_is_continued_through_the_wheel():
+    """Wheels whose inner faces lie on the chassis sides (track = chassis width + wheel width): the sideways ray at
+    axle height leaves the chassis exactly where the wheel starts, a zero-length step that only the 1 um nudge
+    gets past. Ground truth: the wall's near face at y = 1 m, the ray from the simulator's body position."""
+    world = World()
+    world.insert(Ground(name="ground"))
+    robot = custom(pose=Pose((0, 0, 0.001)))  # a 0.2 m wide chassis, 0.03 m wide wheels
+    robot = dataclasses.replace(robot, track=robot.chassis_dimensions[1] + robot.wheel_width)
+    world.insert(robot)
+    world.insert(Box(name="wall", dimensions=(4.0, 0.1, 1.0), pose=Pose((0, 1.05, 0.5))))
+    axle = world.body("r/left_wheel").xpos[2] - world.body("r").xpos[2]
+    laser = LaserRangeFinder(world, "r", height=axle, fov_deg=360, rays=4, max_range=3.0, rate=0)
+    world.step(1)
+    left = int(np.argmin(np.abs(laser.angles - math.pi / 2)))
+    assert laser.reading.ranges[left] == pytest.approx(1.0 - world.body("r").xpos[1], abs=1e-5)
 
 
 def test_a_ray_still_inside_the_robot_after_the_continuation_cap_sees_nothing(monkeypatch):
