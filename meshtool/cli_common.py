@@ -307,16 +307,13 @@ def _emit_json(name: str, out: str, err: str, code: int) -> None:
             sys.stdout.flush()
             return
     prefixes = ("error: ", "usage error: ", "internal error: ", "Error: ")  # the last is click's usage message
-    errors = [
-        line if p == "FAILED: " else line[len(p) :]  # a report's verdict (validate, simrun test) stays whole
-        for line in err.splitlines()
-        for p in (*prefixes, "FAILED: ")
-        if line.startswith(p)
-    ]
+    lines = err.splitlines()
+    errors = [line[len(p) :] for line in lines for p in prefixes if line.startswith(p)]
+    verdicts = [line for line in lines if line.startswith("FAILED: ")]  # a report's (validate, simrun test)
     document: dict[str, Any] = {"status": "ok" if code == EXIT_OK else "error", "command": name, "exit_code": code}
     document["output"] = [line for line in out.splitlines() if line.strip()]
     if code != EXIT_OK:
-        message = errors[0] if errors else (err.strip().splitlines() or ["failed"])[-1]
+        message = (errors or verdicts or [line for line in lines if line.strip()][-1:] or ["failed"])[0]
         document["error"] = {"message": message}
     sys.stdout.write(json.dumps(document) + "\n")
     sys.stdout.flush()
