@@ -18,16 +18,13 @@ every file it reads (:mod:`simrun.scenetest.bundle`).
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from meshtool.nesting import NestingError, bounded
 from simrun.commands import Command, check_commands, load_commands
 from simrun.errors import SceneError, SimrunError
 from simrun.expect import Expectation, check_against, parse_expectations
-from simrun.safeio import FileReadError, read_regular
 from simrun.scenetest.bundle import Bundle, collect
 from simrun.session import prepare
 from simrun.tomlpos import KeyPath, line_of, read_toml
@@ -108,26 +105,16 @@ def discover(paths: list[Path]) -> list[Path]:
 
 
 def _is_scene(path: Path, named: bool = False) -> bool:
-    doc = _parse(path)[0] if named else _peek(path)
+    doc = read_toml(path)[0] if named else _peek(path)
     return doc is not None and any(key in doc for key in _SCENE_KEYS)
 
 
 def _peek(path: Path) -> dict[str, Any] | None:
     """The document of a TOML file found in a folder, ``None`` when it is not readable TOML (not ours)."""
     try:
-        text = read_regular(path, "scene").decode("utf-8")
-        return bounded(lambda: tomllib.loads(text))
-    except (FileReadError, UnicodeDecodeError, tomllib.TOMLDecodeError, NestingError):
+        return read_toml(path, "scene")[0]
+    except SceneError:
         return None
-
-
-def _parse(path: Path) -> tuple[dict[str, Any], dict[KeyPath, int]]:
-    """A TOML file's document and key lines.
-
-    Raises:
-        SceneError: Unreadable, not UTF-8 or not TOML, with the line.
-    """
-    return read_toml(path)
 
 
 def load_case(path: Path) -> Case:
@@ -140,7 +127,7 @@ def load_case(path: Path) -> Case:
     from simrun.scene import load_scene
 
     display = path.as_posix()
-    doc, lines = _parse(path)
+    doc, lines = read_toml(path)
     table = doc.get("test", {})
 
     def fail(message: str, *key: str | int) -> SceneError:
@@ -172,7 +159,7 @@ def load_case(path: Path) -> Case:
             controller = other
         else:
             commands = load_commands(other)
-            cdoc, clines = _parse(other)
+            cdoc, clines = read_toml(other)
             expectations += parse_expectations(cdoc, clines, other.as_posix())
     implicit = not expectations
     if implicit:
