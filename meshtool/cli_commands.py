@@ -391,7 +391,7 @@ def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str
     pairs = []
     for value in values:
         name, sep, folder = value.partition("=")
-        if not sep or not name or not folder:
+        if not sep or not folder:  # an empty NAME maps package:///... (talos_full_v2 writes those)
             raise click.BadParameter(f"expected NAME=DIR, got {value!r}")
         pairs.append((name, Path(folder)))
     return tuple(pairs)
@@ -405,11 +405,17 @@ def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str
     "package_dirs",
     multiple=True,
     callback=_package_dir,
-    help="Folder of a ROS package for package://NAME/... paths, as NAME=DIR (repeatable).",
+    help="Folder of a ROS package for package://NAME/... paths, as NAME=DIR (repeatable; =DIR maps package:///...).",
 )
 @click.option("--actuators", is_flag=True, help="Add a motor per moving joint, limited to its URDF effort.")
 @click.option("--free-base", is_flag=True, help="Give the root link a free joint (mobile robots).")
 @click.option("--allow-outside", is_flag=True, help="Let relative mesh paths leave the robot's package folder.")
+@click.option(
+    "--package-search",
+    is_flag=True,
+    help="Look for package://NAME in folders named NAME above the URDF and beside them "
+    "(default: only the robot's own package and --package-dir).",
+)
 @force_option
 @hull_options
 def urdf(
@@ -419,6 +425,7 @@ def urdf(
     actuators: bool,
     free_base: bool,
     allow_outside: bool,
+    package_search: bool,
     force: bool,
     **hull_kw: Any,
 ) -> None:
@@ -426,7 +433,7 @@ def urdf(
     from meshtool.urdf import UrdfOptions, import_urdf, write_import
 
     with _guard(False), overwrite_allowed(force):
-        options = UrdfOptions(package_dirs, _hull_options(hull_kw), actuators, free_base, allow_outside)
+        options = UrdfOptions(package_dirs, _hull_options(hull_kw), actuators, free_base, allow_outside, package_search)
         result = import_urdf(robot, options)
         _echo_findings(result.findings)
         write_import(result, out_dir)

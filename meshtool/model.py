@@ -28,6 +28,10 @@ import numpy.typing as npt
 from meshtool.errors import MeshtoolError
 
 GROUP = "meshtool.mjcf"
+#: Deepest chain of bodies a model may nest. MuJoCo reads MJCF with tinyxml2, which refuses documents nesting
+#: more than 500 elements (``TINYXML2_MAX_ELEMENT_DEPTH``, "XML parse error 18"): a flat MJCF holds 496
+#: bodies in one chain; 16 levels are left for the bodies a scene puts around an imported robot.
+MAX_BODY_DEPTH = 480
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int32]

@@ -76,8 +76,15 @@ class ModelRootResolver(Resolver):
         model_root: The model root (an ancestor of ``asset_dir``), or ``None``.
     """
 
-    def __init__(self, asset_dir: Path, search_paths: Sequence[Path] = (), model_root: ModelRoot | None = None) -> None:
-        super().__init__(asset_dir, search_paths)
+    def __init__(
+        self,
+        asset_dir: Path,
+        search_paths: Sequence[Path] = (),
+        model_root: ModelRoot | None = None,
+        *,
+        confine: Path | None = None,
+    ) -> None:
+        super().__init__(asset_dir, search_paths, confine=confine)
         self.model_root = model_root
         if model_root is not None and model_root.folder != self.asset_dir:
             self.roots.append(model_root.folder)
@@ -92,18 +99,21 @@ class ModelRootResolver(Resolver):
         return super().display(path, resolved)
 
 
-def model_root_resolver(src: Path, search_paths: Sequence[Path] = ()) -> tuple[ModelRootResolver, list[Finding]]:
+def model_root_resolver(
+    src: Path, search_paths: Sequence[Path] = (), *, confine: Path | None = None
+) -> tuple[ModelRootResolver, list[Finding]]:
     """A resolver for the OBJ ``src`` that may resolve inside its model root, and a finding naming the root.
 
     Args:
         src: The OBJ file.
         search_paths: Folders the user allows with ``--search-path``.
+        confine: See :class:`meshtool.resolve.Resolver`.
 
     Returns:
         The resolver and zero or one ``model-root`` finding (info).
     """
     root = find_model_root(src.parent)
-    resolver = ModelRootResolver(src.parent, search_paths, root)
+    resolver = ModelRootResolver(src.parent, search_paths, root, confine=confine)
     if root is None or root.folder == resolver.asset_dir:
         return resolver, []
     rel = Path(os.path.relpath(root.folder, resolver.asset_dir)).as_posix()

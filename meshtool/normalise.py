@@ -61,6 +61,8 @@ class NormaliseOptions:
         name: Output folder and file stem; ``None`` derives it from the source file name.
         search_paths: Extra folders references may resolve into.
         strict: Fail instead of writing when there are warnings.
+        confine: Read every file the source references from beneath this folder, without following links
+            (see :class:`meshtool.resolve.Resolver`); ``None``: the asset folder and search paths are roots.
     """
 
     units: str | None = None
@@ -69,6 +71,7 @@ class NormaliseOptions:
     name: str | None = None
     search_paths: tuple[Path, ...] = ()
     strict: bool = False
+    confine: Path | None = None
 
     def __post_init__(self) -> None:
         if self.units is not None and self.units not in UNIT_FACTORS and self.units != "auto":
@@ -155,7 +158,7 @@ def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedA
     return asset
 
 
-def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAsset:
+def prepare(src: Path, options: NormaliseOptions | None = None, *, data: bytes | None = None) -> NormalisedAsset:
     """Read, repair and convert one OBJ and everything it references, in memory, without formatting it.
 
     The result holds the triangle mesh (metres, Z-up), the output materials, the PNG textures (also in
@@ -165,6 +168,8 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
         src: The OBJ file. Its folder is the asset root: references never resolve outside it except into
             ``options.search_paths``.
         options: See :class:`NormaliseOptions`.
+        data: The bytes of ``src`` when the caller has already read them race-free (the URDF importer reads
+            each mesh beneath its package with :meth:`meshtool.resolve.Resolver.read_real`); else read here.
 
     Returns:
         The output files and findings.
@@ -174,13 +179,13 @@ def prepare(src: Path, options: NormaliseOptions | None = None) -> NormalisedAss
             ``strict`` is set and there are warnings.
     """
     options = options or NormaliseOptions()
-    resolver, root_findings = model_root_resolver(src, options.search_paths)
+    resolver, root_findings = model_root_resolver(src, options.search_paths, confine=options.confine)
     source_name = printable(src.name)
-    data = resolver.read_source(src)
+    data = resolver.read_source(src) if data is None else data
     obj = read_mesh(src, data, source_name, resolver)  # OBJ, STL, PLY, glTF/GLB or COLLADA
     findings = [*obj.findings, *root_findings]
     sources: list[dict[str, str]] = source_entries(obj, source_name, _sha256(data))  # the file, glTF buffers
-    source_paths = {source_name: Path(os.path.realpath(src))}
+    source_paths = {source_name: _real(src)}
     resolutions: list[Resolution] = []
 
     normalised_before = any(_MARKER.match(c) for c in obj.header_comments[:1])
@@ -539,6 +544,14 @@ def _stats(mesh: TriMesh, materials: int, textures: int) -> dict[str, Any]:
         "degenerate_dropped": mesh.degenerate,
         "bbox": {"min": (lo + 0.0).tolist(), "max": (hi + 0.0).tolist(), "extent": (hi - lo + 0.0).tolist()},
     }
+
+
+def _real(path: Path) -> Path:
+    """``path`` with symbolic links resolved; as it is (absolute) when a link changes under the lookup."""
+    try:
+        return Path(os.path.realpath(path))
+    except (OSError, ValueError):
+        return Path(os.path.abspath(path))
 
 
 def _sha256(data: bytes) -> str:

@@ -90,10 +90,21 @@ class Resolver:
         asset_dir: The folder of the OBJ file; the first root.
         search_paths: Further folders the user allows references to resolve into.
         limits: Most bytes read per file, per kind of file.
+        confine: A folder every read must lie beneath, walked from without following links (the package of a
+            URDF mesh, whose own folder is not a trusted root: a link swapped in above it after it was found
+            must not make the folder's outside target a root).
     """
 
-    def __init__(self, asset_dir: Path, search_paths: Sequence[Path] = (), limits: ReadLimits = DEFAULT_LIMITS) -> None:
-        self.asset_dir = Path(os.path.realpath(asset_dir))
+    def __init__(
+        self,
+        asset_dir: Path,
+        search_paths: Sequence[Path] = (),
+        limits: ReadLimits = DEFAULT_LIMITS,
+        *,
+        confine: Path | None = None,
+    ) -> None:
+        self.confine = Path(os.path.realpath(confine)) if confine is not None else None
+        self.asset_dir = _realpath(asset_dir) or Path(os.path.abspath(asset_dir))
         self.search_paths = [Path(os.path.realpath(p)) for p in search_paths]
         self.roots = [self.asset_dir, *self.search_paths]
         self.limits = limits
@@ -182,6 +193,14 @@ class Resolver:
             raise
         return data
 
+    def read_real(self, found: Path, kind: str = "other") -> tuple[Path, bytes]:
+        """:meth:`read`, also returning the path actually read (inside a root, reached without links).
+
+        Raises:
+            ResolveError: As :meth:`read`.
+        """
+        return self._read_real(found, kind)
+
     def _read_real(self, found: Path, kind: str) -> tuple[Path, bytes]:
         """The path read (inside a root, without links) and the bytes of :meth:`read`."""
         embedded = self._embedded_paths.get(found)
@@ -199,6 +218,8 @@ class Resolver:
                 hint="do not modify the asset while meshtool reads it",
             )
         root = self._root_of(real)
+        if self.confine is not None and root is not None:
+            root = self.confine if real == self.confine or self.confine in real.parents else None
         if root is None:
             raise ResolveError("is outside the asset folder and search paths; not read", path=printable(found))
         rel = real.relative_to(root).parts

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import importlib
 import io
+import math
 import os
 import stat
 from dataclasses import dataclass, field
@@ -36,6 +37,7 @@ from meshtool.findings import Finding, warning
 from meshtool.hulls import HullOptions
 from meshtool.mesh import safe_identifier
 from meshtool.model import (
+    MAX_BODY_DEPTH,
     BodyDesc,
     GeomDesc,
     InertialDesc,
@@ -49,8 +51,9 @@ from meshtool.model import (
 )
 from meshtool.outdir import GENERATOR, GENERATORS, check_output, write_file
 from meshtool.packfile import parse
-from meshtool.resolve import Resolver, file_sha256, find_package_dir, is_file
-from meshtool.urdf_mesh import MESH_TYPES, LoadedMesh, UrdfError, load_mesh, mesh_prefix, parse_scale
+from meshtool.resolve import Resolver, file_sha256
+from meshtool.urdf_locate import FoundMesh, MeshLocator, UrdfError
+from meshtool.urdf_mesh import LoadedMesh, load_mesh, mesh_prefix, parse_scale
 
 WORLD = "world"
 #: Bytes of an existing ``NAME.xml`` read to find meshtool's stamp (it is the XML's first element).
@@ -68,6 +71,8 @@ class UrdfOptions:
         actuators: Add a ``motor`` per moving joint, its control range the URDF effort limit.
         free_base: Give the root link a free joint (a mobile robot); else it is fixed to the world.
         allow_outside: Let relative mesh paths leave the URDF's package folder.
+        package_search: Look for ``package://NAME`` in folders named ``NAME`` above the URDF and beside them
+            (by default only the robot's own package and ``package_dirs``; :mod:`meshtool.urdf_locate`).
     """
 
     package_dirs: tuple[tuple[str, Path], ...] = ()
@@ -75,6 +80,7 @@ class UrdfOptions:
     actuators: bool = False
     free_base: bool = False
     allow_outside: bool = False
+    package_search: bool = False
 
 
 @dataclass(slots=True)
@@ -226,8 +232,13 @@ class _Builder:
     ) -> None:
         self.path, self.text, self.options = path, text, options
         self.lines = lines or {}
-        self.urdf_dir = Path(path).resolve().parent
-        self.packages = {name: Path(folder).resolve() for name, folder in options.package_dirs}
+        self.locator = MeshLocator(
+            path,
+            dict(options.package_dirs),
+            allow_outside=options.allow_outside,
+            package_search=options.package_search,
+        )
+        self.read: dict[str, FoundMesh] = {}
         self.meshes: dict[tuple[str, tuple[float, float, float]], LoadedMesh] = {}
         self.used: dict[str, set[str]] = {}
         self.findings: list[Finding] = []
@@ -254,6 +265,15 @@ class _Builder:
                     f"joint {joint.name!r} names unknown link {missing!r}", **self._element("joint", joint.name)
                 )
             by_parent.setdefault(joint.parent, []).append(joint)
+        parent_of: dict[str, str] = {}
+        for joint in robot.joints:
+            if joint.child in parent_of:  # also every cycle: with one root, a cycle needs a link with two parents
+                raise UrdfError(
+                    f"link {joint.child!r} is the child of two joints ({parent_of[joint.child]!r} and {joint.name!r})",
+                    **self._element("joint", joint.name),
+                    hint="a URDF is a tree: give each link one parent joint",
+                )
+            parent_of[joint.child] = joint.name
         model = ModelDesc(name, inertia_from_geoms=False)
         order: list[str] = []
         moving: list[Any] = []
@@ -269,6 +289,14 @@ class _Builder:
                 model.bodies.append(self._body(links, by_parent, links[joint.child], joint, order, moving))
         else:
             model.bodies.append(self._body(links, by_parent, root, None, order, moving))
+        reached = {roots[0], *order}
+        unreached = [n for n in links if n not in reached]
+        if unreached:  # a cycle of links not reachable from the root
+            raise UrdfError(
+                f"link {unreached[0]!r} is not connected to the root link {roots[0]!r} (its joints form a cycle)",
+                **self._element("link", unreached[0]),
+                hint="a URDF is a tree: connect every link to the root through one parent joint each",
+            )
         model.excludes = self.excludes
         model.couplings = self._couplings(robot.joints, {j.name for j in moving})
         model.motors = self._motors(moving)
@@ -288,6 +316,41 @@ class _Builder:
         order: list[str],
         moving: list[Any],
     ) -> BodyDesc:
+        """The body of ``link`` and its whole subtree, depth first without recursion (chains of any length).
+
+        Bodies, moving joints and contact exclusions come out in the order of a depth-first walk: a link's
+        children in the URDF's joint order, each child's exclusion with its parent after the child's subtree.
+        """
+        top = self._one_body(link, joint, order, moving)
+        # Work items: ("visit", parent body, depth, link, joint), or ("exclude", parent body, ...) once the
+        # subtree of the parent's last child is done.
+        stack: list[tuple[str, BodyDesc, int, Any, Any]] = []
+
+        def push_children(body: BodyDesc, depth: int, name: str) -> None:
+            for child in reversed(by_parent.get(name, [])):
+                stack.append(("exclude", body, depth, None, None))
+                stack.append(("visit", body, depth + 1, links[child.child], child))
+
+        push_children(top, 1, link.name)
+        while stack:
+            action, parent, depth, child_link, child_joint = stack.pop()
+            if action == "exclude":
+                self.excludes.append((parent.name, parent.children[-1].name))
+                continue
+            if depth > MAX_BODY_DEPTH:
+                raise UrdfError(
+                    f"link {child_link.name!r} is {depth} links deep; MuJoCo's XML reader nests bodies at most "
+                    f"{MAX_BODY_DEPTH} deep",
+                    **self._element("link", child_link.name),
+                    hint="shorten the chain: merge links joined by fixed joints",
+                )
+            body = self._one_body(child_link, child_joint, order, moving)
+            parent.children.append(body)
+            push_children(body, depth, child_link.name)
+        return top
+
+    def _one_body(self, link: Any, joint: Any, order: list[str], moving: list[Any]) -> BodyDesc:
+        """One link's body (pose, joint, inertial, geoms), without its children."""
         pos, quat = _pose(joint.origin if joint is not None else None)
         body_name = link.name if link.name != WORLD else "world_link"
         body = BodyDesc(body_name, pos, quat)
@@ -307,9 +370,6 @@ class _Builder:
                 moving.append(joint)
         body.inertial = self._inertial(link)
         body.geoms = self._geoms_of(link)
-        for child in by_parent.get(link.name, []):
-            body.children.append(self._body(links, by_parent, links[child.child], child, order, moving))
-            self.excludes.append((body_name, body.children[-1].name))
         return body
 
     def _joint(self, joint: Any) -> JointDesc | None:
@@ -349,11 +409,26 @@ class _Builder:
     def _inertial(self, link: Any) -> InertialDesc | None:
         """Principal moments and axes of the link's inertial; ``None`` when massless."""
         inertial = link.inertial
-        if inertial is None or inertial.mass is None or not float(inertial.mass) > 0:
+        if inertial is None or inertial.mass is None:
+            return None
+        mass = float(inertial.mass)
+        if not math.isfinite(mass) or mass < 0:
+            raise UrdfError(
+                f"link {link.name!r} has mass {inertial.mass!r}; a mass must be a finite number >= 0 (kilograms)",
+                **self._element("link", link.name),
+                hint="fix the <mass value=...> of the link",
+            )
+        if mass == 0:
             return None
         tensor = np.asarray(inertial.inertia if inertial.inertia is not None else np.zeros((3, 3)), dtype=float)
-        tensor = (tensor + tensor.T) / 2
         origin = np.asarray(inertial.origin if inertial.origin is not None else np.eye(4), dtype=float)
+        if not (np.all(np.isfinite(tensor)) and np.all(np.isfinite(origin))):
+            raise UrdfError(
+                f"link {link.name!r} has an inertia or inertial origin that is not finite",
+                **self._element("link", link.name),
+                hint="fix the <inertia> and <origin> of the link's <inertial>",
+            )
+        tensor = (tensor + tensor.T) / 2
         moments, axes = np.linalg.eigh(tensor)
         if np.linalg.det(axes) < 0:
             axes[:, 2] *= -1
@@ -368,7 +443,7 @@ class _Builder:
                 )
             )
         rotation = origin[:3, :3] @ axes
-        return InertialDesc(float(inertial.mass), _vec3(origin[:3, 3]), _quat(rotation), _vec3(balanced))
+        return InertialDesc(mass, _vec3(origin[:3, 3]), _quat(rotation), _vec3(balanced))
 
     def _couplings(self, joints: list[Any], moving: set[str]) -> list[JointCouplingDesc]:
         couplings = []
@@ -472,57 +547,18 @@ class _Builder:
                 **self._element("mesh", ref),
                 hint="fix the scale attribute",
             )
-        found, root = self._locate(ref)
-        key = (str(found), scale)
+        found = self.read.get(ref.strip())
+        if found is None:
+            found = self.read[ref.strip()] = self.locator.read(ref, self._element("mesh", ref))
+        key = (str(found.path), scale)
         if key not in self.meshes:
-            prefix = mesh_prefix(found, self.prefixes)
-            loaded, findings = load_mesh(found, root, scale, prefix, self.options.hulls)
+            prefix = mesh_prefix(found.path, self.prefixes)
+            loaded, findings = load_mesh(found, scale, prefix, self.options.hulls)
             self.findings += findings
-            self.sources |= _mesh_sources(found, root, loaded.mbin)
+            self.sources |= _mesh_sources(found.path, found.root, loaded.mbin)
             self.meshes[key] = loaded
             self.used[prefix] = set()
         return self.meshes[key]
-
-    def _locate(self, ref: str) -> tuple[Path, Path]:
-        """The mesh file and the folder it may reference files in (its package, or the URDF's folder)."""
-        text = ref.strip()
-        if text.startswith("package://"):
-            package, _, rest = text[len("package://") :].partition("/")
-            if not package:  # package:///path: the robot's own package
-                root = self._package_root()
-            else:
-                found_root = self.packages.get(package) or find_package_dir(self.urdf_dir, package)
-                if found_root is None:
-                    raise UrdfError(
-                        f"package {package!r} of mesh {ref!r} not found",
-                        **self._element("mesh", ref),
-                        hint=f"pass --package-dir {package}=FOLDER",
-                    )
-                root = found_root
-            candidate = root / rest.lstrip("/")
-        else:
-            if text.startswith("file://"):
-                text = text[len("file://") :]
-            root = self._package_root()
-            candidate = Path(text) if Path(text).is_absolute() else self.urdf_dir / text
-        resolved = candidate.resolve()
-        if not self.options.allow_outside and not Resolver(root).inside(resolved):
-            raise UrdfError(
-                f"mesh {ref!r} is outside the robot's folder {root}",
-                **self._element("mesh", ref),
-                hint="move it into the package, or pass --allow-outside",
-            )
-        if not is_file(resolved):
-            raise UrdfError(f"mesh {ref!r} not found (looked for {resolved})", **self._element("mesh", ref))
-        if resolved.suffix.lower() not in MESH_TYPES:
-            raise UrdfError(f"mesh {ref!r}: unsupported type {resolved.suffix!r}", **self._element("mesh", ref))
-        return resolved, (root if not self.options.allow_outside else resolved.parent)
-
-    def _package_root(self) -> Path:
-        """The package a URDF lives in (``pkg/urdf/x.urdf`` gives ``pkg``), else the URDF's folder."""
-        if self.urdf_dir.name in ("urdf", "robots", "xacro") and self.urdf_dir.parent != self.urdf_dir:
-            return self.urdf_dir.parent
-        return self.urdf_dir
 
     def _where(self, needle: str) -> dict[str, Any]:
         """``path`` and the 1-based line where ``needle`` first appears in the URDF text."""
@@ -577,4 +613,4 @@ def _fmt(values: Any) -> str:
     return "(" + ", ".join(f"{float(v):.6g}" for v in np.atleast_1d(np.asarray(values, dtype=float))) + ")"
 
 
-__all__ = ["MESH_TYPES", "UrdfError", "UrdfImport", "UrdfOptions", "import_urdf", "write_import"]
+__all__ = ["UrdfError", "UrdfImport", "UrdfOptions", "import_urdf", "write_import"]

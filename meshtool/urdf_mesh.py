@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding
 from meshtool.hulls import Hull, HullOptions, compute_hulls, quality
 from meshtool.mesh import safe_identifier
@@ -26,13 +25,11 @@ from meshtool.normalmaps import mujoco_findings
 from meshtool.packfile import pack
 from meshtool.packfile.read import parse
 from meshtool.readers import MESH_SUFFIXES
+from meshtool.safeopen import printable
+from meshtool.urdf_locate import FoundMesh, UrdfError
 
 MESH_TYPES = MESH_SUFFIXES
 Scale = tuple[float, float, float]
-
-
-class UrdfError(MeshtoolError, ValueError):
-    """The URDF cannot be imported (bad XML, a missing or escaping mesh, an unsupported construct)."""
 
 
 @dataclass(slots=True)
@@ -64,10 +61,8 @@ def parse_scale(scale: Any) -> Scale | None:
     return (float(values[0]), float(values[1]), float(values[2]))
 
 
-def load_mesh(
-    found: Path, root: Path, scale: Scale, prefix: str, hulls: HullOptions
-) -> tuple[LoadedMesh, list[Finding]]:
-    """Read, scale, hull and pack ``found`` (a file inside ``root``).
+def load_mesh(mesh: FoundMesh, scale: Scale, prefix: str, hulls: HullOptions) -> tuple[LoadedMesh, list[Finding]]:
+    """Scale, hull and pack ``mesh`` (read by :class:`meshtool.urdf_locate.MeshLocator`, inside its root).
 
     A uniform positive scale goes through the normaliser; any other (mirroring or non-uniform) is applied
     to the normalised mesh: positions scaled, normals by the inverse transpose, and the triangle winding
@@ -77,12 +72,21 @@ def load_mesh(
         UrdfError: The file cannot be read or has no triangles.
         MeshtoolError: The normaliser's own error.
     """
+    found = mesh.path
     s = np.asarray(scale, dtype=float)
     uniform = bool(np.all(s > 0) and np.ptp(s) <= 1e-12 * float(s.max()))
     stem = safe_file_stem(found.stem) or "mesh"
-    options = NormaliseOptions(up="z", scale=float(s[0]) if uniform else 1.0, name=stem, search_paths=(root,))
+    scale_now = float(s[0]) if uniform else 1.0
+    options = NormaliseOptions(up="z", scale=scale_now, name=stem, search_paths=(mesh.root,), confine=mesh.root)
     findings: list[Finding] = []
-    asset = prepare(found, options)
+    try:
+        asset = prepare(found, options, data=mesh.data)
+    except OSError as exc:  # a folder above the mesh changed while its companions were looked up
+        raise UrdfError(
+            f"mesh {found.name!r} changed while it was being read ({exc.strerror or type(exc).__name__}); not read",
+            path=printable(found),
+            hint="do not modify the robot's files while meshtool reads them",
+        ) from None
     own = any(m.name != "default" for m in asset.materials)
     if not uniform:
         asset = _scaled(asset, s)

@@ -31,7 +31,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from meshtool.model import GeomDesc, ModelDesc, ModelError, stamp_text
+from meshtool.model import MAX_BODY_DEPTH, GeomDesc, ModelDesc, ModelError, stamp_text
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes
 
@@ -171,6 +171,8 @@ def compile_spec(spec: mujoco.MjSpec, model: ModelDesc | None = None) -> mujoco.
 def _refusal(text: str, model: ModelDesc | None) -> ModelError:
     lines = [line.strip() for line in text.replace("Error:", "").splitlines() if line.strip()]
     message = lines[0] if lines else "unknown error"
+    if message.startswith("XML parse error 18"):  # tinyxml2's XML_ELEMENT_DEPTH_EXCEEDED
+        message = f"the MJCF nests more than 500 elements (bodies at most {MAX_BODY_DEPTH} deep)"
     found = _ELEMENT.search(text)
     element = found.group(1) if found else ""
     where = model.where.get(element) if model is not None and element else None

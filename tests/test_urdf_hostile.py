@@ -1,0 +1,318 @@
+"""Hostile URDFs (issue 27): no read outside the robot, ``package://`` contained, bounded trees, checked masses.
+
+Every input is generated here. CLI runs go through a child process with a memory and time bound
+(:mod:`bounded`); the symlink race runs in-process against a thread that swaps a folder for a link.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from bounded import run_bounded
+
+from meshtool.errors import MeshtoolError
+from meshtool.packfile.read import parse
+from meshtool.urdf import UrdfOptions, import_urdf
+from meshtool.urdf_locate import MeshLocator, UrdfError
+
+INSIDE_SIZE, OUTSIDE_SIZE = 0.1, 7.0
+
+
+def _stl(path: Path, size: float) -> bytes:
+    """A cube of edge ``size`` metres as binary STL, written to ``path``; its bytes."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data: bytes = trimesh.creation.box(extents=(size, size, size)).export(file_type="stl")
+    path.write_bytes(data)
+    return data
+
+
+def _robot(folder: Path, ref: str, name: str = "r") -> Path:
+    """``folder/urdf/NAME.urdf``: one link whose visual is the mesh ``ref``."""
+    urdf = folder / "urdf" / f"{name}.urdf"
+    urdf.parent.mkdir(parents=True, exist_ok=True)
+    urdf.write_text(
+        f'<robot name="{name}">\n<link name="base">\n'
+        f'  <visual><geometry><mesh filename="{ref}"/></geometry></visual>\n'
+        "</link>\n</robot>\n"
+    )
+    return urdf
+
+
+def _extent(result: object, key: str) -> float:
+    packed = parse(result.mbins[key], key)  # type: ignore[attr-defined]
+    positions = np.asarray(packed.positions, dtype=float)
+    return float((positions.max(axis=0) - positions.min(axis=0)).max())
+
+
+# -- the symlink race -------------------------------------------------------------------------------------
+
+
+_FLIP = """
+import os, sys
+meshes, real, link = sys.argv[1:4]
+while True:
+    os.rename(meshes, real)  # the real folder steps aside...
+    os.rename(link, meshes)  # ...the link takes its name
+    os.rename(meshes, link)
+    os.rename(real, meshes)
+"""
+
+
+class _Flipper:
+    """Swaps ``pkg/meshes`` between a real folder (inside) and a symbolic link to an outside folder.
+
+    The swapping runs in a child process (not a thread: the GIL would let it run only between the reader's
+    steps); leaving the context stops it and puts the real folder back.
+    """
+
+    def __init__(self, pkg: Path, outside: Path) -> None:
+        self.meshes = pkg / "meshes"
+        self.real, self.link = pkg / ".meshes_real", pkg / ".meshes_link"
+        self.real.mkdir()
+        self.link.symlink_to(outside, target_is_directory=True)
+        os.rename(self.real, self.meshes)
+        self.child: subprocess.Popen[bytes] | None = None
+
+    def __enter__(self) -> _Flipper:
+        names = [str(self.meshes), str(self.real), str(self.link)]
+        self.child = subprocess.Popen([sys.executable, "-c", _FLIP, *names])
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        assert self.child is not None
+        self.child.kill()
+        self.child.wait()
+        if not self.meshes.is_dir() or self.meshes.is_symlink():  # stopped mid-swap: the real folder back
+            if self.meshes.is_symlink():
+                os.rename(self.meshes, self.link)
+            os.rename(self.real, self.meshes)
+
+
+@dataclass
+class Race:
+    """A robot whose ``meshes/`` folder flips (once entered) to a link to an outside folder holding a 7 m cube."""
+
+    urdf: Path
+    flipper: _Flipper
+    inside: bytes
+    outside: bytes
+
+
+@pytest.fixture
+def race(tmp_path: Path) -> Race:
+    pkg = tmp_path / "pkg"
+    outside = _stl(tmp_path / "outside" / "part.stl", OUTSIDE_SIZE)
+    pkg.mkdir()
+    urdf = _robot(pkg, "package://pkg/meshes/part.stl")
+    flipper = _Flipper(pkg, tmp_path / "outside")
+    return Race(urdf, flipper, _stl(pkg / "meshes" / "part.stl", INSIDE_SIZE), outside)
+
+
+def test_mesh_reads_against_a_flipping_symlink_never_leave_the_robot(race: Race) -> None:
+    """10,000 reads of the mesh while ``meshes/`` flips to a link out of the robot: 0 outside bytes."""
+    locator = MeshLocator(race.urdf, {})
+    where = {"path": str(race.urdf), "line": 3}
+    pkg = race.urdf.parent.parent
+    inside = outside = refused = 0
+    with race.flipper:
+        for _ in range(10_000):
+            try:
+                found = locator.read("package://pkg/meshes/part.stl", where)
+            except UrdfError:
+                refused += 1
+                continue
+            assert pkg in found.path.parents
+            if found.data == race.outside:
+                outside += 1
+            else:
+                assert found.data == race.inside
+                inside += 1
+    assert outside == 0
+    assert inside > 0 and refused > 0, (inside, refused)  # the race really ran both ways
+
+
+def test_whole_imports_against_a_flipping_symlink_never_import_the_outside_mesh(race: Race) -> None:
+    """The whole import (read, normalise, hull, pack) 150 times during the flips: never the 7 m cube."""
+    imported = 0
+    with race.flipper:
+        for _ in range(150):
+            try:
+                result = import_urdf(race.urdf)
+            except MeshtoolError:
+                continue  # a clean refusal: the mesh changed while it was read, or was not there
+            imported += 1
+            assert _extent(result, "meshes/part.mbin") == pytest.approx(INSIDE_SIZE, rel=1e-6)
+    assert imported > 0
+
+
+# -- package:// stays inside the robot ---------------------------------------------------------------------
+
+
+def test_package_named_dotdot_is_refused(tmp_path: Path) -> None:
+    """``package://../x.stl`` used to make the URDF's parent folder the package (issue 27)."""
+    _stl(tmp_path / "secret.stl", OUTSIDE_SIZE)
+    urdf = _robot(tmp_path / "robot", "package://../secret.stl")
+    with pytest.raises(UrdfError, match=r"'\.\.' is not a package name") as info:
+        import_urdf(urdf)
+    assert info.value.line == 3
+
+
+def test_dotdot_inside_a_package_path_is_refused(tmp_path: Path) -> None:
+    _stl(tmp_path / "secret.stl", OUTSIDE_SIZE)
+    _stl(tmp_path / "robot" / "meshes" / "part.stl", INSIDE_SIZE)
+    urdf = _robot(tmp_path / "robot", "package://robot/meshes/../../secret.stl")
+    with pytest.raises(UrdfError, match=r"climbs out of its package with '\.\.'") as info:
+        import_urdf(urdf)
+    assert info.value.line == 3
+
+
+def test_a_package_beside_an_ancestor_needs_an_explicit_option(tmp_path: Path) -> None:
+    """``package://NAME`` is no longer looked for beside every folder above the robot (issue 27)."""
+    _stl(tmp_path / "elsewhere" / "meshes" / "part.stl", OUTSIDE_SIZE)
+    urdf = _robot(tmp_path / "deep" / "tree" / "robot", "package://elsewhere/meshes/part.stl")
+    with pytest.raises(UrdfError, match="not the robot's own package") as info:
+        import_urdf(urdf)
+    assert info.value.hint is not None and "--package-dir elsewhere=FOLDER" in info.value.hint
+    assert "--package-search" in info.value.hint
+    searched = import_urdf(urdf, UrdfOptions(package_search=True))
+    assert _extent(searched, "meshes/part.mbin") == pytest.approx(OUTSIDE_SIZE)
+    mapped = import_urdf(urdf, UrdfOptions(package_dirs=(("elsewhere", tmp_path / "elsewhere"),)))
+    assert _extent(mapped, "meshes/part.mbin") == pytest.approx(OUTSIDE_SIZE)
+
+
+def test_an_ancestor_of_that_name_above_the_package_is_not_the_robot(tmp_path: Path) -> None:
+    """A URDF under ``/.../home/...`` cannot read ``package://home/...``: only its own package answers."""
+    _stl(tmp_path / "home" / "victim" / "part.stl", OUTSIDE_SIZE)
+    urdf = _robot(tmp_path / "home" / "attacker" / "robot", "package://home/victim/part.stl")
+    with pytest.raises(UrdfError, match="not the robot's own package"):
+        import_urdf(urdf)
+
+
+def test_the_package_xml_name_and_the_folder_name_both_answer(tmp_path: Path) -> None:
+    pkg = tmp_path / "robot_description-main"
+    _stl(pkg / "meshes" / "part.stl", INSIDE_SIZE)
+    (pkg / "package.xml").write_text("<package>\n  <name> robot_description </name>\n</package>\n")
+    for name in ("robot_description", "robot_description-main"):
+        result = import_urdf(_robot(pkg, f"package://{name}/meshes/part.stl"))
+        assert _extent(result, "meshes/part.mbin") == pytest.approx(INSIDE_SIZE)
+
+
+def test_empty_package_name_maps_with_package_dir(tmp_path: Path) -> None:
+    """``package:///...`` is the robot's own package, or the folder ``--package-dir =DIR`` names (issue 29)."""
+    _stl(tmp_path / "robot" / "meshes" / "part.stl", INSIDE_SIZE)
+    _stl(tmp_path / "assets" / "meshes" / "part.stl", OUTSIDE_SIZE)
+    urdf = _robot(tmp_path / "robot", "package:///meshes/part.stl")
+    assert _extent(import_urdf(urdf), "meshes/part.mbin") == pytest.approx(INSIDE_SIZE)
+    mapped = import_urdf(urdf, UrdfOptions(package_dirs=(("", tmp_path / "assets"),)))
+    assert _extent(mapped, "meshes/part.mbin") == pytest.approx(OUTSIDE_SIZE)
+    out = run_bounded(
+        ["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out"), "--package-dir", f"={tmp_path / 'assets'}"]
+    )
+    assert out.code == 0, out.err
+
+
+def test_a_symlinked_mesh_leading_out_is_refused_by_the_cli(tmp_path: Path) -> None:
+    _stl(tmp_path / "secret" / "part.stl", OUTSIDE_SIZE)
+    (tmp_path / "robot" / "meshes").mkdir(parents=True)
+    (tmp_path / "robot" / "meshes" / "part.stl").symlink_to(tmp_path / "secret" / "part.stl")
+    urdf = _robot(tmp_path / "robot", "package://robot/meshes/part.stl")
+    out = run_bounded(["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out")])
+    assert out.code == 1 and "Traceback" not in out.err
+    assert out.err.startswith(f"error: {urdf}:3: mesh 'package://robot/meshes/part.stl' is outside the robot's folder")
+    assert not (tmp_path / "out").exists()
+
+
+# -- trees, masses ----------------------------------------------------------------------------------------
+
+
+def _chain(path: Path, n: int, mass: str = "1") -> Path:
+    inertia = '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/>'
+    lines = ['<robot name="chain">']
+    lines += [f'<link name="l{i}"><inertial><mass value="{mass}"/>{inertia}</inertial></link>' for i in range(n)]
+    lines += [
+        f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child link="l{i + 1}"/>'
+        '<origin xyz="0 0 0.01"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        for i in range(n - 1)
+    ]
+    path.write_text("\n".join([*lines, "</robot>", ""]))
+    return path
+
+
+def test_a_1000_link_chain_is_refused_without_recursion(tmp_path: Path) -> None:
+    """A 1,000-link chain raised RecursionError (exit 3); MuJoCo's XML reader cannot nest it anyway."""
+    urdf = _chain(tmp_path / "chain.urdf", 1000)
+    out = run_bounded(["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out")], seconds=120, memory_mb=2000)
+    assert out.code == 1, out.err
+    assert out.err == (
+        f"error: {urdf}:482: link 'l480' is 481 links deep; MuJoCo's XML reader nests bodies at most 480 deep "
+        "(shorten the chain: merge links joined by fixed joints)\n"
+    )
+
+
+def test_a_chain_at_the_depth_limit_loads_in_mujoco(tmp_path: Path) -> None:
+    """480 nested bodies: written, and MuJoCo loads the folder with every body (its own count, not ours)."""
+    import mujoco
+
+    urdf = _chain(tmp_path / "chain.urdf", 480)
+    out = run_bounded(["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out")], seconds=300, memory_mb=3000)
+    assert out.code == 0, out.err
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "chain.xml"))
+    assert (model.nbody, model.njnt) == (481, 479)
+    assert model.body_parentid[480] == 479
+
+
+@pytest.mark.parametrize(
+    ("mass", "shown"), [("nan", "nan"), ("-5", "-5.0"), ("inf", "inf")], ids=["nan", "negative", "infinite"]
+)
+def test_a_mass_that_is_not_physical_is_an_error_at_its_link(tmp_path: Path, mass: str, shown: str) -> None:
+    urdf = _chain(tmp_path / "m.urdf", 3)
+    text = urdf.read_text().replace(
+        '<link name="l1"><inertial><mass value="1"/>', f'<link name="l1"><inertial><mass value="{mass}"/>'
+    )
+    urdf.write_text(text)
+    out = run_bounded(["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out")])
+    assert out.code == 1
+    assert out.err == (
+        f"error: {urdf}:3: link 'l1' has mass {shown}; a mass must be a finite number >= 0 (kilograms) "
+        "(fix the <mass value=...> of the link)\n"
+    )
+
+
+def test_a_non_finite_inertia_is_an_error_at_its_link(tmp_path: Path) -> None:
+    urdf = _chain(tmp_path / "m.urdf", 3)
+    urdf.write_text(urdf.read_text().replace('ixx="0.01"', 'ixx="nan"', 2))
+    with pytest.raises(UrdfError, match="link 'l0' has an inertia or inertial origin that is not finite") as info:
+        import_urdf(urdf)
+    assert info.value.line == 2
+
+
+def test_a_link_with_two_parents_is_an_error(tmp_path: Path) -> None:
+    urdf = _chain(tmp_path / "c.urdf", 4)
+    text = urdf.read_text().replace(
+        "</robot>",
+        '<joint name="again" type="fixed"><parent link="l0"/><child link="l2"/></joint>\n</robot>',
+    )
+    urdf.write_text(text)
+    with pytest.raises(UrdfError, match=r"link 'l2' is the child of two joints \('j1' and 'again'\)") as info:
+        import_urdf(urdf)
+    assert info.value.line == 9
+
+
+def test_a_cycle_cut_off_from_the_root_is_an_error(tmp_path: Path) -> None:
+    """Two links that are each other's parent: both are children, so the root alone is not enough to see it."""
+    urdf = tmp_path / "cycle.urdf"
+    urdf.write_text(
+        '<robot name="c">\n<link name="root"/>\n<link name="a"/>\n<link name="b"/>\n'
+        '<joint name="ab" type="fixed"><parent link="a"/><child link="b"/></joint>\n'
+        '<joint name="ba" type="fixed"><parent link="b"/><child link="a"/></joint>\n</robot>\n'
+    )
+    with pytest.raises(UrdfError, match="is not connected to the root link 'root'") as info:
+        import_urdf(urdf)
+    assert info.value.line == 3
