@@ -4,7 +4,8 @@ The URDF is parsed with yourdfpy from its bytes (so XML and encoding declaration
 ``<robot>`` are fine); every mesh it names (``package://NAME/...``, ``package:///...`` for the robot's
 own package, relative or ``file://``; OBJ with its MTL and textures, STL/PLY/OFF/GLB/COLLADA through
 trimesh with their colours and textures) is found inside the allowed folders, normalised with the link
-frame kept (URDF meshes are already Z-up), scaled (a negative scale mirrors), given collision hulls and
+frame kept (URDF meshes are Z-up; glTF is Y-up by its spec and turned, see
+:func:`meshtool.readers.placed_up`), scaled (a negative scale mirrors), given collision hulls and
 packed as ``.mbin`` once per file and scale, however many links use it.
 
 The model (:class:`meshtool.model.ModelDesc`) follows MuJoCo Menagerie: a ``visual`` class (group 2,

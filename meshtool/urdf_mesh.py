@@ -4,7 +4,9 @@ Every mesh goes through the normaliser's readers (:mod:`meshtool.readers`): OBJ 
 glTF/GLB and COLLADA, in memory (no intermediate files). COLLADA and glTF keep their colours and textures
 (their images are read through the resolver, inside the package); a broken image reference keeps the
 geometry and drops the texture with a finding. The mesh's own frame: the URDF places meshes as they are
-(Z-up, no rotation), and a COLLADA ``<unit>`` is applied before the URDF ``scale``, as ROS tools do.
+(Z-up, no rotation) except glTF, which is Y-up by its specification and turned to Z-up as ``obj2bin`` turns
+it (:func:`meshtool.readers.placed_up`); a COLLADA ``<unit>`` is applied before the URDF ``scale``, as ROS
+tools do.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare, safe_
 from meshtool.normalmaps import mujoco_findings
 from meshtool.packfile import pack
 from meshtool.packfile.read import parse
-from meshtool.readers import MESH_SUFFIXES
+from meshtool.readers import MESH_SUFFIXES, placed_up
 from meshtool.safeopen import printable
 from meshtool.urdf_locate import FoundMesh, UrdfError
 
@@ -77,7 +79,9 @@ def load_mesh(mesh: FoundMesh, scale: Scale, prefix: str, hulls: HullOptions) ->
     uniform = bool(np.all(s > 0) and np.ptp(s) <= 1e-12 * float(s.max()))
     stem = safe_file_stem(found.stem) or "mesh"
     scale_now = float(s[0]) if uniform else 1.0
-    options = NormaliseOptions(up="z", scale=scale_now, name=stem, search_paths=(mesh.root,), confine=mesh.root)
+    options = NormaliseOptions(
+        up=placed_up(found), scale=scale_now, name=stem, search_paths=(mesh.root,), confine=mesh.root
+    )
     findings: list[Finding] = []
     try:
         asset = prepare(found, options, data=mesh.data)

@@ -316,3 +316,56 @@ def test_a_cycle_cut_off_from_the_root_is_an_error(tmp_path: Path) -> None:
     with pytest.raises(UrdfError, match="is not connected to the root link 'root'") as info:
         import_urdf(urdf)
     assert info.value.line == 3
+
+
+# -- one frame for glTF, whatever the path (issue 26) -----------------------------------------------------
+
+
+def test_gltf_visuals_land_on_their_collision_shapes(tmp_path: Path) -> None:
+    """A glTF visual modelled Y-up (glTF 2.0, section 3.4) sits on the URDF's Z-up collision box.
+
+    Ground truth: MuJoCo's own compiled geoms (world-space boxes after ``mj_forward``), and ``obj2bin`` on the
+    same file giving the same vertices as the URDF's pack.
+    """
+    import mujoco
+
+    pkg = tmp_path / "gltf_robot"
+    box = trimesh.creation.box(extents=(0.1, 0.4, 0.06))  # tall along +Y: Y-up, standing on the ground
+    box.apply_translation((0.05, 0.2, 0.0))
+    (pkg / "meshes").mkdir(parents=True)
+    (pkg / "meshes" / "post.glb").write_bytes(box.export(file_type="glb"))
+    urdf = pkg / "urdf" / "r.urdf"
+    urdf.parent.mkdir()
+    urdf.write_text(
+        '<robot name="r"><link name="base">\n'
+        '<visual><geometry><mesh filename="package://gltf_robot/meshes/post.glb"/></geometry></visual>\n'
+        '<collision><origin xyz="0.05 0 0.2"/><geometry><box size="0.1 0.06 0.4"/></geometry></collision>\n'
+        '<inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>\n'
+        "</link></robot>\n"
+    )
+    out = run_bounded(["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out")])
+    assert out.code == 0, out.err
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "r.xml"))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+
+    def world_box(g: int) -> tuple[np.ndarray, np.ndarray]:
+        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        rot = data.geom_xmat[g].reshape(3, 3)
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half + centre
+        world = corners @ rot.T + data.geom_xpos[g]
+        return world.min(axis=0), world.max(axis=0)
+
+    boxes = {int(model.geom_type[g]): world_box(g) for g in range(model.ngeom) if model.geom_group[g] in (2, 3)}
+    visual = boxes[int(mujoco.mjtGeom.mjGEOM_MESH)]
+    collision = boxes[int(mujoco.mjtGeom.mjGEOM_BOX)]
+    np.testing.assert_allclose(visual[0], collision[0], atol=1e-6)
+    np.testing.assert_allclose(visual[1], collision[1], atol=1e-6)
+
+    single = run_bounded(["obj2bin", str(pkg / "meshes" / "post.glb"), "-o", str(tmp_path / "post.mbin")])
+    assert single.code == 0, single.err
+    from_urdf = parse((tmp_path / "out" / "meshes" / "post.mbin").read_bytes(), "post.mbin")
+    alone = parse((tmp_path / "post.mbin").read_bytes(), "post.mbin")
+    np.testing.assert_array_equal(
+        np.unique(np.asarray(from_urdf.positions), axis=0), np.unique(np.asarray(alone.positions), axis=0)
+    )

@@ -46,6 +46,7 @@ __all__ = [
     "SourceMesh",
     "format_of",
     "material_library",
+    "placed_up",
     "read_mesh",
     "source_frame",
     "source_entries",
@@ -56,6 +57,17 @@ __all__ = [
 def format_of(path: Path) -> str:
     """The format name of ``path`` by its suffix (``obj`` for unknown suffixes: the OBJ reader says so)."""
     return FORMATS.get(path.suffix.lower(), "obj")
+
+
+def placed_up(src: Path) -> str:
+    """The up axis a robot description (URDF) places a mesh file of ``src``'s format with: ``y`` or ``z``.
+
+    A URDF places its meshes as they are, in the link's Z-up frame, whatever a COLLADA file declares (Assimp
+    and MeshLab write ``Y_UP`` whatever they hold). glTF is the exception: Y-up is part of its specification
+    (glTF 2.0, section 3.4 "Coordinate System and Units"), so a glTF mesh is turned Y-up to Z-up exactly as
+    ``obj2bin`` turns the same file, and lands on the collision shapes its robot was modelled with.
+    """
+    return "y" if format_of(src) in ("gltf", "glb") else "z"
 
 
 def read_mesh(src: Path, data: bytes, path: str, resolver: Resolver) -> ObjData:
