@@ -97,8 +97,7 @@ def _binary(data: bytes, count: int, path: str) -> SourceMesh:
 
 
 def _ascii(data: bytes, path: str) -> SourceMesh:
-    text = data.decode("latin-1")
-    lines = text.splitlines()
+    lines = [line.decode("latin-1") for line in data.splitlines()]  # \r, \n, \r\n only: the editor's line numbers
     solids: list[tuple[str, FloatArray, IntArray, FloatArray, IntArray]] = []
     name: str | None = None
     values: list[str] = []
@@ -174,15 +173,25 @@ def _solid(
 
 
 def _floats(values: list[str], lines: list[int], width: int, path: str) -> FloatArray:
-    try:
-        return np.array(values, dtype=np.float64)
-    except ValueError:
-        for k, value in enumerate(values):
-            try:
-                float(value)
-            except ValueError:
-                raise _bad(path, lines[k // width], f"{value[:20]!r} is not a number") from None
-        raise
+    """``values`` as float64; a value that is not a number is an error naming its line.
+
+    numpy and Python's ``float`` also read ``1_0`` (as 10) and non-ASCII digits: refused, as in OBJ.
+    """
+    joined = "".join(values)
+    strict = "_" not in joined and joined.isascii()
+    if strict:
+        try:
+            return np.array(values, dtype=np.float64)
+        except ValueError:
+            pass
+    for k, value in enumerate(values):
+        try:
+            if "_" in value or not value.isascii():
+                raise ValueError(value)
+            float(value)
+        except ValueError:
+            raise _bad(path, lines[k // width], f"{value[:20]!r} is not a number") from None
+    return np.array(values, dtype=np.float64)  # not reached: some value above was refused
 
 
 def _bad(path: str, line: int, what: str) -> FormatError:
