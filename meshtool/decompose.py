@@ -7,7 +7,8 @@ and has a parent-death signal); the job's temporary folder ``meshtool-coacd-*`` 
 path: here on success, failure, timeout and exceptions (Ctrl-C), by the child when this process is killed.
 The caller shares one time budget across parts (:class:`Budget`). Results are cached under a key made
 of the mesh arrays, the options and the versions of meshtool and CoACD, so a second run over unchanged
-assets reads the cache.
+assets reads the cache. Each entry is a :mod:`meshtool.cachefile` envelope naming its key and the digest
+of its content: a damaged entry, or one copied from another key, is a miss and is computed again.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import zipfile
 from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -31,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from meshtool import __version__
+from meshtool import __version__, cachefile
 from meshtool.outdir import write_file
 from meshtool.resolve import read_cache
 
@@ -105,7 +107,11 @@ class Budget:
 
 
 def decompose(
-    points: FloatArray, faces: IntArray, options: HullOptions, timeout_s: float | None = None
+    points: FloatArray,
+    faces: IntArray,
+    options: HullOptions,
+    timeout_s: float | None = None,
+    problems: list[str] | None = None,
 ) -> tuple[list[FloatArray], bool, str | None]:
     """Decompose one part into convex pieces.
 
@@ -115,6 +121,8 @@ def decompose(
         options: Budgets, threshold, seed, timeout and cache folder.
         timeout_s: Seconds this run may take (default ``options.timeout_s``); the caller passes what is
             left of the asset's time budget when that is less.
+        problems: When given, a cache entry that exists but was not used (damaged, or answering another
+            key) is described here, one line each (:func:`meshtool.cachefile.describe`).
 
     Returns:
         The pieces' points, whether they came from the cache, and a problem description (then no pieces).
@@ -123,7 +131,7 @@ def decompose(
     if not np.isfinite(points).all() or points.shape[0] < 4 or faces.shape[0] < 4:
         return [], False, "mesh is empty, too small or not finite"
     key = cache_key(points, faces, options)
-    cached = _read(options.cache_dir, key)
+    cached = _read(options.cache_dir, key, problems)
     if cached is not None:
         return cached, True, None
     points, faces, manifold = repair(points, faces)
@@ -195,11 +203,51 @@ def _load(data: bytes | None) -> list[FloatArray]:
         return [np.asarray(archive[f"hull_{k}"], dtype=np.float64) for k in range(len(archive.files))]
 
 
-def _read(cache_dir: Path | None, key: str) -> list[FloatArray] | None:
+#: Entry kinds (:mod:`meshtool.cachefile`): CoACD's pieces and the finished hulls of one key never stand in
+#: for each other.
+PIECES_KIND, HULLS_KIND = "meshtool-decompose-pieces", "meshtool-decompose-hulls"
+#: What a cache payload that passed its digests can still raise when it does not hold what it should.
+_PAYLOAD_ERRORS = (
+    OSError,
+    ValueError,
+    KeyError,
+    TypeError,
+    IndexError,
+    AttributeError,
+    EOFError,
+    RecursionError,
+    MemoryError,
+    zipfile.BadZipFile,
+)
+
+
+def _entry(cache_dir: Path, key: str, suffix: str) -> Path:
+    return cache_dir / key[:2] / f"{key}{suffix}"
+
+
+def _lookup(cache_dir: Path, key: str, suffix: str, kind: str, problems: list[str] | None) -> bytes | None:
+    path = _entry(cache_dir, key, suffix)
+    found = cachefile.read_entry(path, kind, key)
+    if found.problem is not None and problems is not None:
+        problems.append(cachefile.describe(path, found.problem))
+    return found.payload
+
+
+def _read(cache_dir: Path | None, key: str, problems: list[str] | None = None) -> list[FloatArray] | None:
     if cache_dir is None:
         return None
-    data = read_cache(cache_dir / key[:2] / f"{key}.npz")
-    return _load(data) if data is not None else None
+    data = _lookup(cache_dir, key, ".npz", PIECES_KIND, problems)
+    if data is None:
+        return None
+    try:
+        pieces = _load(data)
+    except _PAYLOAD_ERRORS:
+        pieces = []
+    if not pieces or any(p.ndim != 2 or p.shape[1] != 3 or not np.isfinite(p).all() for p in pieces):
+        if problems is not None:
+            problems.append(cachefile.describe(_entry(cache_dir, key, ".npz"), "payload is not a decomposition"))
+        return None
+    return pieces
 
 
 def _write(cache_dir: Path | None, key: str, pieces: list[FloatArray]) -> None:
@@ -207,18 +255,21 @@ def _write(cache_dir: Path | None, key: str, pieces: list[FloatArray]) -> None:
         return
     buffer = io.BytesIO()
     np.savez(buffer, **{f"hull_{k}": p for k, p in enumerate(pieces)})  # type: ignore[arg-type]
-    write_file(cache_dir / key[:2] / f"{key}.npz", buffer.getvalue())
+    write_file(_entry(cache_dir, key, ".npz"), cachefile.seal(PIECES_KIND, key, buffer.getvalue()))
 
 
-def read_hulls(cache_dir: Path | None, key: str) -> list[tuple[FloatArray, IntArray, list[str]]] | None:
+def read_hulls(
+    cache_dir: Path | None, key: str, problems: list[str] | None = None
+) -> list[tuple[FloatArray, IntArray, list[str]]] | None:
     """The finished hulls (vertices, faces, notes) of a part decomposed before with the same key, if cached.
 
-    Stored beside the decomposition (``KEY.hulls.npz``) so that a cached conversion needs neither CoACD nor
-    qhull; a damaged entry is a miss.
+    Stored beside the decomposition (``KEY.hulls.npz``, a :mod:`meshtool.cachefile` envelope holding an
+    ``.npz``) so that a cached conversion needs neither CoACD nor qhull. A damaged entry, or one that
+    answers another key, is a miss; its one-line description is appended to ``problems`` when given.
     """
     if cache_dir is None:
         return None
-    data = read_cache(cache_dir / key[:2] / f"{key}.hulls.npz")
+    data = _lookup(cache_dir, key, ".hulls.npz", HULLS_KIND, problems)
     if data is None:
         return None
     try:
@@ -228,21 +279,35 @@ def read_hulls(cache_dir: Path | None, key: str) -> list[tuple[FloatArray, IntAr
                 (
                     np.asarray(archive[f"v_{k}"], dtype=np.float64),
                     np.asarray(archive[f"f_{k}"], dtype=np.int64),
-                    [str(n) for n in notes[k]],
+                    [str(n) for n in notes[k]] if isinstance(notes[k], list) else ["?"],
                 )
                 for k in range(len(notes))
             ]
-    except (OSError, ValueError, KeyError, TypeError, IndexError):
-        return None
-    if not hulls or any(v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 for v, f, _ in hulls):
-        return None
-    if any(f.size and (f.min() < 0 or f.max() >= len(v)) for v, f, _ in hulls):
+    except _PAYLOAD_ERRORS:
+        hulls = []
+    if not _sound(hulls):
+        if problems is not None:
+            problems.append(cachefile.describe(_entry(cache_dir, key, ".hulls.npz"), "payload is not a hull set"))
         return None
     return hulls
 
 
+#: The notes a finished hull may carry (``meshtool.hulls._NOTE``); a cached entry with another one is refused.
+_HULL_NOTES = frozenset({"thickened", "reduced", "boxed"})
+
+
+def _sound(hulls: list[tuple[FloatArray, IntArray, list[str]]]) -> bool:
+    if any(n not in _HULL_NOTES for _, _, notes in hulls for n in notes):
+        return False
+    if not hulls or any(v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 for v, f, _ in hulls):
+        return False
+    if any(not np.isfinite(v).all() for v, _, _ in hulls):
+        return False
+    return not any(f.size and (f.min() < 0 or f.max() >= len(v)) for v, f, _ in hulls)
+
+
 def write_hulls(cache_dir: Path | None, key: str, hulls: list[tuple[FloatArray, IntArray, list[str]]]) -> None:
-    """Cache the finished hulls of a decomposed part (see :func:`read_hulls`)."""
+    """Cache the finished hulls of a decomposed part (see :func:`read_hulls`), atomically."""
     if cache_dir is None or not hulls:
         return
     arrays: dict[str, npt.NDArray[np.generic]] = {}
@@ -252,4 +317,4 @@ def write_hulls(cache_dir: Path | None, key: str, hulls: list[tuple[FloatArray, 
     arrays["notes"] = np.frombuffer(json.dumps([notes for _, _, notes in hulls]).encode(), np.uint8)
     buffer = io.BytesIO()
     np.savez(buffer, **arrays)  # type: ignore[arg-type]
-    write_file(cache_dir / key[:2] / f"{key}.hulls.npz", buffer.getvalue())
+    write_file(_entry(cache_dir, key, ".hulls.npz"), cachefile.seal(HULLS_KIND, key, buffer.getvalue()))

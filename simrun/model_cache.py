@@ -2,28 +2,42 @@
 
 A world's model depends on its options, its entities (every field), its asset table, the files its
 entities read (``.mbin`` meshes, PNG textures) and the code that builds and compiles it (MuJoCo, simrun,
-meshtool). The cache entry of a world is found by a key over everything but the files (the *description*);
-the entry records the files the build read with their size and XXH3-128 content hash, and is used only
-while every one of them still has that content. Anything else is a miss and the world compiles as usual,
-after which the entry is (re)written. A hit gives the same model, byte for byte in MJB form, as compiling
-(tests/test_model_cache.py checks).
+meshtool). Two keys, both SHA-256:
+
+* the *description* key (:meth:`ModelCache.key`) over the format, the MuJoCo, simrun and meshtool versions,
+  the content of simrun's and meshtool's model-building sources, the base folder relative names are
+  resolved against, the options, the asset table and every entity's type and fields. It names the entry
+  (``DIR/KEY.mjb``) and is the key its :mod:`meshtool.cachefile` envelope must answer;
+* the *content* key over the description key and, for every file an entity field or the asset table
+  names (relative to the base folder), the real path it resolves to (symbolic links followed), its size
+  and its XXH3-128 content hash. The entry records it; an entry of another content key is a miss.
+
+Paths and modification times decide nothing: the same bytes written again still hit, other bytes under
+the same name miss, a symbolic link pointed elsewhere misses. A world whose build read a file that no
+field names is not stored (its dependencies would not all be in the key). Anything else is a miss and the
+world compiles as usual, after which the entry is (re)written. A hit gives the same model, byte for byte
+in MJB form, as compiling (tests/test_model_cache.py checks).
 
 Only worlds whose entities read files solely through the world's :class:`~simrun.assets.AssetLibrary` are
 cached (:data:`CACHEABLE`: meshes, shapes, ground, sky, lights, cameras); a world with any other entity
 (robots, height fields, URDF models) or with meshes registered from memory always compiles.
 
 Enable it with ``SIMRUN_MODEL_CACHE=DIR`` in the environment or ``world.model_cache = ModelCache(DIR)``.
-Entries are written atomically; a damaged or foreign entry is a miss, never an error.
+Entries are written atomically (a temporary file in the folder, then a rename). A damaged entry, one
+copied from another world's key, or one whose payload is not a model is a miss, never an error or
+another model; :attr:`ModelCache.problems` describes each, one line.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import hashlib
 import json
 import mmap
 import os
 import stat
-import tempfile
+import struct
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -31,11 +45,17 @@ import mujoco
 import numpy as np
 import xxhash
 
+from meshtool import cachefile
+
 if TYPE_CHECKING:
     from simrun.world import World
 
 #: Entry format; bump when what an entry holds changes.
-FORMAT = 1
+FORMAT = 2
+#: Entry kind in the :mod:`meshtool.cachefile` envelope.
+KIND = "simrun-compiled-model"
+#: Largest entry read, bytes.
+MAX_ENTRY_BYTES = 1 << 30
 #: Entity types whose builds read files only through the world's AssetLibrary (by class name and module).
 CACHEABLE = frozenset(
     {
@@ -50,8 +70,9 @@ CACHEABLE = frozenset(
         ("simrun.environment", "Camera"),
     }
 )
-#: Source files whose content shapes a compiled model (their sizes and times are part of the key).
+#: Source folders whose files' content shapes a compiled model (part of the description key).
 _CODE_ROOTS = ("simrun", "meshtool", "meshtool/packfile")
+_HEADER_LENGTH = struct.Struct("<I")
 
 
 def default() -> ModelCache | None:
@@ -60,22 +81,23 @@ def default() -> ModelCache | None:
     return ModelCache(Path(folder)) if folder else None
 
 
-def _code_stamp() -> str:
-    """Size and modification time of every source file of the packages that build models."""
+@functools.cache
+def _code_digest() -> str:
+    """SHA-256 over the name and content of every source file of the packages that build models."""
     here = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
     for root in _CODE_ROOTS:
         for path in sorted((here / root).glob("*.py")):
-            st = path.stat()
-            h.update(f"{path.name}:{st.st_size}:{st.st_mtime_ns};".encode())
+            h.update(f"{root}/{path.name}\0".encode())
+            h.update(hashlib.sha256(path.read_bytes()).digest())
     return h.hexdigest()
 
 
-def _file_digest(path: Path) -> tuple[int, str] | None:
+def _file_digest(path: Path | str) -> tuple[int, str] | None:
     """(size, XXH3-128 hex) of a regular file's content (memory-mapped), ``None`` when it cannot be read."""
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except OSError:
+    except (OSError, ValueError):
         return None
     try:
         st = os.fstat(fd)
@@ -91,21 +113,53 @@ def _file_digest(path: Path) -> tuple[int, str] | None:
         os.close(fd)
 
 
+def _named(world: World) -> list[str]:
+    """Every text an entity field or the asset table holds that could name a file (sorted, unique)."""
+    names = {str(v) for v in world.assets.values()}
+    for _, entity in world:
+        for item in dataclasses.fields(entity):
+            if item.name in ("name", "parent"):  # entity names, never files
+                continue
+            value = getattr(entity, item.name)
+            if isinstance(value, str | Path) and str(value):
+                names.add(str(value))
+                if str(value) in world.assets:
+                    names.add(str(world.assets[str(value)]))
+    return sorted(names)
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class _Content:
+    """The content key of a world and the real paths of the files it covers."""
+
+    key: str
+    files: frozenset[str]
+    record: list[list[Any]]
+
+
 class ModelCache:
-    """A folder of compiled models (``KEY.mjb``) and their dependency records (``KEY.json``).
+    """A folder of compiled models (``KEY.mjb``, each a :mod:`meshtool.cachefile` envelope).
 
     Args:
         folder: Where entries live (created on first store).
+
+    Attributes:
+        hits: Lookups answered from the folder.
+        misses: Lookups of cacheable worlds that compiled.
+        problems: One line per entry found but not used because it was damaged, answered another key or
+            held no model (an entry made for other file contents is an ordinary miss, not a problem).
     """
 
     def __init__(self, folder: Path) -> None:
         self.folder = Path(folder)
         self.hits = 0
         self.misses = 0
-        self._code = _code_stamp()
+        self.problems: list[str] = []
+        self._code = _code_digest()
+        self._pending: tuple[World, str, _Content] | None = None
 
     def key(self, world: World) -> str | None:
-        """The key of a world's description, ``None`` when the world cannot be cached."""
+        """The description key of a world (hex), ``None`` when the world cannot be cached."""
         from meshtool import __version__ as meshtool_version
         from simrun import __version__ as simrun_version
 
@@ -124,58 +178,120 @@ class ModelCache:
             if (cls.__module__, cls.__name__) not in CACHEABLE:
                 return None
             parts.append(f"entity {full} {cls.__module__}.{cls.__name__} {entity!r}")
-        return hashlib.sha256("\n".join(parts).encode()).hexdigest()
+        return hashlib.sha256("\n".join(parts).encode("utf-8", "surrogateescape")).hexdigest()
+
+    def _content(self, world: World, description: str) -> _Content:
+        base = Path(world.base_dir)
+        digests: dict[str, tuple[int, str] | None] = {}
+        record: list[list[Any]] = []
+        for name in _named(world):
+            try:
+                candidate = base / name
+                real = os.path.realpath(candidate) if os.path.exists(candidate) else None
+            except (OSError, ValueError):
+                real = None
+            if real is not None and real not in digests:
+                digests[real] = _file_digest(real)
+            found = digests.get(real) if real is not None else None
+            record.append([name, real, *found] if found is not None else [name, None])
+        text = json.dumps([description, record], ensure_ascii=True)
+        covered = frozenset(real for real, found in digests.items() if found is not None)
+        return _Content(hashlib.sha256(text.encode()).hexdigest(), covered, record)
+
+    def _entry(self, key: str) -> Path:
+        return self.folder / f"{key}.mjb"
 
     def load(self, world: World) -> mujoco.MjModel | None:
-        """The cached model of ``world`` when its entry exists and every file it read is unchanged."""
+        """The cached model of ``world`` when its entry is sound, answers its key and every file is unchanged.
+
+        A world rebuilt after its first compile (its asset library already holds files) is not looked up.
+        """
+        from simrun.assets import AssetLibrary
+
+        self._pending = None
         key = self.key(world)
-        if key is None:
-            return None
-        try:
-            record = json.loads((self.folder / f"{key}.json").read_text())
-            if record.get("format") != FORMAT or record.get("key") != key:
-                raise ValueError("foreign entry")
-            for path, size, digest in record["files"]:
-                if _file_digest(Path(path)) != (size, digest):
-                    raise ValueError("a file changed")
-            model = mujoco.MjModel.from_binary_path(str(self.folder / f"{key}.mjb"))
-        except (OSError, ValueError, KeyError, TypeError):
+        library = getattr(world, "_assets", None)
+        if key is None or (isinstance(library, AssetLibrary) and read_files(library)):
+            return None  # a rebuild reuses the files in memory, which the key (the files on disk) may not show
+        content = self._content(world, key)
+        self._pending = (world, key, content)
+        path = self._entry(key)
+        found = cachefile.read_entry(path, KIND, key, MAX_ENTRY_BYTES)
+        model = None
+        if found.payload is not None:
+            model = self._model(found.payload, content.key, path)
+        elif found.problem is not None:
+            self.problems.append(cachefile.describe(path, found.problem))
+        if model is None:
             self.misses += 1
             return None
         self.hits += 1
         return model
 
-    def store(self, world: World, model: mujoco.MjModel, files: list[Path]) -> bool:
-        """Record ``model`` (just compiled from ``world``, having read ``files``); False when not cacheable."""
-        key = self.key(world)
-        if key is None:
-            return False
-        entries = []
-        for path in sorted({p.resolve() for p in files}):
-            digest = _file_digest(path)
-            if digest is None:
-                return False
-            entries.append([str(path), digest[0], digest[1]])
-        buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
-        mujoco.mj_saveModel(model, None, buffer)
-        record = {"format": FORMAT, "key": key, "mujoco": mujoco.__version__, "files": entries}
+    def _model(self, payload: bytes, content_key: str, path: Path) -> mujoco.MjModel | None:
+        """The model in a sound entry's payload, ``None`` when it was made for other content or is not one."""
         try:
-            self.folder.mkdir(parents=True, exist_ok=True)
-            _write_atomic(self.folder / f"{key}.mjb", buffer.tobytes())
-            _write_atomic(self.folder / f"{key}.json", json.dumps(record, indent=1).encode())
-        except OSError:
+            (length,) = _HEADER_LENGTH.unpack_from(payload)
+            header = json.loads(payload[_HEADER_LENGTH.size : _HEADER_LENGTH.size + length])
+            if header["format"] != FORMAT:
+                raise ValueError(f"format {header['format']!r}")
+            if header["content"] != content_key:
+                return None  # an input changed since the entry was made: an ordinary miss
+            return _from_mjb(memoryview(payload)[_HEADER_LENGTH.size + length :])
+        except (struct.error, ValueError, KeyError, TypeError, IndexError, RecursionError):
+            self.problems.append(cachefile.describe(path, "payload is not a compiled model"))
+            return None
+
+    def store(self, world: World, model: mujoco.MjModel, files: list[Path]) -> bool:
+        """Record ``model`` (just compiled from ``world``, having read ``files``); False when not stored.
+
+        Stored only right after a :meth:`load` of the same world that missed. Not stored: a world that cannot
+        be cached, a rebuild (its files were read into memory by an earlier build, and may be older than the
+        files on disk), one whose build read a file no field names, one whose files changed while it
+        compiled, and anything when the cache folder cannot be written.
+        """
+        pending, self._pending = self._pending, None
+        key = self.key(world)
+        if key is None or pending is None or pending[0] is not world or pending[1] != key:
             return False
-        return True
+        after = self._content(world, key)
+        if after.key != pending[2].key or not {os.path.realpath(p) for p in files} <= after.files:
+            return False
+        header = json.dumps(
+            {"format": FORMAT, "content": after.key, "mujoco": mujoco.__version__, "files": after.record}
+        ).encode()
+        payload = _HEADER_LENGTH.pack(len(header)) + header + model_bytes(model)
+        if len(payload) + cachefile.HEADER_BYTES > MAX_ENTRY_BYTES:
+            return False
+        return cachefile.write_entry(self._entry(key), KIND, key, payload)
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)  # gone already when the replace succeeded
+def _from_mjb(mjb: memoryview) -> mujoco.MjModel:
+    """A model from MJB bytes already checked.
+
+    Through an anonymous in-memory file where the system has them (MuJoCo reads a file five times faster
+    than its virtual file system), else the virtual file system.
+
+    Raises:
+        ValueError: MuJoCo cannot load the bytes.
+    """
+    memfd_create = getattr(os, "memfd_create", None)
+    if memfd_create is not None and os.path.isdir("/proc/self/fd"):
+        try:
+            fd = memfd_create("simrun-model", getattr(os, "MFD_CLOEXEC", 0))
+        except OSError:
+            fd = -1
+        if fd >= 0:
+            try:
+                done = 0
+                while done < len(mjb):
+                    done += os.write(fd, mjb[done:])
+                return mujoco.MjModel.from_binary_path(f"/proc/self/fd/{fd}")
+            except OSError:
+                pass  # no room for the copy (a file-size limit): the virtual file system below
+            finally:
+                os.close(fd)
+    return mujoco.MjModel.from_binary_path("entry.mjb", {"entry.mjb": bytes(mjb)})
 
 
 def model_bytes(model: mujoco.MjModel) -> bytes:

@@ -6,7 +6,9 @@ the timed commands, the controller module's name and SHA-256), then records: u8 
 Kind 1, a frame: f64 time and the full integration state (``mj_getState(mjSTATE_INTEGRATION)``, f64
 array). Kind 2, a checkpoint: a frame followed by the JSON snapshots of every world controller (drive and
 arm services, sensors). Kind 3: f64 time and the recorded sensor readings as JSON. Records are written as
-the run goes, so memory stays bounded; the reader streams them back.
+the run goes, so memory stays bounded; the reader streams them back. They go to a temporary file beside
+the target, renamed over it when the run ends (also when it ends with an error: the records up to then);
+a recording that cannot be written whole (a full disk) leaves no ``.simlog`` and no temporary file.
 
 A recording is data: the reader checks every header key's presence, type and range, every record's
 length, time and finiteness, and never runs code it names. Paths in the header (scene, controller) are
@@ -15,12 +17,14 @@ relative to the recording's folder, so a recording moves with its scene.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
 import os
 import platform
 import struct
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -143,13 +147,24 @@ class Recorder:
             "controller_sha256": controller_sha,
         }
         raw = json.dumps(header, sort_keys=True).encode("utf-8")
-        try:
-            self._file: BinaryIO = open(path, "wb")  # noqa: SIM115 - closed by close()
-        except OSError as exc:
-            raise SimrunError(f"{path}: cannot write: {exc.strerror}") from None
-        self._file.write(MAGIC + struct.pack("<HHI", MAJOR, MINOR, len(raw)) + raw)
+        self.path = path
+        try:  # streamed to a temporary file beside the target, renamed over it by close(): never a torn .simlog
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        except (OSError, ValueError) as exc:
+            raise SimrunError(f"{path}: cannot write: {getattr(exc, 'strerror', None) or exc}") from None
+        self._tmp: Path | None = Path(tmp)
+        self._file: BinaryIO = os.fdopen(fd, "wb")
+        self._write(MAGIC + struct.pack("<HHI", MAJOR, MINOR, len(raw)) + raw)
         self.frames = 0
         world.controllers.append(self)
+
+    def _write(self, data: bytes) -> None:
+        """Append to the temporary file; a failed write (a full disk) drops the recording and says so."""
+        try:
+            self._file.write(data)
+        except OSError as exc:
+            self.abort()
+            raise SimrunError(f"{self.path}: cannot write: {exc.strerror or exc}; nothing recorded") from None
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Write a frame, or a checkpoint when one is due."""
@@ -162,12 +177,12 @@ class Recorder:
             body += struct.pack("<I", len(extra)) + extra
             kind = CHECKPOINT
             self._next_checkpoint += self.checkpoint_every
-        self._file.write(struct.pack("<BI", kind, len(body)) + body)
+        self._write(struct.pack("<BI", kind, len(body)) + body)
         self.frames += 1
         if self.sensors:
             readings = {n: _plain(self.world.sensors[n].reading) for n in self.sensors}
             extra = struct.pack("<d", float(data.time)) + json.dumps(readings).encode("utf-8")
-            self._file.write(struct.pack("<BI", SENSORS, len(extra)) + extra)
+            self._write(struct.pack("<BI", SENSORS, len(extra)) + extra)
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Recording continues across resets."""
@@ -179,9 +194,45 @@ class Recorder:
     def restore(self, state: dict[str, Any]) -> None:
         """Nothing to restore (see :meth:`snapshot`)."""
 
-    def close(self) -> None:
-        """Flush and close the file."""
-        self._file.close()
+    def close(self, keep: bool = True) -> None:
+        """Finish the recording: flush it to disk and rename it over the target (or drop it).
+
+        A run that stopped with an error still gets its recording up to that point (every record whole:
+        ``simrun test --record-failures`` keeps those); only a recording that could not be written whole
+        is dropped.
+
+        Args:
+            keep: Rename the recording into place; ``False`` removes it (see :meth:`abort`).
+
+        Raises:
+            SimrunError: The recording cannot be finished (a full disk); nothing is left behind.
+        """
+        if self in self.world.controllers:
+            self.world.controllers.remove(self)
+        if self._tmp is None:  # already finished or dropped
+            return
+        if not keep:
+            self.abort()
+            return
+        try:
+            self._file.flush()
+            os.fchmod(self._file.fileno(), 0o644)
+            os.fsync(self._file.fileno())
+            self._file.close()
+            os.replace(self._tmp, self.path)
+        except OSError as exc:
+            self.abort()
+            raise SimrunError(f"{self.path}: cannot write: {exc.strerror or exc}; nothing recorded") from None
+        self._tmp = None
+
+    def abort(self) -> None:
+        """Drop the recording: close and remove the temporary file (the target is left as it was)."""
+        tmp, self._tmp = self._tmp, None
+        with contextlib.suppress(OSError):
+            self._file.close()  # may flush into a full disk once more; its error changes nothing
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                tmp.unlink(missing_ok=True)
         if self in self.world.controllers:
             self.world.controllers.remove(self)
 

@@ -7,24 +7,25 @@ every file the check read or looked for (MTLs, textures, a pack's sources; ``Non
 digest of everything under the asset's folder (:mod:`meshtool.validate.snapshot`: every name with its
 case, kind, permissions and link target), since any of it can change how a reference resolves. The entry
 is used only while all of them still match. Entries live in
-``CACHE/ab/abcdef....json`` (written atomically); a damaged entry counts as a miss.
+``CACHE/ab/abcdef....json``: a :mod:`meshtool.cachefile` envelope (the digest of the key it answers and of
+its content) around the JSON, written atomically. A damaged entry, one copied from another key or one
+that does not hold a result is a miss (described in :attr:`ResultCache.problems`), and the asset is
+checked again.
 """
 
 from __future__ import annotations
 
 import base64
-import contextlib
+import binascii
 import hashlib
 import json
 import os
 from pathlib import Path
 from typing import Any
 
-from meshtool import __version__
-from meshtool.errors import OutputError
+from meshtool import __version__, cachefile
 from meshtool.findings import Finding, Severity
-from meshtool.outdir import write_file
-from meshtool.resolve import file_sha256, read_cache
+from meshtool.resolve import file_sha256
 from meshtool.validate.plugins import environment
 from meshtool.validate.snapshot import dependency_listings, listing_digest
 from meshtool.validate.task import RULESET_VERSION, AssetResult, AssetTask
@@ -36,10 +37,17 @@ class ResultCache:
     Args:
         folder: The cache folder (created on the first store).
         fingerprint: The options that change raw findings (see :meth:`ValidateConfig.fingerprint`).
+
+    Attributes:
+        problems: One line per entry found but not used (damaged, answering another key, not a result).
     """
+
+    #: Entry kind in the :mod:`meshtool.cachefile` envelope.
+    KIND = "meshtool-validate-result"
 
     def __init__(self, folder: Path | None, fingerprint: dict[str, Any]) -> None:
         self.folder = folder
+        self.problems: list[str] = []
         self.exclude = Path(os.path.realpath(folder)) if folder is not None else None
         self.salt = json.dumps(
             {"meshtool": __version__, "rules": RULESET_VERSION, "options": fingerprint, "environment": environment()},
@@ -58,22 +66,26 @@ class ResultCache:
         digest = file_sha256(task.path)
         if digest is None:
             return None
-        data = read_cache(self._file(self.key(task, digest)))
-        if data is None:
+        key = self.key(task, digest)
+        found = cachefile.read_entry(self._file(key), self.KIND, key)
+        if found.problem is not None:
+            self.problems.append(cachefile.describe(self._file(key), found.problem))
+        if found.payload is None:
             return None
         try:
-            entry = json.loads(data)
+            entry = json.loads(found.payload)
             if task.thumbnails and not entry["thumbnails"]:
                 return None
             own = str(task.path.resolve())  # its hash is part of the key: already checked
             for path, sha in entry["deps"].items():
                 if path != own and file_sha256(Path(path)) != sha:
                     return None
-            for key, listing in entry["listings"].items():
-                if listing is None or listing_digest(key, self.exclude) != listing:
+            for folder, listing in entry["listings"].items():
+                if listing is None or listing_digest(folder, self.exclude) != listing:
                     return None
             result = _from_json(entry["result"])
-        except (ValueError, KeyError, TypeError):
+        except (ValueError, KeyError, TypeError, AttributeError, IndexError, binascii.Error, RecursionError):
+            self.problems.append(cachefile.describe(self._file(key), "payload is not a validate result"))
             return None
         result.path = task.display
         result.cached = True
@@ -100,8 +112,8 @@ class ResultCache:
             "listings": result.listings,
             "result": _to_json(result),
         }
-        with contextlib.suppress(OutputError):  # a read-only or full cache folder only costs speed
-            write_file(self._file(self.key(task, digest)), json.dumps(entry, sort_keys=True).encode("utf-8"))
+        key = self.key(task, digest)  # a read-only or full cache folder only costs speed: not an error
+        cachefile.write_entry(self._file(key), self.KIND, key, json.dumps(entry, sort_keys=True).encode("utf-8"))
 
     def _file(self, key: str) -> Path:
         assert self.folder is not None
@@ -121,17 +133,28 @@ def _to_json(result: AssetResult) -> dict[str, Any]:
 
 
 def _from_json(data: dict[str, Any]) -> AssetResult:
-    findings = [
-        Finding(f["code"], Severity(f["severity"]), f["message"], f["path"], f["line"]) for f in data["findings"]
-    ]
-    thumbnail = base64.b64decode(data["thumbnail"]) if data["thumbnail"] else None
+    """The result an entry holds; ``ValueError``/``TypeError`` when it holds something else."""
+    findings = []
+    for f in data["findings"]:
+        code, message, path, line = f["code"], f["message"], f["path"], f["line"]
+        if not (isinstance(code, str) and isinstance(message, str) and isinstance(path, str | None)):
+            raise TypeError("a finding's code, message or path is not text")
+        if line is not None and (isinstance(line, bool) or not isinstance(line, int)):
+            raise TypeError("a finding's line is not a number")
+        findings.append(Finding(code, Severity(f["severity"]), message, path, line))
+    thumbnail = base64.b64decode(data["thumbnail"], validate=True) if data["thumbnail"] else None
+    kind, stats, notes = data["kind"], dict(data["stats"]), list(data["notes"])
+    if not (
+        isinstance(kind, str) and all(isinstance(n, str) for n in notes) and all(isinstance(k, str) for k in stats)
+    ):
+        raise TypeError("the kind, the notes or the stats are not text")
     return AssetResult(
         "",
-        data["kind"],
+        kind,
         findings,
         dict(data["deps"]),
         dict(data["listings"]),
-        dict(data["stats"]),
+        stats,
         thumbnail,
-        list(data["notes"]),
+        notes,
     )
