@@ -1,8 +1,17 @@
-"""COLLADA (``.dae``) reader, parsed by pycollada.
+"""COLLADA (``.dae``) reader: the XML parsed once, bounded; pycollada reads the asset, effects and materials.
 
-- **Geometry**: every geometry instanced by the visual scene, placed by its node transforms (pycollada's
-  bound geometries), winding reversed under a mirroring transform. Triangles, polylists and polygons are
-  read (triangulated by pycollada); lines are skipped with a finding.
+- **Geometry**: every geometry instanced by the visual scene, placed by its node transforms (composed in
+  float32 as pycollada does), winding reversed under a mirroring transform. Triangles, polylists,
+  polygons, triangle strips and fans are read (:mod:`meshtool.readers.collada_geometry` checks every
+  count, stride and index; :mod:`meshtool.readers.collada_scene` walks the node graph without recursion);
+  lines are skipped with a finding.
+- **Limits**: what the scene expands to (``<instance_node>`` fan-out included) is counted per node and
+  charged to the file's :class:`~meshtool.readers.budget.ExpansionBudget` before anything is placed; at
+  most :data:`~meshtool.readers.budget.MAX_INSTANCES` node and primitive instances
+  (``MESHTOOL_MAX_INSTANCES``) and :data:`~meshtool.readers.collada_xml.MAX_ELEMENTS` XML elements.
+- **Broken references**: an ``<instance_geometry>``/``<instance_node>`` naming nothing, or an
+  ``<instance_material>`` whose material is missing or unreadable, is skipped with a warning; the rest of
+  the geometry is kept.
 - **Frame**: ``<unit meter>`` and ``<up_axis>`` of the document's ``<asset>`` are honoured: the unit
   becomes the source unit of the normaliser (``cm``, ``mm``, ``in``... or a scale), ``Y_UP``/``Z_UP`` the
   up axis; ``X_UP`` is turned to ``Y_UP`` here (``(x, y, z) -> (-y, x, z)``, the COLLADA 1.4 axes).
@@ -27,9 +36,15 @@ import numpy as np
 from meshtool.errors import FormatError, MeshtoolError
 from meshtool.findings import Finding, info, warning
 from meshtool.obj.mtl import Material, TextureMap
+from meshtool.readers.budget import ExpansionBudget
+from meshtool.readers.collada_scene import Instance, SceneWalk
+from meshtool.readers.collada_xml import parse_xml, subset
 from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble, merge_rows, mirrors
 
 _DECLARATION = re.compile(rb"<!(?:DOCTYPE|ENTITY)", re.IGNORECASE)
+#: What pycollada still reads; geometry and the scene are read by :mod:`meshtool.readers.collada_geometry` and
+#: :mod:`meshtool.readers.collada_scene`.
+_PYCOLLADA_PARTS = ("asset", "library_images", "library_effects", "library_materials")
 _X_TO_Y = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
 
@@ -46,8 +61,6 @@ def read_collada(data: bytes, path: str) -> SourceMesh:
     Raises:
         FormatError: XML or COLLADA structure pycollada cannot read.
     """
-    import collada
-
     if data.startswith(b"PK\x03\x04"):  # pycollada would unzip it (.zae): no bounded, checked read of the inside
         raise FormatError(
             "a zipped COLLADA archive (.zae) is not read", path=path, offset=0, hint="unzip it and pass the .dae"
@@ -59,65 +72,79 @@ def read_collada(data: bytes, path: str) -> SourceMesh:
             path=path,
             hint="remove the declaration; COLLADA files need none",
         )
-    ignore = [collada.common.DaeUnsupportedError, collada.common.DaeBrokenRefError]
+    root = parse_xml(data, path)
+    budget = ExpansionBudget.for_file(path)
+    findings: list[Finding] = []
     try:
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            doc = collada.Collada(io.BytesIO(data), ignore=ignore, aux_file_loader=_no_files)
+        doc = _pycollada(root, _PYCOLLADA_PARTS)
     except Exception as exc:  # pycollada raises DaeError subclasses, lxml errors, ValueError...
         text = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
-        line = getattr(exc, "lineno", None)
-        raise FormatError(f"COLLADA cannot be read: {text}", path=path, line=line, hint="the file is damaged") from None
+        try:  # a damaged effect or image: the geometry is still read, without materials
+            doc = _pycollada(root, ("asset",))
+        except Exception:
+            raise FormatError(f"COLLADA cannot be read: {text}", path=path, hint="the file is damaged") from None
+        findings.append(
+            warning("collada-materials-unreadable", f"materials cannot be read ({text}): none are kept", path)
+        )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PendingDeprecationWarning)  # pycollada builds numpy matrices
         try:
-            return _read(doc, path)
+            return _read(doc, root, path, budget, findings)
         except MeshtoolError:
             raise
-        except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:  # e.g. an index past its source
+        except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
             what = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
             raise FormatError(
                 f"malformed COLLADA: {what}", path=path, hint="the file is damaged; export it again"
             ) from None
 
 
-def _read(doc: Any, path: str) -> SourceMesh:
-    findings: list[Finding] = []
+def _pycollada(root: Any, parts: tuple[str, ...]) -> Any:
+    """The pycollada document of the top-level elements ``parts`` of ``root`` (asset, materials...)."""
+    import collada
+
+    ignore = [collada.common.DaeUnsupportedError, collada.common.DaeBrokenRefError]
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        return collada.Collada(io.BytesIO(subset(root, parts)), ignore=ignore, aux_file_loader=_no_files)
+
+
+def _read(doc: Any, root: Any, path: str, budget: ExpansionBudget, findings: list[Finding]) -> SourceMesh:
     frame, rotate = _frame(doc, path, findings)
     materials: list[Material] = []
     by_id: dict[str, int] = {}
     pieces: list[Piece] = []
-    triangles = lines = 0
-    scene = doc.scene
-    if scene is None:
+    triangles = 0
+    walk = SceneWalk(root, path, {str(m.id): m for m in doc.materials}, findings)
+    roots = walk.scene_roots()
+    if roots is None:
         findings.append(warning("collada-no-scene", "no visual scene: nothing is instanced", path))
-        bound: list[Any] = []
+        instances: list[Instance] = []
     else:
-        bound = list(scene.objects("geometry"))
-    for geometry in bound:
-        name = str(geometry.original.name or geometry.original.id or "geometry")
-        flip = mirrors(np.asarray(geometry.matrix, dtype=np.float64))
-        for prim in geometry.primitives():
-            kind = type(prim).__name__
-            if "Line" in kind:
-                lines += 1
-                continue
-            if kind in ("BoundPolylist", "BoundPolygons"):
-                prim = prim.triangleset()
-            if prim.vertex is None or prim.vertex_index is None or len(prim.vertex_index) == 0:
-                continue
-            positions = np.asarray(prim.vertex, dtype=np.float64).reshape(-1, 3)
-            faces = np.asarray(prim.vertex_index, dtype=np.int64).reshape(-1, 3)
+        instances = walk.place(roots, budget)  # counted and charged before anything is placed
+    for instance in instances:
+        matrix = instance.matrix  # float32, and placed in float32, as pycollada binds geometry
+        flip = mirrors(np.asarray(matrix, dtype=np.float64))
+        linear, shift = matrix.T[:3, :3], matrix[:3, 3]
+        for prim in instance.geometry.prims:
+            with np.errstate(all="ignore"):
+                positions = np.asarray(np.dot(prim.positions, linear) + shift, dtype=np.float64)
+            faces = prim.vertex_index
+            if not np.isfinite(positions[faces.reshape(-1)]).all():
+                raise FormatError(
+                    f"geometry '{instance.geometry.name}' placed here has non-finite coordinates (its transform "
+                    "overflows float32)",
+                    path=path,
+                    line=instance.line,
+                    hint="the COLLADA file is damaged; export it again",
+                )
             m = faces.shape[0]
             normals = uvs = None
-            if prim.normal is not None and prim.normal_index is not None and len(prim.normal):
-                normals = np.asarray(prim.normal, dtype=np.float64).reshape(-1, 3)[
-                    np.asarray(prim.normal_index).reshape(-1)
-                ]
-            if prim.texcoordset and prim.texcoord_indexset:
-                uvs = np.asarray(prim.texcoordset[0], dtype=np.float64)[:, :2][
-                    np.asarray(prim.texcoord_indexset[0]).reshape(-1)
-                ]
+            if prim.normals is not None and prim.normal_index is not None:
+                with np.errstate(all="ignore"):  # non-finite normals are replaced by assemble, with a warning
+                    normals = np.asarray(np.dot(prim.normals, linear), dtype=np.float64)[prim.normal_index.reshape(-1)]
+            if prim.uvs is not None and prim.uv_index is not None:
+                uvs = np.asarray(prim.uvs, dtype=np.float64)[prim.uv_index.reshape(-1)]
             corners = faces.reshape(-1)
             if normals is not None or uvs is not None:  # attributes indexed per corner: split the corners
                 positions = positions[corners]
@@ -127,17 +154,18 @@ def _read(doc: Any, path: str) -> SourceMesh:
                 normals = None if normals is None else normals @ _X_TO_Y.T
             if flip:
                 faces = faces[:, ::-1].copy()
-            material = _material(prim.material, materials, by_id, path, findings)
+            bound = instance.materials.get(prim.material) if prim.material is not None else None
+            material = _material(bound, materials, by_id, path, findings)
             locations = np.arange(triangles + 1, triangles + m + 1, dtype=np.int64)
             triangles += m
-            pieces.append(Piece(name, material, positions, faces, locations, uvs, normals))
-    if lines:
-        findings.append(info("lines-skipped", f"{lines} line primitive(s) skipped: not surface geometry", path))
+            pieces.append(Piece(instance.geometry.name, material, positions, faces, locations, uvs, normals))
+    if walk.lines:
+        findings.append(info("lines-skipped", f"{walk.lines} line primitive(s) skipped: not surface geometry", path))
     record = {
         "unit_meter": frame.unit_m,
         "up_axis": str(doc.assetInfo.upaxis),
-        "geometries": len(doc.geometries),
-        "instances": len(bound),
+        "geometries": sum(1 for _ in root.iterfind("./{*}library_geometries/{*}geometry")),
+        "instances": len(instances),
     }
     mesh = assemble(pieces, path, "collada", "triangle", materials, frame, findings, record)
     return _weld(mesh)
