@@ -103,9 +103,6 @@ class ExpansionBudget:
         )
 
 
-#: The former private name of :func:`limit_from_env`, kept for callers not yet updated.
-_limit = limit_from_env
-
 __all__ = [
     "INSTANCES_ENV",
     "MAX_INSTANCES",

@@ -19,6 +19,11 @@ Follows the glTF 2.0 specification (https://registry.khronos.org/glTF/specs/2.0/
   file that requires them is refused with one error line (code ``gltf-compressed``); a primitive that has
   an uncompressed fallback uses it.
 - **Frame**: glTF is metres and +Y up by definition.
+- **Hostile files**: the JSON is checked before any binary data is read (:mod:`meshtool.readers.gltf_checks`:
+  indices in range, node tree, strides, accessors inside their views, topology); what every node that
+  instances a mesh will produce is charged to the file's :class:`~meshtool.readers.budget.ExpansionBudget`
+  and the primitive instances are counted (at most :data:`~meshtool.readers.budget.MAX_INSTANCES`)
+  before anything is decoded, and each primitive is decoded once however many nodes instance it.
 
 Locations of findings count triangles in file order.
 """
@@ -34,10 +39,21 @@ from typing import Any
 from urllib.parse import unquote
 
 import numpy as np
+import numpy.typing as npt
 
 from meshtool.errors import FormatError, MeshtoolError
 from meshtool.findings import Finding, info, warning
 from meshtool.obj.mtl import Material, TextureMap
+from meshtool.readers.budget import INSTANCES_ENV, ExpansionBudget
+from meshtool.readers.gltf_checks import (
+    MAX_ZERO_FILLED,
+    Document,
+    Layout,
+    Primitive,
+    View,
+    max_primitives,
+    whole,
+)
 from meshtool.readers.gltf_container import GLB_MAGIC, data_uri, read_container
 from meshtool.readers.model import (
     FloatArray,
@@ -57,12 +73,7 @@ _ABSOLUTE = re.compile(r"^(?:[A-Za-z][A-Za-z0-9+.-]*://|/|\\|[A-Za-z]:[\\/])")
 
 FRAME = SourceFrame(1.0, "glTF 2.0 (metres by the specification)", "y", "glTF 2.0 (+Y up by the specification)")
 COMPRESSION = {"KHR_draco_mesh_compression": "Draco", "EXT_meshopt_compression": "meshopt"}
-_COMPONENT = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _NORMALISE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
-_MAX_DEPTH = 256
-#: Most elements of an accessor without a bufferView (all zeros): such an accessor costs no bytes in the file.
-_MAX_UNBACKED = 1 << 24
 _MIME_SUFFIX = {"image/png": ".png", "image/jpeg": ".jpg", "image/webp": ".webp", "image/ktx2": ".ktx2"}
 
 
@@ -80,10 +91,14 @@ def read_gltf(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMe
 
     Raises:
         FormatError: Not glTF 2.0, damaged JSON or binary chunks, a buffer that is missing, outside the
-            asset folder or too short, an accessor out of range, or compression meshtool cannot decode.
+            asset folder or too short, an index, accessor or node tree the specification forbids
+            (:mod:`meshtool.readers.gltf_checks`), more geometry than the expansion budget allows (code
+            ``expansion-limit``), or compression meshtool cannot decode.
     """
-    doc, glb_bin = read_container(data, path)
-    reader = _Reader(doc, glb_bin, path, src, resolver)
+    doc, glb_bin, bin_offset = read_container(data, path)
+    findings: list[Finding] = []
+    checked = Document(doc, path, findings, bin_offset if glb_bin is not None else None)
+    reader = _Reader(checked, glb_bin, path, src, resolver, ExpansionBudget.for_file(path), findings)
     try:
         return reader.read("glb" if data[:4] == GLB_MAGIC else "gltf")
     except MeshtoolError:
@@ -94,25 +109,31 @@ def read_gltf(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMe
         raise FormatError(f"malformed glTF: {what}", path=path, hint="the file is damaged; export it again") from None
 
 
+#: A primitive decoded once for all the nodes that instance its mesh: positions, faces, uvs, normals, colours.
+_Decoded = tuple[FloatArray, IntArray, FloatArray | None, FloatArray | None, FloatArray | None]
+
+
 @dataclass(slots=True)
 class _Reader:
-    doc: dict[str, Any]
+    doc: Document
     glb_bin: bytes | None
     path: str
     src: Path
     resolver: Resolver
-    findings: list[Finding] = field(default_factory=list)
+    budget: ExpansionBudget
+    findings: list[Finding]
     buffers: dict[int, bytes] = field(default_factory=dict)
     images: dict[int, str | None] = field(default_factory=dict)
+    decoded: dict[tuple[int, int], _Decoded] = field(default_factory=dict)
     triangles: int = 0
     compressed: list[str] = field(default_factory=list)
     skipped_modes: dict[int, int] = field(default_factory=dict)
     sources: list[dict[str, str]] = field(default_factory=list)
 
     def read(self, fmt: str) -> SourceMesh:
-        required = set(self.doc.get("extensionsRequired") or [])
+        required = self.doc.doc.get("extensionsRequired") or []
         for ext, what in COMPRESSION.items():
-            if ext in required:
+            if isinstance(required, list) and ext in required:
                 raise FormatError(
                     f"uses {what} compression ({ext}), which meshtool cannot decode",
                     path=self.path,
@@ -121,34 +142,32 @@ class _Reader:
                     code="gltf-compressed",
                 )
         materials, transforms = self._materials()
-        pieces: list[Piece] = []
-        nodes = self._list("nodes")
-        scenes = self._list("scenes")
-        scene_index = self.doc.get("scene", 0)
-        if scenes:
-            scene = scenes[scene_index] if isinstance(scene_index, int) and 0 <= scene_index < len(scenes) else {}
-            roots = list(scene.get("nodes") or [])
-        else:  # no scene: every root node
-            children = {c for n in nodes for c in (n.get("children") or [])}
-            roots = [i for i in range(len(nodes)) if i not in children]
-        stack: list[tuple[int, FloatArray, int]] = [(int(r), np.eye(4), 0) for r in reversed(roots)]
-        visited: set[int] = set()
-        while stack:
-            index, parent, depth = stack.pop()
-            if not (0 <= index < len(nodes)) or index in visited or depth > _MAX_DEPTH:
-                raise FormatError(
-                    f"node {index} is missing, repeated or nested too deep in the scene tree",
-                    path=self.path,
-                    hint="the file is damaged",
+        uv_sets = {m: uv for m, (_, uv) in transforms.items()}
+        nodes = self.doc.items("nodes")
+        # every instance is counted and charged from the JSON alone, before any buffer is read or decoded
+        placed: list[tuple[int, FloatArray, int]] = []
+        instances = zero_filled = 0
+        most = max_primitives()
+        for index, world in self.doc.walk(lambda node, i: _local(node, self.path, i)):
+            if nodes[index].get("mesh") is None:
+                continue
+            mesh = self.doc.mesh(nodes[index]["mesh"], f"node {index}", uv_sets)
+            what = f"node {index} instancing mesh {mesh.index} ({len(mesh.primitives)} primitive(s))"
+            self.budget.charge(mesh.triangles, mesh.vertices, what)
+            instances += len(mesh.primitives)
+            zero_filled += mesh.zero_filled
+            if instances > most:
+                self._refuse(f"{most:,} mesh primitive instances (at least {instances:,} with {what})", INSTANCES_ENV)
+            if zero_filled > MAX_ZERO_FILLED:
+                self._refuse(
+                    f"{MAX_ZERO_FILLED:,} zero-filled accessor elements (accessors without a bufferView: at least "
+                    f"{zero_filled:,} with {what})",
+                    None,
                 )
-            visited.add(index)
-            node = nodes[index]
-            world = parent @ _local(node, self.path, index)
-            if "mesh" in node:
-                name = str(node.get("name") or "") or self._mesh_name(node["mesh"]) or f"node{index}"
-                pieces.extend(self._mesh(int(node["mesh"]), world, name, materials, transforms))
-            for child in reversed(node.get("children") or []):
-                stack.append((int(child), world, depth + 1))
+            placed.append((index, world, mesh.index))
+        pieces: list[Piece] = []
+        for index, world, mesh_index in placed:
+            pieces.extend(self._instance(index, world, mesh_index, transforms))
         for mode, count in sorted(self.skipped_modes.items()):
             kind = "point" if mode == 0 else "line"
             self.findings.append(
@@ -164,40 +183,25 @@ class _Reader:
                 )
             )
         record = {
-            "generator": str((self.doc.get("asset") or {}).get("generator", ""))[:100],
+            "generator": str((self.doc.doc.get("asset") or {}).get("generator", ""))[:100],
             "nodes": len(nodes),
-            "meshes": len(self._list("meshes")),
-            "extensions_used": sorted(str(e) for e in self.doc.get("extensionsUsed") or []),
+            "meshes": len(self.doc.items("meshes")),
+            "extensions_used": sorted(str(e) for e in self.doc.doc.get("extensionsUsed") or []),
         }
-        mesh = assemble(pieces, self.path, fmt, "triangle", materials, FRAME, self.findings, record)
-        mesh.sources = self.sources
-        return mesh
+        result = assemble(pieces, self.path, fmt, "triangle", materials, FRAME, self.findings, record)
+        result.sources = self.sources
+        return result
 
-    # -- documents -------------------------------------------------------------------------------------
-
-    def _list(self, key: str) -> list[dict[str, Any]]:
-        value = self.doc.get(key) or []
-        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise FormatError(f"glTF '{key}' is not a list of objects", path=self.path, hint="the file is damaged")
-        return value
-
-    def _item(self, key: str, index: Any) -> dict[str, Any]:
-        items = self._list(key)
-        if not isinstance(index, int) or not 0 <= index < len(items):
-            raise FormatError(
-                f"glTF refers to {key}[{index}], which does not exist", path=self.path, hint="the file is damaged"
-            )
-        return items[index]
-
-    def _mesh_name(self, index: Any) -> str:
-        return str(self._item("meshes", index).get("name") or "")
+    def _refuse(self, what: str, env: str | None) -> None:
+        hint = f"check the file; for a genuine scene this large set {env}" if env else "export it with its buffers"
+        raise FormatError(f"places more than {what}; not read", path=self.path, hint=hint, code="expansion-limit")
 
     # -- binary data -----------------------------------------------------------------------------------
 
     def _buffer(self, index: int) -> bytes:
         if index in self.buffers:
             return self.buffers[index]
-        buffer = self._item("buffers", index)
+        buffer = self.doc.items("buffers")[index]
         uri = buffer.get("uri")
         if uri is None:
             if index != 0 or self.glb_bin is None:
@@ -207,7 +211,7 @@ class _Reader:
             data = data_uri(str(uri), self.path, f"buffer {index}")
         else:
             data = self._external(str(uri), "buffer", f"buffer {index}")
-        length = int(buffer.get("byteLength", len(data)))
+        length = whole(buffer.get("byteLength", len(data)), f"buffer {index} byteLength", self.path)
         if len(data) < length:
             raise FormatError(
                 f"buffer {index} has {len(data)} bytes, the file says byteLength {length}",
@@ -239,153 +243,118 @@ class _Reader:
         self.sources.append({"role": kind, "path": shown, "sha256": hashlib.sha256(data).hexdigest()})
         return data
 
-    def _view(self, index: int) -> tuple[bytes, int, int, int | None]:
-        view = self._item("bufferViews", index)
-        if "extensions" in view and "EXT_meshopt_compression" in view["extensions"]:
+    def _bytes(self, view: View) -> bytes:
+        """The buffer of a checked bufferView, which holds the view's bytes (checked here)."""
+        if "EXT_meshopt_compression" in (self.doc.items("bufferViews")[view.index].get("extensions") or {}):
             self.compressed.append("meshopt")
-        data = self._buffer(int(view.get("buffer", -1)))
-        offset, length = int(view.get("byteOffset", 0)), int(view.get("byteLength", 0))
-        if offset < 0 or length < 0 or offset + length > len(data):
-            raise FormatError(
-                f"bufferView {index} (bytes {offset}..{offset + length}) runs past its buffer ({len(data)} bytes)",
-                path=self.path,
-                hint="the file is damaged",
+        data = self._buffer(view.buffer)
+        if view.offset + view.length > len(data):
+            raise self.doc.error(
+                f"bufferView {view.index} (bytes {view.offset}..{view.offset + view.length}) runs past buffer "
+                f"{view.buffer} ({len(data)} bytes)",
+                self.doc.file_offset(view.buffer, view.offset),
             )
-        stride = view.get("byteStride")
-        return data, offset, length, int(stride) if stride else None
+        return data
 
-    def accessor(self, index: Any) -> FloatArray:
-        """Accessor ``index`` as float64 (normalised integers mapped to 0..1 / -1..1), shape (count, width)."""
-        acc = self._item("accessors", index)
-        ctype, atype = acc.get("componentType"), acc.get("type")
-        if ctype not in _COMPONENT or atype not in _WIDTH:
-            raise FormatError(f"accessor {index} has an unknown type {atype}/{ctype}", path=self.path)
-        width, count = _WIDTH[atype], int(acc.get("count", 0))
-        dtype = np.dtype(_COMPONENT[ctype])
-        if count < 0:
-            raise FormatError(f"accessor {index} has a negative count", path=self.path)
-        if "bufferView" in acc:
-            data, view_start, length, stride = self._view(int(acc["bufferView"]))
-            extra = int(acc.get("byteOffset", 0))
-            start = view_start + extra
-            item = dtype.itemsize * width
-            stride = stride or item
-            need = (count - 1) * stride + item if count else 0
-            if extra < 0 or extra + need > length:
-                raise FormatError(
-                    f"accessor {index} ({count} x {atype}) runs past its bufferView",
-                    path=self.path,
-                    hint="the file is damaged",
+    def _raw(self, lay: Layout) -> npt.NDArray[Any]:
+        """A checked accessor's elements in their own component type, shape (count, width), sparse applied."""
+        raw: npt.NDArray[Any] = np.zeros((lay.count, lay.width), lay.dtype)
+        if lay.view is not None and lay.count:
+            data, start = self._bytes(lay.view), lay.view.offset + lay.offset
+            raw = np.ndarray((lay.count, lay.width), lay.dtype, data, start, (lay.stride, lay.dtype.itemsize))
+        sparse = lay.sparse
+        if sparse is not None and sparse.count:
+            raw = np.array(raw)
+            start = sparse.indices.offset + sparse.indices_offset
+            at = np.frombuffer(self._bytes(sparse.indices), sparse.indices_dtype, sparse.count, start)
+            if int(at.max()) >= lay.count:
+                k = int(np.argmax(at >= lay.count))
+                raise self.doc.error(
+                    f"accessor {lay.index}: sparse index {int(at[k])} (entry {k}) is beyond its {lay.count} elements "
+                    "(glTF 2.0 §3.6.2.3)",
+                    self.doc.file_offset(sparse.indices.buffer, start + k * sparse.indices_dtype.itemsize),
                 )
-            raw = (
-                np.ndarray((count, width), dtype, data, start, (stride, dtype.itemsize))
-                if count
-                else np.zeros((0, width), dtype)
-            )
-            values = raw.astype(np.float64)
-        else:
-            if count > _MAX_UNBACKED:
-                raise FormatError(f"accessor {index} has {count} elements and no data", path=self.path)
-            values = np.zeros((count, width))
-        if acc.get("normalized") and ctype in _NORMALISE:
-            values = np.maximum(values / _NORMALISE[ctype], -1.0)
-        sparse = acc.get("sparse")
-        if sparse:
-            values = values.copy()
-            n = int(sparse.get("count", 0))
-            idx_info, val_info = sparse.get("indices") or {}, sparse.get("values") or {}
-            idx = self._sparse(idx_info, n, _COMPONENT.get(int(idx_info.get("componentType", 5125)), "<u4"), 1).reshape(
-                -1
-            )
-            vals = self._sparse(val_info, n, _COMPONENT[ctype], width)
-            if acc.get("normalized") and ctype in _NORMALISE:
-                vals = np.maximum(vals / _NORMALISE[ctype], -1.0)
-            if idx.size and (idx.min() < 0 or idx.max() >= count):
-                raise FormatError(f"accessor {index}: sparse index out of range", path=self.path)
-            values[idx.astype(np.int64)] = vals
-        return values
+            start = sparse.values.offset + sparse.values_offset
+            values = np.frombuffer(self._bytes(sparse.values), lay.dtype, sparse.count * lay.width, start)
+            raw[at.astype(np.int64)] = values.reshape(sparse.count, lay.width)
+        return raw
 
-    def _sparse(self, info_: dict[str, Any], count: int, dtype_text: str, width: int) -> FloatArray:
-        data, start, _, _ = self._view(int(info_.get("bufferView", -1)))
-        start += int(info_.get("byteOffset", 0))
-        dtype = np.dtype(dtype_text)
-        if start + count * width * dtype.itemsize > len(data):
-            raise FormatError("sparse accessor runs past its buffer", path=self.path)
-        out: FloatArray = np.frombuffer(data, dtype, count * width, start).astype(np.float64).reshape(count, width)
-        return out
+    def values(self, lay: Layout) -> FloatArray:
+        """A checked accessor as float64 (normalised integers mapped to 0..1 / -1..1), shape (count, width)."""
+        with np.errstate(invalid="ignore"):  # a signalling NaN; non-finite values are replaced downstream
+            values: FloatArray = self._raw(lay).astype(np.float64)
+        if lay.normalized and lay.ctype in _NORMALISE:
+            values = np.maximum(values / _NORMALISE[lay.ctype], -1.0)
+        return values
 
     # -- meshes ----------------------------------------------------------------------------------------
 
-    def _mesh(
-        self,
-        index: int,
-        world: FloatArray,
-        name: str,
-        materials: list[Material],
-        transforms: dict[int, tuple[FloatArray | None, int]],
+    def _instance(
+        self, index: int, world: FloatArray, mesh: int, transforms: dict[int, tuple[FloatArray | None, int]]
     ) -> list[Piece]:
-        mesh = self._item("meshes", index)
+        """The pieces node ``index`` places: mesh ``mesh`` (checked and charged) transformed by ``world``."""
+        node = self.doc.items("nodes")[index]
+        name = str(node.get("name") or "") or str(self.doc.items("meshes")[mesh].get("name") or "") or f"node{index}"
+        prims, skipped = self.doc.meshes[mesh].primitives, self.doc.meshes[mesh].skipped
+        for mode, count in skipped.items():
+            self.skipped_modes[mode] = self.skipped_modes.get(mode, 0) + count
         flip = mirrors(world)
         pieces = []
-        for prim in mesh.get("primitives") or []:
-            if not isinstance(prim, dict):
-                continue
-            mode = int(prim.get("mode", 4))
-            if mode in (0, 1, 2, 3):
-                self.skipped_modes[mode] = self.skipped_modes.get(mode, 0) + 1
-                continue
-            extensions = prim.get("extensions") or {}
-            for ext, what in COMPRESSION.items():
-                if ext in extensions:
-                    self.compressed.append(what)
-            attributes = prim.get("attributes") or {}
-            if "POSITION" not in attributes:
-                continue
-            positions = self.accessor(attributes["POSITION"])[:, :3]
-            n = positions.shape[0]
-            if "indices" in prim:
-                indices = self.accessor(prim["indices"]).reshape(-1).astype(np.int64)
-                if indices.size and (indices.min() < 0 or indices.max() >= n):
-                    raise FormatError(
-                        f"mesh {index} ({name!r}): an index is beyond its {n} vertices",
-                        path=self.path,
-                        hint="the file is damaged",
-                    )
-            else:
-                indices = np.arange(n, dtype=np.int64)
-            faces = _triangles(indices, mode)
+        for prim in prims:
+            if prim.compressed is not None:
+                self.compressed.append(COMPRESSION[prim.compressed])
+            key = (prim.mesh, prim.number)
+            if key not in self.decoded:
+                self.decoded[key] = self._decode(prim, transforms.get(prim.material, (None, 0))[0])
+            positions, faces, uvs, normals, colors = self.decoded[key]
             if flip:
                 faces = faces[:, ::-1].copy()
-            material = int(prim.get("material", -1))
-            if material >= len(materials):
-                material = -1
-            uvs = None
-            matrix, uv_index = transforms.get(material, (None, 0))
-            key = f"TEXCOORD_{uv_index}"
-            if key in attributes:
-                uvs = self.accessor(attributes[key])[:, :2]
-                if matrix is not None:
-                    uvs = uvs @ matrix[:2, :2].T + matrix[:2, 2]
-                uvs = np.stack([uvs[:, 0], 1.0 - uvs[:, 1]], axis=1)  # glTF v points down, OBJ v up
-            normals = None
-            if "NORMAL" in attributes:
-                normals = transform_normals(world, self.accessor(attributes["NORMAL"])[:, :3])
-            colors = None
-            if "COLOR_0" in attributes:
-                colors = self.accessor(attributes["COLOR_0"])[:, :3]
             locations = np.arange(self.triangles + 1, self.triangles + faces.shape[0] + 1, dtype=np.int64)
             self.triangles += faces.shape[0]
+            placed = None if normals is None else transform_normals(world, normals)
             pieces.append(
-                Piece(name, material, transform_points(world, positions), faces, locations, uvs, normals, colors)
+                Piece(name, prim.material, transform_points(world, positions), faces, locations, uvs, placed, colors)
             )
         return pieces
+
+    def _decode(self, prim: Primitive, matrix: FloatArray | None) -> _Decoded:
+        """A primitive's vertex data (in the mesh's frame) and triangles; indices checked against POSITION."""
+        positions = self.values(prim.position)
+        n = positions.shape[0]
+        if prim.indices is not None:
+            indices = self._raw(prim.indices).reshape(-1).astype(np.int64)
+            if indices.size and int(indices.max()) >= n:
+                k = int(np.argmax(indices >= n))
+                lay = prim.indices
+                offset = None
+                if lay.view is not None and lay.sparse is None:
+                    offset = self.doc.file_offset(lay.view.buffer, lay.view.offset + lay.offset + k * lay.stride)
+                raise self.doc.error(
+                    f"mesh {prim.mesh} primitive {prim.number}: index {int(indices[k])} (element {k} of accessor "
+                    f"{lay.index}) is beyond the {n} vertices of POSITION accessor {prim.position.index} "
+                    "(glTF 2.0 §3.7.2.1)",
+                    offset,
+                )
+        else:
+            indices = np.arange(n, dtype=np.int64)
+        faces = _triangles(indices, prim.mode)
+        uvs = None
+        if prim.uvs is not None:
+            uvs = self.values(prim.uvs)
+            if matrix is not None:
+                with np.errstate(invalid="ignore", over="ignore"):  # non-finite coordinates are replaced downstream
+                    uvs = uvs @ matrix[:2, :2].T + matrix[:2, 2]
+            uvs = np.stack([uvs[:, 0], 1.0 - uvs[:, 1]], axis=1)  # glTF v points down, OBJ v up
+        normals = None if prim.normals is None else self.values(prim.normals)
+        colors = None if prim.colors is None else self.values(prim.colors)[:, :3]
+        return positions, faces, uvs, normals, colors
 
     # -- materials -------------------------------------------------------------------------------------
 
     def _materials(self) -> tuple[list[Material], dict[int, tuple[FloatArray | None, int]]]:
         out: list[Material] = []
         transforms: dict[int, tuple[FloatArray | None, int]] = {}
-        for i, mat in enumerate(self._list("materials")):
+        for i, mat in enumerate(self.doc.items("materials")):
             name = str(mat.get("name") or f"material{i}")
             pbr = mat.get("pbrMetallicRoughness") or {}
             sg = (mat.get("extensions") or {}).get("KHR_materials_pbrSpecularGlossiness") or {}
@@ -453,7 +422,7 @@ class _Reader:
 
     def _texture_image(self, index: Any) -> str | None:
         """The resolver reference of texture ``index``'s image (``None`` with a finding when it has none)."""
-        texture = self._item("textures", index)
+        texture = self.doc.item("textures", index, "a material")
         source = texture.get("source")
         for ext in ("EXT_texture_webp", "KHR_texture_basisu", "MSFT_texture_dds"):
             alt = (texture.get("extensions") or {}).get(ext)
@@ -464,7 +433,7 @@ class _Reader:
             return None
         if source in self.images:
             return self.images[source]
-        image = self._item("images", source)
+        image = self.doc.item("images", source, f"texture {index}")
         label = str(image.get("name") or f"image{source}")
         ref: str | None
         uri = image.get("uri")
@@ -476,8 +445,8 @@ class _Reader:
                     blob = data_uri(str(uri), self.path, f"image {source}")
                     mime = str(uri)[5:].split(";", 1)[0].split(",", 1)[0]
                 else:
-                    data, start, length, _ = self._view(int(image.get("bufferView", -1)))
-                    blob = data[start : start + length]
+                    view = self.doc.view(self.doc.index("bufferViews", image.get("bufferView"), f"image {source}"))
+                    blob = self._bytes(view)[view.offset : view.offset + view.length]
                     mime = str(image.get("mimeType", ""))
             except FormatError as exc:
                 self.findings.append(

@@ -19,9 +19,9 @@ JSON_CHUNK = 0x4E4F534A
 BIN_CHUNK = 0x004E4942
 
 
-def read_container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None]:
-    """The JSON document and, for GLB, the binary chunk."""
-    glb_bin = None
+def read_container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None, int]:
+    """The JSON document and, for GLB, the binary chunk and the file offset of its first byte (else 0)."""
+    glb_bin, bin_offset = None, 0
     if data[:4] == GLB_MAGIC:
         if len(data) < 20:
             raise FormatError("GLB shorter than its 12-byte header and first chunk", path=path, offset=0)
@@ -42,24 +42,27 @@ def read_container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None
         if not chunks or chunks[0][0] != JSON_CHUNK:
             raise FormatError("GLB without a JSON chunk first", path=path, offset=12)
         text = chunks[0][1]
-        glb_bin = next((c[1] for c in chunks[1:] if c[0] == BIN_CHUNK), None)
+        binary = next((c for c in chunks[1:] if c[0] == BIN_CHUNK), None)
+        if binary is not None:
+            glb_bin, bin_offset = binary[1], binary[2] + 8
     else:
         text = data
     try:
         doc = bounded(lambda: json.loads(text.decode("utf-8-sig")))
     except NestingError as exc:
         raise FormatError(f"glTF JSON cannot be read: {exc}", path=path) from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except ValueError as exc:  # not UTF-8, not JSON, an integer of more than 4300 digits
         line = getattr(exc, "lineno", None)
         raise FormatError(f"glTF JSON cannot be read: {str(exc).splitlines()[0][:100]}", path=path, line=line) from None
     if not isinstance(doc, dict):
         raise FormatError("glTF JSON is not an object", path=path, line=1)
-    version = str((doc.get("asset") or {}).get("version", ""))
+    asset = doc.get("asset")
+    version = str(asset.get("version", "")) if isinstance(asset, dict) else ""
     if not version.startswith("2."):
         raise FormatError(
             f"glTF version {version or '(none)'}: only glTF 2.0 is supported", path=path, hint="convert it to glTF 2.0"
         )
-    return doc, glb_bin
+    return doc, glb_bin, bin_offset
 
 
 def data_uri(uri: str, path: str, what: str) -> bytes:
