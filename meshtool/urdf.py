@@ -57,6 +57,8 @@ from meshtool.urdf_locate import FoundMesh, MeshLocator, UrdfError
 from meshtool.urdf_mesh import LoadedMesh, load_mesh, mesh_prefix, parse_scale
 
 WORLD = "world"
+#: Longest robot name in bytes: it names ``NAME.xml`` (most file systems allow 255 bytes per name).
+MAX_NAME_BYTES = 200
 #: Bytes of an existing ``NAME.xml`` read to find meshtool's stamp (it is the XML's first element).
 _STAMP_READ = 1 << 20
 
@@ -142,7 +144,7 @@ def element_lines(data: bytes) -> dict[tuple[str, str], int]:
     """The 1-based source line of each ``<link>`` and ``<joint>`` of the robot (by name) and ``<mesh>`` (by file).
 
     Keys are ``("link", name)``, ``("joint", name)`` (children of ``<robot>`` only: a ``<transmission>``'s
-    ``<joint>`` is a reference) and ``("mesh", filename)``; the first element wins. lxml (yourdfpy's parser)
+    ``<joint>`` is a reference), ``("mesh", filename)`` and ``("robot", "")``; the first element wins. lxml (yourdfpy's parser)
     keeps each element's ``sourceline``; entities are not resolved and nothing is fetched.
     """
     etree: Any = importlib.import_module("lxml.etree")  # installed with yourdfpy; no type stubs
@@ -153,6 +155,8 @@ def element_lines(data: bytes) -> dict[tuple[str, str], int]:
     except etree.XMLSyntaxError:
         return {}
     lines: dict[tuple[str, str], int] = {}
+    if root.sourceline:
+        lines[("robot", "")] = int(root.sourceline)
     for element in root:
         if element.tag in ("link", "joint") and element.get("name") is not None and element.sourceline:
             lines.setdefault((str(element.tag), str(element.get("name"))), int(element.sourceline))
@@ -252,6 +256,13 @@ class _Builder:
 
     def build(self, robot: Any) -> UrdfImport:
         name = safe_identifier(robot.name or self.path.stem, "robot")
+        if len(name.encode()) > MAX_NAME_BYTES:  # NAME.xml must be a file name on every file system
+            raise UrdfError(
+                f"robot name is {len(name.encode())} bytes long; at most {MAX_NAME_BYTES} (it names the MJCF file)",
+                path=str(self.path),
+                line=self.lines.get(("robot", "")),
+                hint="shorten the <robot name=...>",
+            )
         self.materials = {m.name: m for m in (robot.materials or []) if m.name}
         links = {link.name: link for link in robot.links}
         children = {j.child for j in robot.joints}
@@ -430,7 +441,17 @@ class _Builder:
                 hint="fix the <inertia> and <origin> of the link's <inertial>",
             )
         tensor = (tensor + tensor.T) / 2
-        moments, axes = np.linalg.eigh(tensor)
+        try:
+            moments, axes = np.linalg.eigh(tensor)
+        except np.linalg.LinAlgError:
+            moments = axes = np.full((3, 3), np.nan)
+        if not (np.all(np.isfinite(moments)) and np.all(np.isfinite(axes))):  # entries near 1e308 overflow
+            raise UrdfError(
+                f"link {link.name!r} has an inertia whose principal moments cannot be computed "
+                f"(entries up to {np.max(np.abs(tensor)):.3g} kg m^2)",
+                **self._element("link", link.name),
+                hint="give the <inertia> in kg m^2",
+            )
         if np.linalg.det(axes) < 0:
             axes[:, 2] *= -1
         balanced, changed = balance_inertia(moments)

@@ -314,8 +314,14 @@ def _msh(mesh: Any) -> bytes:
 def _check_folder(files: dict[str, bytes], xml_name: str, reference: mujoco.MjModel) -> None:
     """Write ``files`` to a scratch folder and load the XML from there alone; compare with ``reference``."""
     with tempfile.TemporaryDirectory(prefix="simrun-mjcf-") as tmp:
-        for name, data in files.items():
-            (Path(tmp) / name).write_bytes(data)
+        try:
+            for name, data in files.items():
+                (Path(tmp) / name).write_bytes(data)
+        except OSError as exc:  # a file name the file system refuses (too long), a full scratch disk
+            raise ModelError(
+                f"the MJCF cannot be written to a scratch folder to check it: {exc.strerror or exc}",
+                hint="shorten the model's names, or free space in the temporary folder",
+            ) from None
         try:
             loaded = mujoco.MjModel.from_xml_path(str(Path(tmp) / xml_name))
         except ValueError as exc:

@@ -369,3 +369,28 @@ def test_gltf_visuals_land_on_their_collision_shapes(tmp_path: Path) -> None:
     np.testing.assert_array_equal(
         np.unique(np.asarray(from_urdf.positions), axis=0), np.unique(np.asarray(alone.positions), axis=0)
     )
+
+
+# -- the fuzzer's URDF crashes (make fuzz, target urdf) ---------------------------------------------------
+
+
+@pytest.mark.parametrize("entry", ["ixy", "ixz"])
+def test_an_inertia_near_the_float_limit_is_an_error_not_a_crash(tmp_path: Path, entry: str) -> None:
+    """``ixy="1e308"`` made numpy's eigh raise LinAlgError (exit 3)."""
+    urdf = _chain(tmp_path / "m.urdf", 3)
+    urdf.write_text(urdf.read_text().replace(f'{entry}="0"', f'{entry}="1e308"', 1))
+    out = run_bounded(["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out")])
+    assert out.code == 1 and "Traceback" not in out.err
+    assert out.err.startswith(f"error: {urdf}:2: link 'l0' has an inertia whose principal moments cannot be computed")
+
+
+def test_a_robot_name_too_long_for_a_file_name_is_an_error(tmp_path: Path) -> None:
+    """A 300-character robot name made the MJCF check fail with OSError 'File name too long' (exit 3)."""
+    urdf = tmp_path / "long.urdf"
+    urdf.write_text(f'<?xml version="1.0"?>\n<robot name="{"x" * 300}">\n<link name="base"/>\n</robot>\n')
+    out = run_bounded(["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out")])
+    assert out.code == 1
+    assert out.err == (
+        f"error: {urdf}:2: robot name is 300 bytes long; at most 200 (it names the MJCF file) "
+        "(shorten the <robot name=...>)\n"
+    )
