@@ -10,16 +10,15 @@ meshtool never imports MuJoCo: without the plugin (simrun not installed) the che
 ``mujoco-check-skipped`` note.
 
 Passing checks are remembered in a cache folder (``obj2bin``: the user cache, ``--no-cache`` turns it off):
-one empty-ish marker per SHA-256 of the ``.mbin`` bytes together with the plugin's identity (its distribution,
-version and the size and modification time of every file of its package) and the MuJoCo distribution's
-version. The same bytes checked by the same plugin and MuJoCo compile the same way, so a hit skips the
-compile and MuJoCo's import; any change of the pack, of simrun or of MuJoCo is a miss. Refusals are never
-cached (the next run states the reason again).
+one marker per SHA-256 of the ``.mbin`` bytes together with the plugin's identity (its distribution, version
+and the content of every file of its package) and the MuJoCo distribution's version, sealed as a cache entry
+(:mod:`meshtool.cachefile`): an empty, damaged or copied marker is a miss. The same bytes checked by the
+same plugin and MuJoCo compile the same way, so a hit skips the compile and MuJoCo's import; any change of
+the pack, of simrun or of MuJoCo is a miss. Refusals are never cached (the next run states the reason again).
 """
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import importlib.util
 import os
@@ -27,17 +26,20 @@ import re
 from importlib import metadata
 from pathlib import Path
 
+from meshtool.cachefile import read_entry, write_entry
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, info
 from meshtool.model import GROUP, BodyDesc, ModelDesc, ModelError, TextureDesc, check_model
-from meshtool.outdir import write_file
 from meshtool.packfile.read import PackedMesh
-from meshtool.resolve import read_cache
+from meshtool.safeopen import sha256_of
 
 #: The name every element of the checked model starts with.
 PREFIX = "asset"
 #: Density of the collision hulls in the checked model, kg/m^3 (``meshtool mjcf``'s default).
 DENSITY = 1000.0
+#: Kind and payload of a remembered passing check (:mod:`meshtool.cachefile`).
+MARKER_KIND = "meshtool-load-check"
+PASSED = b"compiled\n"
 _ELEMENT = re.compile(r"\s*\(element '([^']*)'\)$")
 _REFUSES = "MuJoCo refuses the model: "
 
@@ -57,8 +59,8 @@ def check_pack(data: bytes, source: str, cache_dir: Path | None = None) -> tuple
     Raises:
         ModelError: MuJoCo refuses the asset: its message, the part, hull or texture at fault, and a hint.
     """
-    marker = _marker(cache_dir, data)
-    if marker is not None and read_cache(marker) is not None:
+    found = _marker(cache_dir, data)
+    if found is not None and read_entry(found[0], MARKER_KIND, found[1]).payload == PASSED:
         return "cached", []
     from meshtool.packfile import parse
 
@@ -84,17 +86,17 @@ def check_pack(data: bytes, source: str, cache_dir: Path | None = None) -> tuple
                 source,
             )
         ]
-    if marker is not None:
-        with contextlib.suppress(MeshtoolError):  # an unwritable cache costs the next run a compile, nothing else
-            write_file(marker, b"compiled\n")
+    if found is not None:  # an unwritable cache costs the next run a compile, nothing else
+        write_entry(found[0], MARKER_KIND, found[1], PASSED)
     return "compiled", []
 
 
 def plugin_identity() -> str | None:
     """What a cached check depends on, without importing the plugin or MuJoCo; ``None`` without a plugin.
 
-    The check plugin's entry point, its distribution and version, every file of its top-level package (path,
-    size, modification time in ns) and the installed MuJoCo distribution's version.
+    The check plugin's entry point, its distribution and version, every file of its top-level package (path
+    and SHA-256 of its content: modification times decide nothing) and the installed MuJoCo distribution's
+    version.
     """
     points = list(metadata.entry_points(group=GROUP, name="check"))
     if not points:
@@ -109,8 +111,7 @@ def plugin_identity() -> str | None:
             for name in sorted(files):
                 if name.endswith(".py"):
                     path = os.path.join(root, name)
-                    stat = os.stat(path)
-                    parts.append(f"{os.path.relpath(path, folder)} {stat.st_size} {stat.st_mtime_ns}")
+                    parts.append(f"{os.path.relpath(path, folder)} {sha256_of(Path(path))}")
     for name in ("mujoco-core", "mujoco"):
         try:
             parts.append(f"{name} {metadata.version(name)}")
@@ -119,15 +120,19 @@ def plugin_identity() -> str | None:
     return "\n".join(parts)
 
 
-def _marker(cache_dir: Path | None, data: bytes) -> Path | None:
-    """Where a passing check of ``data`` is remembered (``None``: no cache or no plugin)."""
+def _marker(cache_dir: Path | None, data: bytes) -> tuple[Path, str] | None:
+    """Where a passing check of ``data`` is remembered and the key it answers (``None``: no cache or no plugin).
+
+    The marker is a cache entry (:mod:`meshtool.cachefile`) whose payload is :data:`PASSED`: an empty file,
+    another marker copied over it, or one damaged is a miss, and the check runs again.
+    """
     if cache_dir is None:
         return None
     identity = plugin_identity()
     if identity is None:
         return None
     digest = hashlib.sha256(identity.encode() + b"\0" + data).hexdigest()
-    return cache_dir / digest[:2] / f"{digest}.ok"
+    return cache_dir / digest[:2] / f"{digest}.ok", digest
 
 
 def _describe(packed: PackedMesh, textures: list[TextureDesc]) -> dict[str, str]:

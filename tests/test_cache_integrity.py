@@ -444,3 +444,32 @@ def test_record_on_a_full_disk_is_one_error_and_no_file(tmp_path: Path) -> None:
     done = run([*argv, "out.simlog", "--duration", "0.1"], tmp_path)  # room enough: written whole
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*before, "out.simlog"])
+
+
+# -- obj2bin's remembered MuJoCo checks (a fourth cache) --------------------------------------------------
+
+
+def test_an_empty_damaged_or_copied_check_marker_is_a_miss(tmp_path: Path) -> None:
+    """Any file with a marker's name used to count as a passing check; now it must answer its key."""
+    from meshtool.loadcheck import _marker, check_pack
+    from meshtool.normalise import NormaliseOptions, prepare
+    from meshtool.packfile import pack
+
+    tile = Path(__file__).resolve().parent.parent / "fixtures" / "realworld" / "normal_maps" / "tile.obj"
+    asset = prepare(tile, NormaliseOptions())
+    data = pack(asset, False, {}, [], None)
+    other = pack(asset, False, {"note": "another pack"}, [], None)
+    cache = tmp_path / "checks"
+    assert check_pack(data, "tile.obj", cache)[0] == "compiled"
+    assert check_pack(data, "tile.obj", cache)[0] == "cached"
+    found = _marker(cache, data)
+    assert found is not None
+    marker = found[0]
+    sealed = marker.read_bytes()
+    assert check_pack(other, "other.obj", cache)[0] == "compiled"
+    other_found = _marker(cache, other)
+    assert other_found is not None
+    for damage in (b"", sealed[:-1], sealed[:-1] + bytes([sealed[-1] ^ 1]), other_found[0].read_bytes()):
+        marker.write_bytes(damage)
+        assert check_pack(data, "tile.obj", cache)[0] == "compiled"  # compiled again, and the marker rewritten
+        assert marker.read_bytes() == sealed
