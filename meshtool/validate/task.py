@@ -201,7 +201,9 @@ def _read_obj(read: ReadAsset) -> None:
         asset = prepare(src, NormaliseOptions())
     except MeshtoolError as exc:
         rule = {"non-finite": "G001", "gltf-buffer-missing": "S013"}.get(str(exc.code), "S001")
-        result.findings.append(hit(rule, exc.message, exc.path or shown, exc.line))
+        # a binary file's location is a byte offset, which findings have no field for: it leads the message
+        located = exc.message if exc.line is not None or exc.offset is None else f"byte {exc.offset}: {exc.message}"
+        result.findings.append(hit(rule, located, exc.path or shown, exc.line))
         result.findings.extend(name_findings([shown]))
         read.done = True
         return
