@@ -430,7 +430,8 @@ def urdf(
     **hull_kw: Any,
 ) -> None:
     """Import ROBOT (a URDF): every mesh normalised, packed and hulled; an MJCF of the robot."""
-    from meshtool.urdf import UrdfOptions, import_urdf, write_import
+    from meshtool.urdf import UrdfOptions, import_urdf
+    from meshtool.urdf_write import write_import
 
     with _guard(False), overwrite_allowed(force):
         options = UrdfOptions(package_dirs, _hull_options(hull_kw), actuators, free_base, allow_outside, package_search)

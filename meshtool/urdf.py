@@ -25,8 +25,6 @@ from __future__ import annotations
 import importlib
 import io
 import math
-import os
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -48,19 +46,15 @@ from meshtool.model import (
     MotorDesc,
     balance_inertia,
     mjcf_files,
-    stamped_files,
 )
-from meshtool.outdir import GENERATOR, GENERATORS, check_output, write_file
-from meshtool.packfile import parse
-from meshtool.resolve import Resolver, file_sha256
+from meshtool.outdir import GENERATOR
+from meshtool.resolve import Resolver
 from meshtool.urdf_locate import FoundMesh, MeshLocator, UrdfError
-from meshtool.urdf_mesh import LoadedMesh, load_mesh, mesh_prefix, parse_scale
+from meshtool.urdf_mesh import LoadedMesh, load_mesh, mesh_prefix, mesh_sources, parse_scale
 
 WORLD = "world"
 #: Longest robot name in bytes: it names ``NAME.xml`` (most file systems allow 255 bytes per name).
 MAX_NAME_BYTES = 200
-#: Bytes of an existing ``NAME.xml`` read to find meshtool's stamp (it is the XML's first element).
-_STAMP_READ = 1 << 20
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,8 +138,8 @@ def element_lines(data: bytes) -> dict[tuple[str, str], int]:
     """The 1-based source line of each ``<link>`` and ``<joint>`` of the robot (by name) and ``<mesh>`` (by file).
 
     Keys are ``("link", name)``, ``("joint", name)`` (children of ``<robot>`` only: a ``<transmission>``'s
-    ``<joint>`` is a reference), ``("mesh", filename)`` and ``("robot", "")``; the first element wins. lxml (yourdfpy's parser)
-    keeps each element's ``sourceline``; entities are not resolved and nothing is fetched.
+    ``<joint>`` is a reference), ``("mesh", filename)`` and ``("robot", "")``; the first element wins. lxml
+    (yourdfpy's parser) keeps each element's ``sourceline``; entities are not resolved and nothing is fetched.
     """
     etree: Any = importlib.import_module("lxml.etree")  # installed with yourdfpy; no type stubs
 
@@ -164,71 +158,6 @@ def element_lines(data: bytes) -> dict[tuple[str, str], int]:
         if mesh.get("filename") is not None and mesh.sourceline:
             lines.setdefault(("mesh", str(mesh.get("filename"))), int(mesh.sourceline))
     return lines
-
-
-def write_import(result: UrdfImport, out_dir: Path, *, force: bool | None = None) -> list[Path]:
-    """Write the MJCF (compiled first), its meshes and textures, and ``meshes/*.mbin`` under ``out_dir``.
-
-    Nothing the user made is replaced (:mod:`meshtool.outdir`'s rules, checked for every file before the
-    first is written): never one of :attr:`UrdfImport.sources`; an existing ``.mbin`` or ``.msh`` only when
-    meshtool wrote it; ``NAME.xml`` only when it carries meshtool's stamp; a PNG only when the stamped
-    ``NAME.xml`` there lists it with its current SHA-256 (a file of the previous import, unchanged since)
-    or holds exactly the bytes to be written. ``force`` replaces the others, never a source.
-
-    Args:
-        result: The import.
-        out_dir: The output folder (created when missing).
-        force: ``None`` uses :func:`meshtool.outdir.overwrite_allowed`'s setting (``--force``).
-
-    Raises:
-        ModelError: No MJCF builder is installed, or MuJoCo refuses the model (nothing is written).
-        OutputError: A file would replace a source or a file meshtool did not write (nothing is written).
-    """
-    files = result.mjcf()
-    xml_name = f"{result.name}.xml"
-    previous = _previous_import(out_dir / xml_name)
-    outputs = {**files, **result.mbins}
-    for name, data in sorted(outputs.items()):
-        target = out_dir / name
-        ours = previous is not None and (name == xml_name or previous.get(name) == file_sha256(target))
-        check_output(target, force=True if ours else force, inputs=result.sources, data=data)
-    written = []
-    for name in sorted(outputs, key=lambda n: (n == xml_name, n)):  # the XML (the record) last
-        target = out_dir / name
-        write_file(target, outputs[name])
-        written.append(target)
-    return written
-
-
-def _mesh_sources(found: Path, root: Path, mbin: bytes) -> set[Path]:
-    """The mesh file and every file its pack's metadata lists as read (MTL, textures), as paths."""
-    out = {found}
-    with parse(mbin, found.name, verify=False) as packed:
-        sources = packed.meta.get("sources", [])
-    for source in sources if isinstance(sources, list) else []:
-        shown = str(source.get("path", "")) if isinstance(source, dict) else ""
-        if shown.startswith("<search-path 1>/"):
-            out.add(root / shown[len("<search-path 1>/") :])
-        elif shown and not shown.startswith("<"):
-            out.add(found.parent / shown.split("#", 1)[0])
-    return out
-
-
-def _previous_import(xml: Path) -> dict[str, str] | None:
-    """The files (name -> SHA-256) listed by a meshtool-stamped MJCF at ``xml``; ``None`` when there is none."""
-    try:
-        fd = os.open(xml, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
-    except OSError:
-        return None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return None
-        head = os.read(fd, _STAMP_READ)
-    except OSError:
-        return None
-    finally:
-        os.close(fd)
-    return stamped_files(head, GENERATORS)
 
 
 class _Builder:
@@ -363,7 +292,9 @@ class _Builder:
 
     def _one_body(self, link: Any, joint: Any, order: list[str], moving: list[Any]) -> BodyDesc:
         """One link's body (pose, joint, inertial, geoms), without its children."""
-        pos, quat = _pose(joint.origin if joint is not None else None)
+        where = self._element("joint", joint.name) if joint is not None else self._element("link", link.name)
+        what = f"the origin of joint {joint.name!r}" if joint is not None else "an origin"
+        pos, quat = self._pose(joint.origin if joint is not None else None, what, where)
         body_name = link.name if link.name != WORLD else "world_link"
         body = BodyDesc(body_name, pos, quat)
         order.append(link.name)
@@ -510,18 +441,24 @@ class _Builder:
         return geoms
 
     def _geoms(self, role: Literal["visual", "collision"], item: Any, link: str) -> list[GeomDesc]:
-        pos, quat = _pose(item.origin)
+        where = self._element("link", link)
+        pos, quat = self._pose(item.origin, f"the origin of a {role} of link {link!r}", where)
         geometry = item.geometry
         rgba = self._rgba(getattr(item, "material", None)) if role == "visual" else None
         common: dict[str, Any] = {"pos": pos, "quat": quat, "contributes_mass": False}
         if geometry.box is not None:
-            size = tuple(float(v) / 2 for v in np.asarray(geometry.box.size, dtype=float))
-            return [GeomDesc(role, "box", size, rgba=rgba, **common)]
+            size = self._sizes(geometry.box.size, 3, f"<box size> of a {role} of link {link!r}", where)
+            return [GeomDesc(role, "box", tuple(v / 2 for v in size), rgba=rgba, **common)]
         if geometry.cylinder is not None:
             c = geometry.cylinder
-            return [GeomDesc(role, "cylinder", (float(c.radius), float(c.length) / 2), rgba=rgba, **common)]
+            shape = f"<cylinder> of a {role} of link {link!r}"
+            radius, length = self._sizes([c.radius, c.length], 2, f"{shape} radius and length", where)
+            return [GeomDesc(role, "cylinder", (radius, length / 2), rgba=rgba, **common)]
         if geometry.sphere is not None:
-            return [GeomDesc(role, "sphere", (float(geometry.sphere.radius),), rgba=rgba, **common)]
+            shape = f"<sphere radius> of a {role} of link {link!r}"
+            return [
+                GeomDesc(role, "sphere", self._sizes([geometry.sphere.radius], 1, shape, where), rgba=rgba, **common)
+            ]
         if geometry.mesh is None:
             raise UrdfError(f"a {role} of link {link!r} has no geometry", **self._element("link", link))
         loaded = self._mesh(geometry.mesh)
@@ -536,6 +473,29 @@ class _Builder:
                 GeomDesc(role, "mesh", mesh=part.mesh, material=material, rgba=None if material else rgba, **common)
             )
         return out
+
+    def _pose(
+        self, matrix: Any, what: str, where: dict[str, Any]
+    ) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
+        """:func:`_pose` of an ``<origin>``, refused with ``what`` and ``where`` when it is not finite."""
+        if matrix is not None and not np.all(np.isfinite(np.asarray(matrix, dtype=float))):
+            raise UrdfError(f"{what} is not finite", **where, hint="fix the xyz and rpy of the <origin>")
+        return _pose(matrix)
+
+    def _sizes(self, values: Any, count: int, what: str, where: dict[str, Any]) -> tuple[float, ...]:
+        """``count`` sizes in metres, each finite and > 0 (MuJoCo refuses others without naming the element)."""
+        try:
+            sizes = np.asarray(values, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            sizes = np.array([])
+        if sizes.size != count or not (np.all(np.isfinite(sizes)) and np.all(sizes > 0)):
+            shown = " ".join(str(v) for v in np.asarray(values, dtype=object).reshape(-1)) if values is not None else ""
+            raise UrdfError(
+                f"{what} is {shown!r}; {count} finite number(s) > 0 (metres) are needed",
+                **where,
+                hint="fix the size of the shape",
+            )
+        return tuple(float(v) for v in sizes)
 
     def _rgba(self, material: Any) -> tuple[float, float, float, float] | None:
         if material is None:
@@ -577,7 +537,7 @@ class _Builder:
             prefix = mesh_prefix(found.path, self.prefixes)
             loaded, findings = load_mesh(found, scale, prefix, self.options.hulls)
             self.findings += findings
-            self.sources |= _mesh_sources(found.path, found.root, loaded.mbin)
+            self.sources |= mesh_sources(found.path, found.root, loaded.mbin)
             self.meshes[key] = loaded
             self.used[prefix] = set()
         return self.meshes[key]
@@ -635,4 +595,4 @@ def _fmt(values: Any) -> str:
     return "(" + ", ".join(f"{float(v):.6g}" for v in np.atleast_1d(np.asarray(values, dtype=float))) + ")"
 
 
-__all__ = ["UrdfError", "UrdfImport", "UrdfOptions", "import_urdf", "write_import"]
+__all__ = ["UrdfError", "UrdfImport", "UrdfOptions", "element_lines", "import_urdf"]

@@ -124,6 +124,20 @@ def _scaled(asset: NormalisedAsset, s: np.ndarray) -> NormalisedAsset:
     return dataclasses.replace(asset, mesh=scaled, manifest=manifest)
 
 
+def mesh_sources(found: Path, root: Path, mbin: bytes) -> set[Path]:
+    """The mesh file and every file its pack's metadata lists as read (MTL, textures), as paths."""
+    out = {found}
+    with parse(mbin, found.name, verify=False) as packed:
+        sources = packed.meta.get("sources", [])
+    for source in sources if isinstance(sources, list) else []:
+        shown = str(source.get("path", "")) if isinstance(source, dict) else ""
+        if shown.startswith("<search-path 1>/"):
+            out.add(root / shown[len("<search-path 1>/") :])
+        elif shown and not shown.startswith("<"):
+            out.add(found.parent / shown.split("#", 1)[0])
+    return out
+
+
 def mesh_prefix(found: Path, taken: set[str]) -> str:
     """A model-asset prefix for a mesh file, unique among ``taken`` (which it joins)."""
     prefix = safe_identifier(safe_file_stem(found.stem) or "mesh", "mesh")
@@ -133,4 +147,4 @@ def mesh_prefix(found: Path, taken: set[str]) -> str:
     return prefix
 
 
-__all__ = ["MESH_TYPES", "Hull", "LoadedMesh", "UrdfError", "load_mesh", "mesh_prefix", "parse_scale"]
+__all__ = ["MESH_TYPES", "Hull", "LoadedMesh", "UrdfError", "load_mesh", "mesh_prefix", "mesh_sources", "parse_scale"]

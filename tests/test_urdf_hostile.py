@@ -394,3 +394,52 @@ def test_a_robot_name_too_long_for_a_file_name_is_an_error(tmp_path: Path) -> No
         f"error: {urdf}:2: robot name is 300 bytes long; at most 200 (it names the MJCF file) "
         "(shorten the <robot name=...>)\n"
     )
+
+
+def _one_shape(path: Path, geometry: str, origin: str = "", joint_origin: str = "") -> Path:
+    path.write_text(
+        '<robot name="r">\n<link name="a"/>\n<link name="b">\n'
+        f"<collision>{origin}<geometry>{geometry}</geometry></collision>\n"
+        '<inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>\n'
+        f'<joint name="j" type="revolute">{joint_origin}<parent link="a"/><child link="b"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n</robot>\n'
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    ("geometry", "message"),
+    [
+        ('<box size="1 2 3 4"/>', "<box size> of a collision of link 'b' is '1.0 2.0 3.0 4.0'; 3 finite number(s)"),
+        ('<box size="1 nan 1"/>', "<box size> of a collision of link 'b' is '1.0 nan 1.0'; 3 finite number(s)"),
+        ('<sphere radius="0"/>', "<sphere radius> of a collision of link 'b' is '0.0'; 1 finite number(s) > 0"),
+        ('<cylinder radius="1" length="-2"/>', "radius and length is '1.0 -2.0'; 2 finite number(s) > 0"),
+    ],
+    ids=["box-4-values", "box-nan", "sphere-zero", "cylinder-negative"],
+)
+def test_a_primitive_shape_with_bad_sizes_is_an_error_at_its_link(tmp_path: Path, geometry: str, message: str) -> None:
+    """MuJoCo refused these without naming the element (``size 0 must be positive in geom``); a 4-value box
+    raised TypeError from MjSpec (exit 3, found by the fuzzer)."""
+    urdf = _one_shape(tmp_path / "r.urdf", geometry)
+    with pytest.raises(UrdfError) as info:
+        import_urdf(urdf)
+    assert message in info.value.message and info.value.line == 3
+
+
+@pytest.mark.parametrize(
+    ("origin", "joint_origin", "line", "what"),
+    [
+        ('<origin xyz="nan 0 0"/>', "", 3, "the origin of a collision of link 'b'"),
+        ('<origin rpy="0 inf 0"/>', "", 3, "the origin of a collision of link 'b'"),
+        ("", '<origin xyz="0 0 nan"/>', 6, "the origin of joint 'j'"),
+    ],
+    ids=["visual-xyz-nan", "visual-rpy-inf", "joint-xyz-nan"],
+)
+def test_a_non_finite_origin_is_an_error_not_a_crash(
+    tmp_path: Path, origin: str, joint_origin: str, line: int, what: str
+) -> None:
+    """A NaN origin made trimesh's quaternion_from_matrix raise LinAlgError (exit 3, found by the fuzzer)."""
+    urdf = _one_shape(tmp_path / "r.urdf", '<box size="1 1 1"/>', origin, joint_origin)
+    out = run_bounded(["meshtool", "urdf", str(urdf), "-o", str(tmp_path / "out")])
+    assert out.code == 1
+    assert out.err == f"error: {urdf}:{line}: {what} is not finite (fix the xyz and rpy of the <origin>)\n"
