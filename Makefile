@@ -68,8 +68,9 @@ bench-hulls: $(STAMP) $(PEERS)/.installed
 corpus: $(STAMP)
 	$(BIN)/python bench/corpus_check.py ../shared/corpus
 
-# Fuzz the OBJ/MTL, .mbin, scene and .simlog readers for FUZZ_SECONDS in all (not part of make test);
-# crashes land in out/fuzz/crashes/ (see docs/testing.md)
+# Fuzz the readers (obj mtl mbin scene simlog stl ply gltf glb collada urdf commands) for FUZZ_SECONDS in all,
+# or FUZZ_SECONDS_PER_TARGET each; FUZZ_TARGETS=stl,ply picks targets (not part of make test).
+# Crashes land in out/fuzz/crashes/, counts in out/fuzz/summary.json (see docs/testing.md)
 FUZZ_SECONDS ?= 600
 fuzz: $(STAMP)
 	MUJOCO_GL=$${MUJOCO_GL:-egl} FUZZ_SECONDS=$(FUZZ_SECONDS) $(BIN)/python tests/fuzz/run.py

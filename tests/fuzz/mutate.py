@@ -8,6 +8,17 @@ Because the mutations are a list, hypothesis shrinks a crash to the fewest mutat
 ``.mbin`` inputs are mutated structurally (section payloads, shapes, META/MATL JSON values) and then
 written back with correct checksums and layout, so that mutations reach the code behind ``verify=True``
 instead of stopping at the first CRC check.
+
+Mesh formats are mutated with what they are made of: binary STL's triangle count, float fields, attribute
+words and size; PLY values re-encoded in the file's own format, header element counts, property types and
+the format/byte-order line; GLB chunks (the JSON chunk as JSON, the BIN chunk as words) with lying length
+fields; glTF JSON values (component types, indices, ``data:`` and escaping URIs) and its buffers; COLLADA and
+URDF parsed as XML trees (attributes and number lists set to extremes, elements duplicated, dropped or moved,
+``instance_node`` cycles, deep chains, missing links, mimic cycles, ``package://`` variants).
+
+Those mesh mutators live in :mod:`mutate_mesh` (STL, PLY, glTF/GLB) and :mod:`mutate_xml` (COLLADA, URDF);
+this module keeps the generic machinery (byte and token mutations, documents, binary buffers) and the OBJ,
+MTL, ``.mbin``, TOML (scenes, commands) and ``.simlog`` mutators.
 """
 
 from __future__ import annotations
@@ -49,6 +60,21 @@ SIMLOG_TOKENS = [
     b'"frame_period": -1', b'"frame_period": 0', b'"state_size": -1', b'"state_size": 1e9', b'"commands": [[]]',
     b"nan", b"NaN", b"Infinity", b"-Infinity", b'"controller": "/etc/passwd"', b"{}", b"[]", b"null", b"\x00",
     b"\xff\xff\xff\xff", b"\x00\x00\x00\x80", b"\x01", b"\x02", b"\x03",
+]  # fmt: skip
+
+
+COMMAND_TOKENS = [
+    b"[[commands]]\n", b"[[expect]]\n", b"[commands]\n", b'service = "ArmService"\n', b'service = "GPS"\n',
+    b'call = "tick"\n', b'call = "reset"\n', b'call = "restore"\n', b'call = "snapshot"\n', b'call = "__init__"\n',
+    b'call = "busy"\n', b'call = "odometry"\n', b'entity = "base/arm"\n', b'entity = ""\n', b"args = [[1, 2], 3]\n",
+    b"args = [{}]\n", b"args = [[[]]]\n", b"t = 1e300\n", b"t = 604800.0000001\n", b"t = -0.0\n", b"t = true\n",
+]  # fmt: skip
+COMMAND_VALUES: list[Any] = [
+    "DriveService", "ArmService", "GPS", "Camera", "move_to", "set_joint_targets", "drive_distance", "cmd_vel",
+    "rotate_degrees", "enable", "tick", "reset", "snapshot", "restore", "joint_states", "odometry", "encoders",
+    "speed_loop", "servo_design", "__class__", "base/arm", "base", "boebot", "p3dx", "base/", "/", [0.0] * 6,
+    [[0.0] * 6, 1.0], [[0.0] * 6, 0.0], [[0.0] * 7, 1.0], [[], 1.0], [1e300, 1e300], [0.0, 1e-300], [True, "x"],
+    604800.0, 604800.5, 1e-320, [["a"] * 6, 1.0],
 ]  # fmt: skip
 
 
@@ -262,8 +288,9 @@ def _mutate_document(draw: Any, value: Any, values: list[Any], depth: int = 0) -
 
 
 @st.composite
-def mutated_toml(draw: Any, seed: bytes) -> bytes:
-    """A TOML document with 1-4 values changed structurally (parsed, changed, written back)."""
+def mutated_toml(draw: Any, seed: bytes, extra: list[Any] | None = None) -> bytes:
+    """A TOML document with 1-4 values changed structurally (parsed, changed, written back; ``extra``: more
+    values to draw from)."""
     import tomllib
 
     import tomli_w
@@ -273,7 +300,7 @@ def mutated_toml(draw: Any, seed: bytes) -> bytes:
     except (UnicodeDecodeError, tomllib.TOMLDecodeError):
         return seed
     for _ in range(draw(st.integers(1, 4))):
-        document = _mutate_document(draw, document, TOML_VALUES)
+        document = _mutate_document(draw, document, TOML_VALUES + (extra or []))
     try:
         return tomli_w.dumps(document).encode("utf-8")
     except Exception:  # a shape TOML cannot write (a table inside an inline array, ...): keep the seed
@@ -289,3 +316,48 @@ def mutated_json(draw: Any, seed: bytes) -> bytes:
     for _ in range(draw(st.integers(1, 4))):
         document = _mutate_document(draw, document, JSON_VALUES + TOML_VALUES)
     return json.dumps(document).encode("utf-8")
+
+
+def mutated_document_json(draw: Any, seed: bytes, extra: list[Any]) -> bytes:
+    """Like :func:`mutated_json`, with ``extra`` values (a format's own codes, names and URIs) in the pool."""
+    try:
+        document = json.loads(seed)
+    except ValueError:
+        return seed
+    for _ in range(draw(st.integers(1, 4))):
+        document = _mutate_document(draw, document, JSON_VALUES + TOML_VALUES + extra)
+    return json.dumps(document).encode("utf-8")
+
+
+# -- binary buffers: words set to extremes ----------------------------------------------------------------
+
+#: 4-byte words that break readers: NaN, infinities, the float32 maximum, the smallest subnormal, -0.0,
+#: 0xFFFFFFFF, INT32_MIN and INT32_MAX.
+WORDS = [
+    struct.pack("<f", float("nan")), struct.pack("<f", float("inf")), struct.pack("<f", float("-inf")),
+    struct.pack("<f", 3.4e38), struct.pack("<f", -3.4e38), b"\x01\x00\x00\x00", struct.pack("<f", -0.0),
+    b"\xff\xff\xff\xff", b"\x00\x00\x00\x80", b"\xff\xff\xff\x7f", b"\x00\x00\x00\x00",
+]  # fmt: skip
+
+
+@st.composite
+def mutated_buffer(draw: Any, seed: bytes, max_ops: int = 4, endian: str = "<") -> bytes:
+    """A binary buffer with 1..``max_ops`` aligned words or halves set to extremes, truncated or grown."""
+    data = bytearray(seed)
+    for _ in range(draw(st.integers(1, max_ops))):
+        op = draw(st.sampled_from(["word", "word", "word", "half", "byte", "truncate", "append"]))
+        n = len(data)
+        if op == "word" and n >= 4:
+            at = draw(st.integers(0, n // 4 - 1)) * 4
+            word = draw(st.sampled_from(WORDS))
+            data[at : at + 4] = word if endian == "<" else word[::-1]
+        elif op == "half" and n >= 2:
+            at = draw(st.integers(0, n // 2 - 1)) * 2
+            data[at : at + 2] = draw(st.sampled_from([b"\xff\xff", b"\x00\x80", b"\xff\x7f", b"\x00\x00"]))
+        elif op == "byte" and n:
+            data[draw(st.integers(0, n - 1))] = draw(st.integers(0, 255))
+        elif op == "truncate" and n:
+            del data[draw(st.integers(0, n - 1)) :]
+        elif op == "append":
+            data += draw(st.binary(max_size=16)) * draw(st.sampled_from([1, 4, 1000]))
+    return bytes(data)

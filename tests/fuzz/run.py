@@ -1,18 +1,23 @@
 """The fuzz harness: ``make fuzz`` (or ``python tests/fuzz/run.py``), not part of ``make test``.
 
-Runs every target of :mod:`targets` for its share of ``FUZZ_SECONDS`` (default 600 in all), each in a
-child process driven by hypothesis. A crash is any exception other than the target's documented error base
-class, or a hang: an input still running after ``FUZZ_INPUT_TIMEOUT`` seconds (default 10; interrupted by
-SIGALRM in the child, and the child is killed by this parent if native code does not return).
+Runs every target of :mod:`targets` (or those named) for its share of ``FUZZ_SECONDS`` (default 600 in all),
+or for ``FUZZ_SECONDS_PER_TARGET`` each, each in a child process driven by hypothesis. A crash is any exception
+other than the target's documented error base class (``RecursionError``, ``MemoryError``, ``KeyError``... all
+count), or a hang: an input still running after ``FUZZ_INPUT_TIMEOUT`` seconds (default 10; interrupted by
+SIGALRM in the child, and the child is killed by this parent if native code does not return). The child's
+address space is capped at ``FUZZ_MEMORY_MB`` (default 4096; 0: no cap), so an allocation blow-up is a
+``MemoryError`` crash rather than a machine out of memory.
 
 New crashes are shrunk by hypothesis (fewest mutations), written to ``OUT/crashes/<target>-<id>/`` (the input
 files and ``traceback.txt``; ``OUT`` is ``out/fuzz`` by default) and counted; a crash with the same exception
 type and place is recorded once. A summary (inputs tried, refusals, crashes per target) goes to
-``OUT/summary.json`` and stdout. Exit status 1 when anything crashed or hung.
+``OUT/summary.json`` and stdout: per target the inputs run, clean refusals, inputs accepted, crashing inputs,
+and each distinct crash with the inputs that hit it and where it was raised. Exit status 1 when anything
+crashed or hung.
 
 Usage::
 
-    python tests/fuzz/run.py [--seconds 600] [--targets obj,mtl,mbin,scene,simlog] [--out out/fuzz]
+    python tests/fuzz/run.py [--seconds 600 | --seconds-per-target 600] [--targets stl,ply] [--out out/fuzz]
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import hashlib
 import json
 import os
 import pickle
+import resource
 import shutil
 import signal
 import subprocess
@@ -48,6 +54,20 @@ def signature(exc: BaseException) -> str:
     return f"{type(exc).__name__} at {where}"
 
 
+def raised_at(exc: BaseException) -> str:
+    """The innermost frame of a traceback, anywhere (``file:line function``): where a library raised it."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    return f"{Path(frames[-1].filename).name}:{frames[-1].lineno} {frames[-1].name}" if frames else "?"
+
+
+def limit_memory(megabytes: int) -> None:
+    """Cap this process's address space (``RLIMIT_AS``) at ``megabytes`` MiB (0: leave it)."""
+    if megabytes > 0:
+        cap = megabytes * 1024 * 1024
+        _soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+        resource.setrlimit(resource.RLIMIT_AS, (cap if hard == resource.RLIM_INFINITY else min(cap, hard), hard))
+
+
 def save_crash(out: Path, target: str, sig: str, files: dict[str, bytes], text: str) -> Path:
     """Write a crash's input files and traceback under ``out/crashes``."""
     key = hashlib.sha256(sig.encode()).hexdigest()[:10]
@@ -67,7 +87,7 @@ def save_crash(out: Path, target: str, sig: str, files: dict[str, bytes], text: 
 # -- child: one target under hypothesis ------------------------------------------------------------------
 
 
-def child(target_name: str, seconds: float, out: Path, input_timeout: float) -> None:
+def child(target_name: str, seconds: float, out: Path, input_timeout: float, memory_mb: int = 0) -> None:
     """Fuzz one target until the deadline; progress in ``out/state-<target>.json``."""
     from hypothesis import HealthCheck, Phase, given, settings
     from hypothesis import seed as hseed
@@ -77,7 +97,10 @@ def child(target_name: str, seconds: float, out: Path, input_timeout: float) -> 
     target = targets()[target_name]
     state_file = out / f"state-{target_name}.json"
     state = json.loads(state_file.read_text()) if state_file.is_file() else {}
-    stats: dict[str, Any] = {"tried": 0, "refused": 0, "crashes": {}, "hangs": {}, "seeds": 0, **state}
+    stats: dict[str, Any] = {
+        "tried": 0, "refused": 0, "crashed": 0, "crashes": {}, "hangs": {}, "seeds": 0, "crash_inputs": {},
+        "raised_at": {}, **state,
+    }  # fmt: skip
     known: set[str] = set(stats["crashes"]) | set(stats["hangs"])
     scratch = Path(tempfile.mkdtemp(prefix=f"fuzz-{target_name}-"))
     seeds = target.seeds(scratch)
@@ -86,6 +109,7 @@ def child(target_name: str, seconds: float, out: Path, input_timeout: float) -> 
         raise SystemExit(f"{target_name}: no seeds")
     strategy = target.strategy(seeds)
     allowed = target.allowed()
+    limit_memory(memory_mb)  # after the seeds (the simlog seeds are recorded by a simrun child process)
     inflight = out / f"inflight-{target_name}.pickle"
     deadline = time.monotonic() + seconds
     failures: dict[str, tuple[dict[str, bytes], str]] = {}
@@ -124,6 +148,8 @@ def child(target_name: str, seconds: float, out: Path, input_timeout: float) -> 
             stats["refused"] += 1
         except Hang as exc:  # recorded as found, not shrunk (each shrink step would cost the timeout)
             sig = "hang"
+            stats["crashed"] += 1
+            stats["crash_inputs"][sig] = stats["crash_inputs"].get(sig, 0) + 1
             if sig not in known:
                 known.add(sig)
                 saved = save_crash(out, target_name, sig, files, f"{exc}\n")
@@ -131,6 +157,9 @@ def child(target_name: str, seconds: float, out: Path, input_timeout: float) -> 
                 print(f"[{target_name}] HANG -> {saved}", flush=True)
         except Exception as exc:
             sig = signature(exc)
+            stats["crashed"] += 1
+            stats["crash_inputs"][sig] = stats["crash_inputs"].get(sig, 0) + 1
+            stats["raised_at"].setdefault(sig, raised_at(exc))
             if sig in known:
                 return
             failures[sig] = (files, "".join(traceback.format_exception(exc)))
@@ -159,7 +188,7 @@ def child(target_name: str, seconds: float, out: Path, input_timeout: float) -> 
 # -- parent: time budget, watchdog, summary ----------------------------------------------------------------
 
 
-def fuzz_target(name: str, seconds: float, out: Path, input_timeout: float) -> dict[str, Any]:
+def fuzz_target(name: str, seconds: float, out: Path, input_timeout: float, memory_mb: int = 0) -> dict[str, Any]:
     """Run one target's child processes until its time is used (restarting after a native hang)."""
     state_file = out / f"state-{name}.json"
     state_file.unlink(missing_ok=True)
@@ -170,7 +199,7 @@ def fuzz_target(name: str, seconds: float, out: Path, input_timeout: float) -> d
         remaining = end - time.monotonic()
         inflight.unlink(missing_ok=True)
         command = [sys.executable, __file__, "--child", name, "--seconds", f"{remaining:.1f}", "--out", str(out)]
-        command += ["--input-timeout", str(input_timeout)]
+        command += ["--input-timeout", str(input_timeout), "--memory-mb", str(memory_mb)]
         proc = subprocess.Popen(command, start_new_session=True)
         while proc.poll() is None:
             time.sleep(1)
@@ -199,36 +228,68 @@ def fuzz_target(name: str, seconds: float, out: Path, input_timeout: float) -> d
 
 def main() -> int:
     """Parse arguments and fuzz (or be one target's child)."""
+    from targets import targets
+
+    known = list(targets())
+    env = os.environ.get
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seconds", type=float, default=float(os.environ.get("FUZZ_SECONDS", 600)))
-    parser.add_argument("--targets", default=os.environ.get("FUZZ_TARGETS", "obj,mtl,mbin,scene,simlog"))
-    parser.add_argument("--out", type=Path, default=Path(os.environ.get("FUZZ_OUT", "out/fuzz")))
-    parser.add_argument("--input-timeout", type=float, default=float(os.environ.get("FUZZ_INPUT_TIMEOUT", 10)))
+    parser.add_argument("--seconds", type=float, default=float(env("FUZZ_SECONDS", 600)), help="in all, split evenly")
+    parser.add_argument(
+        "--seconds-per-target",
+        type=float,
+        default=float(env("FUZZ_SECONDS_PER_TARGET") or 0) or None,
+        help="for each target (instead of --seconds in all)",
+    )
+    parser.add_argument(
+        "--targets", "--target", default=env("FUZZ_TARGETS") or ",".join(known), help=f"of {','.join(known)}"
+    )
+    parser.add_argument("--out", type=Path, default=Path(env("FUZZ_OUT", "out/fuzz")))
+    parser.add_argument("--input-timeout", type=float, default=float(env("FUZZ_INPUT_TIMEOUT", 10)))
+    parser.add_argument("--memory-mb", type=int, default=int(env("FUZZ_MEMORY_MB", 4096)), help="0: no cap")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     if args.child:
-        child(args.child, args.seconds, args.out, args.input_timeout)
+        child(args.child, args.seconds, args.out, args.input_timeout, args.memory_mb)
         return 0
     names = [n.strip() for n in args.targets.split(",") if n.strip()]
-    share = args.seconds / len(names)
-    summary: dict[str, Any] = {"seconds": args.seconds, "input_timeout": args.input_timeout, "targets": {}}
+    unknown = [n for n in names if n not in known]
+    if unknown or not names:
+        parser.error(f"unknown target(s) {', '.join(unknown) or '(none)'}; known: {', '.join(known)}")
+    share = args.seconds_per_target or args.seconds / len(names)
+    summary: dict[str, Any] = {
+        "seconds": share * len(names),
+        "seconds_per_target": share,
+        "input_timeout": args.input_timeout,
+        "memory_mb": args.memory_mb,
+        "targets": {},
+    }
     started = time.monotonic()
     for name in names:
         print(f"fuzzing {name} for {share:.0f} s", flush=True)
-        summary["targets"][name] = fuzz_target(name, share, args.out, args.input_timeout)
+        summary["targets"][name] = fuzz_target(name, share, args.out, args.input_timeout, args.memory_mb)
     summary["wall_seconds"] = round(time.monotonic() - started, 1)
+    for s in summary["targets"].values():
+        s["accepted"] = s.get("tried", 0) - s.get("refused", 0) - s.get("crashed", 0)
     (args.out / "summary.json").write_text(json.dumps(summary, indent=1, sort_keys=True))
+    return report(summary)
+
+
+def report(summary: dict[str, Any]) -> int:
+    """Print the per-target counts and every distinct crash; 1 when anything crashed or hung."""
     bad = 0
-    print(f"{'target':<8} {'seeds':>5} {'tried':>8} {'refused':>8} {'crashes':>7} {'hangs':>5}")
+    head = ("target", "seeds", "tried", "refused", "accepted", "crashed", "distinct", "hangs")
+    print(f"{head[0]:<9}" + "".join(f"{h:>9}" for h in head[1:]))
     for name, s in summary["targets"].items():
         crashes, hangs = len(s.get("crashes", {})), len(s.get("hangs", {}))
         bad += crashes + hangs
-        counts = f"{s.get('seeds', 0):>5} {s.get('tried', 0):>8} {s.get('refused', 0):>8}"
-        print(f"{name:<8} {counts} {crashes:>7} {hangs:>5}")
+        row = (s.get("seeds", 0), s.get("tried", 0), s.get("refused", 0), s.get("accepted", 0), s.get("crashed", 0))
+        print(f"{name:<9}" + "".join(f"{v:>9}" for v in (*row, crashes, hangs)))
     for name, s in summary["targets"].items():
         for sig, where in {**s.get("crashes", {}), **s.get("hangs", {})}.items():
-            print(f"  {name}: {sig} -> {where}")
+            inputs = s.get("crash_inputs", {}).get(sig, 1)
+            raised = s.get("raised_at", {}).get(sig)
+            print(f"  {name}: {sig} ({inputs} input(s){', raised in ' + raised if raised else ''}) -> {where}")
     return 1 if bad else 0
 
 

@@ -12,11 +12,23 @@ Targets:
     scene: ``simrun.scene.load_scene`` then ``World.compile`` (what ``simrun check`` does), beside copies of
         the fixture scenes' assets.
     simlog: ``simrun.simlog.Simlog`` and every reading method, on recordings made from the fixture scenes.
+    stl, ply, gltf, glb, collada: ``meshtool.normalise.prepare`` (as ``meshtool normalize`` reaches it) on a
+        mutated mesh file beside the buffers and textures it names; seeds: every fixture of the format (PLY
+        also re-encoded as ASCII and both binary byte orders; glTF also with every file as a ``data:`` URI;
+        the ``.gltf`` fixtures also packed as GLB).
+    urdf: ``meshtool.urdf.import_urdf`` then the model's MJCF build and compile (what ``meshtool urdf`` does,
+        without writing), on a mutated fixture URDF inside its package (meshes, ``package.xml``) with the
+        files beside the package.
+    commands: ``simrun.commands.load_commands`` then, against the fixture scene it names
+        (``SCENE.commands.toml``), the service bindings, ``check_commands`` and each command applied in
+        time order (what ``simrun play SCENE --commands FILE`` does).
 """
 
 from __future__ import annotations
 
+import base64
 import contextlib
+import json
 import os
 import shutil
 import subprocess
@@ -25,18 +37,35 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote, unquote
 
 from hypothesis import strategies as st
 from mutate import (
+    COMMAND_TOKENS,
+    COMMAND_VALUES,
     MTL_TOKENS,
     OBJ_TOKENS,
     SIMLOG_TOKENS,
     TOML_TOKENS,
+    mutated_buffer,
     mutated_bytes,
+    mutated_document_json,
     mutated_json,
     mutated_pack,
     mutated_toml,
 )
+from mutate_mesh import (
+    GLB_BIN,
+    GLB_JSON,
+    GLTF_TOKENS,
+    GLTF_VALUES,
+    join_glb,
+    mutated_glb,
+    mutated_ply,
+    mutated_stl,
+    reencode_ply,
+)
+from mutate_xml import COLLADA_ATTRIBUTES, URDF_ATTRIBUTES, collada_special, mutated_xml, urdf_special
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures"
@@ -242,6 +271,259 @@ def _run_simlog(files: Files, folder: Path) -> None:
             log.close()
 
 
+# -- STL, PLY, glTF/GLB, COLLADA: meshtool.normalise.prepare picks the reader by suffix ------------------------
+
+
+def _format_seeds(suffixes: tuple[str, ...], companions: tuple[str, ...]) -> list[Files]:
+    """Every fixture with one of ``suffixes`` (identical files once), with the ``companions`` it names."""
+    seeds, seen = [], set()
+    for path in sorted(FIXTURES.rglob("*")):
+        if path.suffix.lower() not in suffixes or not path.is_file() or path.stat().st_size > MAX_SEED_BYTES:
+            continue
+        if "fuzz" in path.relative_to(FIXTURES).parts or path.read_bytes() in seen:
+            continue
+        seen.add(path.read_bytes())
+        files = {path.name: path.read_bytes()}
+        for other in sorted(path.parent.rglob("*")):  # the files it names (a glTF buffer, a texture)
+            name = other.relative_to(path.parent).as_posix()
+            named = name.encode() in files[path.name] or quote(name).encode() in files[path.name]
+            if named and other.suffix.lower() in companions and other.stat().st_size <= MAX_SEED_BYTES:
+                files[name] = other.read_bytes()
+        seeds.append(files)
+    return seeds
+
+
+def _first_mutated(seeds: list[Files], mutation: Callable[[bytes], Any]) -> Any:
+    """Inputs: a seed with its first file (the one handed to the reader) mutated by ``mutation(data)``."""
+
+    @st.composite
+    def inputs(draw: Any) -> Files:
+        files = dict(draw(st.sampled_from(seeds)))
+        first = next(iter(files))
+        files[first] = draw(mutation(files[first]))
+        return files
+
+    return inputs()
+
+
+def _stl_seeds(_scratch: Path) -> list[Files]:
+    return _format_seeds((".stl",), ())
+
+
+def _stl_strategy(seeds: list[Files]) -> Any:
+    return _first_mutated(seeds, mutated_stl)
+
+
+def _ply_seeds(_scratch: Path) -> list[Files]:
+    """The PLY fixtures, each also re-encoded in the other two formats (ASCII, little and big endian)."""
+    seeds, seen = [], set()
+    for files in _format_seeds((".ply",), (".png", ".jpg")):
+        name, data = next(iter(files.items()))
+        for fmt in ("ascii", "binary_little_endian", "binary_big_endian"):
+            encoded = reencode_ply(data, fmt)
+            if encoded is not None and encoded not in seen:
+                seen.add(encoded)
+                seeds.append({name: encoded, **{k: v for k, v in files.items() if k != name}})
+        if data not in seen:
+            seen.add(data)
+            seeds.append(files)
+    return seeds
+
+
+def _ply_strategy(seeds: list[Files]) -> Any:
+    return _first_mutated(seeds, mutated_ply)
+
+
+def _data_uri(data: bytes, mime: str) -> str:
+    return f"data:{mime};base64,{base64.b64encode(data).decode('ascii')}"
+
+
+def _gltf_seeds(_scratch: Path) -> list[Files]:
+    """The ``.gltf`` fixtures with their ``.bin`` and images, and each also with every file as a ``data:`` URI."""
+    seeds = _format_seeds((".gltf",), (".bin", ".png", ".jpg"))
+    for files in list(seeds):
+        name, data = next(iter(files.items()))
+        doc = json.loads(data)
+        embedded = 0
+        for key, mime in (("buffers", "application/octet-stream"), ("images", "image/png")):
+            for item in doc.get(key, []):
+                uri = unquote(str(item.get("uri", "")))
+                if uri in files:
+                    item["uri"] = _data_uri(files[uri], mime)
+                    embedded += 1
+        if embedded:
+            seeds.append({name.replace(".gltf", "_embedded.gltf"): json.dumps(doc, indent=1).encode()})
+    return seeds
+
+
+def _gltf_strategy(seeds: list[Files]) -> Any:
+    @st.composite
+    def inputs(draw: Any) -> Files:
+        files = dict(draw(st.sampled_from(seeds)))
+        name = next(iter(files))
+        for _ in range(draw(st.integers(1, 2))):
+            op = draw(st.sampled_from(["json", "json", "json", "text", "bin", "data_uri"]))
+            if op == "json":
+                files[name] = mutated_document_json(draw, files[name], GLTF_VALUES)
+            elif op == "text":
+                files[name] = draw(mutated_bytes(files[name], GLTF_TOKENS, 4))
+            elif op == "bin" and any(n.endswith(".bin") for n in files):
+                bin_name = draw(st.sampled_from(sorted(n for n in files if n.endswith(".bin"))))
+                files[bin_name] = draw(mutated_buffer(files[bin_name]))
+            elif op == "data_uri":  # a data: buffer's bytes changed, written back as base64
+                try:
+                    doc = json.loads(files[name])
+                    buffers = [b for b in doc.get("buffers", []) if str(b.get("uri", "")).startswith("data:")]
+                except (ValueError, AttributeError, TypeError):
+                    continue
+                if buffers:
+                    buffer = draw(st.sampled_from(buffers))
+                    head, _, payload = buffer["uri"].partition(",")
+                    raw = base64.b64decode(payload) if head.endswith(";base64") else b""
+                    buffer["uri"] = _data_uri(draw(mutated_buffer(raw)), "application/octet-stream")
+                    files[name] = json.dumps(doc).encode()
+        return files
+
+    return inputs()
+
+
+def _glb_seeds(_scratch: Path) -> list[Files]:
+    """The ``.glb`` fixtures, and the ``.gltf`` fixtures with one buffer packed as a GLB (images kept as files)."""
+    seeds = _format_seeds((".glb",), (".png", ".jpg"))
+    for files in _format_seeds((".gltf",), (".bin", ".png", ".jpg")):
+        name, data = next(iter(files.items()))
+        doc = json.loads(data)
+        buffers = doc.get("buffers", [])
+        uri = unquote(str(buffers[0].get("uri", ""))) if len(buffers) == 1 else ""
+        if uri in files:
+            del buffers[0]["uri"]
+            packed = join_glb(2, [(GLB_JSON, json.dumps(doc).encode()), (GLB_BIN, files[uri])])
+            rest = {k: v for k, v in files.items() if k not in (name, uri)}
+            seeds.append({name.replace(".gltf", ".glb"): packed, **rest})
+    return seeds
+
+
+def _glb_strategy(seeds: list[Files]) -> Any:
+    return _first_mutated(seeds, mutated_glb)
+
+
+def _collada_seeds(_scratch: Path) -> list[Files]:
+    return _format_seeds((".dae",), (".png", ".jpg"))
+
+
+def _collada_strategy(seeds: list[Files]) -> Any:
+    return _first_mutated(seeds, lambda data: mutated_xml(data, COLLADA_ATTRIBUTES, collada_special))
+
+
+# -- URDF ------------------------------------------------------------------------------------------------------
+
+
+def _urdf_seeds(_scratch: Path) -> list[Files]:
+    """Each fixture URDF as ``PACKAGE/urdf/NAME.urdf`` with its package's files and the files beside the package
+    (``fixtures/urdf/secret.stl``: what an escaping path would reach)."""
+    seeds = []
+    for urdf in sorted(FIXTURES.rglob("*.urdf")):
+        if "fuzz" in urdf.relative_to(FIXTURES).parts or urdf.stat().st_size > MAX_SEED_BYTES:
+            continue
+        package = urdf.parent.parent if urdf.parent.name == "urdf" else urdf.parent
+        base = package.parent
+        files = {urdf.relative_to(base).as_posix(): urdf.read_bytes()}
+        for other in [*sorted(package.rglob("*")), *sorted(base.glob("*"))]:
+            if other.is_file() and other.suffix != ".urdf" and other.stat().st_size <= MAX_SEED_BYTES:
+                files.setdefault(other.relative_to(base).as_posix(), other.read_bytes())
+        seeds.append(files)
+    return seeds
+
+
+def _urdf_strategy(seeds: list[Files]) -> Any:
+    @st.composite
+    def inputs(draw: Any) -> Files:
+        files = dict(draw(st.sampled_from(seeds)))
+        first = next(iter(files))
+        special = urdf_special(first.split("/")[0])
+        files[first] = draw(mutated_xml(files[first], URDF_ATTRIBUTES, special))
+        return files
+
+    return inputs()
+
+
+def _run_urdf(files: Files, folder: Path) -> None:
+    import logging
+
+    from meshtool.urdf import UrdfOptions, import_urdf
+
+    logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)  # its parse-error log lines, once per input
+    result = import_urdf(write_input(files, folder), UrdfOptions())  # what `meshtool urdf` does, then
+    result.mjcf()  # the model built and compiled by the MJCF builder (write_import without writing)
+
+
+# -- simrun commands files ---------------------------------------------------------------------------------------
+
+#: Commands for the arm and base of ``arm_on_base.toml`` (the fixture commands file drives only a Boe-Bot).
+_ARM_COMMANDS = b"""[[commands]]
+t = 0.0
+service = "ArmService"
+entity = "base/arm"
+call = "move_to"
+args = [[0.5, -0.3, 0.8, 0.2, 0.0, 0.01], 0.5]
+
+[[commands]]
+t = 0.3
+service = "ArmService"
+entity = "base/arm"
+call = "set_joint_targets"
+args = [[0.0, 0.1, 0.2, 0.3, 0.4, 0.0]]
+
+[[commands]]
+t = 0.4
+entity = "base"
+call = "cmd_vel"
+args = [0.1, 0.2]
+
+[[commands]]
+t = 0.5
+entity = "base"
+call = "all_stop"
+"""
+
+
+def _commands_seeds(_scratch: Path) -> list[Files]:
+    """``SCENE.commands.toml`` inputs run against ``fixtures/scenes/SCENE.toml``: the fixture commands file
+    for ``boebot.toml`` and retargeted to ``pioneer_room.toml``'s robot, and arm commands for ``arm_on_base``."""
+    square = (FIXTURES / "scenes" / "square.commands.toml").read_bytes()
+    return [
+        {"boebot.commands.toml": square},
+        {"pioneer_room.commands.toml": square.replace(b'"boebot"', b'"p3dx"')},
+        {"arm_on_base.commands.toml": _ARM_COMMANDS},
+    ]
+
+
+def _commands_strategy(seeds: list[Files]) -> Any:
+    @st.composite
+    def inputs(draw: Any) -> Files:
+        ((name, data),) = draw(st.sampled_from(seeds)).items()
+        if draw(st.booleans()):
+            return {name: draw(mutated_toml(data, COMMAND_VALUES))}
+        return {name: draw(mutated_bytes(data, COMMAND_TOKENS))}
+
+    return inputs()
+
+
+def _run_commands(files: Files, folder: Path) -> None:
+    from simrun.commands import check_commands, load_commands
+    from simrun.scene import load_scene
+    from simrun.session import prepare
+
+    path = write_input(files, folder)
+    commands = load_commands(path)  # what `simrun play SCENE --commands FILE` reads, then
+    world = load_scene(FIXTURES / "scenes" / path.name.replace(".commands.toml", ".toml"))
+    prepare(world)
+    check_commands(world, commands)  # as play() does before the run
+    for command in commands:  # and each command applied in time order, a few steps apart
+        command.apply(world)
+        world.step(5)
+
+
 def _meshtool_errors() -> tuple[type[BaseException], ...]:
     from meshtool.errors import MeshtoolError
 
@@ -262,4 +544,11 @@ def targets() -> dict[str, Target]:
         "mbin": Target("mbin", _mbin_seeds, _mbin_strategy, _run_mbin, _meshtool_errors),
         "scene": Target("scene", _scene_seeds, _scene_strategy, _run_scene, _simrun_errors),
         "simlog": Target("simlog", _simlog_seeds, _simlog_strategy, _run_simlog, _simrun_errors),
+        "stl": Target("stl", _stl_seeds, _stl_strategy, _run_obj, _meshtool_errors),
+        "ply": Target("ply", _ply_seeds, _ply_strategy, _run_obj, _meshtool_errors),
+        "gltf": Target("gltf", _gltf_seeds, _gltf_strategy, _run_obj, _meshtool_errors),
+        "glb": Target("glb", _glb_seeds, _glb_strategy, _run_obj, _meshtool_errors),
+        "collada": Target("collada", _collada_seeds, _collada_strategy, _run_obj, _meshtool_errors),
+        "urdf": Target("urdf", _urdf_seeds, _urdf_strategy, _run_urdf, _meshtool_errors),
+        "commands": Target("commands", _commands_seeds, _commands_strategy, _run_commands, _simrun_errors),
     }
