@@ -111,6 +111,8 @@ def validate_command(
             connect_timeout=scheduler_timeout,
         )
         report = run_validate(list(paths), options, _progress_bar())
+        for note in report.cache_notes:  # a damaged or foreign cache entry: checked again, said once
+            click.echo(f"note: {note}", err=True)
         text = (
             to_text(report, strict, colour=_colour(output), verbose=verbose)
             if fmt == "text"

@@ -18,7 +18,7 @@ from PIL import Image
 
 from meshtool.cli_common import VocabularyGroup, progress_enabled
 from meshtool.safeopen import printable
-from simrun import __version__
+from simrun import __version__, model_cache
 from simrun.archive import save_mjz
 from simrun.doctor import check_environment
 from simrun.errors import SimrunError
@@ -51,7 +51,14 @@ class _Group(VocabularyGroup):
     program = "simrun"
 
     def run_command(self, ctx: click.Context) -> Any:
-        """Run the command, mapping simrun's errors to exit codes."""
+        """Run the command, mapping simrun's errors to exit codes; then the notes of the model cache."""
+        try:
+            return self._mapped(ctx)
+        finally:  # a damaged or foreign compiled-model cache entry: compiled again, said once
+            for note in model_cache.notes():
+                click.echo(f"note: {note}", err=True)
+
+    def _mapped(self, ctx: click.Context) -> Any:
         try:
             return super().run_command(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):

@@ -76,9 +76,29 @@ _HEADER_LENGTH = struct.Struct("<I")
 
 
 def default() -> ModelCache | None:
-    """The cache named by ``SIMRUN_MODEL_CACHE`` (a folder), or ``None`` when it is unset or empty."""
+    """The cache named by ``SIMRUN_MODEL_CACHE`` (a folder), or ``None`` when it is unset or empty.
+
+    One :class:`ModelCache` per folder and process, so the command line can report every entry it found but
+    did not use (:func:`notes`) once the command is done.
+    """
     folder = os.environ.get("SIMRUN_MODEL_CACHE", "")
-    return ModelCache(Path(folder)) if folder else None
+    if not folder:
+        return None
+    if folder not in _OPEN:
+        _OPEN[folder] = ModelCache(Path(folder))
+    return _OPEN[folder]
+
+
+def notes() -> list[str]:
+    """Each cache entry this process found but did not use (damaged, answering another key), once; cleared."""
+    found = [problem for cache in _OPEN.values() for problem in cache.problems]
+    for cache in _OPEN.values():
+        cache.problems.clear()
+    return found
+
+
+#: The caches :func:`default` opened in this process, by folder.
+_OPEN: dict[str, ModelCache] = {}
 
 
 @functools.cache

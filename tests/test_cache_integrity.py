@@ -306,6 +306,8 @@ def test_meshtool_validate_with_a_bad_entry(
     done = run(["meshtool", "validate", "clean", "broken", "--format", "json", "--cache-dir", cache], folder)
     no_traceback(done)
     assert done.returncode == fresh_validate.returncode and done.stdout == fresh_validate.stdout
+    notes = [line for line in done.stderr.splitlines() if line.startswith("note: cache entry ")]
+    assert len(notes) == 1 and str(entry) in notes[0] and notes[0].endswith("; recomputed")
 
 
 # -- compiled-model cache ----------------------------------------------------------------------------------------
@@ -421,6 +423,8 @@ def test_simrun_check_with_a_bad_model_entry(case: str, scenes: tuple[Path, str]
     no_traceback(done)
     assert done.returncode == 0 and done.stdout == fresh
     assert cachefile.read_entry(entry, MODEL_KIND, entry.stem, 1 << 30).payload is not None  # written again
+    notes = [line for line in done.stderr.splitlines() if line.startswith("note: cache entry ")]
+    assert len(notes) == 1 and str(entry) in notes[0] and notes[0].endswith("; recomputed"), done.stderr
 
 
 # -- a recording on a full disk ---------------------------------------------------------------------------------

@@ -103,6 +103,8 @@ class ValidationReport:
         config_file: The configuration file, or ``None``.
         where: Assets checked in this run per place (``this process``, ``2 local worker processes``, a Dask
             worker's address); empty when every result came from the cache.
+        cache_notes: One line per cache entry found but not used (damaged, answering another key): those
+            assets were checked again (:mod:`meshtool.cachefile`).
     """
 
     assets: list[AssetResult]
@@ -114,6 +116,7 @@ class ValidationReport:
     jobs: int = 1
     config_file: str | None = None
     where: dict[str, int] = field(default_factory=dict)
+    cache_notes: list[str] = field(default_factory=list)
 
     def counts(self) -> dict[str, int]:
         """Findings per severity over all assets."""
@@ -239,6 +242,7 @@ def validate(
         jobs=options.jobs,
         config_file=config.file,
         where=dict(sorted(where.items())),
+        cache_notes=list(cache.problems),
     )
     for task in tasks:
         result = results[task.display]
