@@ -20,7 +20,7 @@ import click
 
 from meshtool import __version__
 from meshtool.changes import TOLD_NOTES, split_findings
-from meshtool.cli_common import VocabularyCommand, exit_on_bug, progress_enabled
+from meshtool.cli_common import VocabularyCommand, exit_on_bug, progress_enabled, quiet_requested
 from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, Severity
@@ -317,7 +317,7 @@ def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as
         for r in results:
             if r.status == "failed":
                 click.echo(f"error: {r.error}", err=True)
-        _echo_told([f for r in results for f in r.findings if f.code in TOLD_NOTES])
+        _echo_grouped([(str(r.source), r.findings) for r in results])  # each asset's warnings under its name
         click.echo(f"{counts['written']} written, {counts['unchanged']} unchanged, {counts['failed']} failed")
     if counts["failed"]:
         sys.exit(EXIT_INPUT)
@@ -457,18 +457,39 @@ def _report(status: str, output: Path, findings: list[Finding], stats: dict[str,
 
 
 def _echo_findings(findings: list[Finding]) -> None:
-    told = [f for f in findings if f.code in TOLD_NOTES]
-    shown, notes = split_findings(f for f in findings if f.code not in TOLD_NOTES)
+    """Warnings (and with ``-v`` every note) on stderr, then the told notes; nothing with ``-q``."""
+    _echo_grouped([(None, findings)])
+
+
+def _echo_grouped(groups: list[tuple[str | None, list[Finding]]]) -> None:
+    """The findings of each asset, under its name when it has one (a folder conversion); nothing with ``-q``.
+
+    Warnings are shown, notes that changed nothing only with ``-v`` (else counted in one closing line), and
+    the :data:`~meshtool.changes.TOLD_NOTES` once per code for the whole command.
+    """
+    if quiet_requested():
+        return
     verbose = bool(os.environ.get("MESHTOOL_VERBOSE"))
-    for finding in [*shown, *notes] if verbose else shown:
-        click.echo(finding.one_line(), err=True)
+    told: list[Finding] = []
+    hidden = 0
+    for heading, findings in groups:
+        told += [f for f in findings if f.code in TOLD_NOTES]
+        shown, notes = split_findings(f for f in findings if f.code not in TOLD_NOTES)
+        listed = [*shown, *notes] if verbose else shown
+        hidden += 0 if verbose else len(notes)
+        if heading is not None and listed:
+            click.echo(f"{heading}:", err=True)
+        for finding in listed:
+            click.echo(("  " if heading is not None else "") + finding.one_line(), err=True)
     _echo_told(told)
-    if notes and not verbose:
-        click.echo(f"note: {len(notes)} more finding(s) that changed nothing (MESHTOOL_VERBOSE=1 shows them)", err=True)
+    if hidden:
+        click.echo(f"note: {hidden} more finding(s) that changed nothing (MESHTOOL_VERBOSE=1 shows them)", err=True)
 
 
 def _echo_told(told: list[Finding]) -> None:
     """The :data:`~meshtool.changes.TOLD_NOTES` as ``note:`` lines, one per code for the whole command."""
+    if quiet_requested():
+        return
     for code in sorted({f.code for f in told}):
         same = [f for f in told if f.code == code]
         first = same[0]

@@ -6,7 +6,8 @@ Every command of the three gets, from :class:`VocabularyGroup` / :class:`Vocabul
   {"message": ...}}``); a command that writes its own JSON keeps it, one with text output has its lines
   wrapped (``{"status": "ok", "command": ..., "output": [...]}``); ``--format json`` means the same where a
   command has ``--format``;
-- ``-q/--quiet``: nothing on stdout unless ``--json`` (errors still on stderr, the exit code says the rest);
+- ``-q/--quiet``: nothing on stdout unless ``--json``, and no findings (warnings, notes) on stderr: errors
+  still are, and the exit code says the rest (:func:`quiet_requested`);
 - ``-v/--verbose``: more detail (``MESHTOOL_VERBOSE=1``: every finding); ``-vv`` also the traceback of an
   internal error (``MESHTOOL_DEBUG=1`` / ``SIMRUN_DEBUG=1``);
 - the exit codes of :data:`EXIT_CODES`, and one ``error:`` line on stderr for a mistake: libraries'
@@ -18,6 +19,7 @@ Progress displays go to stderr and only when stderr is a terminal (:func:`progre
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import io
 import json
 import logging
@@ -45,6 +47,13 @@ EXIT_CODES: dict[str, int] = {
 }
 #: Environment variable that makes an internal error raise its traceback, per program.
 DEBUG_VARIABLES = {"meshtool": "MESHTOOL_DEBUG", "obj2bin": "MESHTOOL_DEBUG", "simrun": "SIMRUN_DEBUG"}
+#: ``-q`` of the command running now: its findings (warnings, notes) are not printed either (errors are).
+_QUIET: contextvars.ContextVar[bool] = contextvars.ContextVar("meshtool_quiet", default=False)
+
+
+def quiet_requested() -> bool:
+    """Whether the running command was given ``-q``/``--quiet``: print no findings, only errors."""
+    return _QUIET.get()
 
 
 def exit_on_bug(exc: Exception) -> NoReturn:
@@ -257,6 +266,16 @@ def vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
 @contextlib.contextmanager
 def _vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
     as_json, quiet, verbose = _flags(args)
+    token = _QUIET.set(quiet)
+    try:
+        with _run_vocabulary(name, as_json, quiet, verbose, program):
+            yield
+    finally:
+        _QUIET.reset(token)
+
+
+@contextlib.contextmanager
+def _run_vocabulary(name: str, as_json: bool, quiet: bool, verbose: int, program: str) -> Iterator[None]:
     if verbose >= 1 and program in ("meshtool", "obj2bin"):
         os.environ["MESHTOOL_VERBOSE"] = "1"
     if verbose >= 2:

@@ -240,3 +240,35 @@ def test_killed_obj2bin_leaves_no_worker_behind(tmp_path):
         if parent.poll() is None:
             parent.kill()
     assert left == [], f"workers {left} outlived their killed parent"
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_a_folder_conversion_prints_each_assets_warnings_under_its_name(fixtures, tmp_path, jobs):
+    """``obj2bin DIR -j 2`` printed only ``[1/2] written: ...``: a head 100 times too large went unsaid (issue 26)."""
+    import subprocess
+    import sys
+
+    src = tmp_path / "src"
+    shutil.copytree(fixtures / "head", src / "a")
+    shutil.copytree(fixtures / "head", src / "b")
+    exe = str(Path(sys.executable).parent / "obj2bin")
+    single = subprocess.run(
+        [exe, str(src / "a" / "Head 1.obj"), "-o", str(tmp_path / "one.mbin")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    warning = next(line for line in single.stderr.splitlines() if line.startswith("warning: "))
+    assert "scale-suspicious" in warning
+    folder = subprocess.run(
+        [exe, str(src), "-o", str(tmp_path / "out"), "-j", jobs], capture_output=True, text=True, timeout=300
+    )
+    assert folder.returncode == 0, folder.stderr
+    lines = folder.stderr.splitlines()
+    for name in ("a", "b"):
+        at = lines.index(f"{src / name / 'Head 1.obj'}:")
+        assert lines[at + 1] == f"  {warning}"
+    quiet = subprocess.run(
+        [exe, str(src), "-o", str(tmp_path / "q"), "-j", jobs, "-q"], capture_output=True, text=True, timeout=300
+    )
+    assert quiet.returncode == 0 and quiet.stdout == "" and quiet.stderr == ""
