@@ -49,6 +49,8 @@ class AssetLibrary:
     spec: mujoco.MjSpec
     files: dict[Path, PackedMesh] = field(default_factory=dict)
     images: dict[Path, bytes] = field(default_factory=dict)
+    #: Other files builds read, by real path: what an import read (a URDF robot's URDF, meshes, MTL, textures).
+    sources: set[Path] = field(default_factory=set)
     added_meshes: dict[tuple[Path, float], MeshAsset] = field(default_factory=dict)
     added_textures: dict[Path, str] = field(default_factory=dict)
     added_whole: set[str] = field(default_factory=set)

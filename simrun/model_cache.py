@@ -322,5 +322,5 @@ def model_bytes(model: mujoco.MjModel) -> bytes:
 
 
 def read_files(assets: Any) -> list[Path]:
-    """The files the builds of a world read through its :class:`~simrun.assets.AssetLibrary`."""
-    return [*assets.files, *assets.images]
+    """The files the builds of a world read through its :class:`~simrun.assets.AssetLibrary` (imports too)."""
+    return [*assets.files, *assets.images, *sorted(assets.sources)]

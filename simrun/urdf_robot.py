@@ -13,8 +13,10 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar
 
 from meshtool.errors import MeshtoolError
@@ -67,6 +69,7 @@ class UrdfRobot(Entity):
         for root in child.worldbody.bodies:
             frame.attach_body(root, f"{ctx.full_name}/", "")
         ctx.assets.vfs.update(files)
+        ctx.assets.sources.update(Path(os.path.realpath(p)) for p in result.sources)
 
 
 @contextlib.contextmanager

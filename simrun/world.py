@@ -182,7 +182,7 @@ class World:
         spec.option.gravity = list(self.options.gravity)
         spec.option.integrator = INTEGRATORS[self.options.integrator]
         spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
-        assets = AssetLibrary(spec, files=self._assets.files, images=self._assets.images)
+        assets = AssetLibrary(spec, files=self._assets.files, images=self._assets.images, sources=self._assets.sources)
         bodies: dict[str, Any] = {}
         for full, entity in self._entities.items():
             try:
@@ -442,6 +442,13 @@ class World:
             controller.reset(self.model, self.data)
             controller.next_time = 0.0
         self.reschedule()
+
+    def files_read(self) -> list[Path]:
+        """Every file the builds of this world read, by real path; empty before the first build.
+
+        ``.mbin`` assets, images and what imports read (URDF robots: the URDF, its meshes, MTL and textures).
+        """
+        return sorted({*self._assets.files, *self._assets.images, *self._assets.sources})
 
     def warnings(self) -> dict[str, int]:
         """MuJoCo warnings raised so far, by name."""

@@ -92,6 +92,9 @@ def collect(scene: Path, load: Callable[[], Any], extra: tuple[Path, ...] = ()) 
         result = load()
     prefixes = {os.path.realpath(p) for p in (sys.prefix, sys.base_prefix, sys.exec_prefix)}
     paths = {scene.resolve(), *(p.resolve() for p in extra)}
+    # files read relative to an open folder (openat: meshtool's race-free reads) show no full path to the
+    # audit hook; a world lists what its builds read
+    paths.update(Path(os.path.realpath(p)) for p in getattr(result, "files_read", list)())
     for name in found:
         real = Path(os.path.realpath(name))
         text = str(real)
