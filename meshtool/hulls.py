@@ -141,14 +141,21 @@ def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, I
     extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
     thickness = min(options.min_thickness, 0.05 * extent) if extent > 0 else options.min_thickness
     thickness = max(thickness, 1e-6)
+    flat = _flat_prism(pts, thickness, options.max_hull_vertices)
     for qhull_options in ("QbB Pp Qt", "QJ Pp"):
         try:
-            thick, thickened = _thicken(pts, thickness)
+            if flat is not None:  # a few points already: qhull never sees a large flat facet
+                thick, thickened = flat[0], True
+                if flat[1]:
+                    notes.append("reduced")
+            else:
+                thick, thickened = _thicken(pts, thickness)
             hull = trimesh.convex.convex_hull(thick, qhull_options=qhull_options)
             if len(hull.vertices) > options.max_hull_vertices:
                 subset = _qhull_subset(np.asarray(hull.vertices), options.max_hull_vertices)
                 hull = trimesh.convex.convex_hull(subset, qhull_options=qhull_options)
-                notes.append("reduced")
+                if "reduced" not in notes:
+                    notes.append("reduced")
             vertices = np.asarray(hull.vertices, dtype=np.float64)
             faces = np.asarray(hull.faces, dtype=np.int64)
         except (QhullError, ValueError, IndexError, ZeroDivisionError, np.linalg.LinAlgError):
@@ -193,6 +200,110 @@ def _thicken(pts: FloatArray, thickness: float) -> tuple[FloatArray, bool]:
         offset = axes[k] * (thickness / 2)
         out = np.concatenate([out + offset, out - offset])
     return out, True
+
+
+def _flat_prism(pts: FloatArray, thickness: float, budget: int) -> tuple[FloatArray, bool] | None:
+    """The thickened points of a flat, straight or point-like set of at least 4 points, few of them.
+
+    qhull's work on a large flat facet grows with the square of its vertices (it merges coplanar facets
+    one point at a time): the thickened hull of a flat disc with 20 000 points on its rim took minutes.
+    Here a flat set is hulled in its plane instead (2-D qhull, O(n log n)) and that polygon is stood on
+    the thin direction, from the points' extent less ``thickness / 2`` to it plus ``thickness / 2`` (as
+    :func:`_thicken` offsets): a prism when both of its faces fit the vertex ``budget``, else an antiprism,
+    its vertices alternately on the top and the bottom face, the polygon first cut to ``budget`` vertices
+    by farthest-point insertion (:func:`_polygon_subset`). (Its section through the middle is a polygon
+    with twice the vertices of either face, so it follows a rim twice as closely as a prism of half the
+    vertices.) A straight set keeps its two end points, a point-like set one point, each boxed the same way.
+
+    Returns:
+        The points to hull and whether the polygon was cut or split (``reduced``); ``None`` for fewer than
+        4 points or a set that is not thin along any principal direction (those go through :func:`_thicken`).
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    if len(pts) < 4:
+        return None
+    centre = pts.mean(axis=0)
+    _, _singular, axes = np.linalg.svd(pts - centre, full_matrices=False)  # (3, 3); U would be (n, n)
+    local = (pts - centre) @ axes.T
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    thin = [k for k in range(3) if hi[k] - lo[k] < thickness]
+    if not thin:
+        return None
+    wide = [k for k in range(3) if k not in thin]
+
+    def up(chosen: IntArray, k: int) -> FloatArray:
+        return pts[chosen] + np.outer(hi[k] + thickness / 2 - local[chosen, k], axes[k])
+
+    def down(chosen: IntArray, k: int) -> FloatArray:
+        return pts[chosen] - np.outer(local[chosen, k] - lo[k] + thickness / 2, axes[k])
+
+    if len(wide) == 2:
+        try:
+            ring = ConvexHull(local[:, wide]).vertices  # counter-clockwise
+        except (QhullError, ValueError):
+            return None
+        if 2 * len(ring) <= budget or len(ring) < 4:  # a triangle's prism is cut in 3-D if need be
+            chosen = np.sort(ring)
+            return np.concatenate([up(chosen, thin[0]), down(chosen, thin[0])]), False
+        if len(ring) > budget:
+            ring = ring[_polygon_subset(local[ring][:, wide], budget)]
+        return np.concatenate([up(ring[0::2], thin[0]), down(ring[1::2], thin[0])]), True
+    chosen = np.array([0])
+    if len(wide) == 1:
+        chosen = np.unique([int(np.argmin(local[:, wide[0]])), int(np.argmax(local[:, wide[0]]))])
+    out = pts[chosen]
+    for k in thin:  # a box across the thin directions: each copy moved to one side of the extent
+        rel = local[chosen, k]
+        out = np.concatenate(
+            [
+                out + np.outer(hi[k] + thickness / 2 - rel, axes[k]),
+                out - np.outer(rel - lo[k] + thickness / 2, axes[k]),
+            ]
+        )
+        chosen = np.concatenate([chosen, chosen])
+    return out, False
+
+
+def _polygon_subset(ring: FloatArray, keep: int) -> IntArray:
+    """Indices of at most ``keep`` vertices of a convex polygon (``ring``, in order) that approximate it closely.
+
+    The 2-D farthest-point insertion of :func:`_qhull_subset`: start from a large triangle, then add the
+    vertex farthest outside the current polygon. For points in convex position, a vertex between two chosen
+    ones can only be outside the chord joining them, so each insertion looks at one arc: O(n x keep) at worst.
+    Deterministic (ties go to the earliest vertex of an arc, then the lowest index).
+    """
+    import heapq
+
+    m = len(ring)
+    a = int(np.argmin(ring[:, 0]))
+    b = int(np.argmax(np.linalg.norm(ring - ring[a], axis=1)))
+    rel, d = ring - ring[a], ring[b] - ring[a]
+    c = int(np.argmax(np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0])))
+    chosen = sorted({a, b, c})
+    heap: list[tuple[float, int, int, int]] = []
+
+    def arc(i: int, j: int) -> None:
+        """Queue the vertex between chosen ``i`` and ``j`` (cyclic order) farthest outside their chord."""
+        between = np.arange(i + 1, j if j > i else j + m) % m
+        if not len(between):
+            return
+        edge = ring[j] - ring[i]
+        normal = np.array([edge[1], -edge[0]]) / max(float(np.linalg.norm(edge)), 1e-300)
+        excess = np.abs((ring[between] - ring[i]) @ normal)
+        k = int(np.argmax(excess))
+        heapq.heappush(heap, (-float(excess[k]), int(between[k]), i, j))
+
+    for n, i in enumerate(chosen):
+        arc(i, chosen[(n + 1) % len(chosen)])
+    while len(chosen) < keep and heap:
+        excess, k, i, j = heapq.heappop(heap)
+        if -excess <= 1e-12:
+            break
+        chosen.append(k)
+        arc(i, k)
+        arc(k, j)
+    return np.sort(np.asarray(chosen, dtype=np.int64))
 
 
 def _qhull_subset(points: FloatArray, budget: int) -> FloatArray:
@@ -257,6 +368,7 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
     from meshtool.decompose import Budget, cache_key, decompose, read_hulls, write_hulls
 
     budget, over_budget = Budget(options.time_budget_s), 0
+    problems: list[str] = []  # cache entries found but not used (damaged, answering another key)
     for done, (part, points, faces) in enumerate(groups):
         if options.mode == "decompose":
             report_progress("decomposing parts", done, len(groups))
@@ -267,12 +379,12 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
         elif options.mode == "decompose" and faces.shape[0] >= 4:
             # the finished hulls of a part decomposed before: no CoACD, no qhull (nor their imports)
             key = cache_key(points, faces, options) if options.cache_dir is not None else None
-            made = read_hulls(options.cache_dir, key) if key is not None else None
+            made = read_hulls(options.cache_dir, key, problems) if key is not None else None
             pieces = []
             if made is not None:
                 result.cache_hits += 1
             else:
-                pieces, hit, problem = decompose(points, faces, options, budget.left())
+                pieces, hit, problem = decompose(points, faces, options, budget.left(), problems)
                 result.cache_hits += int(hit)
                 if problem:
                     result.findings.append(warning("decompose-failed", f"{problem}: convex hull used instead", name))
@@ -293,6 +405,7 @@ def compute_hulls(mesh: TriMesh, options: HullOptions, name: str = "<mesh>") -> 
             for note in notes:
                 make = warning if note == "boxed" else info
                 result.findings.append(make(f"hull-{note}", _NOTE[note].format(part=mesh.part_names[part]), name))
+    result.findings += [info("cache-entry-refused", problem, name) for problem in problems]
     if over_budget:
         result.findings.append(
             warning(

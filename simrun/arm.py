@@ -200,6 +200,11 @@ class ArticulatedArm(Entity):
         return result
 
 
+#: Most segments of one arm. The servo design sums, for each joint, over every segment below it (a chain of
+#: ``n`` segments: ``n^2 / 2`` terms); MuJoCo arms have tens of segments.
+MAX_ARM_SEGMENTS = 1000
+
+
 def servo_design(arm: ArticulatedArm, full_name: str) -> dict[str, dict[str, float]]:
     """The design of each position servo of an arm, by full joint name.
 
@@ -210,29 +215,53 @@ def servo_design(arm: ArticulatedArm, full_name: str) -> dict[str, dict[str, flo
     segment below it, the capsule's inertia about its centre (as a cylinder of length + 2 radius) plus its
     mass times the square of the farthest its centre can be from the joint (the chain stretched out). With
     ``kv = 2 zeta sqrt(kp I) - damping`` the servo is at least as damped as asked in every pose.
+
+    The segments below each segment are listed in one pass up the tree from every segment, and the sums are
+    added in the segments' order: the work is the number of (segment, segment below it) pairs.
+
+    Raises:
+        EntityError: The arm has more than :data:`MAX_ARM_SEGMENTS` segments.
     """
+    segments = list(arm.segments)
+    if len(segments) > MAX_ARM_SEGMENTS:
+        raise EntityError(
+            f"{arm.TYPE} {arm.name!r}: {len(segments)} segments, more than {MAX_ARM_SEGMENTS} "
+            "(an arm's servo design grows with the square of its segments; split it into several arms)"
+        )
     parents = arm.parents()
+    length: dict[str, float] = {}
+    for segment in segments:
+        length.setdefault(segment.name, segment.length)  # the first of a name, as a search would find
     reach: dict[str, float] = {}  # distance from a segment's origin to the arm base, along the chain
-    for segment in arm.segments:
+    for segment in segments:
         parent = parents[segment.name]
-        reach[segment.name] = (reach[parent] + _length(arm, parent) if parent else 0.0) + float(
+        reach[segment.name] = (reach[parent] + length[parent] if parent else 0.0) + float(
             np.linalg.norm(segment.offset)
         )
+    below = _below(segments, parents)
+    # per link, the terms that do not depend on the joint (the same expressions, so the same floats)
+    masses = [link.mass for link in segments]
+    owns = []
+    for link in segments:
+        span = link.length + 2 * link.radius
+        owns.append(link.mass * (2 * (3 * link.radius**2 + span**2) / 12 + link.radius**2 / 2))
+    centres = [reach[link.name] for link in segments]
+    halves = [link.length / 2 for link in segments]
     result: dict[str, dict[str, float]] = {}
-    for segment in arm.segments:
-        below = [s for s in arm.segments if _descends(s.name, segment.name, parents)]
+    for k, segment in enumerate(segments):
+        links = below[k]
+        origin = reach[segment.name]
         for name, joint in segment.dofs(full_name):
             if joint.drive != "position" or joint.mimic is not None:
                 continue
             inertia = joint.armature
-            for link in below:
-                if joint.kind == "slide":
-                    inertia += link.mass
-                    continue
-                span = link.length + 2 * link.radius
-                own = link.mass * (2 * (3 * link.radius**2 + span**2) / 12 + link.radius**2 / 2)
-                distance = reach[link.name] - reach[segment.name] + link.length / 2
-                inertia += own + link.mass * distance**2
+            if joint.kind == "slide":
+                for i in links:
+                    inertia += masses[i]
+            else:
+                for i in links:
+                    distance = centres[i] - origin + halves[i]
+                    inertia += owns[i] + masses[i] * distance**2
             kp, zeta = joint.kp, joint.damping_ratio
             if zeta is None:
                 kv = joint.kv
@@ -251,18 +280,25 @@ def servo_design(arm: ArticulatedArm, full_name: str) -> dict[str, dict[str, flo
     return result
 
 
-def _length(arm: ArticulatedArm, name: str) -> float:
-    return next(s.length for s in arm.segments if s.name == name)
+def _below(segments: list[Segment], parents: dict[str, str | None]) -> list[list[int]]:
+    """For each segment, the indices of itself and every segment below it, in the segments' order.
 
-
-def _descends(name: str, ancestor: str, parents: dict[str, str | None]) -> bool:
-    """Whether segment ``name`` is ``ancestor`` or below it."""
-    current: str | None = name
-    while current is not None:
-        if current == ancestor:
-            return True
-        current = parents.get(current)
-    return False
+    Each segment is added to the lists of its ancestors, found by walking up its parents once (at most one
+    step per segment, so parents that form a cycle cannot loop).
+    """
+    named: dict[str, list[int]] = {}
+    for k, segment in enumerate(segments):
+        named.setdefault(segment.name, []).append(k)
+    below: list[list[int]] = [[] for _ in segments]
+    for k, segment in enumerate(segments):
+        current: str | None = segment.name
+        for _ in range(len(segments) + 1):
+            if current is None:
+                break
+            for j in named.get(current, ()):
+                below[j].append(k)
+            current = parents.get(current)
+    return below
 
 
 def _settling_time(zeta: float, wn: float) -> float:

@@ -138,7 +138,7 @@ def _halves(
 
 def _hulls(result: HullSet) -> tuple[list[tuple[bytes, bytes, int]], list[tuple[str, str]]]:
     return [(h.vertices.tobytes(), h.faces.tobytes(), h.part) for h in result.hulls], [
-        (f.code, f.message) for f in result.findings if f.code != "hulls-made"
+        (f.code, f.message) for f in result.findings if f.code not in ("hulls-made", "cache-entry-refused")
     ]
 
 
@@ -159,6 +159,8 @@ def test_hull_entry(case: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) 
     assert len(problems) == 1 and str(entry) in problems[0]
     again = compute_hulls(bowl, options, "bowl.obj")
     assert again.cache_hits == 0 and _hulls(again) == truth
+    notes = [f for f in again.findings if f.code == "cache-entry-refused"]  # said once, as a note
+    assert [(n.severity.value, n.message) for n in notes] == [("info", problems[0])]
     healed = compute_hulls(bowl, options, "bowl.obj")  # the entry was written again
     assert healed.cache_hits == 1 and _hulls(healed) == truth
 

@@ -15,7 +15,7 @@ from meshtool.normalise import NormaliseOptions, prepare
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 
 
-def _halves(points, faces, options, timeout_s=None):  # a stand-in decomposition: the two halves along x
+def _halves(points, faces, options, timeout_s=None, problems=None):  # a stand-in decomposition: the two halves along x
     middle = float(np.median(points[:, 0]))
     return [points[points[:, 0] <= middle + 1e-9], points[points[:, 0] >= middle - 1e-9]], False, None
 

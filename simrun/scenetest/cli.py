@@ -37,6 +37,14 @@ def _jobs() -> int:
     help="Vary NAME.PARAMETER: START:STOP:COUNT (a grid), uniform(A,B), normal(MEAN,SD), choice(V1,...) or a "
     "number. Repeatable.",
 )
+@click.option(
+    "--max-runs",
+    type=click.IntRange(1, 1_000_000),  # vary.MAX_RUNS (vary loads numpy: imported when the command runs)
+    default=10_000,  # vary.DEFAULT_MAX_RUNS
+    show_default=True,
+    metavar="N",
+    help="Refuse more runs per scene than N (seeds x the values of every --vary grid), before planning any.",
+)
 @executor_options
 @click.option(
     "--timeout",
@@ -63,6 +71,7 @@ def test_command(
     paths: tuple[Path, ...],
     seeds: str,
     vary: tuple[str, ...],
+    max_runs: int,
     jobs: int | None,
     executor: str,
     scheduler: str | None,
@@ -82,7 +91,7 @@ def test_command(
     from simrun.scenetest.reports import render, session_line, to_text, verdict_line
     from simrun.scenetest.runner import TestOptions, run_tests
     from simrun.scenetest.spec import SpecError
-    from simrun.scenetest.vary import VaryError, parse_seeds, parse_vary
+    from simrun.scenetest.vary import VaryError, check_run_count, parse_seeds, parse_vary
 
     if scheduler and executor != "dask":
         _usage("--scheduler needs --executor dask")
@@ -101,6 +110,7 @@ def test_command(
         keys = [a.key for a in options.axes]
         if len(set(keys)) != len(keys):
             _usage("--vary: a key is given twice")
+        check_run_count(options.seeds, options.axes, max_runs)  # before any scene is read or run planned
         with output_policy(force, list(paths)):
             report = run_tests(list(paths), options, _progress_bar())
         # names on disk that are not UTF-8 (surrogate escapes) are shown as \xNN, as everywhere else

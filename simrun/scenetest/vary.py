@@ -37,8 +37,10 @@ import numpy as np
 
 from simrun.errors import SimrunError
 
-#: Most runs one invocation may plan.
+#: Most runs one invocation may plan: the ceiling of ``--max-runs``, of ``--seeds`` and of a grid's COUNT.
 MAX_RUNS = 1_000_000
+#: Default of ``simrun test --max-runs``: most runs of one scene (seeds x the values of every grid).
+DEFAULT_MAX_RUNS = 10_000
 #: Largest seed accepted (seeds are non-negative).
 MAX_SEED = 2**31 - 1
 _DIST = re.compile(r"^(uniform|normal|choice)\((.*)\)$")
@@ -147,8 +149,39 @@ def _round(value: float, digits: int) -> float:
     return float(f"{value:.{digits}g}")
 
 
+def run_count(seeds: int, axes: list[Axis]) -> int:
+    """Runs of one scene: ``seeds`` times the number of values of every grid (nothing is expanded)."""
+    count = seeds
+    for axis in axes:
+        if axis.kind == "grid":
+            count *= len(axis.values)
+    return count
+
+
+def check_run_count(seeds: list[int], axes: list[Axis], limit: int) -> None:
+    """Refuse a run matrix (seeds x grid values, for one scene) over ``limit`` before anything is planned.
+
+    Raises:
+        VaryError: Over the limit; the message names each factor and ``--max-runs``.
+    """
+    count = run_count(len(seeds), axes)
+    if count <= limit:
+        return
+    factors = [f"{len(seeds)} seed(s)"] + [f"{len(a.values)} values of {a.key}" for a in axes if a.kind == "grid"]
+    raise VaryError(
+        f"{' x '.join(factors)} = {count} runs per scene, more than --max-runs {limit} "
+        f"(use fewer seeds or grid values, or raise --max-runs, at most {MAX_RUNS})"
+    )
+
+
 def variations(axes: list[Axis]) -> list[dict[str, float]]:
-    """The fixed values of each variation: the cross product of the grids (one empty variation without)."""
+    """The fixed values of each variation: the cross product of the grids (one empty variation without).
+
+    Raises:
+        VaryError: More than :data:`MAX_RUNS` variations (counted before any is made).
+    """
+    if run_count(1, axes) > MAX_RUNS:
+        raise VaryError(f"--vary: {run_count(1, axes)} grid variations, more than {MAX_RUNS}")
     keys = [a.key for a in axes if a.kind in ("grid", "value")]
     grids = [a.values for a in axes if a.kind in ("grid", "value")]
     out = [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*grids)]
