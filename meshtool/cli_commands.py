@@ -250,14 +250,14 @@ def obj2bin(
     **kw: Any,
 ) -> None:
     """Convert SRC (OBJ, STL, PLY, glTF/GLB, COLLADA; or a folder of them) to .mbin: normalised, hulls, packed."""
+    if out is None and _is_folder(src):  # a usage error (exit 2), as a missing argument is
+        raise click.UsageError("a folder needs -o OUTDIR")
     with _guard(as_json):
         hulls = _hull_options(kw)
         options = ConvertOptions(
             _normalise_options(kw), quantize, hulls, check=not no_check, check_cache=_check_cache(hulls.cache_dir)
         )
-        if _is_folder(src):
-            if out is None:
-                raise OptionsError("a folder needs -o OUTDIR")
+        if _is_folder(src) and out is not None:
             _convert_folder(src, out, options, jobs, as_json, force)
             return
         default_name = f"{safe_file_stem(src.stem) or 'asset'}.mbin"

@@ -130,9 +130,9 @@ def validate_command(
     except OutputError as exc:  # the report could not be written where -o says: the user's to fix
         click.echo(f"error: {exc.one_line()}", err=True)
         sys.exit(EXIT_FINDINGS)
-    except MeshtoolError as exc:
+    except MeshtoolError as exc:  # an input refused: exit 1 as in every command (docs/cli.md); bugs are exit 3
         click.echo(f"error: {exc.one_line()}", err=True)
-        sys.exit(EXIT_INTERNAL)
+        sys.exit(EXIT_FINDINGS)
     except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
         exit_on_bug(exc)
     if output is None:

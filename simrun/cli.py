@@ -63,9 +63,9 @@ class _Group(VocabularyGroup):
             return super().run_command(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
-        except SimrunError as exc:
+        except SimrunError as exc:  # its kind decides the exit code (errors.py): 1, or 2 for a usage error
             click.echo(f"error: {_one_line(str(exc))}", err=True)
-            sys.exit(EXIT_INPUT)
+            sys.exit(exc.exit_code)
         except Exception as exc:
             if os.environ.get(DEBUG_VARIABLE):
                 raise
@@ -532,8 +532,9 @@ def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, si
 
 @contextlib.contextmanager
 def _guard() -> Iterator[None]:
+    """A simrun error inside the block ends the command as :meth:`_Group.run_command` ends it."""
     try:
         yield
     except SimrunError as exc:
         click.echo(f"error: {_one_line(str(exc))}", err=True)
-        sys.exit(EXIT_INPUT)
+        sys.exit(exc.exit_code)

@@ -4,7 +4,20 @@ from __future__ import annotations
 
 
 class SimrunError(Exception):
-    """Base class of every error simrun raises on purpose."""
+    """Base class of every error simrun raises on purpose.
+
+    Attributes:
+        exit_code: The command line's exit code for this kind of error (docs/cli.md): 1, an input refused
+            or a check failed; :class:`UsageError` and its kinds 2.
+    """
+
+    exit_code = 1
+
+
+class UsageError(SimrunError, ValueError):
+    """An option value, or a combination of options, the command cannot use (exit 2, as click's own)."""
+
+    exit_code = 2
 
 
 class EntityError(SimrunError, ValueError):

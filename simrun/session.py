@@ -24,7 +24,7 @@ import numpy as np
 from PIL import Image
 
 from simrun.commands import Command
-from simrun.errors import SimrunError
+from simrun.errors import SimrunError, UsageError
 from simrun.outfile import check_output, write_bytes
 from simrun.play import PlayResult, PythonController, encode_gif, encode_mp4, load_commands, play
 from simrun.render import FrameRenderer
@@ -120,7 +120,7 @@ def run_play(scene: Path, options: PlayOptions, progress: Any = None) -> PlayRes
         if target is not None:
             check_output(target)
     if options.video is not None and options.video.suffix.lower() not in (".gif", ".mp4"):
-        raise SimrunError(f"{options.video}: video must end in .gif or .mp4")
+        raise UsageError(f"{options.video}: video must end in .gif or .mp4")
     world = load_scene(scene)
     python = options.commands is not None and options.commands.suffix == ".py"
     commands: list[Command] = load_commands(options.commands) if options.commands and not python else []

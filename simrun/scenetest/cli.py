@@ -118,9 +118,9 @@ def test_command(
         if output is not None:
             write_file(output, text.encode("utf-8"))
     except (SpecError, VaryError) as exc:
-        if str(exc).endswith(": no such file or folder"):  # a missing input is exit 1 in every command (docs/cli.md)
+        if exc.exit_code != EXIT_USAGE:  # a missing input is exit 1 in every command (docs/cli.md)
             click.echo(f"error: {exc}", err=True)
-            sys.exit(1)
+            sys.exit(exc.exit_code)
         _usage(str(exc))
     except ImportError:
         click.echo("error: the Dask executor needs dask.distributed (pip install 'meshtool-simrun[dask]')", err=True)

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from simrun.commands import Command, check_commands, load_commands
-from simrun.errors import SceneError, SimrunError
+from simrun.errors import SceneError, UsageError
 from simrun.expect import Expectation, check_against, parse_expectations
 from simrun.scenetest.bundle import Bundle, collect
 from simrun.session import prepare
@@ -37,8 +37,14 @@ _TEST_KEYS = ("duration", "commands", "jitter")
 _SCENE_KEYS = ("world", "entities")
 
 
-class SpecError(SimrunError):
-    """No scene to test where the user pointed (a usage error)."""
+class SpecError(UsageError):
+    """No scene to test where the user pointed (a usage error, exit 2)."""
+
+
+class MissingInputError(SpecError):
+    """A path given to test does not exist: exit 1, as a missing input is in every command (docs/cli.md)."""
+
+    exit_code = 1
 
 
 @dataclass(frozen=True)
@@ -97,7 +103,7 @@ def discover(paths: list[Path]) -> list[Path]:
                 raise SpecError(f"{path}: not a scene file (no [world] or [[entities]])")
             found.append(path)
         else:
-            raise SpecError(f"{path}: no such file or folder")
+            raise MissingInputError(f"{path}: no such file or folder")
     unique = list(dict.fromkeys(found))
     if not unique:
         raise SpecError(f"no scene files under {', '.join(map(str, paths))} (.toml with [world] or [[entities]])")

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from simrun.errors import SimrunError
+from simrun.errors import UsageError
 
 #: Most runs one invocation may plan: the ceiling of ``--max-runs``, of ``--seeds`` and of a grid's COUNT.
 MAX_RUNS = 1_000_000
@@ -50,7 +50,7 @@ _DIST = re.compile(r"^(uniform|normal|choice)\((.*)\)$")
 EntityClass = Callable[[str], Any]
 
 
-class VaryError(SimrunError, ValueError):
+class VaryError(UsageError):
     """A ``--seeds`` or ``--vary`` value that cannot be used (a usage error)."""
 
 
