@@ -1,6 +1,7 @@
 """House rules that are cheap to check by machine."""
 
 import ast
+import itertools
 from pathlib import Path
 
 import pytest
@@ -18,12 +19,16 @@ def imports(path: Path) -> set[str]:
     return names
 
 
-@pytest.mark.parametrize("path", sorted((ROOT / "meshtool").rglob("*.py")), ids=lambda p: p.name)
+@pytest.mark.parametrize(
+    "path", sorted((ROOT / "meshtool").rglob("*.py")), ids=lambda p: p.relative_to(ROOT).as_posix()
+)
 def test_meshtool_never_imports_simrun_or_mujoco(path):
     assert not imports(path) & {"simrun", "mujoco"}
 
 
-@pytest.mark.parametrize("path", sorted((ROOT / "meshtool").rglob("*.py")), ids=lambda p: p.name)
+@pytest.mark.parametrize(
+    "path", sorted((ROOT / "meshtool").rglob("*.py")), ids=lambda p: p.relative_to(ROOT).as_posix()
+)
 def test_library_code_does_not_print_or_exit(path):
     entry_points = ("cli.py", "cli_commands.py", "cli_common.py", "cli_validate.py", "coacd_worker.py")  # CLI, CoACD
     if path.name in entry_points:
@@ -75,63 +80,273 @@ def test_every_finding_code_is_documented():
                 assert f"`{node.args[0].value}`" in docs, (path.name, node.args[0].value)
 
 
-def _simrun_imports(path: Path) -> set[str]:
-    """simrun modules a module imports when it runs (function bodies too; ``if TYPE_CHECKING:`` blocks not)."""
-    tree = ast.parse(path.read_text())
+PACKAGES = ("meshtool", "simrun")
+
+
+def package_files(*packages: str) -> list[Path]:
+    """Every module of ``packages`` (all subpackages), sorted."""
+    return sorted(p for package in packages for p in (ROOT / package).rglob("*.py"))
+
+
+def module_name(path: Path) -> str:
+    """``simrun/scenetest/reports.py`` -> ``simrun.scenetest.reports``; a package's ``__init__.py`` -> the package."""
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(p): p for p in package_files(*PACKAGES)}
+
+
+def _rel(path: Path) -> str:
+    return path.relative_to(ROOT).as_posix()
+
+
+def _runtime_nodes(tree: ast.Module) -> list[ast.AST]:
+    """Every node of ``tree`` that runs (function bodies too), without ``if TYPE_CHECKING:`` blocks."""
     skipped = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
             skipped.update(id(n) for child in node.body for n in ast.walk(child))
-    found = set()
-    for node in ast.walk(tree):
-        if id(node) in skipped:
-            continue
+    return [node for node in ast.walk(tree) if id(node) not in skipped]
+
+
+def _from_base(node: ast.ImportFrom, module: str) -> str:
+    """The absolute module an ``ImportFrom`` in ``module`` names (relative imports resolved)."""
+    if node.level == 0:
+        return node.module or ""
+    package = module if MODULES[module].name == "__init__.py" else module.rpartition(".")[0]
+    parts = package.split(".")
+    base = parts[: len(parts) - node.level + 1]
+    return ".".join([*base, *([node.module] if node.module else [])])
+
+
+def _known(name: str) -> str | None:
+    """``name`` or its longest prefix that is one of :data:`MODULES` (``None``: outside both packages)."""
+    parts = name.split(".")
+    for end in range(len(parts), 0, -1):
+        if ".".join(parts[:end]) in MODULES:
+            return ".".join(parts[:end])
+    return None
+
+
+def import_edges(module: str) -> list[tuple[str, str]]:
+    """(imported module, ``file:line: source``) for every import in ``module`` that runs, functions included.
+
+    ``from pkg import mod`` counts as importing ``pkg.mod`` when that is a module, else ``pkg`` itself.
+    Only modules of meshtool and simrun are kept.
+    """
+    path = MODULES[module]
+    source = path.read_text()
+    lines = source.splitlines()
+    edges = []
+    for node in _runtime_nodes(ast.parse(source)):
+        targets: list[str | None] = []
         if isinstance(node, ast.Import):
-            found.update(a.name for a in node.names if a.name.startswith("simrun."))
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0 and node.module.startswith("simrun"):
-            if node.module == "simrun":
-                found.update(f"simrun.{a.name}" for a in node.names)
-            else:
-                found.add(node.module)
-    return found
+            targets = [_known(a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = _from_base(node, module)
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else _known(base) for a in node.names]
+        where = f"{_rel(path)}:{getattr(node, 'lineno', 0)}: {lines[getattr(node, 'lineno', 1) - 1].strip()}"
+        edges.extend((t, where) for t in dict.fromkeys(targets) if t is not None and t != module)
+    return edges
+
+
+def import_graph(packages: tuple[str, ...] = PACKAGES) -> dict[str, dict[str, str]]:
+    """Module -> {imported module: where the first such import is} among the modules of ``packages``.
+
+    The registry's lazy targets (``module:Class``, imported on first use) count as imports of
+    ``simrun.registry``.
+    """
+    inside = {m for m in MODULES if m.split(".")[0] in packages}
+    graph: dict[str, dict[str, str]] = {m: {} for m in inside}
+    for module in inside:
+        for target, where in import_edges(module):
+            if target in inside:
+                graph[module].setdefault(target, where)
+    if "simrun.registry" in graph:
+        from simrun.registry import REGISTRY
+
+        for t in REGISTRY.values():
+            target = t.target.split(":")[0]
+            graph["simrun.registry"].setdefault(target, f"simrun/registry.py: REGISTRY target {t.target}")
+    return graph
+
+
+def import_cycles(graph: dict[str, dict[str, str]]) -> list[list[str]]:
+    """One cycle (``[a, b, ..., a]``) through each strongly connected group of modules of ``graph``."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    groups: list[set[str]] = []
+
+    def connect(name: str) -> None:  # Tarjan
+        index[name] = low[name] = len(index)
+        stack.append(name)
+        for target in sorted(graph[name]):
+            if target not in index:
+                connect(target)
+                low[name] = min(low[name], low[target])
+            elif target in stack:
+                low[name] = min(low[name], index[target])
+        if low[name] == index[name]:
+            group = set()
+            while True:
+                member = stack.pop()
+                group.add(member)
+                if member == name:
+                    break
+            if len(group) > 1:
+                groups.append(group)
+
+    for name in sorted(graph):
+        if name not in index:
+            connect(name)
+    cycles = []
+    for group in groups:
+        start = min(group)
+        # the shortest way back to ``start`` inside the group (breadth first)
+        previous: dict[str, str] = {}
+        frontier = [start]
+        while frontier and start not in previous:
+            following = []
+            for name in frontier:
+                for target in sorted(graph[name]):
+                    if target in group and target not in previous:
+                        previous[target] = name
+                        following.append(target)
+            frontier = following
+        path = [start]
+        while path[-1] != start or len(path) == 1:
+            path.append(previous[path[-1]])
+        cycles.append(path[::-1])
+    return sorted(cycles)
+
+
+def describe_cycles(graph: dict[str, dict[str, str]], cycles: list[list[str]]) -> str:
+    """Each cycle as ``a -> b -> a`` followed by the import line of each step."""
+    text = []
+    for cycle in cycles:
+        text.append("import cycle: " + " -> ".join(cycle))
+        text.extend(f"    {graph[a][b]}" for a, b in itertools.pairwise(cycle))
+    return "\n".join(text)
 
 
 def test_simrun_has_no_import_cycle():
     """No cycle among simrun's modules, counting imports inside functions and the registry's lazy targets."""
-    from simrun.registry import REGISTRY
-
-    modules = {f"simrun.{p.stem}": p for p in (ROOT / "simrun").glob("*.py") if p.stem != "__init__"}
-    graph = {name: {m for m in _simrun_imports(path) if m in modules and m != name} for name, path in modules.items()}
-    graph["simrun.registry"] |= {t.target.split(":")[0] for t in REGISTRY.values()}
-    assert {"simrun.sensors", "simrun.arm", "simrun.cameras", "simrun.drive_service"} <= graph["simrun.registry"]
-    state: dict[str, int] = {}  # 1 on the stack, 2 done
-
-    def visit(name: str, stack: list[str]) -> None:
-        state[name] = 1
-        for target in sorted(graph[name]):
-            if state.get(target) == 1:
-                cycle = [*stack[stack.index(target) :], target]
-                raise AssertionError("import cycle: " + " -> ".join(cycle))
-            if target not in state:
-                visit(target, [*stack, target])
-        state[name] = 2
-
-    for name in sorted(graph):
-        if name not in state:
-            visit(name, [name])
+    graph = import_graph(("simrun",))
+    assert {"simrun.sensors", "simrun.arm", "simrun.cameras", "simrun.drive_service"} <= set(graph["simrun.registry"])
+    assert {"simrun.scenetest.reports", "simrun.scenetest.report_html"} <= set(graph)  # subpackages too
+    cycles = import_cycles(graph)
+    assert not cycles, describe_cycles(graph, cycles)
 
 
-def test_each_simrun_module_imports_alone():
-    """Each module imports first in a fresh interpreter (an order-dependent cycle would fail here)."""
+def test_packages_have_no_import_cycle():
+    """No cycle in the import graph of meshtool and simrun together (every module, function-level imports too).
+
+    A function-level import between two modules that would form a cycle (one hidden until the function runs)
+    fails here like a top-level one.
+    """
+    graph = import_graph()
+    assert {"meshtool.validate.reports.html", "simrun.scenetest.report_html"} <= set(graph)
+    cycles = import_cycles(graph)
+    assert not cycles, describe_cycles(graph, cycles)
+
+
+def test_the_cycle_check_sees_function_level_and_relative_imports():
+    """The graph resolves ``from . import x``, ``from pkg import mod`` and imports inside functions."""
+    edges = {
+        "a": {"b": "a.py:1"},
+        "b": {"c": "b.py:3"},
+        "c": {"a": "c.py:9"},
+        "d": {"a": "d.py:1"},
+    }
+    assert import_cycles(edges) == [["a", "b", "c", "a"]]
+    assert "c.py:9" in describe_cycles(edges, import_cycles(edges))
+    node = ast.parse("from .report_lines import verdict_line").body[0]
+    assert isinstance(node, ast.ImportFrom)
+    assert _from_base(node, "simrun.scenetest.reports") == "simrun.scenetest.report_lines"
+    node = ast.parse("from .. import errors").body[0]
+    assert isinstance(node, ast.ImportFrom)
+    assert _from_base(node, "simrun.scenetest") == "simrun"
+    reports = dict(import_edges("simrun.scenetest.reports"))
+    assert "simrun.scenetest.report_html" in reports
+    assert "meshtool.reportkit" in reports
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def private_uses(source: str, module: str) -> list[str]:
+    """``line: what`` for each ``_private`` name of the other package that ``module`` (text ``source``) uses.
+
+    Caught: ``from pkg.mod import _name``, an import of a ``_private`` module, and ``alias._name`` (or a
+    longer chain) on any name an import of the other package bound. ``if TYPE_CHECKING:`` imports count too.
+    """
+    own = module.split(".")[0]
+    tree = ast.parse(source)
+    bound: set[str] = set()  # local names bound to the other package's modules or objects
+    bad = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] in PACKAGES and a.name.split(".")[0] != own:
+                    bad += [f"{node.lineno}: import {a.name}" for part in a.name.split(".") if _private(part)]
+                    bound.add(a.asname or a.name.split(".")[0])
+        elif isinstance(node, ast.ImportFrom):
+            base = _from_base(node, module)
+            if base.split(".")[0] in PACKAGES and base.split(".")[0] != own:
+                bad += [f"{node.lineno}: from {base}" for part in base.split(".") if _private(part)]
+                bad += [f"{node.lineno}: from {base} import {a.name}" for a in node.names if _private(a.name)]
+                bound.update(a.asname or a.name for a in node.names)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and _private(node.attr):
+            root = node.value
+            while isinstance(root, ast.Attribute):
+                root = root.value
+            if isinstance(root, ast.Name) and root.id in bound:
+                bad.append(f"{node.lineno}: {ast.unparse(node)}")
+    return bad
+
+
+@pytest.mark.parametrize("path", package_files(*PACKAGES), ids=_rel)
+def test_no_private_name_crosses_packages(path):
+    """Neither package imports (or reaches through an imported module for) a ``_private`` name of the other."""
+    bad = private_uses(path.read_text(), module_name(path))
+    assert not bad, f"{_rel(path)} uses private names of the other package: {bad}"
+
+
+def test_the_private_name_check_catches_aliases():
+    """``import meshtool.x as y; y._name``, ``from meshtool.x import _name`` and the like are all caught."""
+    for source in (
+        "import meshtool.validate.reports.machine as m\nm._data('x')\n",
+        "import meshtool.validate.reports.machine\nmeshtool.validate.reports.machine._data('x')\n",
+        "from meshtool.validate.reports.machine import _data\n",
+        "from meshtool.validate.reports import machine\nmachine._prop('x')\n",
+        "def f():\n    from meshtool.validate.reports.html import _CSS as css\n",
+        "import meshtool._hidden\n",
+    ):
+        assert private_uses(source, "simrun.probe"), source
+    assert private_uses("from simrun.world import World\nWorld._x\n", "meshtool.probe")
+    assert not private_uses("from meshtool import __version__\nfrom simrun.world import _y\n", "simrun.probe")
+    assert not private_uses("import simrun.world as w\nw._z\n", "simrun.probe")  # own package: fine
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_each_module_imports_alone(package):
+    """Each module imports first in a fresh interpreter (an order-dependent cycle would fail here).
+
+    Every module of the package, subpackages included; the package's own modules are unloaded before each.
+    """
     import subprocess
     import sys
 
-    names = sorted(f"simrun.{p.stem}" for p in (ROOT / "simrun").glob("*.py") if p.stem != "__init__")
+    names = sorted(m for m in MODULES if m.split(".")[0] == package and m != package)
     script = (
         "import importlib, sys\n"
         "bad = []\n"
         f"for name in {names!r}:\n"
-        "    for loaded in [m for m in sys.modules if m == 'simrun' or m.startswith('simrun.')]:\n"
+        f"    for loaded in [m for m in sys.modules if m in {PACKAGES!r} or m.split('.')[0] in {PACKAGES!r}]:\n"
         "        del sys.modules[loaded]\n"
         "    try:\n"
         "        importlib.import_module(name)\n"

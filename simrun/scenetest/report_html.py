@@ -1,19 +1,18 @@
 """The HTML report of ``simrun test``: one self-contained page, a card per failed run with its last frame.
 
-Styled like ``meshtool validate``'s page (its CSS is reused). Each failed or errored run has a card with a
-thumbnail of its final state (rendered headless by the worker that ran it; a note says why when there is
-none), the expectations that missed, the values it ran with and the command that reproduces it; passed
-runs are one table.
+Styled like ``meshtool validate``'s page (:data:`meshtool.reportkit.REPORT_CSS`). Each failed or errored run
+has a card with a thumbnail of its final state (rendered headless by the worker that ran it; a note says why
+when there is none), the expectations that missed, the values it ran with and the command that reproduces
+it; passed runs are one table.
 """
 
 from __future__ import annotations
 
-import base64
 from html import escape
 
-from meshtool.validate.reports.html import _CSS, _no_preview_image
+from meshtool.reportkit import REPORT_CSS, no_preview_image, png_data_uri
 from simrun import __version__
-from simrun.scenetest.reports import failure_line, verdict_line
+from simrun.scenetest.report_lines import failure_line, verdict_line
 from simrun.scenetest.runner import Run, TestReport
 
 _EXTRA_CSS = """
@@ -40,7 +39,7 @@ def to_html(report: TestReport) -> str:
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width,initial-scale=1">',
-        f"<title>simrun test: {verdict}</title><style>{_CSS}{_EXTRA_CSS}</style></head><body>",
+        f"<title>simrun test: {verdict}</title><style>{REPORT_CSS}{_EXTRA_CSS}</style></head><body>",
         f"<header><h1>simrun test: {verdict}</h1>",
         f"<div>{escape(verdict_line(report))}; simrun {escape(__version__)}</div>",
         f'<div class="pills" style="margin-top:8px">{pills}</div></header><main>',
@@ -59,11 +58,11 @@ def to_html(report: TestReport) -> str:
 def _card(run: Run) -> str:
     r = run.result
     if r.thumbnail:
-        src = "data:image/png;base64," + base64.b64encode(r.thumbnail).decode("ascii")
+        src = png_data_uri(r.thumbnail)
         alt = f"{run.label}: the last frame"
     else:
         reason = next((n for n in r.notes if "thumbnail" in n), r.error or "no picture was asked for")
-        src, alt = _no_preview_image(reason).replace('width="404"', 'width="320"'), f"{run.label}: {reason}"
+        src, alt = no_preview_image(reason, width=320, height=240), f"{run.label}: {reason}"
     rows = []
     if r.error:
         rows.append(f'<tr><td class="fail">error</td><td>{escape(r.error)}</td></tr>')

@@ -13,9 +13,11 @@ import math
 from typing import Any
 from xml.etree import ElementTree as ET
 
-from meshtool.validate.reports.machine import _data, _prop
+from meshtool.reportkit import annotation_data, annotation_property
 from simrun import __version__
 from simrun.expect import Outcome
+from simrun.scenetest.report_html import to_html
+from simrun.scenetest.report_lines import failure_line, verdict_line
 from simrun.scenetest.runner import Run, TestReport
 
 FORMATS = ("text", "json", "junit", "github", "html")
@@ -27,25 +29,10 @@ ANNOTATION_RUNS = 5
 
 def render(report: TestReport, fmt: str) -> str:
     """The report in format ``fmt`` (one of :data:`FORMATS`)."""
-    if fmt == "html":
-        from simrun.scenetest.report_html import to_html
-
-        return to_html(report)
-    renderers = {"text": to_text, "json": to_json, "junit": to_junit, "github": to_github}
+    renderers = {"text": to_text, "json": to_json, "junit": to_junit, "github": to_github, "html": to_html}
     if fmt not in renderers:
         raise ValueError(f"unknown report format {fmt!r}")
     return renderers[fmt](report)
-
-
-def verdict_line(report: TestReport) -> str:
-    """``passed: N runs ...`` or ``FAILED: ...`` with the counts."""
-    counts = report.counts()
-    scenes = len(report.cases)
-    word = "FAILED" if report.failed() else "passed"
-    return (
-        f"{word}: {len(report.runs)} run(s) of {scenes} scene(s) x {len(report.seeds)} seed(s); "
-        f"{counts['passed']} passed, {counts['failed']} failed, {counts['error']} error(s)"
-    )
 
 
 def session_line(report: TestReport) -> str:
@@ -53,12 +40,6 @@ def session_line(report: TestReport) -> str:
     places = ", ".join(f"{n} in {w}" if " " in w else f"{n} on {w}" for w, n in sorted(report.where.items()))
     rate = len(report.runs) / report.seconds if report.seconds > 0 else math.inf
     return f"{report.executor} executor ({places or 'nothing run'}), {report.seconds:.2f} s, {rate:.2f} runs/s"
-
-
-def failure_line(o: Outcome) -> str:
-    """``FILE:LINE: expect 'ID' (kind): message: detail``."""
-    where = f"{o.file}:{o.line}" if o.line else o.file
-    return f"{where}: expect {o.id!r} ({o.kind}): {o.message}: {o.detail}"
 
 
 def to_text(report: TestReport, verbose: bool = False) -> str:
@@ -227,13 +208,32 @@ def to_github(report: TestReport) -> str:
         shown = "; ".join(f"{run.label}: {o.detail}" for run, o in hits[:ANNOTATION_RUNS])
         more = f"; and {len(hits) - ANNOTATION_RUNS} more" if len(hits) > ANNOTATION_RUNS else ""
         message = f"{hits[0][1].message}: failed in {len(hits)} of {total} run(s): {shown}{more}"
-        props = [f"file={_prop(file)}"] + ([f"line={line}"] if line else [])
-        props.append(f"title={_prop(f'simrun test: expect {ident}')}")
-        lines.append(f"::error {','.join(props)}::{_data(message)}")
+        props = [f"file={annotation_property(file)}"] + ([f"line={line}"] if line else [])
+        props.append(f"title={annotation_property(f'simrun test: expect {ident}')}")
+        lines.append(f"::error {','.join(props)}::{annotation_data(message)}")
     for (file, error), runs in errors.items():
         shown = ", ".join(r.label for r in runs[:ANNOTATION_RUNS])
         more = f" and {len(runs) - ANNOTATION_RUNS} more" if len(runs) > ANNOTATION_RUNS else ""
         message = f"{error} (in {len(runs)} run(s): {shown}{more})"
-        lines.append(f"::error file={_prop(file)},title={_prop('simrun test: run error')}::{_data(message)}")
-    lines.append(f"::notice title={_prop('simrun test')}::{_data(verdict_line(report))}")
+        props = [f"file={annotation_property(file)}", f"title={annotation_property('simrun test: run error')}"]
+        lines.append(f"::error {','.join(props)}::{annotation_data(message)}")
+    lines.append(f"::notice title={annotation_property('simrun test')}::{annotation_data(verdict_line(report))}")
     return "".join(line + "\n" for line in lines)
+
+
+__all__ = [
+    "ANNOTATION_RUNS",
+    "FORMAT",
+    "FORMATS",
+    "FORMAT_VERSION",
+    "failure_line",
+    "render",
+    "run_dict",
+    "session_line",
+    "to_github",
+    "to_html",
+    "to_json",
+    "to_junit",
+    "to_text",
+    "verdict_line",
+]

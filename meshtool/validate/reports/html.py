@@ -6,43 +6,15 @@ there is none, an inline SVG saying why. Cards are grouped by status, worst firs
 
 from __future__ import annotations
 
-import base64
 from html import escape
 
 from meshtool import __version__
+from meshtool.reportkit import REPORT_CSS, no_preview_image, png_data_uri
 from meshtool.validate.reports.machine import status
 from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
 from meshtool.validate.task import AssetResult
-
-_CSS = """
-body{font:14px/1.4 system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;background:#f4f5f7;color:#1d2330}
-header{background:#1d2330;color:#fff;padding:16px 24px}
-header h1{margin:0 0 6px;font-size:20px}
-.pills span{display:inline-block;margin-right:8px;padding:2px 10px;border-radius:10px;font-weight:600}
-main{padding:12px 24px}
-h2{font-size:16px;margin:20px 0 8px}
-.card{display:flex;gap:16px;background:#fff;border-radius:8px;padding:12px;margin:0 0 10px;
- box-shadow:0 1px 2px rgba(0,0,0,.08);border-left:6px solid #2e9d57}
-.card.error{border-left-color:#c62828}.card.warning{border-left-color:#e0a100}.card.info{border-left-color:#1f78b4}
-.card img{width:404px;height:150px;flex:none;border-radius:4px;background:#e8eaee}
-.body{min-width:0;flex:1}
-.path{font-weight:600;font-family:ui-monospace,Menlo,Consolas,monospace;word-break:break-all}
-.stats{color:#5a6275;font-size:12px;margin:2px 0 6px}
-table{border-collapse:collapse;width:100%}
-td{padding:3px 6px;vertical-align:top;border-top:1px solid #eef0f3}
-td.sev{font-weight:700;white-space:nowrap}
-.sev.error,.pill-error{color:#c62828}.sev.warning,.pill-warning{color:#9a6c00}.sev.info,.pill-info{color:#1f78b4}
-.pill-clean{color:#2e9d57}
-.pills .pill-error{background:#fde8e8}.pills .pill-warning{background:#fff4d6}
-.pills .pill-info{background:#e3f0fa}.pills .pill-clean{background:#e3f5ea}
-.rule{font-family:ui-monospace,Menlo,Consolas,monospace;white-space:nowrap}
-.where{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:12px;color:#5a6275;word-break:break-all}
-.hint{color:#5a6275;font-size:12px}
-.notes{color:#5a6275;font-size:12px;margin-top:4px}
-.clean-note{color:#2e9d57;font-weight:600}
-"""
 
 _TITLES = {"error": "Errors", "warning": "Warnings", "info": "Notes only", "clean": "Clean"}
 _PILLS = {"error": "with errors", "warning": "with warnings", "info": "with notes", "clean": "clean"}
@@ -61,7 +33,7 @@ def to_html(report: ValidationReport, strict: bool = False, title: str = "meshto
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width,initial-scale=1">',
-        f"<title>{escape(title)}: {verdict}</title><style>{_CSS}</style></head><body>",
+        f"<title>{escape(title)}: {verdict}</title><style>{REPORT_CSS}</style></head><body>",
         f"<header><h1>{escape(title)}: {verdict}</h1>",
         f"<div>{len(report.assets)} assets; {counts['error']} errors, {counts['warning']} warnings, "
         f"{counts['info']} notes{' (strict: warnings fail)' if strict else ''}; meshtool {escape(__version__)}"
@@ -79,11 +51,11 @@ def to_html(report: ValidationReport, strict: bool = False, title: str = "meshto
 
 def _card(a: AssetResult, key: str) -> str:
     if a.thumbnail:
-        src = "data:image/png;base64," + base64.b64encode(a.thumbnail).decode("ascii")
+        src = png_data_uri(a.thumbnail)
         alt = f"{a.path}: visual (left) and collision (right)"
     else:
         reason = next((n for n in a.notes if "thumbnail" in n or "not checked" in n), "no preview")
-        src = _no_preview_image(reason)
+        src = no_preview_image(reason)
         alt = f"{a.path}: {reason}"
     rows = []
     for f in a.findings:
@@ -125,15 +97,3 @@ def _stats_line(a: AssetResult) -> str:
     if collision.get("volume_ratio"):
         bits.append(f"hull/mesh volume {collision['volume_ratio']:.2f}")
     return " · ".join(bits)
-
-
-def _no_preview_image(reason: str) -> str:
-    svg = (
-        '<svg xmlns="http://www.w3.org/2000/svg" width="404" height="150">'
-        '<rect width="404" height="150" fill="#e8eaee"/>'
-        '<text x="202" y="70" font-family="sans-serif" font-size="14" fill="#5a6275" text-anchor="middle">'
-        "no preview</text>"
-        '<text x="202" y="92" font-family="sans-serif" font-size="11" fill="#5a6275" text-anchor="middle">'
-        f"{escape(reason[:70])}</text></svg>"
-    )
-    return "data:image/svg+xml;base64," + base64.b64encode(svg.encode("utf-8")).decode("ascii")

@@ -12,6 +12,7 @@ from xml.etree import ElementTree as ET
 
 from meshtool import __version__
 from meshtool.findings import Finding, Severity
+from meshtool.reportkit import annotation_data, annotation_property
 from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
@@ -129,11 +130,11 @@ def to_github(report: ValidationReport, strict: bool = False) -> str:
     for a in report.assets:
         for f in a.findings:
             kind = "error" if strict and f.severity is Severity.WARNING else command[f.severity]
-            props = [f"file={_prop(f.path or a.path)}"]
+            props = [f"file={annotation_property(f.path or a.path)}"]
             if f.line is not None:
                 props.append(f"line={f.line}")
-            props.append(f"title={_prop(f'{f.code} {RULES[f.code].name}')}")
-            lines.append(f"::{kind} {','.join(props)}::{_data(f'{f.message} (fix: {RULES[f.code].hint})')}")
+            props.append(f"title={annotation_property(f'{f.code} {RULES[f.code].name}')}")
+            lines.append(f"::{kind} {','.join(props)}::{annotation_data(f'{f.message} (fix: {RULES[f.code].hint})')}")
     return "".join(line + "\n" for line in lines)
 
 
@@ -151,11 +152,3 @@ def _finite(value: Any) -> Any:
 def _line(f: Finding) -> str:
     where = f"{f.path}:{f.line}" if f.line is not None else (f.path or "")
     return f"{f.severity.value} {f.code} {RULES[f.code].name}: {where}: {f.message} (fix: {RULES[f.code].hint})"
-
-
-def _data(text: str) -> str:
-    return text.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
-
-
-def _prop(text: str) -> str:
-    return _data(text).replace(":", "%3A").replace(",", "%2C")
