@@ -8,6 +8,7 @@ writes a canonical file, so save, load, save gives identical text.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import os
 import types
@@ -394,16 +395,29 @@ def _known(table: Any, keys: tuple[str, ...] | list[str], loader: _Loader, where
         raise loader.error("expected a table", where)
     for key in table:
         if key not in keys:
-            raise loader.error(f"unknown key (known: {', '.join(keys)})", (*where, key))
+            raise loader.error(f"unknown key (known: {', '.join(keys)}){_did_you_mean(key, keys)}", (*where, key))
+
+
+def _did_you_mean(key: object, keys: typing.Iterable[str]) -> str:
+    """``; did you mean 'dimensions'?`` for the known key closest to a misspelt ``key``, else ``""``."""
+    close = difflib.get_close_matches(str(key), list(keys), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def _entity(table: Any, loader: _Loader, where: KeyPath) -> Entity:
     if not isinstance(table, dict):
         raise loader.error("expected a table", where)
     kind = table.get("type")
+    known = ", ".join(ENTITY_TYPES)
+    if "type" not in table:  # a misspelt key is named at its own line, with the closest known key
+        typo = next((k for k in table if _did_you_mean(k, ("type",))), None)
+        if typo is not None:
+            message = f"unknown key (an entity needs 'type', one of: {known}){_did_you_mean(typo, ('type',))}"
+            raise loader.error(message, (*where, typo))
+        raise loader.error(f"missing key 'type' (one of: {known})", where)
     if not isinstance(kind, str) or kind not in ENTITY_TYPES:  # a list or table is unhashable
-        known = ", ".join(ENTITY_TYPES)
-        raise loader.error(f"unknown entity type {kind!r} (known: {known})", (*where, "type"))
+        hint = _did_you_mean(kind, ENTITY_TYPES) if isinstance(kind, str) else ""
+        raise loader.error(f"unknown entity type {kind!r} (known: {known}){hint}", (*where, "type"))
     cls: type[Entity] = scene_type("entities", kind).load()
     hints = typing.get_type_hints(cls)
     fields = [f.name for f in dataclasses.fields(cls)]

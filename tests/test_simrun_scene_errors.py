@@ -159,3 +159,34 @@ def test_fixture_scenes_all_check():
     for scene in ("basic.toml", "boebot.toml", "pioneer_room.toml", "head_on_table.toml"):
         result = CliRunner().invoke(main, ["check", str(SCENES / scene), "--seconds", "0.2"])
         assert result.exit_code == 0, (scene, result.output)
+
+
+@pytest.mark.parametrize(
+    ("table", "line", "expected"),
+    [
+        (
+            'tpye = "Box"\nname = "b"\ndimensions = [0.1, 0.1, 0.1]\n',
+            2,
+            "tpye: unknown key (an entity needs 'type', one of: Box, ",
+        ),
+        ('type = "Box"\nname = "b"\ndimenssions = [0.1, 0.1, 0.1]\n', 4, "did you mean 'dimensions'?"),
+        ('type = "Boxx"\nname = "b"\n', 2, "type: unknown entity type 'Boxx' (known: "),
+        ('name = "b"\n', 1, "missing key 'type' (one of: Box, "),
+    ],
+    ids=["misspelt-type-key", "misspelt-key", "misspelt-type", "no-type"],
+)
+def test_a_misspelt_key_is_named_at_its_own_line_with_the_closest_known_key(
+    tmp_path: Path, table: str, line: int, expected: str
+) -> None:
+    """``tpye = "MeshEntity"`` said ``type: unknown entity type None`` at the table header (issue 26)."""
+    from simrun.errors import SceneError
+    from simrun.scene import load_scene
+
+    scene = tmp_path / "s.toml"
+    scene.write_text("[[entities]]\n" + table)
+    with pytest.raises(SceneError) as info:
+        load_scene(scene)
+    assert info.value.line == line, str(info.value)
+    assert expected in str(info.value)
+    if "tpye" in table:
+        assert str(info.value).endswith("did you mean 'type'?")
