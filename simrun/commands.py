@@ -9,6 +9,7 @@ them against a world's service bindings before the run starts, so no command fai
 
 from __future__ import annotations
 
+import difflib
 import inspect
 import math
 from dataclasses import dataclass, field
@@ -38,6 +39,7 @@ class Command:
         call: Public method of the service.
         args: Positional arguments.
         where: Where it came from (``FILE:LINE: commands[3]``), for messages; not compared.
+        entity_where: Where its ``entity =`` key is (``FILE:LINE: commands[3]``), for messages; not compared.
     """
 
     t: float
@@ -46,6 +48,7 @@ class Command:
     call: str
     args: tuple[Any, ...] = ()
     where: str = field(default="", compare=False)
+    entity_where: str = field(default="", compare=False)
 
     def apply(self, world: World) -> None:
         """Call it on the bound service.
@@ -94,12 +97,16 @@ def load_commands(path: Path) -> list[Command]:
             at = line_of(lines, ("commands", k, key)) if key else line_of(lines, ("commands", k))
             return SceneError(f"{key}: {message}" if key else message, name, f"commands[{k}]", at)
 
-        commands.append(parse_command(table, fail, where))
+        at = line_of(lines, ("commands", k, "entity"))
+        commands.append(parse_command(table, fail, where, f"{name}:{at}: commands[{k}]" if at else where))
     return sorted(commands, key=lambda c: c.t)
 
 
-def parse_command(table: Any, fail: Any, where: str = "") -> Command:
-    """One command from a table (a ``[[commands]]`` entry); ``fail(message, key)`` makes the error to raise."""
+def parse_command(table: Any, fail: Any, where: str = "", entity_where: str = "") -> Command:
+    """One command from a table (a ``[[commands]]`` entry); ``fail(message, key)`` makes the error to raise.
+
+    ``where`` and ``entity_where`` locate the table and its ``entity =`` key for later messages.
+    """
     if not isinstance(table, dict):
         raise fail("expected a table with t, entity, call (and service, args)")
     for key in table:
@@ -137,7 +144,7 @@ def parse_command(table: Any, fail: Any, where: str = "") -> Command:
         inspect.signature(method).bind(None, *args)
     except TypeError as exc:
         raise fail(f"{call}{inspect.signature(method)} cannot take {len(args)} argument(s): {exc}", "args") from None
-    return Command(float(t), service, table["entity"], call, tuple(args), where)
+    return Command(float(t), service, table["entity"], call, tuple(args), where, entity_where or where)
 
 
 def _bad_argument(value: Any) -> str | None:
@@ -164,7 +171,15 @@ def check_commands(world: World, commands: list[Command]) -> None:
         SimrunError: A command names a service type and entity with no ``[[services]]`` binding.
     """
     bound = {(s.get("type"), s.get("entity")) for s in world.services}
+    entities = [name for name, _ in world]
     for command in commands:
+        if command.entity not in entities:  # named at its entity = line, with the closest entity name
+            close = difflib.get_close_matches(command.entity, entities, n=1, cutoff=0.6)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            where = f"{command.entity_where}: " if command.entity_where else ""
+            raise SimrunError(
+                f"{where}entity: no entity {command.entity!r} in the scene (entities: {', '.join(entities)}){hint}"
+            )
         if (command.service, command.entity) not in bound:
             raise SimrunError(
                 f"{command._where()}no {command.service} is bound to {command.entity!r} in the scene; "

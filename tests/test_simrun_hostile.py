@@ -170,7 +170,14 @@ COMMAND_CASES = [
     ("negative_time", '[[commands]]\nt = -1.0\nentity = "bot"\ncall = "all_stop"\n', 2, "t: must be in [0, "),
     ("missing_call", COMMAND, 1, "missing 'call'"),
     ("unknown_service", COMMAND + 'service = "Teleporter"\ncall = "go"\n', 4, "unknown service type 'Teleporter'"),
-    ("unbound_entity", '[[commands]]\nt = 0.5\nentity = "ghost"\ncall = "all_stop"\n', 1, "no DriveService is bound"),
+    # a missing entity is named at its entity = line (issue 26; it said "no DriveService is bound" at line 1)
+    ("missing_entity", '[[commands]]\nt = 0.5\nentity = "ghost"\ncall = "all_stop"\n', 3, "no entity 'ghost'"),
+    (
+        "unbound_entity",
+        '[[commands]]\nt = 0.5\nservice = "ArmService"\nentity = "bot"\ncall = "move_to"\nargs = [[0.0], 1.0]\n',
+        1,
+        "no ArmService is bound",
+    ),
     ("not_utf8", b"[[commands]]\nt = 0.5 # \xff\n", 2, "not UTF-8"),
 ]
 
