@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 import trimesh
 
-from meshtool.packfile.export import Z_UP_TO_Y_UP
+from meshtool.packfile.export import Z_UP_TO_Y_UP, mark_buffer_views
 from simrun.compiled_mesh import compiled_mesh
 from simrun.errors import SimrunError
 from simrun.outfile import stamp_glb, write_bytes
@@ -68,6 +68,7 @@ def world_to_glb(world: World, collision: bool = False) -> bytes:
 
     def finish(tree: dict[str, Any]) -> None:
         stamp_glb(tree)
+        mark_buffer_views(tree)
         if hidden:
             hide_nodes(tree, hidden)
 
