@@ -22,6 +22,7 @@ written.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import io
 import math
@@ -37,6 +38,7 @@ from meshtool.mesh import safe_identifier
 from meshtool.model import (
     MAX_BODY_DEPTH,
     BodyDesc,
+    GeomDesc,
     InertialDesc,
     JointCouplingDesc,
     JointDesc,
@@ -51,6 +53,8 @@ from meshtool.urdf_geoms import LinkParts, fmt, quat, vec3
 from meshtool.urdf_locate import UrdfError
 
 WORLD = "world"
+#: Density, kg/m^3, of the collision geoms of a moving link without ``<inertial>`` (MuJoCo's default).
+GEOMETRY_DENSITY = 1000.0
 #: Longest robot name in bytes: it names ``NAME.xml`` (most file systems allow 255 bytes per name).
 MAX_NAME_BYTES = 200
 
@@ -127,9 +131,41 @@ def import_urdf(path: Path, options: UrdfOptions | None = None) -> UrdfImport:
     try:
         # Bytes, not text: lxml refuses a str that carries an encoding declaration (what xacro writes).
         robot = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False).robot
+    except KeyError as exc:  # yourdfpy reads a required attribute that is not there
+        raise _missing_attribute(data, str(exc.args[0]) if exc.args else "", path) from None
     except Exception as exc:  # yourdfpy raises lxml and ValueError variants for malformed files
         raise UrdfError(f"not a valid URDF: {str(exc).splitlines()[0]}", path=str(path)) from None
     return _Builder(path, text, options, element_lines(data)).build(robot)
+
+
+#: Elements that must carry an attribute (URDF specification, ROS wiki "urdf/XML"), by attribute.
+_REQUIRED = {
+    "name": ("robot", "link", "joint"),
+    "link": ("parent", "child"),
+    "type": ("joint",),
+    "joint": ("mimic",),
+    "filename": ("mesh",),
+}
+
+
+def _missing_attribute(data: bytes, key: str, path: Path) -> UrdfError:
+    """The error for a required attribute ``key`` that yourdfpy found missing, at the first element lacking it."""
+    etree: Any = importlib.import_module("lxml.etree")
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
+    tags = _REQUIRED.get(key, ())
+    try:
+        root = etree.fromstring(data, parser)
+    except etree.XMLSyntaxError:
+        root = None
+    for element in root.iter() if root is not None else ():
+        if element.tag in tags and element.get(key) is None:
+            return UrdfError(
+                f"<{element.tag}> has no {key!r} attribute, which URDF requires",
+                path=str(path),
+                line=int(element.sourceline) if element.sourceline else None,
+                hint=f'add {key}="..." to the <{element.tag}>',
+            )
+    return UrdfError(f"not a valid URDF: a required attribute {key!r} is missing", path=str(path))
 
 
 def element_lines(data: bytes) -> dict[tuple[str, str], int]:
@@ -185,9 +221,13 @@ class _Builder(LinkParts):
         by_parent: dict[str, list[Any]] = {}
         for joint in robot.joints:
             if joint.parent not in links or joint.child not in links:
-                missing = joint.parent if joint.parent not in links else joint.child
+                role = "parent" if joint.parent not in links else "child"
+                missing = joint.parent if role == "parent" else joint.child
+                what = f"names unknown link {missing!r} as its {role}" if missing else f"has a <{role}> without link="
                 raise UrdfError(
-                    f"joint {joint.name!r} names unknown link {missing!r}", **self._element("joint", joint.name)
+                    f"joint {joint.name!r} {what}",
+                    **self._element("joint", joint.name),
+                    hint=f"name one of the robot's <link>s in <{role} link=...>",
                 )
             by_parent.setdefault(joint.parent, []).append(joint)
         parent_of: dict[str, str] = {}
@@ -199,7 +239,8 @@ class _Builder(LinkParts):
                     hint="a URDF is a tree: give each link one parent joint",
                 )
             parent_of[joint.child] = joint.name
-        model = ModelDesc(name, inertia_from_geoms=False)
+        # bodies with an <inertial> keep it; the others are massless unless _mass_from_geometry gives them mass
+        model = ModelDesc(name, inertia_from_geoms=True)
         order: list[str] = []
         moving: list[Any] = []
         root = links[roots[0]]
@@ -297,7 +338,32 @@ class _Builder(LinkParts):
                 moving.append(joint)
         body.inertial = self._inertial(link)
         body.geoms = self._geoms_of(link)
+        if body.inertial is None and (body.joints or body.free) and link.inertial is None:
+            body.geoms = self._mass_from_geometry(link, body.geoms)
         return body
+
+    def _mass_from_geometry(self, link: Any, geoms: list[GeomDesc]) -> list[GeomDesc]:
+        """A moving link without ``<inertial>``: its collision geoms give it mass, as MuJoCo's URDF import does.
+
+        MuJoCo refuses a moving body without mass; its own importer infers mass and inertia from the
+        geometry at the default density, 1000 kg/m^3 (``inertiafromgeom="auto"``). The collision geoms here
+        are convex hulls, so a concave mesh weighs somewhat more than MuJoCo's import of the mesh itself.
+        """
+        collision = [g for g in geoms if g.role == "collision"]
+        if not collision:
+            return geoms
+        self.findings.append(
+            warning(
+                "urdf-mass-from-geometry",
+                f"link {link.name!r} moves but has no <inertial>: mass and inertia from its {len(collision)} "
+                f"collision geom(s) at {GEOMETRY_DENSITY:g} kg/m^3, as MuJoCo's URDF import does",
+                **self._element("link", link.name),
+            )
+        )
+        return [
+            dataclasses.replace(g, contributes_mass=True, density=GEOMETRY_DENSITY) if g.role == "collision" else g
+            for g in geoms
+        ]
 
     def _joint(self, joint: Any) -> JointDesc | None:
         kind = joint.type
@@ -383,16 +449,33 @@ class _Builder(LinkParts):
         return InertialDesc(mass, vec3(origin[:3, 3]), quat(rotation), vec3(balanced))
 
     def _couplings(self, joints: list[Any], moving: set[str]) -> list[JointCouplingDesc]:
+        """Joint equalities of the ``<mimic>`` elements; those MuJoCo's importer ignores are ignored with a warning.
+
+        A ``<mimic>`` on a joint that does not move (``fixed``: exporters leave them), or naming a joint that
+        does not exist or does not move, cannot couple anything: MuJoCo's URDF import loads such robots and
+        drops the ``<mimic>`` (talos, alex_psyonic_hands of example-robot-data).
+        """
         couplings = []
+        names = {j.name for j in joints}
         for joint in joints:
             mimic = joint.mimic
             if mimic is None:
                 continue
-            if mimic.joint not in moving or joint.name not in moving:
-                raise UrdfError(
-                    f"joint {joint.name!r} mimics {mimic.joint!r}, which is not a moving joint",
-                    **self._element("joint", joint.name),
+            if joint.name not in moving or mimic.joint not in moving:
+                if joint.name not in moving:
+                    why = f"joint {joint.name!r} is {joint.type!r}, not a moving joint"
+                elif mimic.joint not in names:
+                    why = f"it names joint {mimic.joint!r}, which does not exist"
+                else:
+                    why = f"joint {mimic.joint!r} does not move"
+                self.findings.append(
+                    warning(
+                        "urdf-mimic-ignored",
+                        f"the <mimic> of joint {joint.name!r} is ignored: {why}",
+                        **self._element("joint", joint.name),
+                    )
                 )
+                continue
             offset = float(mimic.offset or 0.0)
             multiplier = float(mimic.multiplier if mimic.multiplier is not None else 1.0)
             couplings.append(JointCouplingDesc(joint.name, mimic.joint, offset, multiplier))
