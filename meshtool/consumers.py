@@ -110,7 +110,7 @@ def _parse(path: Path) -> ET.Element | None:
         return None
     try:
         return ET.fromstring(data)
-    except ET.ParseError:
+    except (ET.ParseError, LookupError, ValueError):  # also an unknown encoding declaration ('utf0')
         return None
 
 

@@ -213,6 +213,16 @@ class _Builder(LinkParts):
                 hint="shorten the <robot name=...>",
             )
         self.materials = {m.name: m for m in (robot.materials or []) if m.name}
+        for kind, items in (("link", robot.links), ("joint", robot.joints)):
+            seen: set[str] = set()
+            for item in items:
+                if item.name in seen:  # MuJoCo names bodies and joints after them: they must be unique
+                    raise UrdfError(
+                        f"{kind} {item.name!r} is defined twice",
+                        **self._element(kind, item.name),
+                        hint=f"give every <{kind}> its own name",
+                    )
+                seen.add(item.name)
         links = {link.name: link for link in robot.links}
         children = {j.child for j in robot.joints}
         roots = [n for n in links if n not in children]
@@ -375,9 +385,16 @@ class _Builder(LinkParts):
                 **self._element("joint", joint.name),
                 hint="replace it by two prismatic joints and a revolute one",
             )
-        axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
-        if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
-            raise UrdfError(f"joint {joint.name!r} has a zero axis", **self._element("joint", joint.name))
+        where = self._element("joint", joint.name)
+        axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float).reshape(-1)
+        if axis.size != 3 or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
+            shown = " ".join(f"{v:g}" for v in axis)
+            raise UrdfError(
+                f"joint {joint.name!r} has axis {shown!r}; an axis is 3 finite numbers, not all zero",
+                **where,
+                hint="fix the <axis xyz=...> of the joint",
+            )
+        self._finite_values(joint, where)
         described = JointDesc(joint.name, "slide" if kind == "prismatic" else "hinge", vec3(axis))
         limit = joint.limit
         if kind in ("revolute", "prismatic") and limit is not None and limit.lower is not None:
@@ -398,6 +415,29 @@ class _Builder(LinkParts):
             described.damping = float(joint.dynamics.damping or 0.0)
             described.frictionloss = float(joint.dynamics.friction or 0.0)
         return described
+
+    def _finite_values(self, joint: Any, where: dict[str, Any]) -> None:
+        """Limits and dynamics of a moving joint: finite, and damping and friction >= 0."""
+        limit, dynamics = joint.limit, joint.dynamics
+        values = [
+            ("<limit lower>", getattr(limit, "lower", None), False),
+            ("<limit upper>", getattr(limit, "upper", None), False),
+            ("<limit effort>", getattr(limit, "effort", None), False),  # its magnitude is used
+            ("<limit velocity>", getattr(limit, "velocity", None), False),
+            ("<dynamics damping>", getattr(dynamics, "damping", None), True),
+            ("<dynamics friction>", getattr(dynamics, "friction", None), True),
+        ]
+        for what, value, positive in values:
+            if value is None:
+                continue
+            number = float(value)
+            if not math.isfinite(number) or (positive and number < 0):
+                need = "a finite number >= 0" if positive else "a finite number"
+                raise UrdfError(
+                    f"joint {joint.name!r}: {what} is {number:g}; it must be {need}",
+                    **where,
+                    hint=f"fix the {what} of the joint",
+                )
 
     def _inertial(self, link: Any) -> InertialDesc | None:
         """Principal moments and axes of the link's inertial; ``None`` when massless."""

@@ -124,7 +124,15 @@ class LinkParts:
             color = self.materials[material.name].color
         if color is None or color.rgba is None:
             return None
-        r, g, b, a = (float(v) for v in np.asarray(color.rgba, dtype=float))
+        rgba = np.asarray(color.rgba, dtype=float).reshape(-1)
+        if rgba.size != 4 or not np.all(np.isfinite(rgba)):
+            shown = " ".join(f"{v:g}" for v in rgba)
+            raise UrdfError(
+                f"material {material.name!r} has rgba {shown!r}; a colour is 4 finite numbers (red green blue alpha)",
+                **self._where(f'name="{material.name}"') if material.name else {"path": str(self.path)},
+                hint="fix the <color rgba=...> of the material",
+            )
+        r, g, b, a = (float(v) for v in rgba)
         return (r, g, b, a)
 
     def _assets(self, model: ModelDesc) -> None:

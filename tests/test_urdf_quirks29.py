@@ -111,3 +111,72 @@ def test_broken_urdfs_name_the_element_and_its_line(tmp_path: Path, text: str, l
     with pytest.raises(UrdfError) as info:
         import_urdf(urdf)
     assert info.value.line == line and message in info.value.message
+
+
+# -- the fuzzer's second round (make fuzz, target urdf, 10 minutes) -----------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("joint_extra", "message"),
+    [
+        ('<dynamics damping="-inf"/>', "joint 'j1': <dynamics damping> is -inf; it must be a finite number >= 0"),
+        ('<dynamics friction="-1"/>', "joint 'j1': <dynamics friction> is -1; it must be a finite number >= 0"),
+        ('<axis xyz="0 1"/>', "joint 'j1' has axis '0 1'; an axis is 3 finite numbers, not all zero"),
+    ],
+    ids=["damping-minus-inf", "negative-friction", "two-value-axis"],
+)
+def test_joint_values_that_are_not_physical_are_errors_at_the_joint(
+    tmp_path: Path, joint_extra: str, message: str
+) -> None:
+    """``damping="-inf"`` was written into the MJCF (exit 0); a 2-value axis raised IndexError (exit 3)."""
+    hinge = HINGE if "<axis" not in joint_extra else '<limit lower="-1" upper="1" effort="1" velocity="1"/>'
+    urdf = _write(
+        tmp_path,
+        f'<link name="l1">{INERTIAL}</link>\n'
+        f'<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>{hinge}{joint_extra}</joint>\n',
+    )
+    with pytest.raises(UrdfError) as info:
+        import_urdf(urdf)
+    assert info.value.line == 4 and message in info.value.message
+
+
+def test_a_colour_of_three_values_is_an_error_naming_the_material(tmp_path: Path) -> None:
+    """``rgba="1 0 0"`` raised ValueError while unpacking (exit 3)."""
+    urdf = _write(
+        tmp_path,
+        '<material name="red"><color rgba="1 0 0"/></material>\n'
+        '<link name="l1"><visual><geometry><box size="1 1 1"/></geometry><material name="red"/></visual></link>\n'
+        '<joint name="j" type="fixed"><parent link="base"/><child link="l1"/></joint>\n',
+    )
+    with pytest.raises(UrdfError, match="material 'red' has rgba '1 0 0'; a colour is 4 finite numbers") as info:
+        import_urdf(urdf)
+    assert info.value.line == 3
+
+
+@pytest.mark.parametrize("kind", ["link", "joint"])
+def test_a_name_defined_twice_is_an_error(tmp_path: Path, kind: str) -> None:
+    """Two joints named 'shoulder' made MjSpec raise ValueError (exit 3); two links silently lost one."""
+    body = (
+        f'<link name="l1">{INERTIAL}</link>\n<link name="l2">{INERTIAL}</link>\n'
+        f'<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>{HINGE}</joint>\n'
+        f'<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>{HINGE}</joint>\n'
+    )
+    body = body.replace('name="j2"', 'name="j1"') if kind == "joint" else body.replace('name="l2"', 'name="l1"')
+    urdf = _write(tmp_path, body)
+    with pytest.raises(UrdfError, match=f"{kind} 'l1' is defined twice|{kind} 'j1' is defined twice"):
+        import_urdf(urdf)
+
+
+def test_a_consumer_urdf_with_an_unknown_encoding_is_not_evidence(tmp_path: Path) -> None:
+    """``encoding='utf0'`` in a URDF beside a mesh raised LookupError from normalize's consumer search (exit 3)."""
+    from meshtool.normalise import NormaliseOptions, prepare
+
+    (tmp_path / "meshes").mkdir()
+    mesh = tmp_path / "meshes" / "m.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    (tmp_path / "r.urdf").write_text(
+        "<?xml version='1.0' encoding='utf0'?>\n<robot name=\"r\"><link name=\"a\"><visual><geometry>"
+        '<mesh filename="meshes/m.obj" scale="0.001 0.001 0.001"/></geometry></visual></link></robot>\n'
+    )
+    asset = prepare(mesh, NormaliseOptions())
+    assert asset.mesh.positions.shape[0] == 4
