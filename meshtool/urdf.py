@@ -389,8 +389,11 @@ class _Builder(LinkParts):
         axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float).reshape(-1)
         if axis.size != 3 or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
             shown = " ".join(f"{v:g}" for v in axis)
+            zero = axis.size == 3 and np.all(axis == 0)
             raise UrdfError(
-                f"joint {joint.name!r} has axis {shown!r}; an axis is 3 finite numbers, not all zero",
+                f"joint {joint.name!r} has a zero axis"
+                if zero
+                else f"joint {joint.name!r} has axis {shown!r}; an axis is 3 finite numbers, not all zero",
                 **where,
                 hint="fix the <axis xyz=...> of the joint",
             )
