@@ -19,7 +19,18 @@ MAX_NESTING = 64
 T = TypeVar("T")
 
 
-class NestingError(ValueError):
+class DocumentLimitError(ValueError):
+    """A document is past one of the bounds of this module; the message says which, in one line."""
+
+
+class NumberTooLongError(DocumentLimitError):
+    """A number in the document has more digits than Python converts (``sys.get_int_max_str_digits``, 4300)."""
+
+    def __init__(self, detail: str) -> None:
+        super().__init__(f"a number in it is too long ({detail}); write it with fewer digits")
+
+
+class NestingError(DocumentLimitError):
     """A document nests arrays and tables deeper than the limit; the message says so in one line."""
 
     def __init__(self, limit: int = MAX_NESTING) -> None:
@@ -42,12 +53,18 @@ def bounded(parse: Callable[[], T], limit: int = MAX_NESTING) -> T:
 
     Raises:
         NestingError: The document nests deeper than ``limit`` (also when the parser ran out of stack).
+        NumberTooLongError: An integer has more digits than Python converts (a 5,000-digit TOML or JSON
+            integer makes the parser raise a plain ``ValueError``, not its syntax error).
         Exception: Whatever ``parse`` raises for other reasons (its own syntax errors).
     """
     try:
         value = parse()
     except RecursionError:
         raise NestingError(limit) from None
+    except ValueError as exc:
+        if type(exc) is ValueError and "integer string conversion" in str(exc):  # int()'s digit limit
+            raise NumberTooLongError(str(exc).split(";")[0].lower()) from None
+        raise
     if nesting_depth(value, limit) > limit:
         raise NestingError(limit)
     return value

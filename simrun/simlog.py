@@ -34,7 +34,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from meshtool.nesting import NestingError, bounded
+from meshtool.nesting import DocumentLimitError, bounded
 from simrun.commands import Command, parse_command
 from simrun.errors import SimrunError
 from simrun.safeio import FileReadError, open_regular, read_regular
@@ -301,7 +301,7 @@ class Simlog:
         raw = self._file.read(length)
         try:
             header = bounded(lambda: json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant))
-        except NestingError as exc:
+        except DocumentLimitError as exc:
             raise SimlogError(f"{path}: byte 16: header {exc}") from None
         except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as exc:
             raise SimlogError(f"{path}: byte 16: corrupt header ({exc})") from None
@@ -449,7 +449,7 @@ class Simlog:
     def _json(self, raw: bytes, offset: int, what: str) -> Any:
         try:
             return bounded(lambda: json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant))
-        except NestingError as exc:
+        except DocumentLimitError as exc:
             raise SimlogError(f"{self.path}: byte {offset}: {what} {exc}") from None
         except (UnicodeDecodeError, ValueError) as exc:
             raise SimlogError(f"{self.path}: byte {offset}: corrupt {what} ({exc})") from None

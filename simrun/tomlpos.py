@@ -16,7 +16,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from meshtool.nesting import NestingError, bounded
+from meshtool.nesting import DocumentLimitError, bounded
 from simrun.errors import SceneError
 from simrun.safeio import MAX_FILE_BYTES, FileReadError, read_regular
 
@@ -233,7 +233,7 @@ def read_toml(
         raise SceneError(f"not UTF-8 (byte {exc.start}); save it as UTF-8", name, line=line) from None
     try:
         doc = bounded(lambda: tomllib.loads(text))
-    except NestingError as exc:
+    except DocumentLimitError as exc:
         raise SceneError(str(exc), name) from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"not valid TOML: {exc}", name, line=toml_error_line(exc)) from None

@@ -190,3 +190,17 @@ def test_a_misspelt_key_is_named_at_its_own_line_with_the_closest_known_key(
     assert expected in str(info.value)
     if "tpye" in table:
         assert str(info.value).endswith("did you mean 'type'?")
+
+
+def test_an_integer_too_long_for_python_is_one_error_line(tmp_path: Path) -> None:
+    """A 5,000-digit integer made tomllib raise a plain ValueError (exit 3; the fuzzer's commands crash)."""
+    from bounded import run_bounded
+
+    scene = tmp_path / "s.toml"
+    scene.write_text('[[entities]]\ntype = "Box"\nname = "b"\n')
+    commands = tmp_path / "c.commands.toml"
+    commands.write_text(f'[[commands]]\nt = {"9" * 5000}\nentity = "b"\ncall = "all_stop"\n')
+    out = run_bounded(["simrun", "play", str(scene), "--commands", str(commands), "--duration", "0.1"])
+    assert out.code == 1 and "Traceback" not in out.err
+    assert out.err.startswith(f"error: {commands}: a number in it is too long (exceeds the limit (4300 digits)")
+    assert out.err.count("\n") == 1

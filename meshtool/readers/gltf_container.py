@@ -12,7 +12,7 @@ from typing import Any
 from urllib.parse import unquote
 
 from meshtool.errors import FormatError
-from meshtool.nesting import NestingError, bounded
+from meshtool.nesting import DocumentLimitError, bounded
 
 GLB_MAGIC = b"glTF"
 JSON_CHUNK = 0x4E4F534A
@@ -49,7 +49,7 @@ def read_container(data: bytes, path: str) -> tuple[dict[str, Any], bytes | None
         text = data
     try:
         doc = bounded(lambda: json.loads(text.decode("utf-8-sig")))
-    except NestingError as exc:
+    except DocumentLimitError as exc:
         raise FormatError(f"glTF JSON cannot be read: {exc}", path=path) from None
     except ValueError as exc:  # not UTF-8, not JSON, an integer of more than 4300 digits
         line = getattr(exc, "lineno", None)

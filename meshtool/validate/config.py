@@ -27,7 +27,7 @@ from typing import Any
 
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, Severity
-from meshtool.nesting import NestingError, bounded
+from meshtool.nesting import DocumentLimitError, bounded
 from meshtool.resolve import is_file, read_cache
 from meshtool.validate.rules import rule_id
 
@@ -155,7 +155,7 @@ def load_config(path: Path | None) -> ValidateConfig:
         raise ConfigError("configuration file not found", path=str(path), hint="check --config")
     try:
         document = bounded(lambda: tomllib.loads(data.decode("utf-8")))
-    except NestingError as exc:
+    except DocumentLimitError as exc:
         raise ConfigError(str(exc), path=str(path)) from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=str(path)) from None
