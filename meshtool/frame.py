@@ -77,6 +77,7 @@ def decide_frame(
     up: str | None,
     root: ModelRoot | None,
     normalised_before: bool = False,
+    declared_up: UpDecision | None = None,
 ) -> Frame:
     """Decide unit, scale and up axis of ``src``.
 
@@ -89,6 +90,10 @@ def decide_frame(
         up: ``--up``: ``y``, ``z``, ``auto`` or ``None`` (auto).
         root: The OBJ's model root.
         normalised_before: The file was written by meshtool.
+        declared_up: The up axis the file declares (COLLADA ``<up_axis>``), used unless ``up`` forces one or
+            a description file (URDF, SDFormat) uses the mesh as it is: a robot places its meshes in the
+            link's Z-up frame whatever the exporter declared (Assimp and MeshLab write ``Y_UP`` whatever
+            they hold), as ``meshtool urdf`` places them (:func:`meshtool.readers.placed_up`).
 
     Returns:
         The frame and its findings.
@@ -116,6 +121,8 @@ def decide_frame(
     findings.extend(evidence_findings(evidence, chosen_unit, chosen_scale, name))
     if up in ("y", "z"):
         decision = UpDecision(up, "forced", f"--up {up}")
+    elif declared_up is not None and not consumers:
+        decision = declared_up
     else:
         metres = apply_scale(np.asarray(positions, dtype=np.float64), chosen_unit, chosen_scale)
         decision = decide_up(src, metres, header_comments, consumers, root, normalised_before)

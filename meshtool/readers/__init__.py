@@ -176,7 +176,13 @@ def source_frame(
         unit, factor = _unit_key(declared.unit_m)
         extra = scale * factor
     forced_up = up if up in ("y", "z") else None
-    frame = decide_frame(src, positions, header, unit, extra, forced_up or declared.up or up, root)
+    # glTF's Y-up is its specification's, whoever uses the file; another format's declaration (COLLADA
+    # <up_axis>) gives way to a description file that uses the mesh as it is (placed_up: one rule for both)
+    spec_up = declared.up if declared.up is not None and placed_up(src) == declared.up else None
+    declared_up = (
+        UpDecision(declared.up, "format", declared.up_text) if declared.up is not None and spec_up is None else None
+    )
+    frame = decide_frame(src, positions, header, unit, extra, forced_up or spec_up or up, root, declared_up=declared_up)
     if declared.unit_m is not None:
         frame.findings = [f for f in frame.findings if f.code != "units-evidence"]
         if user_unit is None:
@@ -184,10 +190,10 @@ def source_frame(
                 unit, None if factor == 1.0 else declared.unit_m, "format", declared.unit_text
             )
             frame.findings.append(info("units-format", f"unit from the file: {declared.unit_text}", obj.path))
-    if declared.up is not None and forced_up is None:
-        frame.up_decision = UpDecision(declared.up, "format", declared.up_text)
-        turned = "rotated +90 degrees about X to Z-up" if declared.up == "y" else "kept as it is"
-        frame.findings.append(info("up-axis", f"up axis {declared.up} ({turned}): {declared.up_text}", obj.path))
+    if spec_up is not None and forced_up is None:
+        frame.up_decision = UpDecision(declared.up or spec_up, "format", declared.up_text)
+        turned = "rotated +90 degrees about X to Z-up" if spec_up == "y" else "kept as it is"
+        frame.findings.append(info("up-axis", f"up axis {spec_up} ({turned}): {declared.up_text}", obj.path))
     if obj.format == "stl":
         _stl_defaults(frame, positions, user_unit is None, obj.path)  # --units auto: the same suggestion
     return frame
