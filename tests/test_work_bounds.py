@@ -83,6 +83,30 @@ def test_the_hull_of_a_flat_disc_is_a_thin_antiprism_made_in_n_log_n(tmp_path: P
     assert 0.99 * math.pi * 0.001 < volume < math.pi * 0.001
 
 
+def test_the_hull_of_a_thick_finely_divided_cylinder_is_made_without_qhulls_merges(tmp_path: Path) -> None:
+    """2 x 40 000 co-circular points on two rings: 16 s at 2 x 10 000 before (qhull merging the side facets)."""
+    out = tmp_path / "hull.npz"
+    _child(
+        "import numpy as np\n"
+        "from meshtool.hulls import HullOptions, convex_hull\n"
+        "t = np.linspace(0, 2 * np.pi, 40_000, endpoint=False)\n"
+        "ring = np.c_[np.cos(t), np.sin(t)]\n"
+        "points = np.r_[np.c_[ring, np.zeros(len(t))], np.c_[ring, np.full(len(t), 0.5)]]\n"
+        "vertices, faces, notes = convex_hull(points, HullOptions())\n"
+        f"np.savez({str(out)!r}, vertices=vertices, faces=faces, notes=np.array(notes))\n"
+    )
+    saved = np.load(out)
+    vertices, faces, notes = saved["vertices"], saved["faces"], saved["notes"].tolist()
+    assert notes == ["reduced"] and len(vertices) == 64
+    _assert_convex(vertices, faces)
+    np.testing.assert_allclose(np.linalg.norm(vertices[:, :2], axis=1), 1.0, rtol=1e-9)  # rim points only
+    assert sorted(set(np.round(vertices[:, 2], 12))) == [0.0, 0.5]
+    from scipy.spatial import ConvexHull
+
+    volume = ConvexHull(vertices).volume  # the cylinder's, less 32 chords' segments per ring
+    assert 0.99 * math.pi * 0.5 < volume < math.pi * 0.5
+
+
 def test_a_small_flat_set_gets_the_prism_of_all_its_points() -> None:
     """Within the budget, the hull is what thickening gave before: every point moved by half the thickness."""
     square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
