@@ -433,7 +433,12 @@ class _Builder(LinkParts):
         for what, value, positive in values:
             if value is None:
                 continue
-            number = float(value)
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                raise UrdfError(
+                    f"joint {joint.name!r}: {what} is {value!r}, not a number", **where, hint=f"fix the {what}"
+                ) from None
             if not math.isfinite(number) or (positive and number < 0):
                 need = "a finite number >= 0" if positive else "a finite number"
                 raise UrdfError(

@@ -26,6 +26,9 @@ MAX_COMMANDS_BYTES = 16 * 1024 * 1024
 #: Latest command time accepted, simulated seconds (one week).
 MAX_COMMAND_TIME = 7 * 24 * 3600.0
 _KEYS = ("t", "service", "entity", "call", "args")
+#: Methods every controller has that the world calls, never a command (``tick(model, data)`` from a
+#: commands file reached MuJoCo with a float for the model).
+LIFECYCLE = ("tick", "reset", "snapshot", "restore")
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,9 +139,9 @@ def parse_command(table: Any, fail: Any, where: str = "", entity_where: str = ""
             raise fail(f"argument {k + 1} {problem}", "args")
     call = table["call"]
     method = getattr(cls, call, None)
-    if call.startswith("_") or not callable(method):
+    if call.startswith("_") or call in LIFECYCLE or not callable(method):
         public = [n for n, m in inspect.getmembers(cls, callable) if not n.startswith("_")]
-        public = [n for n in public if n not in ("tick", "reset", "snapshot", "restore")]
+        public = [n for n in public if n not in LIFECYCLE]
         raise fail(f"{service} has no command {call!r} (commands: {', '.join(public)})", "call")
     try:
         inspect.signature(method).bind(None, *args)

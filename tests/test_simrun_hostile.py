@@ -380,3 +380,14 @@ def test_unknown_camera_is_one_error_line(tmp_path):
     code, out, err = run(["snapshot", str(SCENES / "basic.toml"), "-o", str(tmp_path / "x.png"), "--camera", "nosuch"])
     assert code == 1 and "Traceback" not in out + err
     assert err.strip() == "error: no camera named 'nosuch' (cameras: view)"
+
+
+@pytest.mark.parametrize("call", ["tick", "reset", "snapshot", "restore"])
+def test_a_controllers_lifecycle_method_is_not_a_command(tmp_path, call):
+    """``call = "tick"`` with two numbers reached MuJoCo with a float as the model (AttributeError, exit 3)."""
+    scene = tmp_path / "bot.toml"
+    scene.write_text(BOEBOT + DRIVE)
+    path = tmp_path / "c.commands.toml"
+    path.write_text(f'[[commands]]\nt = 0.5\nentity = "bot"\ncall = "{call}"\nargs = [1.0, 2.0]\n')
+    message = assert_one_error(*run(["play", str(scene), "--duration", "1", "--commands", str(path)]), str(path), 4)
+    assert f"DriveService has no command {call!r}" in message
