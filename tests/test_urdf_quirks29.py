@@ -183,13 +183,13 @@ def test_a_consumer_urdf_with_an_unknown_encoding_is_not_evidence(tmp_path: Path
 
 
 def test_a_limit_that_is_not_a_number_is_an_error_at_the_joint(tmp_path: Path) -> None:
-    """``effort="x"`` raised ValueError from float() (exit 3; the fuzzer's second urdf run)."""
+    """``damping="x"`` raised ValueError from float() (exit 3; the fuzzer's second urdf run)."""
     urdf = _write(
         tmp_path,
         f'<link name="l1">{INERTIAL}</link>\n'
         '<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>'
-        '<limit lower="-1" upper="1" effort="x" velocity="1"/></joint>\n',
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/><dynamics damping="x"/></joint>\n',
     )
-    with pytest.raises(UrdfError, match="joint 'j1': <limit effort> is 'x', not a number") as info:
+    with pytest.raises(UrdfError, match="joint 'j1': <dynamics damping> is 'x', not a number") as info:
         import_urdf(urdf)
     assert info.value.line == 4
