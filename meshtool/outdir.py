@@ -33,7 +33,7 @@ import struct
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from meshtool import __version__
 from meshtool.errors import OutputError
@@ -421,22 +421,67 @@ def _sha256(path: Path) -> str | None:
     return digest.hexdigest()
 
 
-def write_file(out: Path, data: bytes) -> None:
-    """Write ``data`` to ``out`` through a temporary file in the same folder and a rename."""
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-        done = False
+class AtomicFile:
+    """An output written through a temporary file in the same folder, renamed over ``out`` when committed.
+
+    Readers of ``out`` see the old file or the whole new one, never a torn one; a write that fails (a full
+    disk) or an :meth:`abort` leaves ``out`` as it was and no temporary file. :func:`write_file` writes bytes
+    in one go; a stream (``simrun play --record``) writes as it goes.
+
+    Raises:
+        OutputError: The temporary file cannot be made, written or renamed (it is removed first).
+    """
+
+    def __init__(self, out: Path) -> None:
+        self.out = out
         try:
-            with os.fdopen(fd, "wb") as handle:
-                handle.write(data)
-                handle.flush()
-                os.fsync(handle.fileno())
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, out)
-            done = True
-        finally:
-            if not done:  # never leave a partial file behind, whatever interrupted the write
+            out.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+        except (OSError, ValueError) as exc:
+            raise OutputError(f"cannot write: {getattr(exc, 'strerror', None) or exc}", path=str(out)) from None
+        self._tmp: str | None = tmp
+        self._handle = os.fdopen(fd, "wb")
+
+    def write(self, data: bytes) -> None:
+        """Append ``data``; on failure the file is dropped (:meth:`abort`) and the error raised."""
+        try:
+            self._handle.write(data)
+        except OSError as exc:
+            self._fail(exc)
+
+    def commit(self) -> None:
+        """Flush to disk and rename over ``out`` (mode 0644); a second call does nothing."""
+        if self._tmp is None:
+            return
+        try:
+            self._handle.flush()
+            os.fsync(self._handle.fileno())
+            self._handle.close()
+            os.chmod(self._tmp, 0o644)
+            os.replace(self._tmp, self.out)
+        except OSError as exc:
+            self._fail(exc)
+        self._tmp = None
+
+    def abort(self) -> None:
+        """Drop what was written: close and remove the temporary file; ``out`` stays as it was."""
+        tmp, self._tmp = self._tmp, None
+        with contextlib.suppress(OSError):
+            self._handle.close()  # may flush into a full disk once more; its error changes nothing
+        if tmp is not None:
+            with contextlib.suppress(OSError):
                 os.unlink(tmp)
-    except OSError as exc:
-        raise OutputError(f"cannot write: {exc.strerror}", path=str(out)) from None
+
+    def _fail(self, exc: OSError) -> NoReturn:
+        self.abort()
+        raise OutputError(f"cannot write: {exc.strerror or exc}", path=str(self.out)) from None
+
+
+def write_file(out: Path, data: bytes) -> None:
+    """Write ``data`` to ``out`` through a temporary file in the same folder and a rename (:class:`AtomicFile`)."""
+    target = AtomicFile(out)
+    try:
+        target.write(data)
+        target.commit()
+    finally:
+        target.abort()  # nothing left behind, whatever interrupted the write (a no-op once committed)

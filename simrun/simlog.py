@@ -17,14 +17,12 @@ relative to the recording's folder, so a recording moves with its scene.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import math
 import os
 import platform
 import struct
-import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +32,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from meshtool.errors import OutputError
 from meshtool.nesting import DocumentLimitError, bounded
+from meshtool.outdir import AtomicFile
 from simrun.commands import Command, parse_command
 from simrun.errors import SimrunError
 from simrun.safeio import FileReadError, open_regular, read_regular
@@ -149,11 +149,9 @@ class Recorder:
         raw = json.dumps(header, sort_keys=True).encode("utf-8")
         self.path = path
         try:  # streamed to a temporary file beside the target, renamed over it by close(): never a torn .simlog
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        except (OSError, ValueError) as exc:
-            raise SimrunError(f"{path}: cannot write: {getattr(exc, 'strerror', None) or exc}") from None
-        self._tmp: Path | None = Path(tmp)
-        self._file: BinaryIO = os.fdopen(fd, "wb")
+            self._file = AtomicFile(path)
+        except OutputError as exc:
+            raise SimrunError(f"{path}: {exc.message}") from None
         self._write(MAGIC + struct.pack("<HHI", MAJOR, MINOR, len(raw)) + raw)
         self.frames = 0
         world.controllers.append(self)
@@ -162,9 +160,9 @@ class Recorder:
         """Append to the temporary file; a failed write (a full disk) drops the recording and says so."""
         try:
             self._file.write(data)
-        except OSError as exc:
+        except OutputError as exc:
             self.abort()
-            raise SimrunError(f"{self.path}: cannot write: {exc.strerror or exc}; nothing recorded") from None
+            raise SimrunError(f"{self.path}: {exc.message}; nothing recorded") from None
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Write a frame, or a checkpoint when one is due."""
@@ -209,30 +207,17 @@ class Recorder:
         """
         if self in self.world.controllers:
             self.world.controllers.remove(self)
-        if self._tmp is None:  # already finished or dropped
-            return
         if not keep:
             self.abort()
             return
         try:
-            self._file.flush()
-            os.fchmod(self._file.fileno(), 0o644)
-            os.fsync(self._file.fileno())
-            self._file.close()
-            os.replace(self._tmp, self.path)
-        except OSError as exc:
-            self.abort()
-            raise SimrunError(f"{self.path}: cannot write: {exc.strerror or exc}; nothing recorded") from None
-        self._tmp = None
+            self._file.commit()  # a second close does nothing
+        except OutputError as exc:
+            raise SimrunError(f"{self.path}: {exc.message}; nothing recorded") from None
 
     def abort(self) -> None:
-        """Drop the recording: close and remove the temporary file (the target is left as it was)."""
-        tmp, self._tmp = self._tmp, None
-        with contextlib.suppress(OSError):
-            self._file.close()  # may flush into a full disk once more; its error changes nothing
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                tmp.unlink(missing_ok=True)
+        """Drop the recording: the temporary file is removed (the target is left as it was)."""
+        self._file.abort()
         if self in self.world.controllers:
             self.world.controllers.remove(self)
 
