@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import math
 import os
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -149,15 +147,14 @@ def doctor(as_json: bool) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
 def check(scene: Path, seconds: float, as_json: bool) -> None:
     """Load SCENE, compile it, bind its services and sensors, and step it; fail on any warning or non-finite state."""
-    with _guard():
-        world = load_scene(scene)
-        world.check_bindings()
-        world.run(seconds)
-        warnings = world.warnings()
-        if warnings:
-            raise SimrunError(f"{scene}: MuJoCo warnings after {seconds:g} s: {warnings}")
-        if not np.isfinite(world.data.qpos).all():
-            raise SimrunError(f"{scene}: the state became non-finite within {seconds:g} s")
+    world = load_scene(scene)
+    world.check_bindings()
+    world.run(seconds)
+    warnings = world.warnings()
+    if warnings:
+        raise SimrunError(f"{scene}: MuJoCo warnings after {seconds:g} s: {warnings}")
+    if not np.isfinite(world.data.qpos).all():
+        raise SimrunError(f"{scene}: the state became non-finite within {seconds:g} s")
     model = world.model
     if as_json:
         counts = {"entities": len(world), "bodies": model.nbody - 1, "geoms": model.ngeom, "meshes": model.nmesh}
@@ -217,7 +214,7 @@ def export(
     """Export SCENE as MJCF (a self-contained folder), a compiled binary model, USD and/or GLB."""
     if mjcf is None and mjz is None and usd is None and glb is None:
         raise click.UsageError("give --mjcf, --mjz, --usd and/or --glb")
-    with _guard(), output_policy(force, [scene]):
+    with output_policy(force, [scene]):
         world = load_scene(scene)
         world.compile()
         if mjcf is not None:
@@ -333,7 +330,7 @@ def play_command(
         seed,
         chosen,
     )
-    with _guard(), output_policy(force, [scene, commands_file]):
+    with output_policy(force, [scene, commands_file]):
         bar = None
         if progress_enabled() and not as_json:  # on stderr, only on a terminal (stdout stays the summary)
             bar = click.progressbar(length=int(duration * 1000), label="simulating", file=sys.stderr)
@@ -434,13 +431,13 @@ def replay(
     if outputs:
         from simrun.replay_export import export_recording
 
-        with _guard(), output_policy(force, [log]):
+        with output_policy(force, [log]):
             for item in export_recording(log, outputs, fps, tolerance):
                 click.echo(f"wrote {item.path} ({item.size} bytes, {item.keyframes} keyframes) from {printable(log)}")
     if video is None:
         return
     fps = 15.0 if fps is None else fps
-    with _guard(), output_policy(force, [log]):
+    with output_policy(force, [log]):
         recording = Simlog(log)
         scene = recording.scene_path()
         check_scene(recording, scene)
@@ -483,10 +480,9 @@ def resim(log: Path, start: float, controller: Path | None) -> None:
     --controller; it runs only if its SHA-256 equals the recorded one. The recorded scene path is
     relative to the recording, so this works from any folder.
     """
-    with _guard():
-        compared, mismatch = run_resim(log, start, controller)
-        if mismatch is not None:
-            raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
+    compared, mismatch = run_resim(log, start, controller)
+    if mismatch is not None:
+        raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
     click.echo(f"{printable(log)}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
 
 
@@ -501,8 +497,7 @@ def view(scene: Path) -> None:
             err=True,
         )
         sys.exit(EXIT_INPUT)
-    with _guard():
-        run_viewer(load_scene(scene))
+    run_viewer(load_scene(scene))
 
 
 @main.command("snapshot")
@@ -520,21 +515,10 @@ def view(scene: Path) -> None:
 def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, size: str, at_time: float) -> None:
     """Render one picture of SCENE after simulating --duration seconds."""
     width, height = _size(size)
-    with _guard():
-        world = load_scene(scene)
-        world.run(at_time)
-        renderer = FrameRenderer(world.model, width, height, render_mode, camera, world.data)
-        buffer = io.BytesIO()
-        Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")
-        write_bytes(output, buffer.getvalue())
+    world = load_scene(scene)
+    world.run(at_time)
+    renderer = FrameRenderer(world.model, width, height, render_mode, camera, world.data)
+    buffer = io.BytesIO()
+    Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")
+    write_bytes(output, buffer.getvalue())
     click.echo(f"wrote {output} ({width}x{height}, {render_mode})")
-
-
-@contextlib.contextmanager
-def _guard() -> Iterator[None]:
-    """A simrun error inside the block ends the command as :meth:`_Group.run_command` ends it."""
-    try:
-        yield
-    except SimrunError as exc:
-        click.echo(f"error: {_one_line(str(exc))}", err=True)
-        sys.exit(exc.exit_code)
