@@ -30,6 +30,7 @@ def test_simrun_test_of_a_missing_path_is_exit_1_and_of_a_bad_option_exit_2(tmp_
     assert missing.code == 1 and missing.err == f"error: {tmp_path / 'nowhere'}: no such file or folder\n"
     bad = run_bounded(["simrun", "test", str(SCENES / "basic.toml"), "--seeds", "x"])
     assert bad.code == 2
+    assert bad.err == "usage error: --seeds 'x': expected START:STOP, N or N1,N2,... (integers)\n"
 
 
 def test_validate_maps_a_meshtool_error_to_exit_1_not_internal(monkeypatch, tmp_path: Path) -> None:

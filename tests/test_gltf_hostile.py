@@ -205,9 +205,11 @@ def test_limits_follow_the_environment(tmp_path):
     doc["scenes"] = [{"nodes": [0, 1, 2]}]
     path = write(tmp_path, doc)  # 3 instances of 4 triangles
     refused(normalize(path, {"MESHTOOL_MAX_TRIANGLES": "11"}), "m.gltf", "expands to more than 11 triangles")
-    assert normalize(path, {"MESHTOOL_MAX_TRIANGLES": "12"}).code == 0
+    exact = normalize(path, {"MESHTOOL_MAX_TRIANGLES": "12"})  # exactly at the limit: read, all 12 triangles
+    assert exact.code == 0 and ", 12 triangles," in exact.out, exact.err
     refused(normalize(path, {"MESHTOOL_MAX_INSTANCES": "2"}), "m.gltf", "more than 2 mesh primitive instances")
-    assert normalize(path, {"MESHTOOL_MAX_INSTANCES": "3"}).code == 0
+    instances = normalize(path, {"MESHTOOL_MAX_INSTANCES": "3"})
+    assert instances.code == 0 and ", 12 triangles," in instances.out, instances.err
     bad = normalize(path, {"MESHTOOL_MAX_INSTANCES": "many"})
     assert bad.code == 1 and bad.err.strip().splitlines() == [
         "error: environment variable MESHTOOL_MAX_INSTANCES='many' is not a positive whole number "
