@@ -93,9 +93,10 @@ class MeshLocator:
                 **where,
                 hint="do not modify the robot's files while meshtool reads them",
             ) from None
-        if self.allow_outside and not Resolver(root).inside(real):
+        inside = Resolver(root).inside(real)
+        if self.allow_outside and not inside:
             root = real.parent
-        elif not Resolver(root).inside(real):
+        elif not inside:
             raise UrdfError(
                 f"mesh {ref!r} is outside the robot's folder {printable(root)}",
                 **where,
