@@ -15,9 +15,7 @@ import click
 
 from meshtool.cli_commands import _echo_findings, _guard, _hull_summary, force_option, output_dir_option
 from meshtool.errors import PackFormatError
-from meshtool.normalise import safe_file_stem
 from meshtool.outdir import check_output, write_folder, write_output
-from meshtool.packfile import load
 
 
 @click.command("info")
@@ -25,6 +23,7 @@ from meshtool.packfile import load
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def info(file: Path, as_json: bool) -> None:
     """Describe an .mbin file: counts, sections, sizes, checksums and metadata."""
+    from meshtool.packfile import load
     from meshtool.packfile.export import describe
 
     with _guard(as_json):  # everything that reads the file's content, META included, is inside the guard
@@ -64,6 +63,8 @@ def _info_lines(file: Path, summary: dict[str, Any]) -> list[str]:
 @force_option
 def unpack(file: Path, out_dir: Path, force: bool) -> None:
     """Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."""
+    from meshtool.normalise import safe_file_stem
+    from meshtool.packfile import load
     from meshtool.packfile.export import unpack_files
 
     with _guard(False), load(file, verify=True) as packed:
@@ -87,7 +88,9 @@ def unpack(file: Path, out_dir: Path, force: bool) -> None:
 @force_option
 def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, force: bool) -> None:
     """Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."""
+    from meshtool.normalise import safe_file_stem
     from meshtool.normalmaps import export_findings
+    from meshtool.packfile import load
     from meshtool.packfile.export import to_glb, to_msh
     from meshtool.packfile.usd import export_usd
 

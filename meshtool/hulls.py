@@ -1,6 +1,7 @@
 """Collision geometry: convex hulls of a mesh, of each part, or of a CoACD decomposition, within budgets.
 
-Every hull returned is a closed convex triangle mesh (qhull through trimesh/scipy) with at most
+Every hull returned is a closed convex triangle mesh (:mod:`meshtool.quickhull` in numpy for small inputs;
+qhull through scipy for large ones and the nearly degenerate input the numpy hull declines) with at most
 ``max_hull_vertices`` vertices and a thickness of at least ``min_thickness`` metres along every direction,
 so MuJoCo never meets a flat or degenerate hull. Decomposition runs CoACD in a subprocess (see
 :mod:`meshtool.decompose`), cached and deterministic.
@@ -8,85 +9,23 @@ so MuJoCo never meets a flat or degenerate hull. Decomposition runs CoACD in a s
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
-from meshtool.errors import MeshtoolError, OptionsError
+from meshtool import quickhull
+from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, info, warning
+from meshtool.hull_options import MAX_HULL_COORDINATE as MAX_HULL_COORDINATE
+from meshtool.hull_options import MODES as MODES
+from meshtool.hull_options import PRESETS as PRESETS
+from meshtool.hull_options import HullOptions as HullOptions
 from meshtool.mesh import TriMesh
 from meshtool.progress import report as report_progress
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
-
-MODES = ("none", "convex", "decompose", "objects")
-#: Largest coordinate magnitude hulled, metres. The normaliser refuses more than 1e6 m; far beyond that
-#: qhull's arithmetic overflows (at 1e308 it fails with an internal error).
-MAX_HULL_COORDINATE = 1e9
-#: Preset budgets: (max hulls, max vertices per hull).
-PRESETS: dict[str, tuple[int, int]] = {"mujoco": (32, 64), "mjx": (8, 32), "physx-gpu": (16, 64)}
-
-
-@dataclass(frozen=True, slots=True)
-class HullOptions:
-    """How collision geometry is made (the ``--hulls`` family of options).
-
-    Attributes:
-        mode: ``none``, ``convex`` (one hull), ``decompose`` (CoACD per part) or ``objects`` (a hull per part).
-        max_hulls: Most hulls per part in ``decompose`` mode.
-        max_hull_vertices: Most vertices per hull; larger hulls are re-hulled from the points qhull adds first.
-        min_thickness: Smallest hull thickness, metres; thinner hulls are thickened (capped at 5 % of the
-            part's largest extent so tiny parts stay tiny).
-        merge_parts: Decompose the whole mesh at once instead of part by part.
-        threshold: CoACD concavity threshold (0.01..1; smaller gives more, tighter hulls).
-        seed: CoACD random seed (fixed for determinism).
-        timeout_s: Limit for one CoACD run, seconds.
-        time_budget_s: Limit for all CoACD runs of one asset, seconds; parts left when it is spent get
-            their convex hull (a ``decompose-budget`` warning).
-        cache_dir: Decomposition cache folder; ``None`` disables the cache.
-    """
-
-    mode: str = "convex"
-    max_hulls: int = 32
-    max_hull_vertices: int = 64
-    min_thickness: float = 0.001
-    merge_parts: bool = False
-    threshold: float = 0.05
-    seed: int = 0
-    timeout_s: float = 300.0
-    cache_dir: Path | None = None
-    time_budget_s: float = 180.0
-
-    def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise OptionsError(f"unknown hull mode {self.mode!r}", hint=f"use one of {', '.join(MODES)}")
-        if self.max_hulls < 1 or self.max_hull_vertices < 4:
-            raise OptionsError("--max-hulls must be >= 1 and --max-hull-vertices >= 4")
-        if not (self.min_thickness > 0 and 0 < self.threshold <= 1 and self.timeout_s > 0 and self.time_budget_s > 0):
-            raise OptionsError("min thickness, threshold (0..1], timeout and time budget must be positive")
-
-    @classmethod
-    def preset(cls, name: str, **overrides: object) -> HullOptions:
-        """Options with a preset's budgets (``mujoco``, ``mjx``, ``physx-gpu``), then ``overrides``."""
-        if name not in PRESETS:
-            raise OptionsError(f"unknown preset {name!r}", hint=f"use one of {', '.join(PRESETS)}")
-        hulls, vertices = PRESETS[name]
-        return replace(cls(max_hulls=hulls, max_hull_vertices=vertices), **overrides)  # type: ignore[arg-type]
-
-    def fingerprint(self) -> dict[str, object]:
-        """The options that change results (the cache folder does not)."""
-        return {
-            "mode": self.mode,
-            "max_hulls": self.max_hulls,
-            "max_hull_vertices": self.max_hull_vertices,
-            "min_thickness": self.min_thickness,
-            "merge_parts": self.merge_parts,
-            "threshold": self.threshold,
-            "seed": self.seed,
-        }
 
 
 @dataclass(slots=True)
@@ -127,9 +66,6 @@ def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, I
         MeshtoolError: When a coordinate is not finite or beyond :data:`MAX_HULL_COORDINATE` (code
             ``hull-input``): no hull of such points exists in float64.
     """
-    import trimesh  # trimesh and scipy load on first use (meshtool's start-up stays light)
-    from scipy.spatial import QhullError
-
     pts = np.unique(np.asarray(points, dtype=np.float64), axis=0)
     if pts.size and not (np.abs(pts) <= MAX_HULL_COORDINATE).all():
         raise MeshtoolError(
@@ -142,6 +78,15 @@ def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, I
     thickness = min(options.min_thickness, 0.05 * extent) if extent > 0 else options.min_thickness
     thickness = max(thickness, 1e-6)
     flat = _flat_prism(pts, thickness, options.max_hull_vertices)
+    # a small asset's hull in numpy: scipy's import (~0.3 s CPU) costs more than the rest of its conversion;
+    # beyond NUMPY_HULL_POINTS points or EXACT_ORDER_BUDGET vertices qhull's C is the faster of the two
+    small = flat is not None or len(pts) <= NUMPY_HULL_POINTS
+    if small and options.max_hull_vertices <= quickhull.EXACT_ORDER_BUDGET:
+        made = _numpy_hull(pts, flat, thickness, options.max_hull_vertices)
+        if made is not None:
+            return made
+    from scipy.spatial import QhullError  # qhull: large inputs, and what the numpy hull declines
+
     picked = False
     if flat is None and len(pts) > PREFILTER_POINTS:
         pts = _extreme_points(pts)
@@ -155,14 +100,12 @@ def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, I
                     notes.append("reduced")
             else:
                 thick, thickened = _thicken(pts, thickness)
-            hull = trimesh.convex.convex_hull(thick, qhull_options=qhull_options)
-            if len(hull.vertices) > options.max_hull_vertices:
-                subset = _qhull_subset(np.asarray(hull.vertices), options.max_hull_vertices)
-                hull = trimesh.convex.convex_hull(subset, qhull_options=qhull_options)
+            vertices, faces = _qhull(thick, qhull_options)
+            if len(vertices) > options.max_hull_vertices:
+                subset = _qhull_subset(vertices, options.max_hull_vertices)
+                vertices, faces = _qhull(subset, qhull_options)
                 if "reduced" not in notes:
                     notes.append("reduced")
-            vertices = np.asarray(hull.vertices, dtype=np.float64)
-            faces = np.asarray(hull.faces, dtype=np.int64)
         except (QhullError, ValueError, IndexError, ZeroDivisionError, np.linalg.LinAlgError):
             notes = []
             continue
@@ -173,6 +116,50 @@ def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, I
         notes = []
     vertices, faces = _box(pts, thickness)
     return vertices, faces, ["boxed"]
+
+
+#: Largest number of distinct points hulled in numpy (:mod:`meshtool.quickhull`); more go to qhull.
+NUMPY_HULL_POINTS = 16384
+
+
+def _qhull(points: FloatArray, qhull_options: str) -> tuple[FloatArray, IntArray]:
+    """Qhull's hull of ``points`` (scipy, no trimesh): the vertices it uses and faces wound outward.
+
+    Raises:
+        QhullError, ValueError: As ``scipy.spatial.ConvexHull`` does.
+    """
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(points, qhull_options=qhull_options)
+    faces = np.asarray(hull.simplices, dtype=np.int64)
+    tri = points[faces]
+    inward = (np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) * hull.equations[:, :3]).sum(axis=1) < 0
+    faces[inward] = faces[inward][:, ::-1]
+    used, local = np.unique(faces, return_inverse=True)
+    vertices: FloatArray = np.asarray(points[used], dtype=np.float64)
+    return vertices, local.reshape(-1, 3).astype(np.int64)
+
+
+def _numpy_hull(
+    pts: FloatArray, flat: tuple[FloatArray, bool] | None, thickness: float, budget: int
+) -> tuple[FloatArray, IntArray, list[str]] | None:
+    """:func:`convex_hull` by :func:`meshtool.quickhull.hull3`; ``None`` when it declines (qhull then runs)."""
+    notes: list[str] = []
+    if flat is not None:
+        thick, thickened = flat[0], True
+        if flat[1]:
+            notes.append("reduced")
+    else:
+        thick, thickened = _thicken(pts, thickness)
+    made = quickhull.hull3(thick, budget)
+    if made is None:
+        return None
+    vertices = thick[made.vertices]
+    if len(vertices) < 4 or not np.isfinite(vertices).all():
+        return None
+    if made.reduced and "reduced" not in notes:
+        notes.append("reduced")
+    return vertices, made.faces, (["thickened"] if thickened else []) + notes
 
 
 #: Above this many points, the points that can be hull vertices are found first with joggled input.
@@ -202,10 +189,28 @@ def _box(pts: FloatArray, thickness: float) -> tuple[FloatArray, IntArray]:
     lo = pts.min(axis=0) if len(pts) else np.zeros(3)
     hi = pts.max(axis=0) if len(pts) else np.zeros(3)
     centre, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, thickness / 2)
-    import trimesh
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+    return corners * half + centre, _BOX_FACES.copy()
 
-    box = trimesh.creation.box(extents=2 * half)
-    return np.asarray(box.vertices, dtype=np.float64) + centre, np.asarray(box.faces, dtype=np.int64)
+
+#: The 12 triangles of the corners of :func:`_box` (x, y, z each -1 then 1), counter-clockwise from outside.
+_BOX_FACES = np.array(
+    [
+        [0, 1, 3],
+        [0, 3, 2],
+        [4, 6, 7],
+        [4, 7, 5],
+        [0, 4, 5],
+        [0, 5, 1],
+        [2, 3, 7],
+        [2, 7, 6],
+        [0, 2, 6],
+        [0, 6, 4],
+        [1, 5, 7],
+        [1, 7, 3],
+    ],
+    dtype=np.int64,
+)
 
 
 def _thicken(pts: FloatArray, thickness: float) -> tuple[FloatArray, bool]:
@@ -248,8 +253,6 @@ def _flat_prism(pts: FloatArray, thickness: float, budget: int) -> tuple[FloatAr
         The points to hull and whether the polygon was cut or split (``reduced``); ``None`` for fewer than
         4 points or a set that is not thin along any principal direction (those go through :func:`_thicken`).
     """
-    from scipy.spatial import ConvexHull, QhullError
-
     if len(pts) < 4:
         return None
     centre = pts.mean(axis=0)
@@ -268,9 +271,8 @@ def _flat_prism(pts: FloatArray, thickness: float, budget: int) -> tuple[FloatAr
         return pts[chosen] - np.outer(local[chosen, k] - lo[k] + thickness / 2, axes[k])
 
     if len(wide) == 2:
-        try:
-            ring = ConvexHull(local[:, wide]).vertices  # counter-clockwise
-        except (QhullError, ValueError):
+        ring = quickhull.hull2(local[:, wide])  # counter-clockwise
+        if ring is None:
             return None
         if 2 * len(ring) <= budget or len(ring) < 4:  # a triangle's prism is cut in 3-D if need be
             chosen = np.sort(ring)

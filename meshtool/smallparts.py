@@ -138,8 +138,36 @@ def _vertices(group: IntArray, faces: IntArray, count: int) -> tuple[IntArray, I
     return pairs // count, pairs % count
 
 
+#: Rows of each group looked at first: a group with MIN_VERTICES distinct among them needs no other pass.
+HEAD_ROWS = 16
+
+
 def _count_distinct(owner: IntArray, points: FloatArray, groups: int) -> IntArray:
     """Distinct rows of ``points`` per ``owner`` (sorted group ids), counted up to :data:`MIN_VERTICES`.
+
+    The first :data:`HEAD_ROWS` rows of every group are counted first; only the groups with fewer than
+    ``MIN_VERTICES`` distinct among them and more rows are counted over all their rows. A large mesh (one
+    group of 556k vertices) costs a pass to find the heads instead of ``MIN_VERTICES`` passes over every
+    vertex (issue 28: 0.3 s of the bunny's 1.3 s).
+    """
+    if not len(owner):
+        return np.zeros(groups, dtype=np.int64)
+    first = np.flatnonzero(np.concatenate([[True], owner[1:] != owner[:-1]]))
+    sizes = np.diff(first, append=len(owner))
+    rank = np.arange(len(owner)) - np.repeat(first, sizes)  # position of each row within its group
+    head = np.flatnonzero(rank < HEAD_ROWS)
+    distinct = _count_rows(owner[head], points[head], groups)
+    longer = np.zeros(groups, dtype=bool)
+    longer[owner[first]] = sizes > HEAD_ROWS
+    again = longer & (distinct < MIN_VERTICES)
+    if again.any():
+        rows = np.flatnonzero(again[owner])
+        distinct[again] = _count_rows(owner[rows], points[rows], groups)[again]
+    return distinct
+
+
+def _count_rows(owner: IntArray, points: FloatArray, groups: int) -> IntArray:
+    """:func:`_count_distinct` over every row given.
 
     Each round takes every group's first row not equal to any taken before and drops the rows equal to it:
     ``MIN_VERTICES`` linear passes instead of sorting positions (``np.unique(axis=0)`` over every vertex

@@ -1,4 +1,4 @@
-# ruff: noqa: E402  (MUJOCO_GL must be decided before the imports below import mujoco)
+# ruff: noqa: E402  (the MUJOCO_GL hook is armed before the imports below)
 """simrun: MuJoCo worlds of named entities built on ``mujoco.MjSpec``, with meshtool's ``.mbin`` assets.
 
 Build a world in code::
@@ -17,9 +17,11 @@ or load one from a TOML scene file with :func:`load_scene`.
 
 __version__ = "0.1.0"
 
-from simrun.headless import import_mujoco as _import_mujoco
+from simrun.headless import arm as _arm_gl_choice
 
-_import_mujoco()  # headless OpenGL by default: MUJOCO_GL is decided before anything imports mujoco
+# Headless OpenGL by default: MUJOCO_GL is decided the moment anything first imports mujoco (a
+# sys.meta_path hook, simrun/headless.py), so ``import simrun`` and ``simrun --help`` never load MuJoCo.
+_arm_gl_choice()
 
 import importlib
 from typing import TYPE_CHECKING, Any

@@ -1,7 +1,8 @@
 """Headless OpenGL by default: choose ``MUJOCO_GL`` before MuJoCo is imported, and never crash on it.
 
-MuJoCo reads ``MUJOCO_GL`` once, when ``mujoco`` is imported. :func:`import_mujoco` (run by
-``import simrun``, before anything imports ``mujoco``) decides it:
+MuJoCo reads ``MUJOCO_GL`` once, when ``mujoco`` is imported. ``import simrun`` does not import MuJoCo (a
+``simrun --help`` stays cheap): it arms a ``sys.meta_path`` hook (:func:`arm`) that decides the moment
+anything first imports ``mujoco``, the same choice :func:`import_mujoco` makes:
 
 - ``MUJOCO_GL`` unset (or empty) and no display (``DISPLAY`` / ``WAYLAND_DISPLAY`` on Linux): EGL when its
   libraries load, else OSMesa, else none (rendering then fails with one line naming the packages);
@@ -11,7 +12,8 @@ MuJoCo reads ``MUJOCO_GL`` once, when ``mujoco`` is imported. :func:`import_mujo
 - ``glfw`` (or unset with a display): MuJoCo's default, a window system context.
 
 Only libraries are loaded here (``ctypes``), never a context: a context is made in a child process by
-``simrun doctor``. Nothing here imports ``mujoco`` except :func:`import_mujoco`.
+``simrun doctor``. Nothing here imports ``mujoco`` except :func:`import_mujoco` (the hook only finds its
+spec and hands the import back).
 """
 
 from __future__ import annotations
@@ -19,9 +21,12 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import importlib
+import importlib.abc
+import importlib.machinery
+import importlib.util
 import os
 import sys
-from collections.abc import Callable, Mapping, MutableMapping
+from collections.abc import Callable, Mapping, MutableMapping, Sequence
 from dataclasses import dataclass
 from types import ModuleType
 
@@ -134,10 +139,85 @@ def import_mujoco(environ: MutableMapping[str, str] = os.environ) -> ModuleType:
         The ``mujoco`` module.
     """
     global _CHOICE
+    disarm()
     if "mujoco" in sys.modules:  # imported before simrun: MuJoCo already decided
         if _CHOICE is None:
             _CHOICE = _as_imported(environ)
         return sys.modules["mujoco"]
+    restore = _decide(environ)
+    try:
+        return importlib.import_module("mujoco")
+    finally:
+        if restore is not None:
+            environ["MUJOCO_GL"] = restore
+
+
+class _DecideFirst(importlib.abc.MetaPathFinder):
+    """A ``sys.meta_path`` finder that decides ``MUJOCO_GL`` the moment something first imports ``mujoco``.
+
+    It finds nothing itself: on the first ``import mujoco`` it removes itself, makes the choice of
+    :func:`import_mujoco` (written to ``os.environ``) and hands the import back to the other finders, with
+    the loader wrapped when a user's value must be replaced by ``disable`` for the import only.
+    """
+
+    def find_spec(
+        self, fullname: str, path: Sequence[str] | None, target: ModuleType | None = None
+    ) -> importlib.machinery.ModuleSpec | None:
+        """``None`` for every module but ``mujoco``, whose real spec comes back after the choice is made."""
+        if fullname != "mujoco":
+            return None
+        disarm()
+        restore = _decide(os.environ)
+        spec = importlib.util.find_spec("mujoco")
+        if spec is None or restore is None or spec.loader is None:
+            if restore is not None:
+                os.environ["MUJOCO_GL"] = restore
+            return spec
+        spec.loader = _Restoring(spec.loader, restore)
+        return spec
+
+
+class _Restoring(importlib.abc.Loader):
+    """A loader that runs ``mujoco``'s own and then puts the user's ``MUJOCO_GL`` back."""
+
+    def __init__(self, loader: importlib.abc.Loader, value: str) -> None:
+        self.loader, self.value = loader, value
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
+        """The wrapped loader's module."""
+        return self.loader.create_module(spec)
+
+    def exec_module(self, module: ModuleType) -> None:
+        """Run the wrapped loader, then restore ``MUJOCO_GL``."""
+        try:
+            self.loader.exec_module(module)
+        finally:
+            os.environ["MUJOCO_GL"] = self.value
+
+
+_HOOK = _DecideFirst()
+
+
+def arm() -> None:
+    """Decide ``MUJOCO_GL`` when ``mujoco`` is first imported (run by ``import simrun``; imports nothing).
+
+    ``import simrun`` stays cheap (``simrun --help`` never loads MuJoCo) while every later ``import mujoco``
+    of this process, simrun's or anyone's, still sees the backend chosen first. Nothing happens when
+    ``mujoco`` is already imported: :func:`gl_choice` then judges what MuJoCo read.
+    """
+    if "mujoco" not in sys.modules and _HOOK not in sys.meta_path:
+        sys.meta_path.insert(0, _HOOK)
+
+
+def disarm() -> None:
+    """Remove the hook of :func:`arm` (the choice is then made by :func:`import_mujoco` or never)."""
+    while _HOOK in sys.meta_path:
+        sys.meta_path.remove(_HOOK)
+
+
+def _decide(environ: MutableMapping[str, str]) -> str | None:
+    """Make the choice and write it to ``environ``; the user's value to put back after the import, or ``None``."""
+    global _CHOICE
     choice = choose(environ)
     _CHOICE = choice
     user = environ.get("MUJOCO_GL")
@@ -146,11 +226,8 @@ def import_mujoco(environ: MutableMapping[str, str] = os.environ) -> ModuleType:
         environ.setdefault("PYOPENGL_PLATFORM", choice.backend)
     if choice.backend is None and user:
         environ["MUJOCO_GL"] = "disable"
-        try:
-            return importlib.import_module("mujoco")
-        finally:
-            environ["MUJOCO_GL"] = user
-    return importlib.import_module("mujoco")
+        return user
+    return None
 
 
 def _as_imported(environ: Mapping[str, str]) -> GLChoice:
@@ -174,7 +251,7 @@ def gl_choice() -> GLChoice:
     """The backend in effect for this process (chosen on first call when ``import simrun`` did not)."""
     global _CHOICE
     if _CHOICE is None:
-        _CHOICE = choose()
+        _CHOICE = _as_imported(os.environ) if "mujoco" in sys.modules else choose()
     return _CHOICE
 
 

@@ -276,7 +276,6 @@ def test_non_finite_mtl_colours_never_reach_the_clean_mtl(tmp_path):
 
 
 def test_qhull_failure_becomes_a_bounding_box_with_a_warning(monkeypatch):
-    import trimesh
     from scipy.spatial import QhullError
 
     from meshtool import hulls
@@ -286,7 +285,8 @@ def test_qhull_failure_becomes_a_bounding_box_with_a_warning(monkeypatch):
     def refuse(*args, **kwargs):
         raise QhullError("QH6421 qhull internal error")
 
-    monkeypatch.setattr(trimesh.convex, "convex_hull", refuse)
+    monkeypatch.setattr(hulls, "_numpy_hull", lambda *_args: None)  # qhull's path (the numpy hull declined)
+    monkeypatch.setattr(hulls, "_qhull", refuse)
     vertices, faces, notes = hulls.convex_hull(points, hulls.HullOptions())
     assert notes == ["boxed"] and len(vertices) == 8 and len(faces) == 12
     np.testing.assert_allclose(vertices.min(axis=0), points.min(axis=0))

@@ -343,12 +343,12 @@ def test_resim_works_from_any_folder(recording, tmp_path, monkeypatch):
 
 
 def test_internal_error_is_one_line_exit_3_and_traceback_only_on_request(monkeypatch, tmp_path):
-    import simrun.cli
+    import simrun.scene
 
     def broken(path):
         raise RuntimeError("simulated bug")
 
-    monkeypatch.setattr(simrun.cli, "load_scene", broken)
+    monkeypatch.setattr(simrun.scene, "load_scene", broken)  # simrun check imports it when it runs
     monkeypatch.delenv("SIMRUN_DEBUG", raising=False)
     result = CliRunner().invoke(main, ["check", str(SCENES / "basic.toml")])
     assert result.exit_code == 3 and "Traceback" not in result.output
@@ -379,7 +379,7 @@ def test_urdf_robot_with_package_dirs_loads(tmp_path):
 def test_unknown_camera_is_one_error_line(tmp_path):
     code, out, err = run(["snapshot", str(SCENES / "basic.toml"), "-o", str(tmp_path / "x.png"), "--camera", "nosuch"])
     assert code == 1 and "Traceback" not in out + err
-    assert err.strip() == "error: no camera named 'nosuch' (cameras: view)"
+    assert err.strip() == "error: no camera named 'nosuch' (cameras: view; follow:ENTITY follows an entity)"
 
 
 @pytest.mark.parametrize("call", ["tick", "reset", "snapshot", "restore"])

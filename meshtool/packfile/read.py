@@ -11,6 +11,8 @@ import contextlib
 import itertools
 import json
 import mmap
+import pickle
+import shlex
 import struct
 import zlib
 from dataclasses import dataclass, field
@@ -158,6 +160,13 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
         hint = (
             "damaged by a text-mode transfer (line endings changed)" if bytes(view[:1]) == b"\x89" else "not an .mbin"
         )
+        if _mesh_file(name):  # `meshtool info X.obj`, `[assets] head = "X.obj"` where a pack is needed
+            quoted = shlex.quote(name)
+            raise PackFormatError(
+                "a mesh file, not an .mbin",
+                path=name,
+                hint=f"pack it first: obj2bin {quoted}; for a MuJoCo model: obj2bin {quoted} --mjcf OUT/",
+            )
         raise PackFormatError(f"bad magic number: {hint}", path=name, offset=0)
     if major != fmt.MAJOR:
         raise PackFormatError(
@@ -176,17 +185,22 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
         raise PackFormatError(
             f"section table ({count} entries at {table_offset}) does not fit the file", path=name, offset=16
         )
-    table = bytes(view[table_offset:table_end])
-    crc = fmt.checksum(bytes(view[:32]) + table, minor)
-    if crc != table_crc:
-        raise PackFormatError("header or section table checksum mismatch", path=name, offset=32)
-    if any(bytes(view[36:64])):
-        raise PackFormatError("reserved header bytes are not zero", path=name, offset=36)
-    if flags & ~fmt.FLAG_QUANTIZED:
-        raise PackFormatError(f"unknown header flags {flags:#x}", path=name, offset=12)
-
-    sections = [_entry(e, k, name, size, table_end, table_offset) for k, e in enumerate(_ENTRY.iter_unpack(table))]
-    _check_layout(sections, name)
+    head = bytes(view[:table_end])
+    layout = _LAYOUTS.get((head, size))
+    if layout is None:  # not seen before in this process: every check of the header and the table
+        table = head[table_offset:]
+        crc = fmt.checksum(head[:32] + table, minor)
+        if crc != table_crc:
+            raise PackFormatError("header or section table checksum mismatch", path=name, offset=32)
+        if any(head[36:64]):
+            raise PackFormatError("reserved header bytes are not zero", path=name, offset=36)
+        if flags & ~fmt.FLAG_QUANTIZED:
+            raise PackFormatError(f"unknown header flags {flags:#x}", path=name, offset=12)
+        entries = _ENTRY.iter_unpack(table)
+        checked = [_entry(e, k, name, size, table_end, table_offset) for k, e in enumerate(entries)]
+        _check_layout(checked, name)
+        layout = _remember(_LAYOUTS, (head, size), tuple(_fields(s) for s in checked))
+    sections = [Section(*fields) for fields in layout]
     if verify:
         for s in sections:
             s.crc_ok = fmt.checksum(view[s.offset : s.offset + s.length], minor) == s.crc
@@ -195,11 +209,52 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
     return _build(view, sections, name, verify, bool(flags & fmt.FLAG_QUANTIZED), (major, minor), keep)
 
 
+#: Checks made once per content (issue 28: a small asset's load was ~100 Python-level checks and two
+#: JSON decodes with a call per number, 0.2-0.4 ms). Each cache is keyed by the exact bytes the checks
+#: read (never by a checksum: a checksum is not a proof of sameness), so a file that differs anywhere they
+#: look is checked in full. Layout: (header + table bytes, file size) -> the sections' fields. JSON:
+#: (the META and MATL stored bytes, what their checks depend on) -> the values (pickled) and the part names.
+#: Content: the small arrays check_submeshes and check_hulls read -> passed.
+_LAYOUTS: dict[tuple[bytes, int], tuple[tuple[Any, ...], ...]] = {}
+_JSON_CHECKED: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+_CONTENT_CHECKED: dict[tuple[Any, ...], bool] = {}
+#: Entries kept per cache; the oldest goes first (a process loading many assets stays bounded).
+CACHE_ENTRIES = 256
+#: Largest section (bytes) whose content checks are remembered by its bytes.
+CACHE_SECTION_BYTES = 64 * 1024
+
+
+def _remember(cache: dict[Any, Any], key: Any, value: Any) -> Any:
+    """Store ``value`` under ``key``, dropping the oldest entry beyond :data:`CACHE_ENTRIES`; return it."""
+    if len(cache) >= CACHE_ENTRIES:
+        del cache[next(iter(cache))]
+    cache[key] = value
+    return value
+
+
+def _fields(s: Section) -> tuple[Any, ...]:
+    return (s.kind, s.dtype, s.shape, s.offset, s.length, s.crc, s.encoding, s.index)
+
+
+def forget_checks() -> None:
+    """Empty the caches of checks made once per content (for benchmarks that time a first load)."""
+    _LAYOUTS.clear()
+    _JSON_CHECKED.clear()
+    _CONTENT_CHECKED.clear()
+
+
 #: Header fields before ``reserved`` and one table entry, as the layouts of docs/mbin-spec.md sections 2 and 3.
 _HEADER = struct.Struct("<8sHHIIIQI")
 _ENTRY = struct.Struct("<4sBBH2QQQII16s")
 assert _HEADER.size == 36 and _ENTRY.size == fmt.ENTRY_SIZE
 _DTYPE_NAMES = {code: name for name, code in fmt.CODES.items()}
+
+
+def _mesh_file(name: str) -> bool:
+    """Whether ``name`` is a mesh file meshtool reads (OBJ, STL, PLY, glTF/GLB, COLLADA), by its suffix."""
+    from meshtool.readers import MESH_SUFFIXES
+
+    return Path(name).suffix.lower() in MESH_SUFFIXES
 
 
 def _entry(e: tuple[Any, ...], k: int, name: str, size: int, table_end: int, table_offset: int) -> Section:
@@ -308,8 +363,9 @@ def _build(
             arr = np.frombuffer(source, dtype=dtype, count=s.shape[0] * cols, offset=offset)
             raw[s.kind] = arr.reshape(s.shape)
     meta_at, matl_at = by_kind[fmt.KIND_META].offset, by_kind[fmt.KIND_MATERIALS].offset
-    meta = _json(view, by_kind[fmt.KIND_META], name, dict)
-    materials = _json(view, by_kind[fmt.KIND_MATERIALS], name, list)
+    meta_section, matl_section = by_kind[fmt.KIND_META], by_kind[fmt.KIND_MATERIALS]
+    meta_bytes = bytes(view[meta_at : meta_at + meta_section.length])
+    matl_bytes = bytes(view[matl_at : matl_at + matl_section.length])
     n = raw["POS "].shape[0]
     for tag in ("NRM ", "UV  ", "COL "):
         if tag in raw and raw[tag].shape[0] != n:
@@ -329,8 +385,20 @@ def _build(
         for array, (tag, cols) in boxed.items()
         if tag in raw and by_kind[tag.encode()].encoding == fmt.ENC_UNORM16_BOX
     }
-    _, parts = check.check_meta(meta, len(textures), quantised, name, meta_at)
-    check.check_materials(materials, len(textures), name, matl_at)
+    json_key: tuple[Any, ...] = (meta_bytes, meta_section.encoding, meta_section.shape, matl_bytes)
+    json_key += (matl_section.encoding, matl_section.shape)
+    json_key += (len(textures), *sorted(quantised.items()))
+    known = _JSON_CHECKED.get(json_key)
+    if known is not None:  # the same JSON checked before: its values again (a pickle we made: 3x json.loads)
+        meta, materials = pickle.loads(known[0])
+        parts = list(known[1])
+    else:
+        meta = _json(meta_bytes, meta_section, name, dict)
+        materials = _json(matl_bytes, matl_section, name, list)
+        _, parts = check.check_meta(meta, len(textures), quantised, name, meta_at)
+        check.check_materials(materials, len(textures), name, matl_at)
+        if len(meta_bytes) + len(matl_bytes) <= 4 * CACHE_SECTION_BYTES:  # the caches stay a few MB at most
+            _remember(_JSON_CHECKED, json_key, (pickle.dumps((meta, materials), protocol=5), tuple(parts)))
     indices = raw["IDX "]
     submeshes = raw["SUBM"]
     quant = meta.get("quantization") or {}
@@ -340,7 +408,18 @@ def _build(
     if verify:
         idx = by_kind[fmt.KIND_INDICES]
         check.check_indices(indices, n, "IDX ", name, idx.offset, idx.encoding == fmt.ENC_PLAIN)
-        check.check_submeshes(submeshes, indices.shape[0], len(materials), len(parts), name, by_kind[b"SUBM"].offset)
+        small = [by_kind[k] for k in (b"SUBM", fmt.KIND_HULL_TABLE, fmt.KIND_HULL_FACES)]
+        content_key: tuple[Any, ...] | None = None
+        if sum(s.length for s in small) <= CACHE_SECTION_BYTES:
+            content_key = tuple(bytes(view[s.offset : s.offset + s.length]) for s in small)
+            content_key += (*((s.dtype, s.shape, s.encoding) for s in small), indices.shape[0], len(materials))
+            content_key += (len(parts),)
+            content_key += (raw["HULV"].shape[0],)
+        known_content = content_key is not None and content_key in _CONTENT_CHECKED
+        if not known_content:
+            check.check_submeshes(
+                submeshes, indices.shape[0], len(materials), len(parts), name, by_kind[b"SUBM"].offset
+            )
         for tag, values in (("POS ", positions), ("NRM ", normals), ("UV  ", uvs), ("HULV", raw["HULV"])):
             if values is None:
                 continue
@@ -352,8 +431,11 @@ def _build(
                 if np.isfinite(_decode(extremes, s.encoding, quant.get(array))).all():
                     continue
             check.check_finite(values, tag, name, s.offset, 2 if s.dtype in ("u16", "i16") else 4)
-        offsets = (by_kind[fmt.KIND_HULL_TABLE].offset, by_kind[fmt.KIND_HULL_FACES].offset)
-        check.check_hulls(raw["HULT"], raw["HULV"].shape[0], raw["HULF"], offsets, name)
+        if not known_content:
+            offsets = (by_kind[fmt.KIND_HULL_TABLE].offset, by_kind[fmt.KIND_HULL_FACES].offset)
+            check.check_hulls(raw["HULT"], raw["HULV"].shape[0], raw["HULF"], offsets, name)
+            if content_key is not None:
+                _remember(_CONTENT_CHECKED, content_key, True)
         for s in sections:
             if s.kind == "TEX ":
                 check.check_png(textures[s.index], s.index, name, s.offset)
@@ -379,12 +461,16 @@ def _build(
     )
 
 
-def _inflate(view: memoryview, s: Section, name: str) -> bytes:
-    """Decompress a deflated section to exactly the size its shape states (never more)."""
+def _inflate(view: memoryview, s: Section, name: str, start: int | None = None) -> bytes:
+    """Decompress a deflated section to exactly the size its shape states (never more).
+
+    ``view`` is the file (the section at ``s.offset``), or the section alone when ``start`` is 0.
+    """
     expected = s.shape[0] * (s.shape[1] if len(s.shape) == 2 else 1) * fmt.DTYPES[fmt.CODES[s.dtype]].itemsize
     inflater = zlib.decompressobj()
+    at = s.offset if start is None else start
     try:
-        data = inflater.decompress(view[s.offset : s.offset + s.length], expected)
+        data = inflater.decompress(view[at : at + s.length], expected)
         complete = inflater.eof and not inflater.unconsumed_tail
     except zlib.error as exc:
         raise PackFormatError(
@@ -399,8 +485,9 @@ def _inflate(view: memoryview, s: Section, name: str) -> bytes:
     return data
 
 
-def _json(view: memoryview, s: Section, name: str, kind: type) -> Any:
-    data = _inflate(view, s, name) if s.encoding == fmt.ENC_DEFLATE else bytes(view[s.offset : s.offset + s.length])
+def _json(stored: bytes, s: Section, name: str, kind: type) -> Any:
+    """A JSON section's value from its ``stored`` bytes, every number checked finite."""
+    data = _inflate(memoryview(stored), s, name, 0) if s.encoding == fmt.ENC_DEFLATE else stored
     try:
         text = data.decode("utf-8")
         # every float literal through the finiteness check (1e999 overflows to infinity): one call per number

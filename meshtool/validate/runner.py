@@ -16,7 +16,7 @@ from pathlib import Path
 
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Severity
-from meshtool.readers import MESH_SUFFIXES
+from meshtool.formats import mesh_suffixes, output_named
 from meshtool.resolve import find_files
 from meshtool.safeopen import printable
 from meshtool.validate.cache import ResultCache
@@ -26,7 +26,12 @@ from meshtool.validate.remote import SchedulerError, run_dask
 from meshtool.validate.task import AssetResult, AssetTask
 
 EXECUTORS = ("local", "dask")
-SUFFIXES = (*MESH_SUFFIXES, ".mbin")  # OBJ, STL, PLY, glTF/GLB, COLLADA sources and packs
+
+
+def suffixes() -> tuple[str, ...]:
+    """What validate checks in a folder: every mesh format's suffixes and the pack's (the formats registry)."""
+    return (*mesh_suffixes(), *output_named("mbin").suffixes)
+
 
 #: Called with each asset's result, the number done so far and the total.
 Progress = Callable[[AssetResult, int, int], None]
@@ -44,7 +49,7 @@ class ValidateError(MeshtoolError, RuntimeError):
     def __init__(self, message: str, *, usage: bool = False, exit_code: int = 3, **kwargs: str | None) -> None:
         super().__init__(message, **kwargs)  # type: ignore[arg-type]
         self.usage = usage
-        self.exit_code = exit_code
+        self.exit_code = 2 if usage else exit_code
 
 
 @dataclass(frozen=True, slots=True)
@@ -156,12 +161,12 @@ def discover(paths: list[Path]) -> list[tuple[Path, Path]]:
             reason = exc.strerror or type(exc).__name__
             raise ValidateError(f"cannot be read: {reason}", exit_code=1, path=printable(path)) from None
         if path.is_dir():
-            for suffix in SUFFIXES:
+            for suffix in suffixes():
                 for file in find_files(path, suffix, special=True):
                     if not any(part.startswith(".") for part in file.relative_to(path).parts[:-1]):
                         found.setdefault(file.resolve(), (file, path))
         elif os.path.exists(path):
-            if path.suffix.lower() not in SUFFIXES:
+            if path.suffix.lower() not in suffixes():
                 raise ValidateError("not an OBJ or .mbin file", usage=True, path=str(path))
             found.setdefault(path.resolve(), (path, path.parent))
         else:
@@ -266,8 +271,25 @@ def _run_local(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[tup
             yield result, "this process"
     else:  # a single task with a deadline also goes to a worker: only a process can be stopped for sure
         workers = min(options.jobs, len(tasks))
-        for result in run_workers(tasks, workers, timeout):
+        for result in run_workers(largest_first(tasks), workers, timeout):
             yield result, f"{workers} local worker process{'es' if workers > 1 else ''}"
+
+
+def largest_first(tasks: list[AssetTask]) -> list[AssetTask]:
+    """``tasks`` by file size, largest first (ties by name): workers that take one asset at a time finish together.
+
+    In path order the corpus' largest meshes could come last and keep one worker busy while the others idle
+    (issue 28: ``-j 2`` was 1.33x ``-j 1``); longest-first bounds that tail by the largest single asset. The
+    report's order does not depend on it (results are put in path order).
+    """
+
+    def size(task: AssetTask) -> int:
+        try:
+            return task.path.stat().st_size
+        except OSError:  # a missing file is reported by its check
+            return 0
+
+    return sorted(tasks, key=lambda task: (-size(task), task.display))
 
 
 def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[tuple[AssetResult, str]]:

@@ -9,6 +9,19 @@
 
 from __future__ import annotations
 
-from simrun.scenetest.runner import Run, TestOptions, TestReport, run_tests
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from simrun.scenetest.runner import Run, TestOptions, TestReport, run_tests
+
+
+def __getattr__(name: str) -> Any:
+    """The runner's names, imported on first use: ``simrun test --help`` does not load MuJoCo (PEP 562)."""
+    if name in __all__:
+        from simrun.scenetest import runner
+
+        return getattr(runner, name)
+    raise AttributeError(f"module 'simrun.scenetest' has no attribute {name!r}")
+
 
 __all__ = ["Run", "TestOptions", "TestReport", "run_tests"]
