@@ -8,9 +8,10 @@ passive (``drive="none"``) or driven by a position or velocity servo. Joints are
 (``ARM/<segment>/<axis>`` for a :class:`SixDof`).
 
 Defaults that make an arm behave: a link never collides with its parent segment or the arm's base; gravity
-compensation is per joint (on for driven joints, off for passive ones, so a free joint swings); position
-servos are critically damped for the largest inertia their joint can see (no overshoot; settling time in
-:meth:`ArmService.servo_design`).
+compensation is per joint (on for driven joints, off for passive ones, so a free joint swings) and acts as
+joint torques on the arm's own joints, so whatever carries the arm (a mobile base on its wheels) carries its
+full weight (:meth:`ArticulatedArm.before_step`); position servos are critically damped for the largest
+inertia their joint can see (no overshoot; settling time in :meth:`ArmService.servo_design`).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ __all__ = [
     "ArmService",
     "ArticulatedArm",
     "JointStates",
+    "LYNX_GRIPPER_OPENING",
     "KukaLBR3",
     "LynxL6",
     "Segment",
@@ -77,6 +79,28 @@ class ArticulatedArm(Entity):
     def __post_init__(self) -> None:
         if not isinstance(self.segments, Segments):
             self.segments = Segments(self.segments)
+        self._carry: tuple[mujoco.MjModel | None, _Carry | None] = (None, None)
+
+    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Make the base carry the arm's weight: cancel what gravity compensation puts on a free joint above.
+
+        MuJoCo's body gravity compensation is an external anti-gravity force at each link's centre of mass,
+        mapped through the link's Jacobian onto every degree of freedom above it. On the arm's own hinges
+        and slides that is the joint torque that holds the link up; on a free joint above the arm (a mobile
+        base's) it would lift the whole robot by the compensated weight, and its wheels would carry none of it.
+        When the arm hangs below a free joint, this applies the compensated links' weight (``sum m_i g``
+        acting at their centres of mass, as a force and a moment about the arm base body's centre of mass,
+        world frame) to the arm's base body through ``data.xfrc_applied``, which maps onto the dofs above
+        the arm only: the compensation stays as joint torques on the arm, the base carries the full weight.
+        It uses the centres of mass of the state before the step (one step old, ``timestep`` s), the model's
+        current masses, ``body_gravcomp`` and gravity. An arm welded to the world does nothing here.
+        """
+        cached, carry = self._carry
+        if cached is not model:
+            carry = _Carry.plan(model, self.name if self.parent is None else f"{self.parent}/{self.name}")
+            self._carry = (model, carry)
+        if carry is not None:
+            carry.apply(model, data)
 
     def joint_names(self, full_name: str) -> list[str]:
         """Full names of the commanded (actuated or passive, not mimicking) joints, base to tip."""
@@ -198,6 +222,45 @@ class ArticulatedArm(Entity):
             result[segment.name] = segment.parent if segment.parent is not None else previous
             previous = segment.name
         return result
+
+
+@dataclass(frozen=True, slots=True)
+class _Carry:
+    """The bodies of an arm below a free joint: ``base`` (body id) and its gravity-compensated ``links``."""
+
+    base: int
+    links: Any  # int array of body ids
+
+    @staticmethod
+    def plan(model: mujoco.MjModel, full_name: str) -> _Carry | None:
+        """The arm's carry plan, or ``None`` when no free joint is above its base (nothing to carry)."""
+        base = model.body(full_name).id
+        links = [b for b in range(model.nbody) if _above(model, b, base) and model.body_gravcomp[b] != 0]
+        body, free = base, False
+        while body > 0 and not free:
+            first, count = model.body_jntadr[body], model.body_jntnum[body]
+            free = any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for j in range(first, first + count))
+            body = model.body_parentid[body]
+        return _Carry(base, np.asarray(links, dtype=int)) if free and links else None
+
+    def apply(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Set the base body's applied wrench to the compensated links' weight (see ``before_step``)."""
+        weights = model.body_mass[self.links] * model.body_gravcomp[self.links]
+        total = float(weights.sum())
+        gravity = model.opt.gravity
+        centre = weights @ data.xipos[self.links] / total if total else data.xipos[self.base]
+        wrench = data.xfrc_applied[self.base]
+        wrench[:3] = total * gravity
+        wrench[3:] = total * np.cross(centre - data.xipos[self.base], gravity)
+
+
+def _above(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+    """Whether ``ancestor`` is ``body`` or one of its parents."""
+    while body > 0:
+        if body == ancestor:
+            return True
+        body = int(model.body_parentid[body])
+    return ancestor == 0
 
 
 #: Most segments of one arm. The servo design sums, for each joint, over every segment below it (a chain of
@@ -343,8 +406,20 @@ class KukaLBR3(ArticulatedArm):
     base_mass: float = 4.0
 
 
-#: Lynx gripper fingers: each slides 0 (closed, touching in the middle) to 0.015 m open.
-_FINGER = ArmJoint(axis=(0, 1, 0), kind="slide", limits=(0.0, 0.015), kp=300, damping=1.0, max_force=5, armature=0.001)
+#: Lynx gripper opening between the fingers' inner faces, fully open, metres: Lynxmotion's "Little Grip"
+#: (LG-NS), the gripper of the L6 and AL5 arms, opens to 1.25 in (31.75 mm); a 3 cm object has 0.9 mm a side.
+LYNX_GRIPPER_OPENING = 1.25 * 0.0254
+_FINGER_RADIUS, _FINGER_ROOT = 0.004, 0.004  # capsule radius; each finger's axis sits this far off the middle
+#: Lynx gripper fingers: each slides 0 (closed, touching in the middle) to its share of the full opening.
+_FINGER = ArmJoint(
+    axis=(0, 1, 0),
+    kind="slide",
+    limits=(0.0, LYNX_GRIPPER_OPENING / 2 + _FINGER_RADIUS - _FINGER_ROOT),
+    kp=300,
+    damping=1.0,
+    max_force=5,
+    armature=0.001,
+)
 
 
 @dataclass(kw_only=True)
@@ -352,7 +427,8 @@ class LynxL6(ArticulatedArm):
     """A Lynxmotion L6-style arm: base, shoulder, elbow, wrist pitch, wrist roll and a two-finger gripper.
 
     The gripper's fingers hang from the wrist roll on opposite sides and open symmetrically: one servo drives
-    ``finger_left`` (its target is the opening of each finger, 0 to 0.015 m), ``finger_right`` mirrors it.
+    ``finger_left`` (its target is the opening of each finger, 0 to 0.015875 m: 31.75 mm between the fingers,
+    :data:`LYNX_GRIPPER_OPENING`), ``finger_right`` mirrors it.
     """
 
     TYPE: ClassVar[str] = "LynxL6"
@@ -364,14 +440,14 @@ class LynxL6(ArticulatedArm):
                 Segment("elbow", 0.12, 0.012, 0.06, _hinge((0, 1, 0), 135, 4, 1.5)),
                 Segment("wrist", 0.05, 0.01, 0.03, _hinge((0, 1, 0), 90, 2, 1)),
                 Segment("wrist_rotate", 0.02, 0.01, 0.02, _hinge((0, 0, 1), 90, 1, 0.5)),
-                Segment("finger_left", 0.04, 0.004, 0.01, _FINGER, offset=(0.0, 0.004, 0.0)),
+                Segment("finger_left", 0.04, _FINGER_RADIUS, 0.01, _FINGER, offset=(0.0, _FINGER_ROOT, 0.0)),
                 Segment(
                     "finger_right",
                     0.04,
-                    0.004,
+                    _FINGER_RADIUS,
                     0.01,
                     _replace(_FINGER, axis=(0, -1, 0), mimic="finger_left"),
-                    offset=(0.0, -0.004, 0.0),
+                    offset=(0.0, -_FINGER_ROOT, 0.0),
                     parent="wrist_rotate",
                 ),
             )

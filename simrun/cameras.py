@@ -133,25 +133,56 @@ class Sonar(RangeCone):
         super().__init__(world, entity, **kwargs)
 
 
+#: Which image side a :class:`StereoRig`'s ``fov`` spans.
+FOV_AXES = ("horizontal", "vertical")
+
+
 @dataclass(kw_only=True)
 class StereoRig(Entity):
-    """Two cameras ``NAME/left`` and ``NAME/right`` a ``baseline`` apart along Y, looking along +X."""
+    """Two cameras ``NAME/left`` and ``NAME/right`` a ``baseline`` apart along Y, looking along +X.
+
+    The defaults are the seed's stereo camera: two 320 x 240 images, a 30-degree field of view across the
+    image's width (horizontal), 0.10 m between the eyes.
+
+    Attributes:
+        baseline: Distance between the two cameras' centres, metres (along the body's Y; left at +Y).
+        fov: Field of view, degrees, across the image side ``fov_axis`` names.
+        fov_axis: ``horizontal`` (across the width, the seed's meaning) or ``vertical`` (across the height,
+            MuJoCo's ``fovy``).
+        resolution: (width, height), pixels.
+    """
 
     TYPE: ClassVar[str] = "StereoRig"
-    baseline: float = 0.12
-    fovy: float = 60.0
+    baseline: float = 0.10
+    fov: float = 30.0
+    fov_axis: str = "horizontal"
     resolution: tuple[int, int] = (320, 240)
+
+    def fovy(self) -> float:
+        """The vertical field of view MuJoCo's cameras get, degrees (square pixels)."""
+        width, height = self.resolution
+        if self.fov_axis == "vertical":
+            return self.fov
+        return math.degrees(2 * math.atan(math.tan(math.radians(self.fov) / 2) * height / width))
+
+    def focal_length(self) -> float:
+        """Focal length in pixels (the same across and up the image: square pixels)."""
+        return self.resolution[1] / 2 / math.tan(math.radians(self.fovy()) / 2)
 
     def build(self, body: Any, ctx: BuildContext) -> None:
         """Two cameras; MuJoCo cameras look along their -Z, so each is turned to look along the body's +X."""
-        check_positive(self, baseline=self.baseline, fovy=self.fovy)
+        check_positive(self, baseline=self.baseline, fov=self.fov, width=self.resolution[0], height=self.resolution[1])
+        if self.fov_axis not in FOV_AXES:
+            raise EntityError(f"{self.TYPE} {self.name!r}: fov_axis must be one of {', '.join(FOV_AXES)}")
+        if not self.fov < 180.0:
+            raise EntityError(f"{self.TYPE} {self.name!r}: fov must be below 180 degrees, got {self.fov}")
         look_x = [0.5, 0.5, -0.5, -0.5]  # camera -Z -> body +X, camera +Y -> body +Z
         for side, sign in (("left", 1.0), ("right", -1.0)):
             body.add_camera(
                 name=ctx.name(side),
                 pos=[0.0, sign * self.baseline / 2, 0.0],
                 quat=look_x,
-                fovy=self.fovy,
+                fovy=self.fovy(),
                 resolution=list(self.resolution),
             )
 

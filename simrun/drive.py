@@ -8,7 +8,9 @@ Two driven wheels on hinge joints (``left_wheel``, ``right_wheel``, axes +Y) wit
 torque = ``stall_torque * (power - wheel_speed / no_load_speed)`` (power in [-1, 1]), limited to the
 stall torque (the motor driver's current limit). At full power a wheel without load turns at
 ``no_load_speed``; held still it pushes with ``stall_torque``. A caster sphere with frictionless contact
-(condim 1) carries weight and never steers. Parameter names follow MSRS (docs/robots.md), each ready robot
+(condim 1) carries weight and never steers; a second one on the other side of the axle is optional (the
+Create's rear wheel: with its weight over the axle a single caster lets it rock onto its chassis).
+Parameter names follow MSRS (docs/robots.md), each ready robot
 names the source of its numbers in ``SOURCES``.
 """
 
@@ -46,7 +48,10 @@ class DifferentialDrive(Entity):
         caster_radius: Metres.
         caster_offset: Caster centre along X from the axle, metres (negative: behind the axle); ``None``:
             at the chassis end away from the axle, one caster radius inside.
-        caster_mass: kg.
+        caster_mass: kg (each caster).
+        second_caster_offset: Centre along X from the axle of a second caster on the other side of the axle,
+            metres (the iRobot Create's rear wheel); ``None``: no second caster.
+        second_caster_radius: Metres; ``None``: ``caster_radius``. Both casters touch the ground.
         stall_torque: Wheel torque at power 1 with the wheel held still, N m (after the gearbox).
         no_load_speed: Wheel speed at power 1 without load, rad/s (after the gearbox).
         motor_torque_scaling: MSRS's ``MotorTorqueScaling`` with its MSRS meaning: ``SetMotorTorque(p)`` asked
@@ -76,6 +81,8 @@ class DifferentialDrive(Entity):
     caster_radius: float = 0.0125
     caster_offset: float | None = -0.055
     caster_mass: float = 0.001
+    second_caster_offset: float | None = None
+    second_caster_radius: float | None = None
     stall_torque: float = 0.268
     no_load_speed: float = 50 * math.pi / 30
     motor_torque_scaling: float | None = None
@@ -101,8 +108,17 @@ class DifferentialDrive(Entity):
 
     @property
     def total_mass(self) -> float:
-        """Chassis, wheels and caster, kg."""
-        return self.mass + 2 * self.wheel_mass + self.caster_mass
+        """Chassis, wheels and casters, kg."""
+        casters = 1 if self.second_caster_offset is None else 2
+        return self.mass + 2 * self.wheel_mass + casters * self.caster_mass
+
+    def casters(self) -> list[tuple[str, float, float]]:
+        """(geom suffix, centre along X from the axle in metres, radius in metres) of each caster."""
+        result = [("caster", self.caster_x(), self.caster_radius)]
+        if self.second_caster_offset is not None:
+            radius = self.caster_radius if self.second_caster_radius is None else self.second_caster_radius
+            result.append(("second_caster", self.second_caster_offset, radius))
+        return result
 
     def caster_x(self) -> float:
         """Caster centre along X in the body frame (from the axle), metres."""
@@ -126,6 +142,7 @@ class DifferentialDrive(Entity):
             track=self.track,
             caster_radius=self.caster_radius,
             caster_mass=self.caster_mass,
+            second_caster_radius=self.second_caster_radius,
             stall_torque=self.stall_torque,
             no_load_speed=self.no_load_speed,
             motor_torque_scaling=self.motor_torque_scaling,
@@ -143,6 +160,14 @@ class DifferentialDrive(Entity):
         caster = self.caster_x()
         if not (math.isfinite(caster) and abs(caster) >= self.caster_radius + 1e-6):
             raise EntityError(f"{where}: caster_offset must put the caster away from the axle (|x| > radius)")
+        second = self.second_caster_offset
+        if second is not None and not (
+            math.isfinite(second) and abs(second) >= self.casters()[1][2] + 1e-6 and second * caster < 0
+        ):
+            raise EntityError(
+                f"{where}: second_caster_offset must put the second caster on the other side of the axle from "
+                f"the first (x {caster}), farther than its radius"
+            )
         if self.separation <= self.wheel_width:
             raise EntityError(f"{where}: the track must be wider than a wheel")
 
@@ -158,17 +183,18 @@ class DifferentialDrive(Entity):
         body.add_geom(
             name=ctx.name("chassis"), type=shape, size=size, pos=centre, mass=self.mass, rgba=list(self.color)
         )
-        caster = body.add_geom(
-            name=ctx.name("caster"),
-            type=mujoco.mjtGeom.mjGEOM_SPHERE,
-            size=[self.caster_radius, 0, 0],
-            pos=[self.caster_x(), 0.0, self.caster_radius],
-            mass=self.caster_mass,
-            rgba=[0.3, 0.3, 0.3, 1.0],
-        )
-        # frictionless: carries weight, never steers. MuJoCo takes the larger condim of a contact pair unless one
-        # geom has priority, so the caster gets priority over the ground.
-        caster.condim, caster.priority, caster.friction = 1, 2, [0.0, 0.0, 0.0]
+        for suffix, x, radius in self.casters():
+            caster = body.add_geom(
+                name=ctx.name(suffix),
+                type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                size=[radius, 0, 0],
+                pos=[x, 0.0, radius],
+                mass=self.caster_mass,
+                rgba=[0.3, 0.3, 0.3, 1.0],
+            )
+            # frictionless: carries weight, never steers. MuJoCo takes the larger condim of a contact pair unless
+            # one geom has priority, so the caster gets priority over the ground.
+            caster.condim, caster.priority, caster.friction = 1, 2, [0.0, 0.0, 0.0]
         body.add_site(name=ctx.name("centre"), pos=centre)
         if self.visual_mesh:
             path = ctx.base_dir / ctx.asset_paths.get(self.visual_mesh, self.visual_mesh)
@@ -282,17 +308,25 @@ class Pioneer3DX(DifferentialDrive):
 class IRobotCreate(DifferentialDrive):
     """iRobot Create: a 0.33 m disc, 2.2 kg in all, wheels r 0.036 m on a 0.258 m track, 0.5 m/s top speed.
 
-    The axle runs through the disc's centre; the caster is in front.
+    The axle runs through the disc's centre; a front caster (r 0.018 m, 0.13 m ahead of the axle) and the
+    rear wheel that ships with the Create (r 0.015 m, 0.13 m behind it) carry the rest, so the robot stands
+    level on four supports (with its weight over the axle, a front caster alone lets it rock back onto the
+    chassis rim whenever the wheels pull).
     """
 
     TYPE: ClassVar[str] = "IRobotCreate"
     SOURCES: ClassVar[dict[str, str]] = {
         "dimensions": "iRobot Create Owner's Guide and Open Interface v2 manual: 0.33 m (13 in) round body, "
-        "wheel base 258 mm, wheel diameter 72 mm, mass 2.2 kg without battery; height and caster estimated",
+        "wheel base 258 mm, wheel diameter 72 mm, mass 2.2 kg without battery; height estimated",
+        "supports": "TurtleBot's Create model (github.com/turtlebot/turtlebot, turtlebot_description/urdf/base/"
+        "create.urdf.xacro): drive wheels on the axle through the centre, front_castor_joint at x +0.13 m "
+        "(sphere r 0.018 m), rear_castor_joint at x -0.13 m (sphere r 0.015 m); the Create kit includes this "
+        "back wheel (Tod E. Kurt, 'iRobot Create Robot Review', hackingroomba.com, 2007: 'back wheel'). "
+        "simrun puts both casters on the ground",
         "motor": "Create Open Interface v2: Drive velocity -500..500 mm/s (no-load wheel speed 0.5 / 0.036 "
         "rad/s); stall torque 1.2 N m per wheel estimated (no published figure)",
     }
-    mass: float = 2.2 - 2 * 0.1 - 0.001
+    mass: float = 2.2 - 2 * 0.1 - 2 * 0.001
     chassis_dimensions: tuple[float, float, float] = (0.33, 0.33, 0.06)
     chassis_shape: str = "disc"
     chassis_clearance: float = 0.012
@@ -303,6 +337,8 @@ class IRobotCreate(DifferentialDrive):
     axle_offset: float = 0.0
     caster_radius: float = 0.018
     caster_offset: float | None = 0.13
+    second_caster_offset: float | None = -0.13
+    second_caster_radius: float | None = 0.015
     stall_torque: float = 1.2
     no_load_speed: float = 0.5 / 0.036
     color: tuple[float, float, float, float] = (0.85, 0.85, 0.85, 1.0)

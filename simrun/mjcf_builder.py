@@ -4,8 +4,8 @@ Everything MJCF that meshtool or simrun writes goes through here, on ``mujoco.Mj
 
 - :func:`spec_from_model` turns meshtool's neutral description into a spec (meshes from arrays, PNG
   textures in the spec's virtual file system, Menagerie's ``visual``/``collision`` default classes);
-- :func:`folder_files` turns any spec into the files of a self-contained folder: the XML, one ``.msh``
-  per mesh (MuJoCo's binary mesh: vertices, normals, texture coordinates, faces) and one PNG per texture,
+- :func:`folder_files` turns any spec into the files of a self-contained folder: the XML, one ``.obj``
+  per mesh (Wavefront OBJ: vertices, normals, texture coordinates, faces) and one PNG per texture,
   all flat beside the XML and referenced by plain file names, so the folder loads from wherever it is
   moved; the written folder is compiled again before it is returned, and must give the same model;
 - :func:`build_files` is the ``meshtool.mjcf`` entry point (``meshtool mjcf``, ``meshtool urdf``);
@@ -22,7 +22,6 @@ import contextlib
 import ctypes
 import functools
 import re
-import struct
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -31,9 +30,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from meshtool.formats import check_suffix, mesh_suffixes, output_named, suffix
 from meshtool.model import MAX_BODY_DEPTH, GeomDesc, ModelDesc, ModelError, stamp_text
 from simrun.errors import SimrunError
-from simrun.outfile import write_bytes
+from simrun.outfile import GENERATOR, write_bytes
 
 _ELEMENT = re.compile(r"Element name '([^']*)'(?:, id (\d+))?")
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.-]")
@@ -192,12 +192,14 @@ def folder_files(
     base_dir: Path | None = None,
     generator: str = "",
 ) -> dict[str, bytes]:
-    """The files of a self-contained MJCF folder for ``spec``: ``xml_name``, ``*.msh`` and ``*.png``.
+    """The files of a self-contained MJCF folder for ``spec``: ``xml_name``, ``*.obj`` and ``*.png``.
 
-    Meshes given as arrays become ``.msh`` files; meshes and textures that name files are copied from
-    ``vfs`` (the spec's in-memory files) or from ``base_dir``. Every file name is made unique (MuJoCo
-    caches meshes by file name). The result is written to a scratch folder and compiled there with
-    ``MjModel.from_xml_path``; it must give the same counts as the spec itself. A ``generator`` is written
+    Meshes given as arrays become Wavefront ``.obj`` files (:func:`_obj`; other tools read them, as
+    ``mujoco-usd-converter``, where MuJoCo's legacy ``.msh`` is read by MuJoCo alone); meshes and textures
+    that name files are copied from ``vfs`` (the spec's in-memory files) or from ``base_dir``. Every file
+    name is made unique (MuJoCo caches meshes by file name). The result is written to a scratch folder and
+    compiled there with ``MjModel.from_xml_path``; it must give the same counts, numbers and mesh arrays as
+    the spec itself. A ``generator`` is written
     as a comment at the top of the XML with the other files and their SHA-256
     (:func:`meshtool.model.stamp_text`).
 
@@ -211,12 +213,12 @@ def folder_files(
     files: dict[str, bytes] = {}
     used = {xml_name.lower()}
 
-    def claim(stem: str, suffix: str) -> str:
+    def claim(stem: str, ext: str) -> str:
         base = _UNSAFE.sub("_", stem) or "asset"
-        name = f"{base}{suffix}"
+        name = f"{base}{ext}"
         while name.lower() in used:
             base += "_"
-            name = f"{base}{suffix}"
+            name = f"{base}{ext}"
         used.add(name.lower())
         return name
 
@@ -225,8 +227,8 @@ def folder_files(
             name = claim(Path(mesh.file).stem, Path(mesh.file).suffix.lower())
             files[name] = _referenced(mesh.file, vfs, base_dir, spec)
         else:
-            name = claim(mesh.name, ".msh")
-            files[name] = _msh(mesh)
+            name = claim(mesh.name, suffix("obj"))
+            files[name] = _obj(mesh)
             mesh.uservert, mesh.userface = [], []
             mesh.usernormal, mesh.usertexcoord = [], []
         mesh.file = name
@@ -290,7 +292,8 @@ def _referenced(file: str, vfs: dict[str, bytes], base_dir: Path | None, spec: m
     if file in vfs:
         return vfs[file]
     folder = base_dir if base_dir is not None else Path(".")
-    path = folder / spec.compiler.meshdir / file if file.lower().endswith((".msh", ".obj", ".stl")) else folder / file
+    meshes = (*mesh_suffixes(), *output_named("msh").suffixes)
+    path = folder / spec.compiler.meshdir / file if file.lower().endswith(meshes) else folder / file
     for candidate in (path, folder / file):
         try:
             return candidate.read_bytes()
@@ -299,16 +302,42 @@ def _referenced(file: str, vfs: dict[str, bytes], base_dir: Path | None, spec: m
     raise ModelError(f"the model names {file!r}, which is neither in memory nor on disk", hint="check the asset")
 
 
-def _msh(mesh: Any) -> bytes:
-    """MuJoCo's binary mesh: int32 counts (vertices, normals, texcoords, faces), float32 data, int32 faces."""
-    v = np.asarray(mesh.uservert, dtype="<f4").reshape(-1, 3)
-    n = np.asarray(mesh.usernormal, dtype="<f4").reshape(-1, 3)
-    t = np.asarray(mesh.usertexcoord, dtype="<f4").reshape(-1, 2)
-    f = np.asarray(mesh.userface, dtype="<i4").reshape(-1, 3)
+def _obj(mesh: Any) -> bytes:
+    """A mesh given as arrays as Wavefront OBJ text: ``v``, ``vn``, ``vt`` and ``f`` lines, 1-based indices.
+
+    Every number is the shortest decimal that reads back as the same float32 (MuJoCo's mesh precision), so
+    the folder compiles to the same mesh. Normals and texture coordinates are per vertex, as in the spec (a
+    face's corners use the same index for all three). MuJoCo's OBJ reader flips ``v`` (OBJ puts the image
+    origin bottom left), so ``1 - v`` is written for each texture coordinate.
+    """
     if len(mesh.userfacenormal) or len(mesh.userfacetexcoord):
-        raise ModelError(f"mesh {mesh.name!r} has per-corner normal or texture indices, which .msh cannot hold")
-    head = struct.pack("<4i", v.shape[0], n.shape[0], t.shape[0], f.shape[0])
-    return head + v.tobytes() + n.tobytes() + t.tobytes() + f.tobytes()
+        raise ModelError(f"mesh {mesh.name!r} has per-corner normal or texture indices, which the export cannot hold")
+    v = np.asarray(mesh.uservert, dtype=np.float32).reshape(-1, 3)
+    n = np.asarray(mesh.usernormal, dtype=np.float32).reshape(-1, 3)
+    t = np.asarray(mesh.usertexcoord, dtype=np.float32).reshape(-1, 2).copy()
+    f = np.asarray(mesh.userface, dtype=np.int64).reshape(-1, 3) + 1
+    t[:, 1] = np.float32(1.0) - t[:, 1]
+    lines = [f"# {GENERATOR}: mesh {mesh.name}, {len(v)} vertices, {len(f)} faces"]  # recognised as ours
+    for tag, rows in (("v", v), ("vn", n), ("vt", t)):
+        lines.extend(f"{tag} " + " ".join(_short(x) for x in row) for row in rows)
+    same = len(n) == len(v), len(t) == len(v)
+    for face in f:
+        if same == (True, True):
+            corners = [f"{i}/{i}/{i}" for i in face]
+        elif same[0]:
+            corners = [f"{i}//{i}" for i in face]
+        elif same[1]:
+            corners = [f"{i}/{i}" for i in face]
+        else:
+            corners = [str(i) for i in face]
+        lines.append("f " + " ".join(corners))
+    return ("\n".join(lines) + "\n").encode("ascii")
+
+
+def _short(x: np.float32) -> str:
+    """The shortest decimal text that reads back as the float32 ``x``."""
+    text = np.format_float_positional(np.float32(x), unique=True, trim="-")
+    return "0" if text == "-0" else text
 
 
 def _check_folder(files: dict[str, bytes], xml_name: str, reference: mujoco.MjModel) -> None:
@@ -331,6 +360,9 @@ def _check_folder(files: dict[str, bytes], xml_name: str, reference: mujoco.MjMo
     same = all(  # exact numbers in the XML; mesh inertias may differ in the last bits (summation order)
         np.allclose(getattr(loaded, f), getattr(reference, f), rtol=1e-9, atol=1e-15)
         for f in ("body_mass", "body_pos", "body_quat", "jnt_range", "jnt_axis", "body_inertia")
+    ) and all(  # the meshes' own arrays read back as they were (float32 numbers written exactly)
+        np.array_equal(getattr(loaded, f), getattr(reference, f))
+        for f in ("mesh_vert", "mesh_face", "mesh_normal", "mesh_texcoord", "mesh_facetexcoord")
     )
     if differ or not same:
         what = (
@@ -370,8 +402,9 @@ def export_world_mjcf(world: Any, out: Path) -> list[Path]:
     Raises:
         SimrunError: ``out`` does not end in ``.xml``, or the model cannot be written.
     """
-    if out.suffix.lower() != ".xml":
-        raise SimrunError(f"{out}: MJCF output must end in .xml")
+    wrong = check_suffix(out, "mjcf")
+    if wrong is not None:
+        raise SimrunError(f"{out}: {wrong}")
     world.compile()
     try:
         files = folder_files(world.spec, out.name, base_dir=world.base_dir)

@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 import trimesh
 
+from meshtool.formats import check_suffix
 from simrun.compiled_mesh import compiled_mesh
 from simrun.errors import SimrunError
 from simrun.outfile import stamp_usd, write_bytes
@@ -41,8 +42,16 @@ def _ident(name: str, fallback: str) -> str:
     return text if not text[0].isdigit() else f"_{text}"
 
 
-def export_world_usd(world: World, out: Path, decorate: Callable[[Any, dict[int, str]], None] | None = None) -> None:
+def export_world_usd(
+    world: World, out: Path, decorate: Callable[[Any, dict[int, str]], None] | None = None
+) -> list[str]:
     """Write the world (at its initial state) as ``.usda``/``.usdc``.
+
+    Actuators on hinge and slide joints become ``UsdPhysics.DriveAPI`` on their joint (:func:`_drive`),
+    contact exclusions ``FilteredPairsAPI`` on the first body of each pair; what has no UsdPhysics
+    counterpart (equality constraints such as a gripper's mirrored finger, actuators on other
+    transmissions) is listed, one line each, in the returned findings and in the root layer's
+    ``customLayerData["simrun:unmapped"]``.
 
     Args:
         world: The world (compiled if needed).
@@ -52,11 +61,15 @@ def export_world_usd(world: World, out: Path, decorate: Callable[[Any, dict[int,
 
     Raises:
         SimrunError: An unsupported extension or a failed write.
+
+    Returns:
+        The unmapped elements, one line each (empty when everything has a UsdPhysics counterpart).
     """
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, Vt
 
-    if out.suffix.lower() not in (".usda", ".usdc", ".usd"):
-        raise SimrunError(f"{out}: USD output must end in .usda, .usdc or .usd")
+    wrong = check_suffix(out, "usd")
+    if wrong is not None:
+        raise SimrunError(f"{out}: {wrong}")
     model = world.model
     with tempfile.TemporaryDirectory(prefix="simrun-usd-") as tmp:
         scratch = Path(tmp) / out.name
@@ -74,6 +87,7 @@ def export_world_usd(world: World, out: Path, decorate: Callable[[Any, dict[int,
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)  # body poses at qpos0, the frame the joints are defined in
         names = _Names()
+        joint_paths: dict[int, str] = {}
         paths: dict[int, str] = {0: "/World"}
         trees: dict[int, str] = {}
         for b in range(1, model.nbody):
@@ -99,10 +113,17 @@ def export_world_usd(world: World, out: Path, decorate: Callable[[Any, dict[int,
                 fixed = UsdPhysics.FixedJoint.Define(stage, path)
                 _fixed_frames(fixed, model, b, paths[parent] if parent else None, paths[b], data, Gf)
             for j in joints:
-                _joint(stage, model, j, (paths[parent] if parent else None, paths[b]), data, names, trees[root_body])
+                joint_paths[j] = _joint(
+                    stage, model, j, (paths[parent] if parent else None, paths[b]), data, names, trees[root_body]
+                )
         for g in range(model.ngeom):
             body = int(model.geom_bodyid[g])
             _geom(stage, model, g, paths[body], names, UsdGeom, UsdPhysics, Gf, Vt, Sdf)
+        unmapped = _drives(stage, model, joint_paths) + _filtered_pairs(stage, model, paths)
+        unmapped += [_equality_gap(model, e) for e in range(model.neq)]
+        if unmapped:
+            layer = stage.GetRootLayer()
+            layer.customLayerData = {**layer.customLayerData, "simrun:unmapped": Vt.StringArray(unmapped)}
         if decorate is not None:
             decorate(stage, paths)
         stamp_usd(stage.GetRootLayer())  # how a later export knows this file is simrun's to replace
@@ -112,6 +133,80 @@ def export_world_usd(world: World, out: Path, decorate: Callable[[Any, dict[int,
         except OSError as exc:
             raise SimrunError(f"{out}: usd-core did not write the stage ({exc.strerror})") from None
     write_bytes(out, data)
+    return unmapped
+
+
+def _drives(stage: Any, model: mujoco.MjModel, joints: dict[int, str]) -> list[str]:
+    """``DriveAPI`` (type ``force``) on the joint of each actuator; returns the actuators left unmapped.
+
+    MuJoCo's affine actuator ``force = gain * ctrl + bias0 + bias1 * q + bias2 * qdot`` is a UsdPhysics drive
+    ``force = stiffness * (target - q) + damping * (targetVelocity - qdot)`` when ``gain`` is fixed:
+    ``stiffness = -bias1``, ``damping = -bias2``; a position servo (``bias1 = -gain``) targets the control as
+    ``targetPosition``, a velocity servo or DC motor (``bias1 = 0``) as ``targetVelocity = ctrl * gain /
+    damping`` (at control 0 both targets are 0). Angular drives take degrees: stiffness and damping per
+    degree (times pi / 180). ``maxForce`` is the actuator's force limit (N m or N).
+    """
+    from pxr import Sdf, UsdPhysics
+
+    gaps = []
+    for a in range(model.nu):
+        name = model.actuator(a).name or f"actuator{a}"
+        j = int(model.actuator_trnid[a][0])
+        gain, bias = model.actuator_gainprm[a], model.actuator_biasprm[a]
+        affine = int(model.actuator_biastype[a]) in (int(mujoco.mjtBias.mjBIAS_AFFINE), int(mujoco.mjtBias.mjBIAS_NONE))
+        if (
+            int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT)
+            or j not in joints
+            or int(model.actuator_gaintype[a]) != int(mujoco.mjtGain.mjGAIN_FIXED)
+            or not affine
+            or bias[0] != 0.0
+            or bias[1] not in (0.0, -gain[0])
+        ):
+            gaps.append(f"actuator {name}: not a fixed-gain servo on a hinge or slide joint; no UsdPhysics drive")
+            continue
+        angular = int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE)
+        per = math.pi / 180 if angular else 1.0
+        prim = stage.GetPrimAtPath(joints[j])
+        drive = UsdPhysics.DriveAPI.Apply(prim, "angular" if angular else "linear")
+        drive.CreateTypeAttr("force")
+        drive.CreateStiffnessAttr(float(-bias[1]) * per)
+        drive.CreateDampingAttr(float(-bias[2]) * per)
+        if model.actuator_forcelimited[a]:
+            drive.CreateMaxForceAttr(float(np.max(np.abs(model.actuator_forcerange[a]))))
+        if bias[1] != 0.0:
+            drive.CreateTargetPositionAttr(0.0)
+        else:
+            drive.CreateTargetVelocityAttr(0.0)
+        prim.CreateAttribute("simrun:actuator", Sdf.ValueTypeNames.String).Set(name)
+    return gaps
+
+
+def _filtered_pairs(stage: Any, model: mujoco.MjModel, paths: dict[int, str]) -> list[str]:
+    """``FilteredPairsAPI``: each contact exclusion (``<exclude>``) as a filtered pair of its two bodies."""
+    from pxr import UsdPhysics
+
+    gaps = []
+    for k in range(model.nexclude):
+        signature = int(model.exclude_signature[k])
+        first, second = signature >> 16, signature & 0xFFFF
+        if first not in paths or second not in paths:
+            gaps.append(f"contact exclusion {k}: bodies {first} and {second} have no prims")
+            continue
+        api = UsdPhysics.FilteredPairsAPI.Apply(stage.GetPrimAtPath(paths[first]))
+        api.CreateFilteredPairsRel().AddTarget(paths[second])
+    return gaps
+
+
+def _equality_gap(model: mujoco.MjModel, e: int) -> str:
+    """The finding for equality constraint ``e``: UsdPhysics has no equality constraints (joint couplings)."""
+    kind = mujoco.mjtEq(int(model.eq_type[e])).name.removeprefix("mjEQ_").lower()
+    name = model.eq(e).name or f"equality{e}"
+    if kind == "joint":
+        first = model.joint(int(model.eq_obj1id[e])).name
+        second = model.joint(int(model.eq_obj2id[e])).name
+        ratio = float(model.eq_data[e][1])
+        return f"equality {name}: joint coupling {first} = {ratio:g} * {second}; no UsdPhysics counterpart"
+    return f"equality {name} ({kind}): no UsdPhysics counterpart"
 
 
 def _joints(model: mujoco.MjModel, body: int) -> range:
@@ -195,7 +290,7 @@ def _joint(
     data: mujoco.MjData,
     names: _Names,
     tree: str,
-) -> None:
+) -> str:
     """A revolute, prismatic or spherical joint from the parent body (the world when None) to the child."""
     from pxr import Gf, Sdf, UsdPhysics
 
@@ -236,6 +331,7 @@ def _joint(
             low, high = math.degrees(low), math.degrees(high)
         joint.CreateLowerLimitAttr(low)
         joint.CreateUpperLimitAttr(high)
+    return path
 
 
 def _x_to(axis: np.ndarray) -> np.ndarray:

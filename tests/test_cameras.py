@@ -121,7 +121,9 @@ def test_range_cone_direction_offset_and_cone_in_the_body_frame():
 
 def test_stereo_rig_cameras_sit_a_baseline_apart_and_look_along_x():
     world = World()
-    world.insert(StereoRig(name="eyes", baseline=0.2, fovy=50.0, resolution=(64, 48), pose=Pose((0, 0, 0.5))))
+    world.insert(
+        StereoRig(name="eyes", baseline=0.2, fov=50.0, fov_axis="vertical", resolution=(64, 48), pose=Pose((0, 0, 0.5)))
+    )
     model, data = world.model, world.data
     left, right = model.camera("eyes/left"), model.camera("eyes/right")
     np.testing.assert_allclose(left.pos, [0, 0.1, 0])

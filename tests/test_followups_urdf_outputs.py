@@ -1,6 +1,6 @@
 """``meshtool urdf -o DIR`` never destroys a file meshtool did not write (issue 21 item 3, the URDF importer).
 
-Before the first file is written every output is checked: the user's ``NAME.xml``, PNG or ``.msh`` is
+Before the first file is written every output is checked: the user's ``NAME.xml``, PNG or ``.obj`` mesh is
 refused (exit 1, the file intact, nothing written) unless ``--force``; a source is refused even then; the
 files of a previous import (the XML's stamp lists them with their SHA-256) are replaced, unless the user
 changed them since.
@@ -35,7 +35,7 @@ def test_the_xml_lists_what_it_was_written_with(tmp_path: Path) -> None:
     listed = stamped_files((tmp_path / "tiny_arm.xml").read_bytes(), GENERATORS)
     assert listed is not None
     on_disk = {p.name for p in tmp_path.iterdir() if p.is_file() and p.name != "tiny_arm.xml"}
-    assert set(listed) == on_disk and on_disk  # the .msh meshes and PNG textures beside it
+    assert set(listed) == on_disk and on_disk  # the .obj meshes and PNG textures beside it
     assert mujoco.MjModel.from_xml_path(str(tmp_path / "tiny_arm.xml")).nbody > 1  # the comment is harmless
 
 

@@ -60,7 +60,7 @@ def test_exported_scene_folder_loads_alone_after_being_moved(scene, tmp_path):
         assert getattr(model, count) == getattr(reference, count), count
     np.testing.assert_array_equal(model.body_mass, reference.body_mass)
     np.testing.assert_array_equal(model.body_pos, reference.body_pos)
-    assert all(p.suffix in (".xml", ".msh", ".png") for p in moved.iterdir())
+    assert all(p.suffix in (".xml", ".obj", ".png") for p in moved.iterdir())
 
 
 def test_meshtool_mjcf_without_a_builder_is_one_error_line(fixtures, tmp_path, monkeypatch):

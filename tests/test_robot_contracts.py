@@ -211,7 +211,8 @@ def test_a_move_ends_exactly_on_its_goal_between_ticks():
 
 def test_ready_arms_have_their_joint_limits():
     """The ranges docs/robots.md ("Arms") states: KUKA +-170 degrees on the roll axes, +-120 on the pitch axes;
-    Lynx +-90 but +-135 at the elbow, fingers 0 to 15 mm."""
+    Lynx +-90 but +-135 at the elbow, fingers 0 to 15.875 mm (the Little Grip's 1.25 in opening, less the
+    fingers' 8 mm thickness, shared by two fingers 4 mm off the middle)."""
     for arm, limits in ((KukaLBR3, [170, 120, 170, 120, 170, 120, 170]), (LynxL6, [90, 90, 135, 90, 90])):
         world = World()
         world.insert(arm(name="a"))
@@ -221,7 +222,7 @@ def test_ready_arms_have_their_joint_limits():
             np.testing.assert_allclose(model.jnt_range[j], np.radians([-degrees, degrees]))
         if arm is LynxL6:
             for finger in ("a/finger_left", "a/finger_right"):
-                np.testing.assert_allclose(model.joint(finger).range, [0.0, 0.015])
+                np.testing.assert_allclose(model.joint(finger).range, [0.0, (1.25 * 0.0254 + 2 * 0.004) / 2 - 0.004])
 
 
 @pytest.mark.parametrize(
@@ -322,8 +323,8 @@ def test_range_cone_direction_is_normalised_and_a_single_ray_looks_straight():
 
 def test_stereo_rig_refuses_a_bad_field_of_view_and_webcam_defaults():
     world = World()
-    world.insert(StereoRig(name="rig", fovy=-10.0))
-    with pytest.raises(EntityError, match="fovy"):
+    world.insert(StereoRig(name="rig", fov=-10.0))
+    with pytest.raises(EntityError, match="fov"):
         world.compile()
     world = World()
     world.insert(StereoRig(name="rig"))
