@@ -98,11 +98,17 @@ class DriveService:
         rate: float = 50.0,
     ) -> None:
         robot = world.entity(entity)
+        described = getattr(robot, "drive_description", None)  # a model with named wheels (MjcfRobot)
+        wheels = robot.wheel_geometry(world.base_dir) if callable(described) else None  # type: ignore[attr-defined]
+        robot = described(world.base_dir) if callable(described) else robot
         if not isinstance(robot, DifferentialDrive):
             raise EntityError(f"{entity!r} is a {robot.TYPE}, not a differential-drive robot")
         _finite("drive service", radius_scale=radius_scale, separation_scale=separation_scale, rate=rate)
         _finite("drive service", positive=False, gain=gain, integral_gain=integral_gain)
         self.world, self.name, self.robot = world, entity, robot
+        #: Wheel joints and the body carrying the free joint (full names)
+        self._joint_names = wheels.joints if wheels else (f"{entity}/left_wheel", f"{entity}/right_wheel")
+        self._base = wheels.base if wheels else entity
         self.limits = limits or DriveLimits()
         self.radius = robot.wheel_radius * radius_scale
         self.separation = robot.separation * separation_scale
@@ -421,14 +427,14 @@ class DriveService:
     def _lookup(self, model: mujoco.MjModel) -> tuple[int, int, int, int]:
         if self._ids is None or self._bound is not model:
             rebuilt = self._bound is not None  # a new model: the world restarted at time 0 from the initial poses
-            n = self.name
+            n, (left, right) = self.name, self._joint_names
             self._ids = (
                 model.actuator(f"{n}/left_motor").id,
                 model.actuator(f"{n}/right_motor").id,
-                int(model.joint(f"{n}/left_wheel").dofadr[0]),
-                int(model.joint(f"{n}/right_wheel").dofadr[0]),
-                int(model.joint(f"{n}/left_wheel").qposadr[0]),
-                int(model.joint(f"{n}/right_wheel").qposadr[0]),
+                int(model.joint(left).dofadr[0]),
+                int(model.joint(right).dofadr[0]),
+                int(model.joint(left).qposadr[0]),
+                int(model.joint(right).qposadr[0]),
             )
             self._bound = model
             self._timestep = float(model.opt.timestep)
@@ -461,7 +467,7 @@ class DriveService:
         mujoco.mj_fullM(model, data, full)
         dof = self._ids[2] if self._ids is not None else 0
         inertia = float(full[dof, dof])  # the wheel, its armature
-        body = model.body(self.name).id
+        body = model.body(self._base).id
         jnt = int(model.body_jntadr[body])
         self._free = -1
         if jnt >= 0 and model.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_FREE:

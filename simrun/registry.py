@@ -90,6 +90,7 @@ _ENTITIES = _types(
         ("Cylinder", "simrun.shapes:Cylinder", "A cylinder of `radius` and `length` (m) along Z."),
         ("MeshEntity", "simrun.mesh_entity:MeshEntity", "A meshtool `.mbin` asset: visual mesh and collision hulls."),
         ("UrdfRobot", "simrun.urdf_robot:UrdfRobot", "A robot imported from a URDF file (meshes through meshtool)."),
+        ("MjcfRobot", "simrun.mjcf_robot:MjcfRobot", "Any MJCF model, attached through MjSpec under `NAME/`."),
         ("Ground", "simrun.environment:Ground", "An infinite plane, optionally textured."),
         ("HeightField", "simrun.environment:HeightField", "Terrain from a grey-scale image or numbers."),
         ("Sky", "simrun.environment:Sky", "A sky box (colour gradient or image)."),
@@ -117,6 +118,7 @@ _SERVICES = _types(
     [
         ("DriveService", "simrun.drive_service:DriveService", "Wheel speed control, odometry, drive/rotate commands."),
         ("ArmService", "simrun.arm:ArmService", "Joint targets, trajectories and gripper of an arm."),
+        ("JointService", "simrun.joint_service:JointService", "Targets, trajectories, state of any model's joints."),
     ],
 )
 _SENSORS = _types(

@@ -122,12 +122,20 @@ class Sensor(abc.ABC):
         rate: Samples per simulated second; 0 samples after every step.
         noise: Standard deviation of additive Gaussian noise (sensor units).
         seed: Seed of the noise generator.
+        body: The body carrying it when not the entity's own: ``ENTITY/link``, a body of the entity's model
+            (an MJCF or URDF robot's link); kept as :attr:`mount`.
     """
 
-    def __init__(self, world: World, entity: str, rate: float = 0.0, noise: float = 0.0, seed: int = 0) -> None:
+    def __init__(
+        self, world: World, entity: str, rate: float = 0.0, noise: float = 0.0, seed: int = 0, body: str | None = None
+    ) -> None:
         world.entity(entity)
         if rate < 0 or noise < 0:
             raise EntityError("sensor rate and noise must be >= 0")
+        if body is not None and (not isinstance(body, str) or not body.startswith(f"{entity}/")):
+            raise EntityError(f"body {body!r} is not a body of {entity!r}; name one of its links as '{entity}/LINK'")
+        #: Full name of the body the sensor is mounted on (the entity's own body unless ``body`` is given).
+        self.mount = body if body is not None else entity
         self.world, self.entity, self.rate, self.noise, self.seed = world, entity, rate, noise, seed
         self.rng = np.random.default_rng(seed)
         self.reading: Any = None
@@ -204,6 +212,7 @@ class LaserRangeFinder(Sensor):
         seed: Noise seed.
         exclude: What the rays ignore (:data:`EXCLUDES`): by default every geom of the robot the laser is
             mounted on.
+        body: Mount on this body of the entity (``ENTITY/link``) instead of the entity's own body.
     """
 
     def __init__(
@@ -219,11 +228,12 @@ class LaserRangeFinder(Sensor):
         points: bool = False,
         seed: int = 0,
         exclude: str = "robot",
+        body: str | None = None,
     ) -> None:
         if rays < 1 or max_range <= 0 or not 0 < fov_deg <= 360:
             raise EntityError("laser: rays >= 1, max_range > 0, 0 < fov <= 360")
-        self.caster = RayCaster(entity, exclude)
-        super().__init__(world, entity, rate, noise, seed)  # registers it: checks first
+        self.caster = RayCaster(body or entity, exclude)
+        super().__init__(world, entity, rate, noise, seed, body)  # registers it: checks first
         self.height, self.max_range, self.points = height, max_range, points
         span = math.radians(fov_deg)
         if fov_deg == 360:
@@ -353,8 +363,9 @@ class GPS(Sensor):
         noise: float = 0.0,
         seed: int = 0,
         origin: tuple[float, float] | None = None,
+        body: str | None = None,
     ) -> None:
-        super().__init__(world, entity, rate, noise, seed)
+        super().__init__(world, entity, rate, noise, seed, body)
         self.origin = origin
         self._body = -1
         self._bound: mujoco.MjModel | None = None
@@ -362,7 +373,7 @@ class GPS(Sensor):
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> GPSReading:
         """Noisy position (and latitude/longitude)."""
         if self._bound is not model:
-            self._body, self._bound = model.body(self.entity).id, model
+            self._body, self._bound = model.body(self.mount).id, model
         p = self._noisy(data.xpos[self._body].copy())
         lat = lon = None
         if self.origin is not None:
@@ -385,13 +396,15 @@ class IMUReading:
 class IMU(Sensor):
     """Gyro, accelerometer and orientation of an entity's body."""
 
-    def __init__(self, world: World, entity: str, rate: float = 100.0, noise: float = 0.0, seed: int = 0) -> None:
-        super().__init__(world, entity, rate, noise, seed)
+    def __init__(
+        self, world: World, entity: str, rate: float = 100.0, noise: float = 0.0, seed: int = 0, body: str | None = None
+    ) -> None:
+        super().__init__(world, entity, rate, noise, seed, body)
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> IMUReading:
         """Readings from the body's spatial velocity and acceleration (mj_rnePostConstraint)."""
         mujoco.mj_rnePostConstraint(model, data)
-        body = data.body(self.entity)
+        body = data.body(self.mount)
         rotation = body.xmat.reshape(3, 3)
         gyro = self._noisy(rotation.T @ body.cvel[:3])
         accel = self._noisy(rotation.T @ body.cacc[3:])  # at the subtree centre of mass; at rest it reads +g up

@@ -6,6 +6,10 @@ and all) into a model description, built into a child spec by :func:`simrun.mjcf
 and attached under the entity's body with the ``NAME/`` prefix: ``arm/shoulder`` is the joint
 ``shoulder`` of the entity ``arm``. The root link sits at the entity's pose; ``free=True`` makes it a
 mobile robot. A URDF ``world`` link becomes a body ``NAME/world_link`` fixed to the entity's body.
+
+The services of MJCF robots work here too: a :class:`~simrun.joint_service.JointService` over the motors
+(``actuators = true``), ``wheels`` for a :class:`~simrun.drive_service.DriveService`, sensors on a link
+(``body = "NAME/link"``).
 """
 
 from __future__ import annotations
@@ -23,9 +27,11 @@ from meshtool.errors import MeshtoolError
 from meshtool.hulls import HullOptions
 from meshtool.model import BodyDesc
 from meshtool.urdf import UrdfOptions, import_urdf
+from simrun.drive import DifferentialDrive
 from simrun.entity import BuildContext, Entity
 from simrun.errors import EntityError
 from simrun.mjcf_builder import compile_spec, spec_from_model
+from simrun.mjcf_robot import WheelGeometry, add_wheel_motors, drive_description, wheel_geometry
 
 
 @dataclass(kw_only=True)
@@ -38,6 +44,12 @@ class UrdfRobot(Entity):
             for upwards from the URDF.
         hulls: Collision hulls of mesh colliders: ``convex`` (one per mesh) or ``decompose`` (CoACD).
         actuators: Add a motor per moving joint, named like the joint, limited to its URDF effort.
+        wheels: Left and right wheel joints for a :class:`~simrun.drive_service.DriveService`: they get
+            simrun's DC motors ``NAME/left_motor`` and ``NAME/right_motor`` (as an ``MjcfRobot``'s wheels).
+        wheel_radius: Metres; ``None``: measured from the left wheel link's geometry.
+        track: Metres; ``None``: the distance between the two wheel links at the initial pose.
+        stall_torque: Wheel torque at power 1 held still, N m.
+        no_load_speed: Wheel speed at power 1 without load, rad/s.
     """
 
     TYPE: ClassVar[str] = "UrdfRobot"
@@ -46,30 +58,54 @@ class UrdfRobot(Entity):
     package_dirs: dict[str, str] = field(default_factory=dict)
     hulls: str = "convex"
     actuators: bool = False
+    wheels: tuple[str, ...] = ()
+    wheel_radius: float | None = None
+    track: float | None = None
+    stall_torque: float = 1.0
+    no_load_speed: float = 10.0
 
     def build(self, body: Any, ctx: BuildContext) -> None:
         """Import the URDF and attach its bodies, joints, geoms and assets under ``body``."""
-        if self.hulls not in ("convex", "decompose"):
-            raise EntityError(f"UrdfRobot {self.name!r}: hulls must be 'convex' or 'decompose'")
-        packages = tuple((name, ctx.base_dir / folder) for name, folder in sorted(self.package_dirs.items()))
-        options = UrdfOptions(packages, HullOptions(mode=self.hulls), self.actuators)
-        try:
-            with _xml_parser_quiet():
-                result = import_urdf(ctx.base_dir / self.urdf, options)
-            model = result.model
-            if model.world_geoms:  # a URDF 'world' link: a body fixed to the entity's body, named 'world_link'
-                world = BodyDesc("world_link", geoms=model.world_geoms, children=model.bodies)
-                model = dataclasses.replace(model, world_geoms=[], bodies=[world])
-            tag = "".join(c if c.isalnum() else "_" for c in ctx.full_name)
-            child, files = spec_from_model(model, texture_prefix=f"urdf_{tag}_")
-            compile_spec(child, model)
-        except MeshtoolError as exc:
-            raise EntityError(f"UrdfRobot {self.name!r}: {exc.one_line()}") from None
+        tag = "".join(c if c.isalnum() else "_" for c in ctx.full_name)
+        child, files, result = self._child(ctx.base_dir, f"urdf_{tag}_")
         frame = body.add_frame()
         for root in child.worldbody.bodies:
             frame.attach_body(root, f"{ctx.full_name}/", "")
         ctx.assets.vfs.update(files)
         ctx.assets.sources.update(Path(os.path.realpath(p)) for p in result.sources)
+
+    def _child(self, base_dir: Path, prefix: str) -> tuple[Any, dict[str, bytes], Any]:
+        """The robot as a compiled child spec (wheel motors added), its in-memory files and the import result."""
+        if self.hulls not in ("convex", "decompose"):
+            raise EntityError(f"UrdfRobot {self.name!r}: hulls must be 'convex' or 'decompose'")
+        packages = tuple((name, base_dir / folder) for name, folder in sorted(self.package_dirs.items()))
+        options = UrdfOptions(packages, HullOptions(mode=self.hulls), self.actuators)
+        try:
+            with _xml_parser_quiet():
+                result = import_urdf(base_dir / self.urdf, options)
+            model = result.model
+            if model.world_geoms:  # a URDF 'world' link: a body fixed to the entity's body, named 'world_link'
+                world = BodyDesc("world_link", geoms=model.world_geoms, children=model.bodies)
+                model = dataclasses.replace(model, world_geoms=[], bodies=[world])
+            child, files = spec_from_model(model, texture_prefix=prefix)
+            if self.wheels:
+                add_wheel_motors(
+                    child, f"UrdfRobot {self.name!r}", self.urdf, self.wheels, self.stall_torque, self.no_load_speed
+                )
+            compile_spec(child, model)
+        except MeshtoolError as exc:
+            raise EntityError(f"UrdfRobot {self.name!r}: {exc.one_line()}") from None
+        return child, files, result
+
+    def drive_description(self, base_dir: Path) -> DifferentialDrive:
+        """The drive a :class:`~simrun.drive_service.DriveService` controls (see :func:`drive_description`)."""
+        return drive_description(self, base_dir)
+
+    def wheel_geometry(self, base_dir: Path) -> WheelGeometry:
+        """Wheel joints, radius and track, measured from the robot compiled alone where not given."""
+        child, files, _ = self._child(Path(base_dir), "wheels_")
+        child.assets = dict(files)
+        return wheel_geometry(self, child.compile())
 
 
 @contextlib.contextmanager

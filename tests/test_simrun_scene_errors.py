@@ -104,7 +104,7 @@ MISTAKES = [
         '\n[[services]]\ntype = "DriveServce"\nentity = "bot"\n',
         21,
         "services[0] 'DriveServce'",
-        "type: unknown service type 'DriveServce' (known: DriveService, ArmService)",
+        "type: unknown service type 'DriveServce' (known: DriveService, ArmService, JointService)",
     ),
     (
         "service bound to the wrong entity",
