@@ -1,9 +1,11 @@
 """Which findings changed or dropped data: what the CLI shows by default and what ``--strict`` refuses.
 
-Every warning counts. Of the info findings, those that record a change to the data count too (triangles,
-statements, materials or attributes dropped; values reinterpreted or filled in);
-notes that only explain how something was found or read (a repaired reference, the model root, the up axis
-chosen, the encoding) do not, and neither do the collision-hull notes (``hull-thickened``, ``hull-reduced``:
+Every warning counts, and a change to the geometry that meshtool decided on is one: an up-axis rotation
+(``up-axis`` when ``--up auto`` turned the mesh), a unit scale ``--units auto`` applied (``units-evidence``),
+a padded part (``part-padded``). Of the info findings, those that record a change to the data count too
+(triangles, statements, materials or attributes dropped; values reinterpreted or filled in); notes that only
+explain how something was found or read (a repaired reference, the model root, an up axis kept, the
+encoding) do not, and neither do the collision-hull notes (``hull-thickened``, ``hull-reduced``:
 the hulls are made within the budgets asked for, the asset's data is untouched). ``docs/findings.md``
 marks each code.
 """

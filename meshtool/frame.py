@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from meshtool.consumers import ConsumerRef, find_consumers
-from meshtool.findings import Finding, info, warning
+from meshtool.findings import Finding, Severity, info, warning
 from meshtool.modelroot import ModelRoot
 from meshtool.resolve import file_sha256
 from meshtool.safeopen import printable
@@ -118,7 +118,15 @@ def decide_frame(
                         name,
                     )
                 )
-    findings.extend(evidence_findings(evidence, chosen_unit, chosen_scale, name))
+    applied = evidence_findings(evidence, chosen_unit, chosen_scale, name)
+    if evidence is not None and units == "auto" and (chosen_unit != "m" or chosen_scale != scale):
+        # --units auto scaled every vertex: a warning (shown; --strict refuses it; --units UNIT accepts it)
+        said = f"--units auto: every vertex scaled as {evidence.describe()}"
+        applied = [
+            warning(f.code, said, f.path, f.line) if f.code == "units-evidence" and f.severity is Severity.INFO else f
+            for f in applied
+        ]
+    findings.extend(applied)
     if up in ("y", "z"):
         decision = UpDecision(up, "forced", f"--up {up}")
     elif declared_up is not None and not consumers:
@@ -128,5 +136,7 @@ def decide_frame(
         decision = decide_up(src, metres, header_comments, consumers, root, normalised_before)
     if decision.rule not in ("forced", "meshtool"):
         turned = "rotated +90 degrees about X to Z-up" if decision.up == "y" else "kept as it is"
-        findings.append(info("up-axis", f"up axis {decision.up} ({turned}): {decision.evidence}", name))
+        # a rotation moves every vertex: a warning (shown, --strict refuses it; --up y accepts it silently)
+        told = warning if decision.up == "y" else info
+        findings.append(told("up-axis", f"up axis {decision.up} ({turned}): {decision.evidence}", name))
     return Frame(chosen_unit, chosen_scale, decision.up, decision, evidence, consumers, findings)

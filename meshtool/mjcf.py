@@ -11,12 +11,17 @@ the installed MJCF builder (simrun's) builds it on ``MjSpec``, writes it and com
 
 from __future__ import annotations
 
+import json
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from meshtool import surface
 from meshtool.errors import OptionsError
+from meshtool.findings import Finding
+from meshtool.formats import suffix
 from meshtool.mesh import safe_identifier
 from meshtool.model import (
     BodyDesc,
@@ -28,6 +33,8 @@ from meshtool.model import (
     TextureDesc,
     mjcf_files,
 )
+from meshtool.normalmaps import mujoco_findings
+from meshtool.outdir import write_folder
 from meshtool.packfile.read import PackedMesh
 
 
@@ -152,3 +159,43 @@ def build_mjcf(packed: PackedMesh, name: str, options: MjcfOptions | None = None
         ModelError: No MJCF builder is installed, or MuJoCo refuses the model.
     """
     return mjcf_files(asset_model(packed, name, options))
+
+
+def write_mjcf(
+    packed: PackedMesh,
+    out_dir: Path,
+    name: str,
+    source: Path,
+    options: MjcfOptions | None = None,
+    *,
+    force: bool | None = None,
+    inputs: Iterable[Path] = (),
+) -> tuple[Path, list[Finding]]:
+    """Write the MuJoCo model of one packed asset as ``out_dir/NAME/`` (atomically) and return its XML file.
+
+    The one path from a pack to an MJCF folder: ``meshtool mjcf`` (an ``.mbin`` or a mesh file) and
+    ``obj2bin --mjcf`` both call it. The folder holds ``NAME.xml``, the meshes (``.msh``), the PNG textures
+    and ``asset.json`` naming ``source``; MuJoCo loads it from the folder alone.
+
+    Args:
+        packed: The asset.
+        out_dir: Folder to write ``NAME/`` into (created when missing).
+        name: Folder and model name (``[a-z0-9_.-]+``).
+        source: The file the pack came from (recorded in ``asset.json``).
+        options: Body options.
+        force: See :func:`meshtool.outdir.write_folder`.
+        inputs: Files this run read: the folder may not replace one.
+
+    Returns:
+        The written ``NAME.xml`` and the findings about MuJoCo's use of the asset (``mujoco-ignores-map``).
+
+    Raises:
+        OptionsError: The pack has no collision hulls.
+        ModelError: No MJCF builder is installed, or MuJoCo refuses the model.
+        OutputError: The folder cannot be written or would replace something meshtool did not write.
+    """
+    files = build_mjcf(packed, name, options)
+    told = mujoco_findings(packed.materials, source.name)
+    manifest = json.dumps({"source": str(source)}).encode()
+    folder = write_folder(out_dir, name, {**files, "asset.json": manifest}, force=force, inputs=[source, *inputs])
+    return folder / (safe_identifier(name, "asset") + suffix("mjcf")), told

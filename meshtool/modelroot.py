@@ -2,9 +2,11 @@
 
 A Gazebo model keeps ``model.config``/``model.sdf`` at its top with ``meshes/x.obj`` whose MTL names
 ``../materials/textures/x.png``; a ROS package keeps ``package.xml`` (and often a URDF) at its top. The
-model root of an OBJ is the nearest folder at or above the OBJ's folder (at most :data:`MAX_LEVELS` levels
-up, never the temporary folder, the home folder or ``/``) that holds one of :data:`MARKERS` or a
-``*.urdf`` file. References may then resolve anywhere inside it,
+model root of an OBJ is the nearest folder at or above the OBJ's folder that holds one of :data:`MARKERS`
+(searched up to the repository root, the folder holding ``.git``, and at most :data:`MAX_MARKER_LEVELS`
+levels up: ``pkg/meshes/robot/visual/high/x.obj`` is four below ``pkg/package.xml``) or a ``*.urdf`` file
+(at most :data:`MAX_LEVELS` levels up); never the temporary folder, the home folder or ``/``, and never
+above a repository root. References may then resolve anywhere inside it,
 never outside it (except into explicit ``--search-path`` folders); paths inside it are shown relative to the
 OBJ's folder (``../materials/textures/x.png``).
 """
@@ -22,8 +24,13 @@ from meshtool.resolve import Resolver, list_names
 
 #: File names that mark the top folder of a model (Gazebo, SDFormat, ROS).
 MARKERS = ("model.config", "model.sdf", "package.xml")
-#: How many folders above the OBJ's folder are searched (``pkg/meshes/visual/x.obj`` is two).
+#: How many folders above the OBJ's folder are searched for a ``*.urdf`` file (``pkg/meshes/visual/x.obj``
+#: is two below ``pkg/robot.urdf``).
 MAX_LEVELS = 3
+#: How many folders above the OBJ's folder are searched for a marker file (stopping at a repository root).
+MAX_MARKER_LEVELS = 8
+#: What marks a repository root: the search for a model root goes no higher.
+REPOSITORY_MARKERS = (".git", ".hg", ".svn")
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,29 +48,36 @@ class ModelRoot:
     kind: str
 
 
-def find_model_root(obj_dir: Path, max_levels: int = MAX_LEVELS) -> ModelRoot | None:
-    """The nearest model root at or above ``obj_dir``.
+def find_model_root(
+    obj_dir: Path, max_levels: int = MAX_LEVELS, max_marker_levels: int = MAX_MARKER_LEVELS
+) -> ModelRoot | None:
+    """The nearest model root at or above ``obj_dir``, never above the repository root holding it.
 
     Args:
         obj_dir: Folder of the OBJ file.
-        max_levels: Folders above ``obj_dir`` searched (0: only ``obj_dir``).
+        max_levels: Folders above ``obj_dir`` searched for a ``*.urdf`` file (0: only ``obj_dir``).
+        max_marker_levels: Folders above ``obj_dir`` searched for a :data:`MARKERS` file.
 
     Returns:
         The model root, or ``None`` when no folder in reach holds a marker.
     """
     here = Path(os.path.realpath(obj_dir))
     shared = {Path(os.path.realpath(tempfile.gettempdir())), Path(os.path.realpath(Path.home())), Path("/")}
-    for folder in [here, *here.parents][: max_levels + 1]:
+    for level, folder in enumerate([here, *here.parents][: max(max_levels, max_marker_levels) + 1]):
         if folder in shared:  # a marker dropped in /tmp or ~ must not open them up
             break
         names = list_names(folder)
-        for marker in MARKERS:
-            if marker in names and (folder / marker).is_file():
-                kind = "ros" if marker == "package.xml" else "gazebo"
-                return ModelRoot(folder, marker, kind)
-        urdfs = [n for n in names if n.lower().endswith(".urdf") and (folder / n).is_file()]
-        if urdfs:
-            return ModelRoot(folder, urdfs[0], "urdf")
+        if level <= max_marker_levels:
+            for marker in MARKERS:
+                if marker in names and (folder / marker).is_file():
+                    kind = "ros" if marker == "package.xml" else "gazebo"
+                    return ModelRoot(folder, marker, kind)
+        if level <= max_levels:
+            urdfs = [n for n in names if n.lower().endswith(".urdf") and (folder / n).is_file()]
+            if urdfs:
+                return ModelRoot(folder, urdfs[0], "urdf")
+        if any(marker in names for marker in REPOSITORY_MARKERS):  # the repository's top: nothing above it
+            break
     return None
 
 

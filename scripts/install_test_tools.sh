@@ -5,8 +5,18 @@
 #   - Chromium (Debian package `chromium`) for the recording-page test.
 # Each step is skipped when already done. A step that cannot run here (no npm, no apt, no network) prints
 # one line and the tests that need it skip, saying why; it never fails `make test`.
+# MESHTOOL_NO_SYSTEM=1 (make test SYSTEM=0): no apt-get and no npm download; the tests that need them skip.
 set -u
 here=$(cd "$(dirname "$0")/.." && pwd)
+if [ "${MESHTOOL_NO_SYSTEM:-0}" = "1" ]; then
+    [ -f "$here/tools/gltf-validator/node_modules/gltf-validator/package.json" ] \
+        || echo "note: MESHTOOL_NO_SYSTEM=1: glTF validator not installed (npm); the GLB validator tests will skip"
+    [ -f "$here/tools/three-viewer/dist/viewer.js" ] \
+        || echo "note: MESHTOOL_NO_SYSTEM=1: three.js bundle not installed (npm); the HTML recording tests will skip"
+    command -v chromium >/dev/null 2>&1 \
+        || echo "note: MESHTOOL_NO_SYSTEM=1: Chromium not installed (apt-get); the browser tests will skip"
+    exit 0
+fi
 if [ -f "$here/tools/gltf-validator/node_modules/gltf-validator/package.json" ]; then :; else
     sh "$here/scripts/install_gltf_validator.sh" >/dev/null 2>&1 \
         || echo "note: glTF validator not installed (needs npm); the GLB validator tests will skip"
@@ -19,10 +29,10 @@ if command -v chromium >/dev/null 2>&1; then :; else
     sudo=""
     [ "$(id -u)" = 0 ] || sudo="sudo -n"
     if command -v apt-get >/dev/null 2>&1 \
-        && $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium >/dev/null 2>&1; then :
+        && $sudo env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=120 install -y -q --no-install-recommends chromium >/dev/null 2>&1; then :
     else
-        ($sudo apt-get update -q >/dev/null 2>&1 \
-            && $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium >/dev/null 2>&1) \
+        ($sudo apt-get -o DPkg::Lock::Timeout=120 update -q >/dev/null 2>&1 \
+            && $sudo env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=120 install -y -q --no-install-recommends chromium >/dev/null 2>&1) \
             || echo "note: Chromium not installed (apt-get install chromium); the HTML recording tests will skip"
     fi
 fi

@@ -3,10 +3,16 @@
 ``.mbin`` meshes become MjSpec meshes from their arrays (``uservert``/``userface``/``usernormal``/
 ``usertexcoord``), their PNG textures become MjSpec textures from decoded pixels, and their materials
 MjSpec materials. One asset used by many entities is read and added once.
+
+A mesh file (OBJ, STL, PLY, glTF/GLB, COLLADA) where an ``.mbin`` can go is packed on the fly as ``obj2bin``
+does with its defaults (metres, ``--up auto``, one convex hull; :func:`meshtool.convert.pack_file`) and the
+pack kept in the user cache folder (``simrun/packs``, one :mod:`meshtool.cachefile` envelope per file) until
+the mesh, its MTLs or textures change.
 """
 
 from __future__ import annotations
 
+import hashlib
 import io
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,8 +24,8 @@ import xxhash
 from PIL import Image
 
 import meshtool
-from meshtool import surface
-from meshtool.packfile import PackedMesh
+from meshtool import cachefile, surface
+from meshtool.packfile import PackedMesh, parse
 from meshtool.pnginfo import png_end
 from meshtool.safeopen import printable
 from simrun.errors import EntityError
@@ -29,6 +35,10 @@ from simrun.safeio import FileReadError, check_regular, read_regular
 MAX_IMAGE_BYTES = 64 * 1024 * 1024
 #: Most pixels of a decoded texture or height-field image (8192 x 8192).
 MAX_IMAGE_PIXELS = 8192 * 8192
+#: Entry kind of a mesh file's pack in the :mod:`meshtool.cachefile` envelope.
+PACK_KIND = "simrun-mesh-pack"
+#: Largest cached pack read, bytes (the limit on an ``.mbin`` read whole).
+MAX_PACK_BYTES = 1024**3
 
 
 @dataclass(slots=True)
@@ -59,26 +69,58 @@ class AssetLibrary:
     #: 2D textures by content (XXH3-128 of the PNG): identical images are added, and decoded by MuJoCo, once.
     by_content: dict[bytes, tuple[str, str]] = field(default_factory=dict)
 
+    #: Each asset path as given, resolved (symlinks, ``..``) once: many entities name one file.
+    resolved: dict[Path, Path] = field(default_factory=dict)
+
+    def real(self, path: Path) -> Path:
+        """``path`` resolved, once per path."""
+        key = self.resolved.get(path)
+        if key is None:
+            key = self.resolved[path] = path.resolve()
+        return key
+
     def register(self, path: Path, packed: PackedMesh) -> None:
         """Use ``packed`` (already in memory) as the content of ``path``; nothing is read from disk."""
-        self.files[path.resolve()] = packed
+        self.files[self.real(path)] = packed
 
     def packed(self, path: Path) -> PackedMesh:
-        """The loaded ``.mbin`` (read once)."""
-        key = path.resolve()
+        """The loaded ``.mbin``, or the pack of a mesh file (read, or packed, once)."""
+        key = self.real(path)
         if key not in self.files:
             try:
                 check_regular(key, "mesh asset")  # never hand a FIFO or device to the reader
-                self.files[key] = meshtool.load(key)
+                self.files[key] = self._pack(key) if is_mesh_file(key) else meshtool.load(key)
             except FileReadError as exc:
                 raise EntityError(str(exc)) from None
             except meshtool.MeshtoolError as exc:
-                raise EntityError(f"cannot load mesh asset: {exc}") from None
+                raise EntityError(f"cannot load mesh asset: {exc.one_line()}") from None
         return self.files[key]
 
+    def _pack(self, src: Path) -> PackedMesh:
+        """The pack of the mesh file ``src`` (resolved): from the cache when it is current, else made and cached."""
+        from meshtool.convert import ConvertOptions, is_current, pack_file
+
+        options = ConvertOptions(check=False)  # the world's compile checks it
+        folder = pack_cache()
+        key = f"{meshtool.__version__}\0{src}"
+        entry = folder / f"{hashlib.sha256(key.encode('utf-8', 'surrogateescape')).hexdigest()}.pack"
+        found = cachefile.read_entry(entry, PACK_KIND, key, MAX_PACK_BYTES)
+        if found.payload is not None:
+            try:
+                cached = parse(found.payload, src.name)
+            except meshtool.MeshtoolError:
+                cached = None
+            if cached is not None and is_current(cached.meta, src, options):
+                self.sources.update(_pack_sources(cached, src))
+                return cached
+        made = pack_file(src, options)
+        cachefile.write_entry(entry, PACK_KIND, key, made.data)  # a read-only cache costs time, nothing else
+        self.sources.update(made.inputs)
+        return parse(made.data, src.name)
+
     def mesh(self, path: Path, scale: float) -> MeshAsset:
-        """Add an ``.mbin``'s meshes, textures and materials (once per file and scale)."""
-        key = (path.resolve(), scale)
+        """Add an ``.mbin``'s (or a mesh file's) meshes, textures and materials (once per file and scale)."""
+        key = (self.real(path), scale)
         if key in self.added_meshes:
             return self.added_meshes[key]
         p = self.packed(path)
@@ -147,7 +189,7 @@ class AssetLibrary:
 
     def texture_material(self, file: str, base_dir: Path) -> str:
         """A material showing the PNG ``file`` (relative to ``base_dir``), added once."""
-        path = (base_dir / file).resolve()
+        path = self.real(base_dir / file)
         if path not in self.added_textures:
             name = f"texture:{printable(path.stem)}"
             tex = self.add_texture(name, self.read_image(path, file))
@@ -182,6 +224,30 @@ class AssetLibrary:
         if two_d:
             self.by_content.setdefault(key, (name, file))
         return name
+
+
+def is_mesh_file(path: Path) -> bool:
+    """Whether ``path`` names a mesh file meshtool packs (OBJ, STL, PLY, glTF/GLB, COLLADA), by its suffix."""
+    from meshtool.readers import MESH_SUFFIXES
+
+    return path.suffix.lower() in MESH_SUFFIXES
+
+
+def pack_cache() -> Path:
+    """The folder of packed mesh files: ``simrun/packs`` in the user cache folder (``XDG_CACHE_HOME``)."""
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("simrun")) / "packs"
+
+
+def _pack_sources(packed: PackedMesh, src: Path) -> list[Path]:
+    """The files a cached pack of ``src`` was made from (the mesh, its MTLs and textures), as its metadata says."""
+    found = []
+    for source in packed.meta.get("sources", []):
+        path = src.parent / str(source.get("path", "")) if isinstance(source, dict) else None
+        if path is not None and path.is_file():
+            found.append(path)
+    return found
 
 
 def read_image_file(path: Path, shown: str) -> bytes:

@@ -70,6 +70,42 @@ class Camera:
     elevation: float = -25.0
 
 
+#: ``--camera follow:ENTITY``: a camera that follows the entity (:func:`follow_camera`).
+FOLLOW = "follow:"
+
+
+def follow_camera(model: mujoco.MjModel, data: mujoco.MjData | None, entity: str) -> mujoco.MjvCamera:
+    """A camera that follows ``entity``'s body: MuJoCo's tracking camera, looking at its subtree's centre of mass.
+
+    It keeps the direction of the scene's main camera (azimuth and elevation of its view axis) and its
+    distance to the entity at the start, so the first frame looks as the main view does with the entity in
+    the middle; without a main camera it looks down 25 degrees from 1.2 m (a table-top robot's framing).
+
+    Raises:
+        SimrunError: No body is named ``entity``.
+    """
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, entity)
+    if body <= 0:
+        bodies = [model.body(k).name for k in range(1, model.nbody) if "/" not in model.body(k).name]
+        raise SimrunError(f"{FOLLOW}{entity}: no entity named {entity!r} (entities: {', '.join(bodies) or 'none'})")
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+    cam.trackbodyid = body
+    cam.distance, cam.azimuth, cam.elevation = 1.2, 90.0, -25.0
+    main = int(model.vis.global_.cameraid)
+    if data is not None and 0 <= main < model.ncam:
+        start = mujoco.MjData(model)  # the start's poses, computed aside: the simulated data is never touched
+        start.qpos[:], start.mocap_pos[:], start.mocap_quat[:] = data.qpos, data.mocap_pos, data.mocap_quat
+        mujoco.mj_kinematics(model, start)
+        mujoco.mj_comPos(model, start)
+        mujoco.mj_camlight(model, start)
+        forward = -np.asarray(start.cam_xmat[main]).reshape(3, 3)[:, 2]  # MuJoCo cameras look along -Z
+        cam.azimuth = float(np.degrees(np.arctan2(forward[1], forward[0])))
+        cam.elevation = float(np.degrees(np.arcsin(np.clip(forward[2], -1.0, 1.0))))
+        cam.distance = float(np.linalg.norm(start.cam_xpos[main] - start.subtree_com[body]))
+    return cam
+
+
 class FrameRenderer:
     """Renders frames of a model in one mode from a named camera, the main view, or a free camera.
 
@@ -78,8 +114,9 @@ class FrameRenderer:
         width: Pixels.
         height: Pixels.
         mode: One of :data:`MODES` (``none`` cannot render).
-        camera: A camera name; ``None`` uses the model's main view (``vis.global.cameraid``) or a free camera.
-        data: With a free camera, frame the bodies' current positions.
+        camera: A camera name; ``follow:ENTITY`` a camera following that entity (:func:`follow_camera`);
+            ``None`` uses the model's main view (``vis.global.cameraid``) or a free camera.
+        data: With a free camera, frame the bodies' current positions; with ``follow:``, the start's poses.
     """
 
     def __init__(
@@ -93,10 +130,14 @@ class FrameRenderer:
     ) -> None:
         if mode == "none":
             raise SimrunError("render mode 'none' draws nothing")
-        if camera is not None:
+        follow = camera[len(FOLLOW) :] if camera is not None and camera.startswith(FOLLOW) else None
+        if camera is not None and follow is None:
             names = [model.camera(k).name for k in range(model.ncam)]
             if camera not in names:
-                raise SimrunError(f"no camera named {camera!r} (cameras: {', '.join(names) or 'none'})")
+                raise SimrunError(
+                    f"no camera named {camera!r} (cameras: {', '.join(names) or 'none'}; "
+                    f"{FOLLOW}ENTITY follows an entity)"
+                )
         self.model, self.mode, self.option = model, mode, scene_option(mode)
         model.vis.quality.offsamples = 0  # no multisampling: CPU rendering stays fast
         model.vis.quality.shadowsize = 1024
@@ -109,7 +150,9 @@ class FrameRenderer:
             model.vis.scale.contactwidth, model.vis.scale.contactheight = 0.05, 0.01
             model.vis.scale.forcewidth, model.vis.map.force = 0.02, 0.05
         self.camera: Any
-        if camera is not None:
+        if follow is not None:
+            self.camera = follow_camera(model, data, follow)
+        elif camera is not None:
             self.camera = camera
         elif model.vis.global_.cameraid >= 0:
             self.camera = int(model.vis.global_.cameraid)

@@ -28,7 +28,10 @@ def test_normalize_text_output(run, fixtures, tmp_path):
         f"wrote {tmp_path / 'head_1'}: 61 vertices, 80 triangles, 1 material(s), 1 texture(s), "
         "extent 0.16 x 0.2 x 0.24 m\n"
     )
-    assert result.stderr == "note: 4 more finding(s) that changed nothing (MESHTOOL_VERBOSE=1 shows them)\n"
+    assert result.stderr == (
+        "warning: Head 1.obj: up axis y (rotated +90 degrees about X to Z-up): exported by 3ds Max, whose OBJ "
+        "export is Y-up by default [up-axis]\nnote: 3 more note(s) on how the input was read (-v shows them)\n"
+    )
     assert sorted(p.name for p in (tmp_path / "head_1").iterdir()) == [
         "asset.json",
         "head_1.mtl",
@@ -41,8 +44,10 @@ def test_warnings_go_to_stderr(run, fixtures, tmp_path):
     result = run("normalize", fixtures / HEAD, "-o", tmp_path)
     assert result.exit_code == 0
     assert result.stderr.strip() == (
-        "warning: Head 1.obj: 24.0 m tall: if it was modelled in centimetres, pass --units cm (0.24 m) "
-        "[scale-suspicious]\nnote: 4 more finding(s) that changed nothing (MESHTOOL_VERBOSE=1 shows them)"
+        "warning: Head 1.obj: up axis y (rotated +90 degrees about X to Z-up): exported by 3ds Max, whose OBJ "
+        "export is Y-up by default [up-axis]\nwarning: Head 1.obj: 24.0 m tall: if it was modelled in "
+        "centimetres, pass --units cm (0.24 m) [scale-suspicious]\n"
+        "note: 3 more note(s) on how the input was read (-v shows them)"
     )
 
 
@@ -114,7 +119,7 @@ def test_strict(run, fixtures, tmp_path):
     result = run("normalize", fixtures / "missing_mtl" / "box.obj", "-o", tmp_path, "--strict")
     assert result.exit_code == 1
     assert result.stderr == (
-        "error: box.obj: 2 warning(s) in strict mode, first: warning: box.obj:1: mtl 'gone.mtl' not found "
+        "error: box.obj: 3 warning(s) in strict mode, first: warning: box.obj:1: mtl 'gone.mtl' not found "
         "[mtl-missing] (fix the input or drop --strict)\n"
     )
     assert list(tmp_path.iterdir()) == []

@@ -133,7 +133,7 @@ def test_case_mismatch_is_repaired(fixtures):
         ("Textures\\Wood.PNG", "case-insensitive", "textures/wood.png"),
     ]
     assert "model.png" not in asset.files and "wood.png" in asset.files
-    assert not any(f.severity.value == "warning" for f in asset.findings)
+    assert not any(f.severity.value == "warning" for f in asset.findings if f.code != "up-axis")
 
 
 def test_missing_texture_keeps_the_colour(fixtures):
@@ -165,8 +165,12 @@ def test_strict_turns_warnings_into_failure(fixtures, tmp_path):
     with pytest.raises(StrictModeError, match="warning"):
         normalise_to(fixtures / "missing_texture" / "panel.obj", tmp_path / "out", NormaliseOptions(strict=True))
     assert not (tmp_path / "out").exists()
-    folder, _ = normalise_to(fixtures / "case_mismatch" / "model.obj", tmp_path / "ok", NormaliseOptions(strict=True))
+    # with the up axis said (no guessed rotation, issue 31) a repaired asset passes --strict
+    ok = NormaliseOptions(strict=True, up="y")
+    folder, _ = normalise_to(fixtures / "case_mismatch" / "model.obj", tmp_path / "ok", ok)
     assert folder.is_dir()
+    with pytest.raises(StrictModeError, match=r"\[up-axis\]"):  # the guessed rotation is a warning
+        normalise_to(fixtures / "case_mismatch" / "model.obj", tmp_path / "guess", NormaliseOptions(strict=True))
 
 
 @pytest.mark.parametrize(

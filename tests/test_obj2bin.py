@@ -258,8 +258,8 @@ def test_a_folder_conversion_prints_each_assets_warnings_under_its_name(fixtures
         text=True,
         timeout=300,
     )
-    warning = next(line for line in single.stderr.splitlines() if line.startswith("warning: "))
-    assert "scale-suspicious" in warning
+    warning = next(line for line in single.stderr.splitlines() if "scale-suspicious" in line)
+    assert warning.startswith("warning: ")
     folder = subprocess.run(
         [exe, str(src), "-o", str(tmp_path / "out"), "-j", jobs], capture_output=True, text=True, timeout=300
     )
@@ -267,7 +267,7 @@ def test_a_folder_conversion_prints_each_assets_warnings_under_its_name(fixtures
     lines = folder.stderr.splitlines()
     for name in ("a", "b"):
         at = lines.index(f"{src / name / 'Head 1.obj'}:")
-        assert lines[at + 1] == f"  {warning}"
+        assert f"  {warning}" in lines[at + 1 : at + 3]  # after the up-axis rotation's warning (issue 31)
     quiet = subprocess.run(
         [exe, str(src), "-o", str(tmp_path / "q"), "-j", jobs, "-q"], capture_output=True, text=True, timeout=300
     )

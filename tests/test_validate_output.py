@@ -24,8 +24,19 @@ def assets(tmp_path: Path) -> Path:
     return folder
 
 
-def validate(*args: str) -> tuple[int, str]:
-    result = CliRunner().invoke(main, ["validate", "--no-cache", "--no-thumbnails", *args])
+@pytest.fixture(scope="module")
+def checked(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The assets (never changed by the tests using them) and a result cache they share."""
+    folder = tmp_path_factory.mktemp("checked") / "assets"
+    folder.mkdir()
+    shutil.copy(SOURCE, folder / "box.obj")
+    shutil.copy(WARNED, folder / "cubes.obj")
+    return folder, folder.parent / "cache"
+
+
+def validate(*args: str, cache: Path | None = None) -> tuple[int, str]:
+    caching = ["--cache-dir", str(cache)] if cache is not None else ["--no-cache"]
+    result = CliRunner().invoke(main, ["validate", *caching, "--no-thumbnails", *args])
     return result.exit_code, result.output
 
 
@@ -52,10 +63,11 @@ def test_another_file_is_replaced_only_with_force(assets: Path, tmp_path: Path) 
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
-def test_an_earlier_report_of_every_format_is_replaced(assets: Path, tmp_path: Path, fmt: str) -> None:
+def test_an_earlier_report_of_every_format_is_replaced(checked: tuple[Path, Path], tmp_path: Path, fmt: str) -> None:
+    assets, cache = checked
     report = tmp_path / f"report.{fmt}"
-    for _ in range(2):
-        code, output = validate(str(assets), "--format", fmt, "-o", str(report))
+    for _ in range(2):  # the findings come from a shared cache after the first check: what is tested is the file
+        code, output = validate(str(assets), "--format", fmt, "-o", str(report), cache=cache)
         assert code in (0, 1) and "wrote" in output, output
     assert is_report(report.read_bytes())
 

@@ -75,6 +75,7 @@ _TABLE: list[tuple[str, str, Severity, str, str]] = [
     ("G009", "coplanar", W, "all vertices lie in one plane: no volume, collision hulls get thickened", "use a solid, or treat it as visual only"),
     ("G010", "tiny-volume", W, "a closed mesh with almost no volume (under 1 mm^3 or a sliver of its box)", "check the scale, or model the part as a solid"),
     ("G011", "vertex-count", W, "more vertices than the budget (limits.max-vertices)", "decimate the mesh, or raise the budget"),
+    ("G012", "part-padded", W, "a part with fewer than 4 distinct vertices was padded with a sliver triangle so MuJoCo loads it (its edges show in G005/G007)", "model the part with at least 4 vertices, or join it to another part of its material"),
     ("U001", "scale-implausible", W, "the largest extent in metres is outside 1 mm .. 10 m", "export in metres, or pass --units / --scale when converting"),
     ("C001", "hull-count", W, "more collision hulls than the budget (limits.max-hulls)", "decompose with a smaller --max-hulls"),
     ("C002", "hull-vertices", W, "a collision hull has more vertices than the budget (limits.max-hull-vertices)", "re-pack with --max-hull-vertices"),

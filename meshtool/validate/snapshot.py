@@ -8,10 +8,11 @@ file read (:mod:`meshtool.validate.cache`), and the Dask executor ships the fold
 (:mod:`meshtool.validate.ship`).
 
 An OBJ's result also depends on folders above it (:mod:`meshtool.modelroot`, :mod:`meshtool.consumers`):
-a model-root marker (``package.xml``, ``model.config``, a URDF) up to :data:`meshtool.modelroot.MAX_LEVELS`
-folders up opens the whole model root to references, and description files (URDF, SDF, MJCF) there say
-the mesh's unit and frame. :func:`dependency_listings` covers those: the OBJ's folder and the model root
-recursively, and in each folder above the OBJ the markers and description files (names and SHA-256).
+a model-root marker (``package.xml``, ``model.config`` up to :data:`meshtool.modelroot.MAX_MARKER_LEVELS`
+folders up, a URDF up to :data:`meshtool.modelroot.MAX_LEVELS`) opens the whole model root to references,
+and description files (URDF, SDF, MJCF) there say the mesh's unit and frame. :func:`dependency_listings`
+covers those: the OBJ's folder and the model root recursively, and in each folder above the OBJ the markers
+and description files (names and SHA-256).
 
 The listing does not follow links into folders (a link is recorded with its target) and stops at
 :data:`MAX_ENTRIES` entries: an asset in a bigger folder is checked but not cached. The cache folder is left
@@ -28,7 +29,7 @@ from pathlib import Path
 
 from meshtool.consumers import SUFFIXES as DESCRIPTION_SUFFIXES
 from meshtool.errors import MeshtoolError
-from meshtool.modelroot import MARKERS, MAX_LEVELS, find_model_root
+from meshtool.modelroot import MARKERS, MAX_LEVELS, MAX_MARKER_LEVELS, find_model_root
 from meshtool.safeopen import read_file
 
 #: Entries listed under one asset folder at most (beyond: no listing, so the result is not cached).
@@ -133,5 +134,5 @@ def dependency_listings(obj: Path, exclude: Path | None = None) -> dict[str, str
     root = find_model_root(here)
     if root is not None and root.folder != here:
         keys.append(f"tree:{root.folder}")
-    keys.extend(f"dir:{folder}" for folder in [here, *here.parents][1 : MAX_LEVELS + 1])
+    keys.extend(f"dir:{folder}" for folder in [here, *here.parents][1 : max(MAX_LEVELS, MAX_MARKER_LEVELS) + 1])
     return {key: listing_digest(key, exclude) for key in keys}

@@ -47,6 +47,7 @@ FROM_NORMALISER: dict[str, str] = {
     "non-finite-vertices": "G001",
     "no-faces": "G002",
     "degenerate-faces": "G003",
+    "part-padded": "G012",
     "scale-suspicious": "U001",
     "stl-normals-disagree": "S012",
     "stl-trailing-data": "S011",
