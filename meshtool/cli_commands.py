@@ -14,25 +14,27 @@ import stat
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from meshtool import __version__
 from meshtool.changes import TOLD_NOTES, split_findings
-from meshtool.cli_common import VocabularyCommand, exit_on_bug, progress_enabled, quiet_requested
-from meshtool.convert import ConvertOptions, ConvertResult, convert, convert_tree, tree_jobs
+from meshtool.cli_common import EXIT_INPUT, VocabularyCommand, exit_on_bug, fail, progress_enabled, quiet_requested
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, Severity
-from meshtool.hulls import MODES, PRESETS, HullOptions, compute_hulls, quality
-from meshtool.mesh import safe_identifier
-from meshtool.normalise import NormaliseOptions, normalise_to, prepare, safe_file_stem
-from meshtool.outdir import overwrite_allowed, write_folder
-from meshtool.packfile import load
+from meshtool.formats import mesh_suffixes, suffix
+from meshtool.hull_options import MODES, PRESETS, HullOptions
+from meshtool.outdir import overwrite_allowed
 from meshtool.resolve import find_files
-from meshtool.units import UNIT_FACTORS
 
-EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+#: The --units names (meshtool.units.UNIT_FACTORS, which imports numpy; tests/test_perf_startup.py checks
+#: they agree). Start-up (issue 28): the library is imported inside each command, so ``--help`` stays light.
+UNITS = ("m", "cm", "mm", "in", "ft")
+
+if TYPE_CHECKING:
+    from meshtool.convert import ConvertOptions, ConvertResult
+    from meshtool.normalise import NormaliseOptions
 
 force_option = click.option(
     "--force",
@@ -58,7 +60,7 @@ def normalise_options(func: Callable[..., Any]) -> Callable[..., Any]:
     decorators = [
         click.option(
             "--units",
-            type=click.Choice([*UNIT_FACTORS, "auto"]),
+            type=click.Choice([*UNITS, "auto"]),
             default=None,
             help="Unit the source was modelled in (default m); auto: what a URDF/SDF/MJCF using the mesh says.",
         ),
@@ -149,6 +151,8 @@ def hull_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 def _normalise_options(kw: dict[str, Any], **overrides: Any) -> NormaliseOptions:
     """Build :class:`NormaliseOptions` from the click keywords (removing them from ``kw``), then ``overrides``."""
+    from meshtool.normalise import NormaliseOptions
+
     values = {key: kw.pop(key) for key in ("units", "scale", "up", "search_paths", "strict")}
     values.update(overrides)
     return NormaliseOptions(**values)
@@ -205,7 +209,10 @@ def normalize(
     **normalise_kw: Any,
 ) -> None:
     """Normalise SRC (OBJ, STL, PLY, glTF/GLB or COLLADA) into OUTPUT/NAME/: metres, Z-up, PNG textures."""
-    with _guard(as_json), overwrite_allowed(force):
+    from meshtool.normalise import normalise_to
+    from meshtool.progress import subject
+
+    with _guard(as_json), overwrite_allowed(force), subject(src.name):
         options = _normalise_options(normalise_kw, name=name)
         folder, asset = normalise_to(src, out_dir, options)
     if as_json:
@@ -236,6 +243,14 @@ def normalize(
     is_flag=True,
     help="Do not compile the packed asset in MuJoCo before writing it (the check needs simrun installed).",
 )
+@click.option(
+    "--mjcf",
+    "mjcf_dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    default=None,
+    help="Also (without -o: only) write a MuJoCo model as MJCF_DIR/STEM/ (STEM.xml, meshes, textures), "
+    "as meshtool mjcf does.",
+)
 @force_option
 @normalise_options
 @hull_options
@@ -245,22 +260,31 @@ def obj2bin(
     quantize: bool,
     jobs: int,
     no_check: bool,
+    mjcf_dir: Path | None,
     force: bool,
     as_json: bool,
     **kw: Any,
 ) -> None:
     """Convert SRC (OBJ, STL, PLY, glTF/GLB, COLLADA; or a folder of them) to .mbin: normalised, hulls, packed."""
+    from meshtool.convert import ConvertOptions, convert
+    from meshtool.normalise import safe_file_stem
+
     if out is None and _is_folder(src):  # a usage error (exit 2), as a missing argument is
         raise click.UsageError("a folder needs -o OUTDIR")
+    if mjcf_dir is not None and _is_folder(src):
+        raise click.UsageError("--mjcf takes one mesh file; for a folder: obj2bin DIR -o OUT, then meshtool mjcf OUT")
     with _guard(as_json):
         hulls = _hull_options(kw)
         options = ConvertOptions(
             _normalise_options(kw), quantize, hulls, check=not no_check, check_cache=_check_cache(hulls.cache_dir)
         )
+        if mjcf_dir is not None:
+            _obj2bin_mjcf(src, out, mjcf_dir, options, force, as_json)
+            return
         if _is_folder(src) and out is not None:
             _convert_folder(src, out, options, jobs, as_json, force)
             return
-        default_name = f"{safe_file_stem(src.stem) or 'asset'}.mbin"
+        default_name = f"{safe_file_stem(src.stem) or 'asset'}{suffix('mbin')}"
         target = out / default_name if out is not None and _is_folder(out) else out or Path(default_name)
         result = convert(src, target, options, force=force)
     if as_json:
@@ -268,6 +292,27 @@ def obj2bin(
         return
     click.echo(f"wrote {result.output}: {_summary(result.stats)}, {result.stats['bytes']} bytes")
     _echo_findings(result.findings)
+
+
+def _obj2bin_mjcf(
+    src: Path, out: Path | None, mjcf_dir: Path, options: ConvertOptions, force: bool, as_json: bool
+) -> None:
+    """``obj2bin SRC --mjcf DIR [-o OUT.mbin]``: one pack in memory, its MJCF folder, and the .mbin when asked."""
+    from meshtool.mesh_mjcf import mesh_mjcf
+    from meshtool.normalise import safe_file_stem
+
+    target = None
+    if out is not None:
+        target = out / f"{safe_file_stem(src.stem) or 'asset'}{suffix('mbin')}" if _is_folder(out) else out
+    xml, packed, findings = mesh_mjcf(src, mjcf_dir, options, force=force, mbin=target)
+    if as_json:
+        shown = {"status": "ok", "output": str(xml), "mbin": str(target) if target else None}
+        click.echo(json.dumps({**shown, "findings": [f.to_dict() for f in findings], "stats": packed.stats}))
+        return
+    if target is not None:
+        click.echo(f"wrote {target}: {_summary(packed.stats)}, {packed.stats['bytes']} bytes")
+    click.echo(f"wrote {xml}")
+    _echo_findings(findings)
 
 
 def _is_folder(path: Path) -> bool:
@@ -279,12 +324,13 @@ def _is_folder(path: Path) -> bool:
 
 
 def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as_json: bool, force: bool) -> None:
+    from meshtool.convert import convert_tree, tree_jobs
+
     results: list[ConvertResult] = []
     total = len(tree_jobs(src, out))
     stream = convert_tree(src, out, options, jobs, force=force)
-    if progress_enabled() and not as_json:  # on stderr (click's default is stdout), only on a terminal
-        with click.progressbar(stream, length=total, label="converting", file=sys.stderr) as bar:
-            results.extend(bar)
+    if progress_enabled() and not as_json:  # the progress line on stderr names each file and stage
+        results.extend(stream)
     else:
         for k, result in enumerate(stream, start=1):
             results.append(result)
@@ -329,7 +375,11 @@ def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as
 @hull_options
 def hulls(src: Path, as_json: bool, **kw: Any) -> None:
     """Compute the collision hulls of SRC (a mesh file) and report their quality; writes nothing."""
-    with _guard(as_json):
+    from meshtool.hulls import compute_hulls, quality
+    from meshtool.normalise import prepare
+    from meshtool.progress import subject
+
+    with _guard(as_json), subject(src.name):
         strict = bool(kw["strict"])  # here strict judges the hulls, not the normaliser
         options = _hull_options(kw)
         asset = prepare(src, _normalise_options(kw, strict=False))
@@ -360,15 +410,43 @@ def _hull_summary(report: dict[str, Any]) -> str:
 @click.option("--free-joint", is_flag=True, help="Give each body a free joint.")
 @click.option("--density", type=float, default=1000.0, show_default=True, help="Collision density, kg/m^3.")
 @click.option("--mass", type=float, default=None, help="Total body mass in kg (overrides --density).")
+@click.option(
+    "--units",
+    type=click.Choice([*UNITS, "auto"]),
+    default=None,
+    help="For a mesh file: the unit it was modelled in (as obj2bin --units).",
+)
+@click.option(
+    "--up", type=click.Choice(["auto", "y", "z"]), default="auto", help="For a mesh file: its up axis (as obj2bin)."
+)
 @force_option
-def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float | None, force: bool) -> None:
-    """Write a MuJoCo model for SRC (an .mbin, or a folder searched for .mbin files)."""
-    from meshtool.mjcf import MjcfOptions, build_mjcf
-    from meshtool.normalmaps import mujoco_findings
+def mjcf(
+    src: Path,
+    out_dir: Path,
+    free_joint: bool,
+    density: float,
+    mass: float | None,
+    units: str | None,
+    up: str,
+    force: bool,
+) -> None:
+    """Write a MuJoCo model for SRC: an .mbin, a mesh file (packed first, as obj2bin does) or a folder of .mbin."""
+    from meshtool.convert import ConvertOptions
+    from meshtool.mjcf import MjcfOptions, write_mjcf
+    from meshtool.normalise import NormaliseOptions, safe_file_stem
+    from meshtool.packfile import load
 
     with _guard(False):
         options = MjcfOptions(free_joint=free_joint, density=density, mass=mass)
-        sources = find_files(src, ".mbin") if _is_folder(src) else [src]
+        if src.suffix.lower() in mesh_suffixes() and not _is_folder(src):
+            from meshtool.mesh_mjcf import mesh_mjcf
+
+            convert_options = ConvertOptions(NormaliseOptions(units=units, up=up))
+            xml, _, findings = mesh_mjcf(src, out_dir, convert_options, options, force=force)
+            click.echo(f"wrote {xml}")
+            _echo_findings(findings)
+            return
+        sources = find_files(src, suffix("mbin")) if _is_folder(src) else [src]
         if not sources:
             raise OptionsError(f"no .mbin files under {src}")
         stems = [safe_file_stem(p.stem) or "asset" for p in sources]
@@ -377,13 +455,12 @@ def mjcf(src: Path, out_dir: Path, free_joint: bool, density: float, mass: float
             raise OptionsError(f"two .mbin files would both become {safe_file_stem(clash.stem)!r}", hint="rename one")
         told: list[Finding] = []
         for path in sources:
-            name = safe_file_stem(path.stem) or "asset"
             with load(path) as packed:
-                files = build_mjcf(packed, name, options)
-                told += mujoco_findings(packed.materials, path.name)
-            manifest = json.dumps({"source": str(path)}).encode()
-            folder = write_folder(out_dir, name, {**files, "asset.json": manifest}, force=force, inputs=sources)
-            click.echo(f"wrote {folder / (safe_identifier(name, 'asset') + '.xml')}")
+                xml, found = write_mjcf(
+                    packed, out_dir, safe_file_stem(path.stem) or "asset", path, options, force=force, inputs=sources
+                )
+            told += found
+            click.echo(f"wrote {xml}")
     _echo_told(told)
 
 
@@ -399,7 +476,7 @@ def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str
 
 @click.command("urdf")
 @click.argument("robot", type=click.Path(path_type=Path, dir_okay=False))
-@output_dir_option("Folder for NAME.xml (MJCF), its .msh meshes and PNG textures, and meshes/*.mbin.")
+@output_dir_option("Folder for NAME.xml (MJCF), its OBJ meshes and PNG textures, and meshes/*.mbin.")
 @click.option(
     "--package-dir",
     "package_dirs",
@@ -439,7 +516,7 @@ def urdf(
         _echo_findings(result.findings)
         write_import(result, out_dir)
         click.echo(
-            f"wrote {out_dir / (result.name + '.xml')}: {len(result.links)} links, {len(result.joints)} moving "
+            f"wrote {out_dir / (result.name + suffix('mjcf'))}: {len(result.links)} links, {len(result.joints)} moving "
             f"joints, {len(result.mbins)} mesh(es) in {out_dir / 'meshes'}"
         )
 
@@ -464,7 +541,7 @@ def _echo_findings(findings: list[Finding]) -> None:
 def _echo_grouped(groups: list[tuple[str | None, list[Finding]]]) -> None:
     """The findings of each asset, under its name when it has one (a folder conversion); nothing with ``-q``.
 
-    Warnings are shown, notes that changed nothing only with ``-v`` (else counted in one closing line), and
+    Warnings are shown, notes on how the input was read only with ``-v`` (else counted in one closing line), and
     the :data:`~meshtool.changes.TOLD_NOTES` once per code for the whole command.
     """
     if quiet_requested():
@@ -483,7 +560,7 @@ def _echo_grouped(groups: list[tuple[str | None, list[Finding]]]) -> None:
             click.echo(("  " if heading is not None else "") + finding.one_line(), err=True)
     _echo_told(told)
     if hidden:
-        click.echo(f"note: {hidden} more finding(s) that changed nothing (MESHTOOL_VERBOSE=1 shows them)", err=True)
+        click.echo(f"note: {hidden} more note(s) on how the input was read (-v shows them)", err=True)
 
 
 def _echo_told(told: list[Finding]) -> None:
@@ -504,11 +581,10 @@ def _guard(as_json: bool) -> Iterator[None]:
     try:
         yield
     except MeshtoolError as exc:
-        click.echo(f"error: {exc.one_line()}", err=True)
-        if as_json:
+        if as_json:  # the command's own JSON document (normalize, obj2bin --json)
             click.echo(
                 json.dumps({"status": "error", "output": None, "error": exc.to_dict(), "findings": [], "stats": None})
             )
-        sys.exit(EXIT_INPUT)
+        fail(exc)
     except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
         exit_on_bug(exc)

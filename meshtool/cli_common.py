@@ -27,11 +27,12 @@ import os
 import sys
 import warnings
 from collections.abc import Iterator, Sequence
-from typing import Any, NoReturn
+from typing import Any, NoReturn, Protocol, runtime_checkable
 
 import click
 
-from meshtool.progress import reporting
+from meshtool.progress import Display, reporting
+from meshtool.safeopen import printable
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 #: Exit code for each kind of outcome, the same in every command (docs/cli.md).
@@ -49,6 +50,8 @@ EXIT_CODES: dict[str, int] = {
 DEBUG_VARIABLES = {"meshtool": "MESHTOOL_DEBUG", "obj2bin": "MESHTOOL_DEBUG", "simrun": "SIMRUN_DEBUG"}
 #: ``-q`` of the command running now: its findings (warnings, notes) are not printed either (errors are).
 _QUIET: contextvars.ContextVar[bool] = contextvars.ContextVar("meshtool_quiet", default=False)
+#: The error the running command reported through :func:`fail`, with its fields (``--json`` shows them).
+_ERROR: contextvars.ContextVar[dict[str, object] | None] = contextvars.ContextVar("meshtool_error", default=None)
 
 
 def quiet_requested() -> bool:
@@ -56,12 +59,56 @@ def quiet_requested() -> bool:
     return _QUIET.get()
 
 
-def exit_on_bug(exc: Exception) -> NoReturn:
-    """Say that meshtool failed (a bug: please report it) and exit 3; re-raise with ``MESHTOOL_DEBUG`` set."""
-    if os.environ.get("MESHTOOL_DEBUG"):
+def exit_on_bug(exc: Exception, program: str = "meshtool") -> NoReturn:
+    """Say that the tool failed (a bug: please report it) and exit 3; re-raise with its debug variable set."""
+    variable = DEBUG_VARIABLES.get(program, "MESHTOOL_DEBUG")
+    if os.environ.get(variable):
         raise exc
-    click.echo(f"internal error: {type(exc).__name__}: {exc} (please report; MESHTOOL_DEBUG=1 shows more)", err=True)
+    message = _single_line(f"{type(exc).__name__}: {exc}")
+    click.echo(f"internal error: {message} (please report; {variable}=1 shows more)", err=True)
     sys.exit(EXIT_INTERNAL)
+
+
+@runtime_checkable
+class ReportedError(Protocol):
+    """What meshtool's and simrun's errors share (``MeshtoolError``, ``SimrunError``): one line and fields."""
+
+    def one_line(self) -> str:
+        """The error in one line: where, what, how to fix it."""
+
+    def to_dict(self) -> dict[str, object]:
+        """Its fields, JSON-ready."""
+
+
+def exit_code_of(exc: BaseException) -> int:
+    """The one mapping of errors to exit codes (:data:`EXIT_CODES`, docs/cli.md).
+
+    An error of meshtool or simrun exits with its kind's ``exit_code`` where it has one (usage errors: 2; a
+    validation whose executor failed: 3) and 1 otherwise (an input, check or output refused); anything else
+    is a bug: 3.
+    """
+    if not isinstance(exc, ReportedError):
+        return EXIT_INTERNAL
+    code = getattr(exc, "exit_code", None)
+    return code if isinstance(code, int) and code in (EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL) else EXIT_INPUT
+
+
+def fail(exc: Exception, program: str = "meshtool", prefix: str = "error") -> NoReturn:
+    """Report ``exc`` and exit with :func:`exit_code_of`: one ``PREFIX: ...`` line on stderr, its fields for ``--json``.
+
+    A bug (not an error of the project's) goes to :func:`exit_on_bug`.
+    """
+    if not isinstance(exc, ReportedError):
+        exit_on_bug(exc, program)
+    line = _single_line(exc.one_line())
+    _ERROR.set({**exc.to_dict(), "message": line})
+    click.echo(f"{prefix}: {line}", err=True)
+    sys.exit(exit_code_of(exc))
+
+
+def _single_line(text: str) -> str:
+    r"""Messages (MuJoCo's among them) may hold line breaks: joined with ``; ``; stray bytes shown as ``\xNN``."""
+    return printable("; ".join(part.strip() for part in text.splitlines() if part.strip()))
 
 
 def executor_options(func: Any) -> Any:
@@ -94,59 +141,45 @@ def executor_options(func: Any) -> Any:
 
 def progress_enabled() -> bool:
     """Whether to draw progress: only on a terminal's stderr (never into a pipe, a log or a JSON stream)."""
+    return _is_tty(sys.stderr)
+
+
+def _is_tty(stream: Any) -> bool:
     try:
-        return sys.stderr.isatty()
+        return bool(stream.isatty())
     except (AttributeError, ValueError):
         return False
 
 
-class Progress:
-    """A progress display on stderr for long work on one file (stages, parts); silent when not on a terminal.
+class Progress(Display):
+    """A progress display on stderr for long work (stages, parts); silent when not on a terminal.
 
-    Use as a callback ``progress(label, done, total)``; the line is redrawn in place and cleared at the end.
+    :class:`meshtool.progress.Display` on ``sys.stderr``: a spinner, the file, the stage, the elapsed time.
     """
 
     def __init__(self, enabled: bool | None = None) -> None:
-        self.enabled = progress_enabled() if enabled is None else enabled
-        self.stream = sys.stderr
-        self._shown = False
-
-    def __call__(self, label: str, done: int = 0, total: int = 0) -> None:
-        """Show ``label`` and, when ``total``, ``done/total``."""
-        if not self.enabled:
-            return
-        count = f" {done}/{total}" if total else ""
-        self.stream.write(f"\r\x1b[K{label}{count}")
-        self.stream.flush()
-        self._shown = True
-
-    def close(self) -> None:
-        """Clear the line."""
-        if self.enabled and self._shown:
-            self.stream.write("\r\x1b[K")
-            self.stream.flush()
-            self._shown = False
+        super().__init__(sys.stderr, enabled)
 
 
 class _ClearFirst(io.TextIOBase):
-    """stderr that clears a shown progress line before anything else is written to it."""
+    """A stream (stdout, stderr) of the progress line's terminal: the line is cleared before text is written."""
 
-    def __init__(self, display: Progress) -> None:
+    def __init__(self, display: Progress, target: Any = None) -> None:
         super().__init__()
         self.display = display
+        self.target = display.stream if target is None else target
 
     def write(self, text: str) -> int:
         """Clear the progress line, then write."""
-        self.display.close()
-        return self.display.stream.write(text)
+        return self.display.write_above(self.target, text)
 
     def flush(self) -> None:
         """Flush the terminal."""
-        self.display.stream.flush()
+        self.target.flush()
 
     def isatty(self) -> bool:
         """The terminal's answer."""
-        return bool(self.display.stream.isatty())
+        return bool(self.target.isatty())
 
 
 def _flags(args: Sequence[str]) -> tuple[bool, bool, int]:
@@ -266,12 +299,13 @@ def vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
 @contextlib.contextmanager
 def _vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
     as_json, quiet, verbose = _flags(args)
-    token = _QUIET.set(quiet)
+    token, reported = _QUIET.set(quiet), _ERROR.set(None)
     try:
         with _run_vocabulary(name, as_json, quiet, verbose, program):
             yield
     finally:
         _QUIET.reset(token)
+        _ERROR.reset(reported)
 
 
 @contextlib.contextmanager
@@ -286,6 +320,8 @@ def _run_vocabulary(name: str, as_json: bool, quiet: bool, verbose: int, program
             with reporting(display if display.enabled else None), contextlib.ExitStack() as stack:
                 if display.enabled:
                     stack.enter_context(contextlib.redirect_stderr(_ClearFirst(display)))
+                    if not quiet and _is_tty(sys.stdout):  # the same terminal: a line never runs into the progress
+                        stack.enter_context(contextlib.redirect_stdout(_ClearFirst(display, sys.stdout)))
                 if quiet:
                     with contextlib.redirect_stdout(io.StringIO()):
                         yield
@@ -332,8 +368,9 @@ def _emit_json(name: str, out: str, err: str, code: int) -> None:
     document: dict[str, Any] = {"status": "ok" if code == EXIT_OK else "error", "command": name, "exit_code": code}
     document["output"] = [line for line in out.splitlines() if line.strip()]
     if code != EXIT_OK:
+        reported = _ERROR.get()
         message = (errors or verdicts or [line for line in lines if line.strip()][-1:] or ["failed"])[0]
-        document["error"] = {"message": message}
+        document["error"] = reported if reported is not None else {"message": message}
     sys.stdout.write(json.dumps(document) + "\n")
     sys.stdout.flush()
 

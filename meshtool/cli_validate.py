@@ -10,21 +10,32 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 import platformdirs
 
-from meshtool.cli_common import executor_options, exit_on_bug
-from meshtool.errors import MeshtoolError, OutputError
+from meshtool.cli_common import EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, executor_options, exit_on_bug, fail
+from meshtool.errors import MeshtoolError
 from meshtool.outdir import write_file
-from meshtool.validate import FORMATS, ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
-from meshtool.validate import validate as run_validate
-from meshtool.validate.reports import check_report_output
-from meshtool.validate.reports.text import summary_lines, to_text
-from meshtool.validate.task import AssetResult
 
-EXIT_OK, EXIT_FINDINGS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+if TYPE_CHECKING:
+    from meshtool.validate.task import AssetResult
+
+
+def run_validate(*args: Any, **kwargs: Any) -> Any:
+    """:func:`meshtool.validate.validate`, imported when a validation runs (it loads the rules, trimesh among them)."""
+    from meshtool.validate import validate
+
+    return validate(*args, **kwargs)
+
+
+#: Report formats (meshtool.validate.reports.FORMATS; importing meshtool.validate loads the rules, trimesh
+#: among them: tests/test_perf_startup.py checks they agree). ``validate --help`` imports none of it.
+FORMATS = ("text", "json", "junit", "github", "html")
+
+#: A check failed: the findings fail the run (docs/cli.md: exit 1).
+EXIT_FINDINGS = EXIT_INPUT
 
 
 def default_jobs() -> int:
@@ -89,10 +100,14 @@ def validate_command(
     force: bool,
 ) -> None:
     """Check OBJ sources and .mbin packs under PATHS against the rules of docs/validate-rules.md."""
+    from meshtool.validate import ConfigError, ValidateError, ValidateOptions, find_config, load_config, render
+    from meshtool.validate.reports import check_report_output
+    from meshtool.validate.reports.text import summary_lines, to_text
+
     if scheduler and executor != "dask":
-        _usage("--scheduler needs --executor dask")
+        _usage(ConfigError("--scheduler needs --executor dask"))
     if changed_only and no_cache:
-        _usage("--changed-only needs the cache (drop --no-cache)")
+        _usage(ConfigError("--changed-only needs the cache (drop --no-cache)"))
     want_thumbnails = fmt == "html" if thumbnails is None else thumbnails
     # The OpenGL backend of thumbnails is chosen by the physics plugin (simrun): EGL, then OSMesa, headless.
     try:
@@ -121,18 +136,13 @@ def validate_command(
         if output is not None:
             write_file(output, text.encode("utf-8"))
     except ConfigError as exc:
-        _usage(exc.one_line())
+        _usage(exc)
     except ValidateError as exc:
         if exc.usage:
-            _usage(exc.one_line())
-        click.echo(f"error: {exc.one_line()}", err=True)
-        sys.exit(exc.exit_code)
-    except OutputError as exc:  # the report could not be written where -o says: the user's to fix
-        click.echo(f"error: {exc.one_line()}", err=True)
-        sys.exit(EXIT_FINDINGS)
-    except MeshtoolError as exc:  # an input refused: exit 1 as in every command (docs/cli.md); bugs are exit 3
-        click.echo(f"error: {exc.one_line()}", err=True)
-        sys.exit(EXIT_FINDINGS)
+            _usage(exc)
+        fail(exc)
+    except MeshtoolError as exc:  # an input or output refused: exit 1 as in every command (docs/cli.md)
+        fail(exc)
     except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
         exit_on_bug(exc)
     if output is None:
@@ -146,9 +156,8 @@ def validate_command(
     sys.exit(EXIT_FINDINGS if report.failed(strict) else EXIT_OK)
 
 
-def _usage(message: str) -> None:
-    click.echo(f"usage error: {message}", err=True)
-    sys.exit(EXIT_USAGE)
+def _usage(exc: MeshtoolError) -> NoReturn:
+    fail(exc, prefix="usage error")  # its kind says exit 2
 
 
 def _colour(output: Path | None) -> bool:

@@ -21,6 +21,7 @@ from pathlib import Path
 from urllib.parse import unquote
 
 from meshtool.errors import ResolveError
+from meshtool.formats import DESCRIPTION_SUFFIXES
 from meshtool.modelroot import ModelRoot
 from meshtool.resolve import list_names
 from meshtool.safeopen import read_file
@@ -29,7 +30,7 @@ from meshtool.safeopen import read_file
 MAX_BYTES = 4 * 1024 * 1024
 #: Most description files read per OBJ.
 MAX_FILES = 64
-SUFFIXES = (".urdf", ".sdf", ".xml", ".world")
+SUFFIXES = DESCRIPTION_SUFFIXES  # the formats registry's
 _URI = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*)://")
 
 

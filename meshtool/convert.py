@@ -16,6 +16,7 @@ from typing import Any
 
 from meshtool.errors import MeshtoolError, OutputError, PackFormatError, StrictModeError
 from meshtool.findings import Finding
+from meshtool.formats import mesh_suffixes, suffix
 from meshtool.hulls import HullOptions, compute_hulls, quality
 from meshtool.lifeline import die_with_parent
 from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
@@ -23,7 +24,9 @@ from meshtool.normalmaps import mujoco_findings
 from meshtool.outdir import check_output, refuse_inputs, write_file
 from meshtool.packfile import load, pack
 from meshtool.progress import report as report_progress
+from meshtool.progress import subject as progress_subject
 from meshtool.resolve import file_sha256, find_files
+from meshtool.safeopen import printable
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,6 +96,44 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
     """
     options = options or ConvertOptions()
     refuse_inputs(out, [src])  # before any work: `obj2bin box.obj -o box.obj`
+    packed = pack_file(src, options)
+    check_output(out, "mbin", force=force, inputs=[src, *packed.inputs], data=packed.data)
+    write_file(out, packed.data)
+    return ConvertResult(src, out, "written", packed.findings, packed.stats)
+
+
+@dataclass(slots=True)
+class Packed:
+    """An ``.mbin`` made in memory by :func:`pack_file`.
+
+    Attributes:
+        data: The file's bytes.
+        findings: The normaliser's, the hulls' and MuJoCo's findings.
+        stats: Counts and sizes (as :attr:`ConvertResult.stats`).
+        inputs: The files the conversion read besides the source (MTLs, textures).
+    """
+
+    data: bytes
+    findings: list[Finding]
+    stats: dict[str, Any]
+    inputs: list[Path]
+
+
+def pack_file(src: Path, options: ConvertOptions | None = None) -> Packed:
+    """Normalise ``src`` (OBJ, STL, PLY, glTF/GLB, COLLADA), compute its hulls and pack it, in memory.
+
+    The one path from a mesh file to an ``.mbin``: :func:`convert` writes it, ``obj2bin --mjcf`` and
+    ``meshtool mjcf MESH`` build a MuJoCo model from it, simrun scenes use it for a mesh file asset.
+
+    Raises:
+        MeshtoolError: The input cannot be converted, or MuJoCo refuses the packed asset (with ``options.check``).
+    """
+    options = options or ConvertOptions()
+    with progress_subject(printable(src.name)):
+        return _pack_file(src, options)
+
+
+def _pack_file(src: Path, options: ConvertOptions) -> Packed:
     report_progress("reading and normalising")
     asset = prepare(src, options.normalise)
     report_progress("collision hulls")
@@ -114,14 +155,12 @@ def convert(src: Path, out: Path, options: ConvertOptions | None = None, *, forc
         findings += skipped
     roots = [src.parent, *options.normalise.search_paths]
     used = [_source_path(str(s.get("path", "")), roots) for s in _files(asset.manifest.get("sources", []))]
-    check_output(out, "mbin", force=force, inputs=[src, *(p for p in used if p is not None)], data=data)
-    write_file(out, data)
     stats = dict(asset.stats)
     stats["bytes"] = len(data)
     stats["hulls"] = report or {"hulls": 0}
     stats["hull_cache_hits"] = hull_set.cache_hits
     stats["mujoco_check"] = checked
-    return ConvertResult(src, out, "written", findings, stats)
+    return Packed(data, findings, stats, [p for p in used if p is not None])
 
 
 def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
@@ -136,7 +175,17 @@ def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
     except (PackFormatError, MeshtoolError):
         return False
     try:
-        meta = packed.meta
+        return is_current(packed.meta, src, options)
+    finally:
+        packed.close()
+
+
+def is_current(meta: Any, src: Path, options: ConvertOptions) -> bool:
+    """Whether the pack with metadata ``meta`` was made from the current ``src`` with ``options``.
+
+    The options and the SHA-256 of every source file (the mesh, its MTLs and textures) must match.
+    """
+    try:
         if meta.get("options") != options.fingerprint():
             return False
         roots = [src.parent, *options.normalise.search_paths]
@@ -147,8 +196,6 @@ def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
         return bool(meta.get("sources"))
     except (KeyError, TypeError, AttributeError, ValueError):  # a hostile or foreign META: not up to date
         return False
-    finally:
-        packed.close()
 
 
 def _files(sources: list[dict[str, str]]) -> list[dict[str, str]]:
@@ -173,23 +220,21 @@ def _source_path(shown: str, roots: list[Path]) -> Path | None:
 def tree_jobs(src_dir: Path, out_dir: Path) -> list[tuple[Path, Path]]:
     """Every mesh file under ``src_dir`` (sorted) with its ``.mbin`` path under ``out_dir``, same layout.
 
-    Mesh files have a suffix of :data:`meshtool.readers.MESH_SUFFIXES`.
+    Mesh files have a suffix of :func:`meshtool.formats.mesh_suffixes`.
 
     Files of one folder whose stems clash (``box.obj`` and ``box.stl``) get the suffix appended to all but
     the first in sorted order (``box.mbin``, ``box_stl.mbin``).
     """
-    from meshtool.readers import MESH_SUFFIXES
-
     jobs = []
     taken: set[Path] = set()
-    found = sorted({p for suffix in MESH_SUFFIXES for p in find_files(src_dir, suffix)})
+    found = sorted({p for ext in mesh_suffixes() for p in find_files(src_dir, ext)})
     for src in found:
         rel = src.relative_to(src_dir)
         folder = out_dir.joinpath(*(safe_file_stem(p) or "_" for p in rel.parts[:-1]))
         stem = safe_file_stem(src.stem) or "asset"
-        out = folder / f"{stem}.mbin"
+        out = folder / f"{stem}{suffix('mbin')}"
         if out in taken:
-            out = folder / f"{stem}_{src.suffix.lower().lstrip('.')}.mbin"
+            out = folder / f"{stem}_{src.suffix.lower().lstrip('.')}{suffix('mbin')}"
         taken.add(out)
         jobs.append((src, out))
     return jobs
@@ -226,10 +271,24 @@ def convert_tree(
         clash = next(o for o in outputs if outputs.count(o) > 1)
         raise OutputError("two sources map to the same output", path=str(clash), hint="rename one of them")
     if jobs <= 1:
-        for src, out in work:
-            yield _run(src, out, options, force)
+        for k, (src, out) in enumerate(work, start=1):
+            with progress_subject(f"[{k}/{len(work)}] {printable(src.name)}"):
+                result = _run(src, out, options, force)
+            yield result
         return
     with ProcessPoolExecutor(max_workers=jobs, initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
-        futures = [pool.submit(_run, src, out, options, force) for src, out in work]
+        futures = {pool.submit(_run, src, out, options, force): src for src, out in work}
+        pending = dict(futures)
+        report_progress(_waiting(pending, jobs), 0, len(work))
         for future in as_completed(futures):
+            del pending[future]
+            report_progress(_waiting(pending, jobs), len(work) - len(pending), len(work))
             yield future.result()
+
+
+def _waiting(pending: dict[Any, Path], jobs: int) -> str:
+    """``converting``, and the files still running once no more wait for a worker (the last, slow ones)."""
+    if not pending or len(pending) > jobs:
+        return "converting"
+    names = sorted(printable(p.name) for p in pending.values())
+    return f"converting (still running: {', '.join(names)})"

@@ -4,7 +4,7 @@ meshtool never imports MuJoCo: ``meshtool mjcf`` and ``meshtool urdf`` describe 
 (:class:`ModelDesc`: bodies, joints, inertials, geoms, meshes as arrays, PNG textures, materials,
 equalities, motors) and hand it to the *MJCF builder*, a callable registered under the entry-point group
 ``meshtool.mjcf`` with the name ``builder``. simrun registers :func:`simrun.mjcf_builder.build_files`,
-which builds a ``mujoco.MjSpec``, writes the XML with its ``.msh`` meshes and PNG textures, and compiles
+which builds a ``mujoco.MjSpec``, writes the XML with its OBJ meshes and PNG textures, and compiles
 the written folder before returning it. Without simrun installed, :func:`mjcf_files` raises
 :class:`ModelError` with the hint to install it. The same group's ``check`` plugin
 (:func:`simrun.mjcf_builder.check_model`) only compiles a model in memory: :func:`check_model` is how
@@ -49,7 +49,7 @@ class MeshDesc:
     """A triangle mesh given as arrays.
 
     Attributes:
-        name: Unique mesh name (also the stem of its ``.msh`` file).
+        name: Unique mesh name (also the stem of its ``.obj`` file).
         vertices: ``(n, 3)`` positions in metres, in the frame of the geoms that use it.
         faces: ``(k, 3)`` vertex indices, counter-clockwise seen from outside.
         normals: ``(n, 3)`` unit vertex normals, or ``None``.
@@ -217,7 +217,7 @@ class MjcfBuilder(Protocol):
     """The signature of the ``meshtool.mjcf`` builder plugin."""
 
     def __call__(self, model: ModelDesc) -> dict[str, bytes]:
-        """The files of the compiled-and-checked model: ``NAME.xml``, ``*.msh`` and ``*.png``, flat.
+        """The files of the compiled-and-checked model: ``NAME.xml``, ``*.obj`` and ``*.png``, flat.
 
         Raises:
             ModelError: MuJoCo refuses the model (its message and the element at fault).

@@ -255,3 +255,25 @@ def vertex_tangents(
     tangent /= size[:, None]
     w = np.where(np.sum(np.cross(n, tangent) * tan_v, axis=1) < 0.0, -1.0, 1.0)
     return np.column_stack([tangent, w]).astype(np.float32)
+
+
+def vertex_normals(positions: npt.NDArray[np.float64], faces: npt.NDArray[np.int64]) -> npt.NDArray[np.float64]:
+    """Unit per-vertex normals ``(n, 3)``: the face normals around each vertex weighted by their corner angle.
+
+    For a normal map on a mesh that stores no normals (glTF's ``TANGENT`` needs a ``NORMAL``). A vertex of
+    degenerate faces only gets ``(0, 0, 0)``.
+    """
+    p = np.asarray(positions, dtype=np.float64)[faces]
+    face_normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    length = np.linalg.norm(face_normal, axis=1, keepdims=True)
+    face_normal = np.divide(face_normal, length, out=np.zeros_like(face_normal), where=length > 0)
+    summed = np.zeros((len(positions), 3))
+    for corner in range(3):
+        a = p[:, (corner + 1) % 3] - p[:, corner]
+        b = p[:, (corner + 2) % 3] - p[:, corner]
+        cos = np.sum(a * b, axis=1) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300)
+        angle = np.arccos(np.clip(cos, -1.0, 1.0))
+        np.add.at(summed, faces[:, corner], face_normal * angle[:, None])
+    size = np.linalg.norm(summed, axis=1, keepdims=True)
+    result: npt.NDArray[np.float64] = np.divide(summed, size, out=np.zeros_like(summed), where=size > 0)
+    return result

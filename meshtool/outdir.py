@@ -29,7 +29,6 @@ import os
 import re
 import shutil
 import stat
-import struct
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -37,6 +36,9 @@ from typing import Any, NoReturn
 
 from meshtool import __version__
 from meshtool.errors import OutputError
+from meshtool.formats import OutputFormat, output_for, output_named
+from meshtool.recognise import GENERATORS as GENERATORS
+from meshtool.recognise import read_head
 
 SAFE_FILE = re.compile(r"^[a-z0-9_][a-z0-9_.-]*$")
 MARKER = "asset.json"
@@ -44,12 +46,7 @@ MARKER = "asset.json"
 MARKER_KEY = "meshtool_output"
 #: What meshtool records as the writer of GLB (``asset.generator``) and USD (``customLayerData.generator``).
 GENERATOR = f"meshtool {__version__}"
-#: Generators whose files count as meshtool outputs (simrun writes through meshtool's writer).
-GENERATORS = ("meshtool", "simrun")
-#: File kinds :func:`check_output` recognises, by suffix.
-KINDS = {".mbin": "mbin", ".glb": "glb", ".usd": "usd", ".usda": "usd", ".usdc": "usd", ".msh": "msh"}
 FORCE_HINT = "choose another output path, remove it, or pass --force to replace it"
-_HEAD_LIMIT = 64 << 20  # bytes read to recognise an existing output (a GLB's JSON chunk)
 
 _FORCE: contextvars.ContextVar[bool] = contextvars.ContextVar("meshtool_force_overwrite", default=False)
 
@@ -113,19 +110,24 @@ def check_output(
     inputs: Iterable[Path] = (),
     data: bytes | None = None,
     recognise: tuple[str, Callable[[bytes], bool]] | None = None,
+    any_of_kind: bool = False,
 ) -> None:
     """Refuse to replace ``out`` unless it is a meshtool output of ``kind`` (see the module docstring).
 
     Args:
         out: The file about to be written.
-        kind: ``mbin``, ``glb``, ``usd`` or ``msh``; ``None`` infers it from the suffix (an unknown suffix
-            has no recognisable kind: an existing file is replaced only when ``data`` equals it, or forced).
+        kind: An output of :data:`meshtool.formats.OUTPUTS` (``mbin``, ``glb``, ``usd``...); ``None`` infers it
+            from the suffix (an unknown suffix has no recognisable kind: an existing file is replaced only when
+            ``data`` equals it, or forced).
         force: Replace a file that is not meshtool's (never an input); ``None`` uses
             :func:`overwrite_allowed`'s setting.
         inputs: Files this run reads; ``out`` may never be one of them.
         data: The bytes about to be written; an existing file with exactly these bytes may be replaced.
         recognise: For outputs without a kind of their own (reports): what they are called and a test of an
             existing file's first 64 KiB that says it is one (then it may be replaced).
+        any_of_kind: Also replace files of kinds recognised only by their magic number or root element (rows
+            with ``marked`` false: PNG, GIF, MP4, MJCF XML, ``.mjz``, ``.simlog``), as simrun's writers do; a
+            meshtool command refuses those unless forced.
 
     Raises:
         OutputError: ``out`` is an input, not a regular file, or an existing file meshtool did not write.
@@ -147,7 +149,7 @@ def check_output(
             path=str(out),
             hint=FORCE_HINT,
         )
-    kind = kind or KINDS.get(out.suffix.lower())
+    row = output_named(kind) if kind else _inferred(out, any_of_kind)
     if data is not None and info.st_size == len(data) and read_head(out, len(data)) == data:
         return
     if recognise is not None:
@@ -155,9 +157,15 @@ def check_output(
         if not test(read_head(out, 1 << 16) or b""):
             raise OutputError(f"exists and is not {what}; not replacing it", path=str(out), hint=FORCE_HINT)
         return
-    if kind is None or not _RECOGNISERS[kind](out, info.st_size):
-        what = f"a meshtool {kind} output" if kind else "written by meshtool"
+    if row is None or not row.recogniser()(out, info.st_size):
+        what = f"a {row.owner} {row.name} output" if row else "written by meshtool"
         raise OutputError(f"exists and is not {what}; not replacing it", path=str(out), hint=FORCE_HINT)
+
+
+def _inferred(out: Path, any_of_kind: bool) -> OutputFormat | None:
+    """The output row of ``out``'s suffix, when its recogniser tells our files apart (or ``any_of_kind``)."""
+    row = output_for(out)
+    return row if row is not None and (row.marked or any_of_kind) else None
 
 
 def write_output(
@@ -166,88 +174,6 @@ def write_output(
     """:func:`check_output`, then :func:`write_file`."""
     check_output(out, kind, force=force, inputs=inputs, data=data)
     write_file(out, data)
-
-
-def read_head(path: Path, limit: int) -> bytes | None:
-    """Up to ``limit`` bytes of a regular file (never follows a link, never blocks on a pipe)."""
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
-    except OSError:
-        return None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return None
-        chunks, left = [], limit
-        while left > 0:
-            chunk = os.read(fd, min(left, 1 << 20))
-            if not chunk:
-                break
-            chunks.append(chunk)
-            left -= len(chunk)
-        return b"".join(chunks)
-    except OSError:
-        return None
-    finally:
-        os.close(fd)
-
-
-def _is_mbin(path: Path, size: int) -> bool:
-    from meshtool.errors import MeshtoolError
-    from meshtool.packfile.format import MAGIC
-    from meshtool.packfile.read import load
-
-    if read_head(path, len(MAGIC)) != MAGIC:
-        return False
-    try:
-        with load(path, verify=False) as packed:
-            tool = packed.meta.get("tool")
-            return isinstance(tool, dict) and bool(tool.get("name") == "meshtool")
-    except MeshtoolError:
-        return False
-
-
-def _is_glb(path: Path, size: int) -> bool:
-    head = read_head(path, 20)
-    if head is None or len(head) < 20 or head[:4] != b"glTF":
-        return False
-    version, _, json_length, chunk = struct.unpack("<IIII", head[4:20])
-    if version != 2 or chunk != 0x4E4F534A or json_length > min(size, _HEAD_LIMIT):
-        return False
-    body = read_head(path, 20 + json_length)
-    try:
-        tree = json.loads((body or b"")[20:])
-        generator = tree["asset"]["generator"]
-    except (ValueError, KeyError, TypeError, RecursionError):  # not a GLB meshtool wrote
-        return False
-    return isinstance(generator, str) and generator.startswith(GENERATORS)
-
-
-def _is_usd(path: Path, size: int) -> bool:
-    head = read_head(path, 16) or b""
-    if not (head.startswith(b"#usda ") or head.startswith(b"PXR-USDC")):
-        return False
-    try:
-        from pxr import Sdf
-
-        layer = Sdf.Layer.OpenAsAnonymous(str(path))
-        generator = dict(layer.customLayerData).get("generator") if layer is not None else None
-    except Exception:  # usd-core raises Tf errors of its own for unreadable layers
-        return False
-    return isinstance(generator, str) and generator.startswith(GENERATORS)
-
-
-def _is_msh(path: Path, size: int) -> bool:
-    """MuJoCo's legacy MSH has no magic or metadata: the four counts must account for the size exactly."""
-    head = read_head(path, 16)
-    if head is None or len(head) < 16:
-        return False
-    nv, nn, nt, nf = struct.unpack("<4i", head)
-    if min(nv, nn, nt, nf) < 0 or nv == 0:
-        return False
-    return bool(16 + 4 * (3 * nv + 3 * nn + 2 * nt + 3 * nf) == size)
-
-
-_RECOGNISERS = {"mbin": _is_mbin, "glb": _is_glb, "usd": _is_usd, "msh": _is_msh}
 
 
 def stamp_glb(tree: dict[str, Any]) -> None:

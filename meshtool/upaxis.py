@@ -1,10 +1,12 @@
 """``--up auto``: which axis of an OBJ is up, decided from evidence, strongest first.
 
 1. A file meshtool wrote says so in its header (Z-up).
-2. A consumer file (URDF, SDFormat or MJCF beside the OBJ or up to its model root) references the mesh:
-   those formats are Z-up and use mesh coordinates unrotated, so the mesh is Z-up.
+2. A consumer file (URDF, SDFormat or MJCF beside the OBJ, in a folder up to its model root, or in one of
+   the root's subfolders such as a ROS package's sibling ``urdf/``) references the mesh: those formats are
+   Z-up and use mesh coordinates unrotated, so the mesh is Z-up.
 3. The OBJ lies in a model root of a Z-up tool (Gazebo ``model.config``/``model.sdf``, a ROS
-   ``package.xml`` or a URDF) even though no file found references it.
+   ``package.xml`` found up to the repository root, or a URDF; :func:`meshtool.modelroot.find_model_root`)
+   even though no file found references it.
 4. A name says it: the file or one of its folders is called like ``z_up``/``zup``/``z-up`` (or ``y_up``).
 5. An exporter header says it (``Up axis: Z``, ``+Z up``), or names an exporter whose OBJ default is
    Y-up (Blender, Maya, 3ds Max, Wings 3D).
@@ -26,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from meshtool.consumers import ConsumerRef
+from meshtool.formats import mesh_format, mesh_format_named
 from meshtool.modelroot import ModelRoot
 
 FloatArray = npt.NDArray[np.float64]
@@ -110,16 +113,9 @@ def decide_up(
     return UpDecision("y", "default", f"no evidence of the frame: {_default_reason(src)}")
 
 
-#: Formats read with the OBJ default (no up axis of their own), by suffix.
-_NO_CONVENTION = {".ply": "PLY", ".stl": "STL"}
-
-
 def _default_reason(src: Path) -> str:
-    """Why Y-up, naming the format: OBJ's convention, or a format that has none and is read like OBJ."""
-    name = _NO_CONVENTION.get(src.suffix.lower())
-    if name is None:
-        return "the OBJ convention (Y-up) assumed"
-    return f"{name} defines no up axis; Y-up assumed, as for OBJ"
+    """Why Y-up: the format's fallback in the formats registry (OBJ's convention, or a format read like OBJ)."""
+    return (mesh_format(src) or mesh_format_named("obj")).fallback_reason
 
 
 def _geometry(positions: FloatArray) -> UpDecision | None:

@@ -107,7 +107,7 @@ class UrdfImport:
     sources: list[Path] = field(default_factory=list)
 
     def mjcf(self) -> dict[str, bytes]:
-        """``NAME.xml`` with its ``.msh`` meshes and PNG textures, built and compiled by the MJCF builder.
+        """``NAME.xml`` with its OBJ meshes and PNG textures, built and compiled by the MJCF builder.
 
         Raises:
             ModelError: No builder is installed, or MuJoCo refuses the model.

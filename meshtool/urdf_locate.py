@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from meshtool.errors import MeshtoolError, ResolveError
+from meshtool.formats import mesh_suffixes
 from meshtool.modelroot import MAX_LEVELS
-from meshtool.readers import MESH_SUFFIXES
 from meshtool.resolve import Resolver, find_package_dir, list_names
 from meshtool.safeopen import MIB, printable, read_file
 
@@ -102,7 +102,7 @@ class MeshLocator:
                 **where,
                 hint="move it into the package, or pass --allow-outside",
             )
-        if real.suffix.lower() not in MESH_SUFFIXES:
+        if real.suffix.lower() not in mesh_suffixes():
             raise UrdfError(f"mesh {ref!r}: unsupported type {real.suffix!r}", **where)
         resolver = Resolver(root)
         try:

@@ -26,11 +26,10 @@ from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare, safe_
 from meshtool.normalmaps import mujoco_findings
 from meshtool.packfile import pack
 from meshtool.packfile.read import parse
-from meshtool.readers import MESH_SUFFIXES, placed_up
+from meshtool.readers import placed_up
 from meshtool.safeopen import printable
 from meshtool.urdf_locate import FoundMesh, UrdfError
 
-MESH_TYPES = MESH_SUFFIXES
 Scale = tuple[float, float, float]
 
 
@@ -147,4 +146,4 @@ def mesh_prefix(found: Path, taken: set[str]) -> str:
     return prefix
 
 
-__all__ = ["MESH_TYPES", "Hull", "LoadedMesh", "UrdfError", "load_mesh", "mesh_prefix", "mesh_sources", "parse_scale"]
+__all__ = ["Hull", "LoadedMesh", "UrdfError", "load_mesh", "mesh_prefix", "mesh_sources", "parse_scale"]

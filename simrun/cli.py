@@ -11,32 +11,26 @@ from pathlib import Path
 from typing import Any
 
 import click
-import numpy as np
-from PIL import Image
 
-from meshtool.cli_common import VocabularyGroup, progress_enabled
+from meshtool.cli_common import EXIT_INPUT, VocabularyGroup, fail
 from meshtool.safeopen import printable
-from simrun import __version__, model_cache
-from simrun.archive import save_mjz
-from simrun.doctor import check_environment
+from simrun import __version__
 from simrun.errors import SimrunError
-from simrun.glb_export import export_world_glb
-from simrun.mjcf_builder import export_world_mjcf
 from simrun.outfile import output_policy, write_bytes
-from simrun.play import encode_gif, encode_mp4
-from simrun.render import MODES, FrameRenderer
-from simrun.scene import load_scene
 from simrun.scenetest.cli import test_command
-from simrun.session import DEFAULT_SIZE, PlayOptions, run_play, run_resim
-from simrun.simlog import Simlog, check_model, check_scene, replay_states
-from simrun.teleop import run_viewer
-from simrun.usd_export import export_world_usd
 
-#: Exit codes (README, simrun section): 0 ok; 1 the input is invalid or the check failed (a scene, commands
-#: file, recording or controller refused, a re-simulation that differs); 2 usage; 3 simrun itself failed.
-EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
-#: Set to 1 to get the traceback of an internal error (exit 3) instead of its one-line summary.
-DEBUG_VARIABLE = "SIMRUN_DEBUG"
+# Before anything imports numpy: single-threaded OpenBLAS (its idle threads spin; see meshtool/cli.py).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# Start-up (issue 28): this module imports click and simrun's light modules only; numpy, Pillow, MuJoCo and
+# the exporters (glb_export -> trimesh) are imported inside the command that uses them, so ``simrun --help``
+# and every ``simrun COMMAND --help`` stay close to a bare click program (tests/test_perf_startup.py).
+#: Render modes (simrun.render.MODES, which imports MuJoCo; tests/test_perf_startup.py checks they agree).
+MODES = ("visual", "wireframe", "physics", "combined", "none")
+#: The default image size (simrun.session.DEFAULT_SIZE, checked equal by tests/test_perf_startup.py).
+DEFAULT_SIZE = (640, 480)
+
+#: Exit codes: the one table of :data:`meshtool.cli_common.EXIT_CODES` (docs/cli.md), mapped by
+#: :func:`meshtool.cli_common.fail`. ``SIMRUN_DEBUG=1`` gives the traceback of an internal error (exit 3).
 
 
 class _Group(VocabularyGroup):
@@ -53,7 +47,8 @@ class _Group(VocabularyGroup):
         try:
             return self._mapped(ctx)
         finally:  # a damaged or foreign compiled-model cache entry: compiled again, said once
-            for note in model_cache.notes():
+            model_cache = sys.modules.get("simrun.model_cache")  # no cache opened when it was never imported
+            for note in model_cache.notes() if model_cache is not None else ():
                 click.echo(f"note: {note}", err=True)
 
     def _mapped(self, ctx: click.Context) -> Any:
@@ -61,23 +56,8 @@ class _Group(VocabularyGroup):
             return super().run_command(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
-        except SimrunError as exc:  # its kind decides the exit code (errors.py): 1, or 2 for a usage error
-            click.echo(f"error: {_one_line(str(exc))}", err=True)
-            sys.exit(exc.exit_code)
-        except Exception as exc:
-            if os.environ.get(DEBUG_VARIABLE):
-                raise
-            message = _one_line(f"{type(exc).__name__}: {exc}")
-            click.echo(f"internal error: {message} (please report; {DEBUG_VARIABLE}=1 shows more)", err=True)
-            sys.exit(EXIT_INTERNAL)
-
-
-def _one_line(text: str) -> str:
-    r"""Messages (MuJoCo's among them) may hold line breaks; the error stays on one line.
-
-    File names that are not UTF-8 show their stray bytes as ``\xNN`` (as meshtool's messages do).
-    """
-    return printable("; ".join(part.strip() for part in text.splitlines() if part.strip()))
+        except Exception as exc:  # one mapping (meshtool.cli_common.fail): its kind decides 1 or 2; a bug is 3
+            fail(exc, "simrun")
 
 
 class _Number(click.ParamType):  # type: ignore[type-arg]
@@ -125,6 +105,8 @@ main.add_command(test_command)  # simrun test: scene tests with [[expect]] (simr
 @click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON object.")
 def doctor(as_json: bool) -> None:
     """Check MuJoCo: version, compile and step a model, which GL backend renders and which headless ones start."""
+    from simrun.doctor import check_environment
+
     report = check_environment()
     if as_json:
         choice = report.choice
@@ -147,6 +129,10 @@ def doctor(as_json: bool) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
 def check(scene: Path, seconds: float, as_json: bool) -> None:
     """Load SCENE, compile it, bind its services and sensors, and step it; fail on any warning or non-finite state."""
+    import numpy as np
+
+    from simrun.scene import load_scene
+
     world = load_scene(scene)
     world.check_bindings()
     world.run(seconds)
@@ -180,7 +166,7 @@ def check(scene: Path, seconds: float, as_json: bool) -> None:
     "--mjcf",
     type=click.Path(path_type=Path, dir_okay=False),
     default=None,
-    help="Write MJCF XML with its .msh meshes and PNG textures beside it (a folder that loads on its own).",
+    help="Write MJCF XML with its .obj meshes and PNG textures beside it (a folder that loads on its own).",
 )
 @click.option(
     "--mjz",
@@ -214,19 +200,31 @@ def export(
     """Export SCENE as MJCF (a self-contained folder), a compiled binary model, USD and/or GLB."""
     if mjcf is None and mjz is None and usd is None and glb is None:
         raise click.UsageError("give --mjcf, --mjz, --usd and/or --glb")
+    from simrun.scene import load_scene
+
     with output_policy(force, [scene]):
         world = load_scene(scene)
         world.compile()
         if mjcf is not None:
+            from simrun.mjcf_builder import export_world_mjcf
+
             written = export_world_mjcf(world, mjcf)
             click.echo(f"wrote {mjcf} and {len(written) - 1} mesh and texture file(s) beside it")
         if mjz is not None:
+            from simrun.archive import save_mjz
+
             save_mjz(world, mjz)
             click.echo(f"wrote {mjz}")
         if usd is not None:
-            export_world_usd(world, usd)
+            from simrun.usd_export import export_world_usd
+
+            unmapped = export_world_usd(world, usd)
             click.echo(f"wrote {usd}")
+            for gap in unmapped:  # no UsdPhysics counterpart: listed, not silently dropped (docs/interop.md)
+                click.echo(f"note: {usd}: not in the USD: {gap}", err=True)
         if glb is not None:
+            from simrun.glb_export import export_world_glb
+
             export_world_glb(world, glb, collision=glb_collision)
             click.echo(f"wrote {glb}")
 
@@ -265,7 +263,12 @@ def _size(text: str) -> tuple[int, int]:
     default=None,
     help="visual | wireframe | physics | combined | none (default: visual with --video/--frames, else none).",
 )
-@click.option("--camera", default=None, help="Camera name (default: the main view, else a free camera).")
+@click.option(
+    "--camera",
+    default=None,
+    help="Camera name, or follow:ENTITY for a camera following that entity (default: the main view, else a free "
+    "camera).",
+)
 @click.option("--size", default=DEFAULT_SIZE_TEXT, show_default=True, help="Frame size WxH.")
 @click.option("--fps", type=FPS, default=15.0, show_default=True, help="Frames per simulated second.")
 @click.option("--realtime", is_flag=True, help="Do not run faster than the wall clock.")
@@ -304,6 +307,8 @@ def play_command(
     record_as: str | None = None,
 ) -> None:
     """Run SCENE headless: timed commands, optional video or frames, and a summary."""
+    from simrun.session import PlayOptions, run_play
+
     width, height = _size(size)
     watchable = None
     if record_as is not None:
@@ -331,17 +336,10 @@ def play_command(
         chosen,
     )
     with output_policy(force, [scene, commands_file]):
-        bar = None
-        if progress_enabled() and not as_json:  # on stderr, only on a terminal (stdout stays the summary)
-            bar = click.progressbar(length=int(duration * 1000), label="simulating", file=sys.stderr)
-            bar.__enter__()
-        done = [0]
+        from meshtool.progress import report, subject
 
-        def progress(t: float) -> None:
-            if bar is not None:
-                now = int(min(t, duration) * 1000)
-                bar.update(now - done[0])
-                done[0] = now
+        def progress(t: float) -> None:  # the progress line on a terminal's stderr (meshtool.progress.Display)
+            report("simulated seconds", int(min(t, duration)), max(int(duration), 1))
 
         written = []
         if watchable is not None:
@@ -349,9 +347,9 @@ def play_command(
 
             for target in watchable.values():
                 check_output(target)  # refused before simulating, like --video and --record
-        result = run_play(scene, options, progress)
-        if bar is not None:
-            bar.__exit__(None, None, None)
+        with subject(scene.name):
+            report("loading the scene and compiling it in MuJoCo")
+            result = run_play(scene, options, progress)
         if record is not None and watchable is not None:
             from simrun.replay_export import export_recording
 
@@ -385,6 +383,7 @@ _OUT = click.Path(path_type=Path, dir_okay=False)
 @click.option("--gltf", type=_OUT, default=None, help="The same as one .gltf file (buffers as data: URIs).")
 @click.option("--usd", type=_OUT, default=None, help="USD (.usd/.usda/.usdc): the physics export + time samples.")
 @click.option("--html", type=_OUT, default=None, help="A page that plays the recording in a browser, offline.")
+@click.option("--mcap", type=_OUT, default=None, help="MCAP with Foxglove schemas: body transforms, poses, sensors.")
 @click.option(
     "--render-mode", type=click.Choice([m for m in MODES if m != "none"]), default="visual", show_default=True
 )
@@ -416,6 +415,7 @@ def replay(
     gltf: Path | None = None,
     usd: Path | None = None,
     html: Path | None = None,
+    mcap: Path | None = None,
     tolerance: float = 1e-3,
     force: bool = False,
 ) -> None:
@@ -426,8 +426,15 @@ def replay(
     """
     width, height = _size(size)
     outputs = {k: v for k, v in (("glb", glb), ("gltf", gltf), ("usd", usd), ("html", html)) if v is not None}
-    if video is None and not outputs:
-        raise click.UsageError("give --video, --glb, --gltf, --usd and/or --html")
+    if video is None and not outputs and mcap is None:
+        raise click.UsageError("give --video, --glb, --gltf, --usd, --html and/or --mcap")
+    if mcap is not None:
+        from simrun.mcap_export import export_mcap
+
+        with output_policy(force, [log]):
+            summary = export_mcap(log, mcap)
+        topics = ", ".join(f"{topic} {n}" for topic, n in summary.messages.items())
+        click.echo(f"wrote {mcap} ({summary.size} bytes; messages: {topics}) from {printable(log)}")
     if outputs:
         from simrun.replay_export import export_recording
 
@@ -437,6 +444,12 @@ def replay(
     if video is None:
         return
     fps = 15.0 if fps is None else fps
+    from simrun.play import encode_gif, encode_mp4
+    from simrun.render import FrameRenderer
+    from simrun.scene import load_scene
+    from simrun.session import video_kind
+    from simrun.simlog import Simlog, check_model, check_scene, replay_states
+
     with output_policy(force, [log]):
         recording = Simlog(log)
         scene = recording.scene_path()
@@ -450,7 +463,7 @@ def replay(
                 frames.append(renderer.render(world.data))
                 next_frame += 1.0 / fps
         recording.close()
-        if video.suffix.lower() == ".gif":
+        if video_kind(video) == "gif":
             write_bytes(video, encode_gif(frames, fps))
         else:
             encode_mp4(frames, fps, video)
@@ -480,10 +493,76 @@ def resim(log: Path, start: float, controller: Path | None) -> None:
     --controller; it runs only if its SHA-256 equals the recorded one. The recorded scene path is
     relative to the recording, so this works from any folder.
     """
+    from simrun.session import run_resim
+
     compared, mismatch = run_resim(log, start, controller)
     if mismatch is not None:
         raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
     click.echo(f"{printable(log)}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
+
+
+@main.command("serve")
+@click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (others need --token).")
+@click.option("--port", type=click.IntRange(0, 65535), default=8765, show_default=True, help="TCP port (0: any free).")
+@click.option("--realtime/--lockstep", default=True, help="Run with the wall clock, or step only on POST /api/step.")
+@click.option("--rate", type=_Number(0.01, 1000.0), default=1.0, show_default=True, help="Real-time factor.")
+@click.option("--paused", is_flag=True, help="Start paused.")
+@click.option("--record", type=_OUT, default=None, help="Record the session to this .simlog (written at shutdown).")
+@click.option(
+    "--record-as",
+    type=click.Choice(["simlog", "mcap"]),
+    default="simlog",
+    show_default=True,
+    help="mcap: also write the recording as MCAP beside it (same name, .mcap).",
+)
+@click.option("--record-sensors", default=None, help="Comma-separated sensor names whose readings --record keeps.")
+@click.option("--seed", type=int, default=None, help="Reseed every sensor's noise (sensor k gets seed + k).")
+@click.option("--token", envvar="SIMRUN_TOKEN", default=None, help="Bearer token every request must carry.")
+@click.option(
+    "--foxglove-port", type=click.IntRange(0, 65535), default=None,
+    help="Also stream /tf and laser scans in the Foxglove WebSocket protocol on 127.0.0.1 (0: any free port).",
+)  # fmt: skip
+@click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
+def serve_command(
+    scene: Path,
+    host: str,
+    port: int,
+    realtime: bool,
+    rate: float,
+    paused: bool,
+    record: Path | None,
+    record_as: str,
+    record_sensors: str | None,
+    seed: int | None,
+    token: str | None,
+    force: bool,
+    foxglove_port: int | None = None,
+) -> None:
+    """Run SCENE and serve it: HTTP/JSON services and sensors, a WebSocket stream, a dashboard at /.
+
+    Stop with Ctrl+C or SIGTERM (the recording is written then). docs/serve.md describes the interface.
+    """
+    from simrun.serve.loop import ServeOptions
+    from simrun.serve.server import serve
+
+    sensors = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
+    mcap = record.with_suffix(".mcap") if record is not None and record_as == "mcap" else None
+    options = ServeOptions(scene, not realtime, rate, record=record, record_sensors=sensors, record_mcap=mcap,
+                           seed=seed, paused=paused)  # fmt: skip
+    with output_policy(force, [scene]):
+        served = serve(
+            options,
+            host,
+            port,
+            token,
+            on_ready=lambda url: click.echo(f"{'foxglove' if url.startswith('ws:') else 'serving'} {url}"),
+            foxglove_port=foxglove_port,
+        )
+    for path in served.written:
+        click.echo(f"wrote {printable(path)}")
+    if served.error:
+        raise SimrunError(served.error)
 
 
 @main.command("view")
@@ -497,6 +576,9 @@ def view(scene: Path) -> None:
             err=True,
         )
         sys.exit(EXIT_INPUT)
+    from simrun.scene import load_scene
+    from simrun.teleop import run_viewer
+
     run_viewer(load_scene(scene))
 
 
@@ -506,7 +588,12 @@ def view(scene: Path) -> None:
 @click.option(
     "--render-mode", type=click.Choice([m for m in MODES if m != "none"]), default="visual", show_default=True
 )
-@click.option("--camera", default=None, help="Camera name (default: the main view, else a free camera).")
+@click.option(
+    "--camera",
+    default=None,
+    help="Camera name, or follow:ENTITY for a camera following that entity (default: the main view, else a free "
+    "camera).",
+)
 @click.option("--size", default=DEFAULT_SIZE_TEXT, show_default=True, help="Image size WxH.")
 @click.option(
     "--duration", "at_time", type=SECONDS, default=0.0, show_default=True, help="Simulated seconds before the picture."
@@ -514,6 +601,11 @@ def view(scene: Path) -> None:
 @click.option("--at", "at_time", type=SECONDS, hidden=True, help="Deprecated spelling of --duration.")
 def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, size: str, at_time: float) -> None:
     """Render one picture of SCENE after simulating --duration seconds."""
+    from PIL import Image
+
+    from simrun.render import FrameRenderer
+    from simrun.scene import load_scene
+
     width, height = _size(size)
     world = load_scene(scene)
     world.run(at_time)

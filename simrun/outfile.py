@@ -6,15 +6,10 @@ an existing file is replaced only when it is a meshtool/simrun output of the kin
 when forced. The CLI sets the policy for a command with :func:`output_policy` (``--force`` and the
 command's inputs); library callers may pass ``force``/``inputs`` to :func:`check_output` directly.
 
-Kinds recognised by suffix (magic number, plus the generator recorded inside where the format has room):
-
-* ``.mbin``, ``.glb``, ``.usd``/``.usda``/``.usdc``, ``.msh``: as meshtool (generator ``meshtool`` or
-  ``simrun`` in GLB ``asset.generator`` / USD ``customLayerData``);
-* ``.gltf`` and ``.html``/``.htm``: simrun's generator near the start (``asset.generator``, a
-  ``<meta name="generator">``);
-* ``.xml``: an MJCF (root element ``<mujoco``); ``.mjz``: a zip holding an ``.xml``; ``.png``, ``.gif``,
-  ``.mp4``: their magic numbers; ``.simlog``: its magic line. These formats, as simrun writes them, carry
-  no generator marker, so a file of the same kind is replaced (documented in README "Outputs").
+Kinds are recognised by suffix through the formats registry (:data:`meshtool.formats.OUTPUTS`, its table
+in ``docs/formats.md``): by the generator recorded inside where the format has room (``.mbin``, GLB,
+glTF, USD, HTML), by magic number or root element where it has none (PNG, GIF, MP4, MJCF XML, ``.mjz``,
+``.simlog``: a file of the same kind is replaced, documented in README "Outputs").
 
 Anything else that exists is replaced only when its bytes are already those to be written.
 """
@@ -23,34 +18,17 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
-import os
-import stat
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 from meshtool import __version__
 from meshtool.errors import OutputError
-from meshtool.outdir import FORCE_HINT, KINDS, refuse_inputs, write_file
 from meshtool.outdir import check_output as meshtool_check_output
+from meshtool.outdir import write_file
 from simrun.errors import SimrunError
 
 GENERATOR = f"simrun (meshtool {__version__})"
-
-#: Suffix -> byte prefixes of a file of that kind (for formats without a generator marker).
-MAGIC: dict[str, tuple[bytes, ...]] = {
-    ".png": (b"\x89PNG\r\n\x1a\n",),
-    ".gif": (b"GIF87a", b"GIF89a"),
-    ".mjz": (b"PK\x03\x04",),
-    ".simlog": (b"\x89SIMLOG\n",),
-}
-
-#: Suffix -> the generator marker near the start of text outputs simrun writes (recording pages, .gltf).
-_MARKED: dict[str, bytes] = {
-    ".html": b'<meta name="generator" content="simrun (',
-    ".htm": b'<meta name="generator" content="simrun (',
-    ".gltf": b'"generator": "simrun (',
-}
 
 _POLICY: contextvars.ContextVar[tuple[bool, tuple[Path, ...]]] = contextvars.ContextVar(
     "simrun_output_policy", default=(False, ())
@@ -90,47 +68,11 @@ def check_output(
     force = policy_force if force is None else force
     every_input = (*policy_inputs, *inputs)
     try:
-        suffix = path.suffix.lower()
-        if suffix in KINDS or suffix not in (*MAGIC, *_MARKED, ".xml", ".mp4"):
-            meshtool_check_output(path, KINDS.get(suffix), force=force, inputs=every_input, data=data)
-            return
-        refuse_inputs(path, every_input)
-        if force or not os.path.lexists(path):
-            return
-        if not stat.S_ISREG(os.lstat(path).st_mode) or not _same_kind(path, suffix):
-            raise OutputError(
-                f"exists and is not a {suffix[1:]} file simrun wrote; not replacing it", path=str(path), hint=FORCE_HINT
-            )
+        meshtool_check_output(path, None, force=force, inputs=every_input, data=data, any_of_kind=True)
     except OutputError as exc:
         raise SimrunError(exc.one_line()) from None
     except OSError as exc:
         raise SimrunError(f"{path}: cannot check the existing output: {exc.strerror}") from None
-
-
-def _same_kind(path: Path, suffix: str) -> bool:
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
-    except OSError:
-        return False
-    try:
-        head = os.read(fd, 512) if stat.S_ISREG(os.fstat(fd).st_mode) else b""
-    except OSError:
-        return False
-    finally:
-        os.close(fd)
-    if suffix == ".xml":
-        text = head.decode("utf-8", "replace").lstrip("\ufeff \t\r\n")
-        while text.startswith("<?") or text.startswith("<!--"):
-            end = text.find("?>" if text.startswith("<?") else "-->")
-            if end < 0:
-                return False
-            text = text[end + (2 if text.startswith("<?") else 3) :].lstrip()
-        return text.startswith("<mujoco")
-    if suffix == ".mp4":
-        return head[4:8] == b"ftyp"
-    if suffix in _MARKED:
-        return _MARKED[suffix] in head
-    return head.startswith(MAGIC[suffix])
 
 
 def write_bytes(path: Path, data: bytes) -> None:

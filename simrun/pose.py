@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simrun.errors import PoseError
+
 
 @dataclass(frozen=True, slots=True)
 class Pose:
@@ -22,13 +24,13 @@ class Pose:
 
     def __post_init__(self) -> None:
         if len(self.position) != 3 or len(self.orientation) != 4:
-            raise ValueError("a pose needs a 3-vector position and a 4-vector (w, x, y, z) orientation")
+            raise PoseError("a pose needs a 3-vector position and a 4-vector (w, x, y, z) orientation")
         values = [*self.position, *self.orientation]
         if not all(math.isfinite(float(v)) for v in values):
-            raise ValueError("pose values must be finite numbers")
+            raise PoseError("pose values must be finite numbers")
         norm = math.sqrt(sum(float(q) ** 2 for q in self.orientation))
         if abs(norm - 1.0) > 1e-6:
-            raise ValueError(f"orientation must be a unit quaternion (norm {norm:.6g})")
+            raise PoseError(f"orientation must be a unit quaternion (norm {norm:.6g})")
         object.__setattr__(self, "position", tuple(float(v) for v in self.position))
         object.__setattr__(self, "orientation", tuple(float(v) for v in self.orientation))
 
@@ -38,7 +40,7 @@ class Pose:
         e, t = np.asarray(eye, float), np.asarray(target, float)
         forward = t - e
         if np.linalg.norm(forward) == 0:
-            raise ValueError("eye and target coincide")
+            raise PoseError("eye and target coincide")
         z = -forward / np.linalg.norm(forward)
         x = np.cross([0.0, 0.0, 1.0], z)
         if np.linalg.norm(x) < 1e-9:

@@ -11,6 +11,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from meshtool.formats import check_suffix, output_named
 from meshtool.safeopen import printable
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes, write_text
@@ -21,8 +22,22 @@ from simrun.replay_usd import export_recording_usd
 from simrun.scene import load_scene
 from simrun.simlog import Simlog, check_model, check_scene
 
+#: The outputs of the formats registry (:data:`meshtool.formats.OUTPUTS`) a recording is exported to.
+KINDS = ("glb", "gltf", "usd", "html")
+
+
+def _record_formats() -> dict[str, str]:
+    """``--record-as`` names: each kind (its own suffix, else its first) and each other suffix of a kind."""
+    names: dict[str, str] = {}
+    for kind in KINDS:
+        suffixes = output_named(kind).suffixes
+        names[kind] = f".{kind}" if f".{kind}" in suffixes else suffixes[0]
+        names.update({s[1:]: s for s in suffixes if s[1:] not in names})
+    return names
+
+
 #: Formats by name (``--record-as``) and the suffix each writes.
-FORMATS = {"glb": ".glb", "gltf": ".gltf", "usd": ".usd", "usda": ".usda", "usdc": ".usdc", "html": ".html"}
+FORMATS = _record_formats()
 #: Default bound on the pose error of decimated animations, metres and radians.
 TOLERANCE = 1e-3
 
@@ -35,11 +50,6 @@ class Written:
     size: int
     seconds: float
     keyframes: int
-
-
-def _check_suffix(path: Path, allowed: tuple[str, ...], what: str) -> None:
-    if path.suffix.lower() not in allowed:
-        raise SimrunError(f"{path}: {what} output must end in {' or '.join(allowed)}")
 
 
 def export_recording(
@@ -63,11 +73,12 @@ def export_recording(
     Raises:
         SimrunError: A bad recording, a changed scene, a refused output or a missing viewer bundle.
     """
-    checks = {"glb": (".glb",), "gltf": (".gltf",), "usd": (".usd", ".usda", ".usdc"), "html": (".html", ".htm")}
     for kind, path in outputs.items():
-        if kind not in checks:
-            raise SimrunError(f"unknown output format {kind!r} (known: {', '.join(checks)})")
-        _check_suffix(path, checks[kind], kind.upper())
+        if kind not in KINDS:
+            raise SimrunError(f"unknown output format {kind!r} (known: {', '.join(KINDS)})")
+        wrong = check_suffix(path, kind)
+        if wrong is not None:
+            raise SimrunError(f"{path}: {wrong}")
     if "html" in outputs:
         viewer_bundle()  # a missing bundle fails before the replay, not after the other outputs
     recording = Simlog(log_path)

@@ -27,10 +27,10 @@ import mujoco
 import numpy as np
 from PIL import Image
 
-from meshtool.packfile.export import Z_UP_TO_Y_UP
+from meshtool.gltf_write import Z_UP_TO_Y_UP, GltfBuilder
 from simrun.errors import SimrunError
 from simrun.glb_export import COLLISION_GROUP
-from simrun.gltf_build import GltfBuilder
+from simrun.outfile import GENERATOR
 from simrun.replay_tracks import I64, Tracks
 from simrun.tessellate import Surface, geom_surface
 from simrun.world import World
@@ -168,7 +168,7 @@ def recording_gltf(world: World, tracks: Tracks, keys: dict[int, I64], name: str
         SimrunError: The world has no visual geom to show.
     """
     model = world.model
-    gltf = GltfBuilder()
+    gltf = GltfBuilder(GENERATOR)
     meshes = _Meshes(gltf, model)
     children: dict[int, list[int]] = {}
     for g in range(model.ngeom):

@@ -18,6 +18,7 @@ from typing import Any
 
 import tomli_w
 
+from meshtool.formats import suffix
 from simrun.entity import Entity, Material
 from simrun.errors import EntityError, SceneError, SimrunError
 from simrun.mesh_entity import MeshEntity
@@ -151,7 +152,11 @@ class _Loader:
 
     def files(self, entity: Entity, world: World, where: KeyPath) -> None:
         """Refuse, at load, file parameters that name no regular file (missing, a folder, a FIFO...)."""
-        if isinstance(entity, MeshEntity) and entity.asset not in world.assets and not entity.asset.endswith(".mbin"):
+        if (
+            isinstance(entity, MeshEntity)
+            and entity.asset not in world.assets
+            and not entity.asset.endswith(suffix("mbin"))
+        ):
             raise self.error(f"{entity.asset!r} is not in [assets] and is not an .mbin path", (*where, "asset"))
         for key in _FILE_FIELDS:
             value = getattr(entity, key, None)

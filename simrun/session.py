@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
+from meshtool.formats import output_for, suffix
 from simrun.commands import Command
 from simrun.errors import SimrunError, UsageError
 from simrun.outfile import check_output, write_bytes
@@ -36,6 +37,16 @@ from simrun.world import World
 DEFAULT_SIZE = (640, 480)
 #: Default frames per simulated second of videos.
 DEFAULT_FPS = 15.0
+
+
+#: The outputs of the formats registry a video is written as.
+VIDEO_KINDS = ("gif", "mp4")
+
+
+def video_kind(path: Path) -> str | None:
+    """``gif`` or ``mp4`` by ``path``'s suffix (the formats registry), ``None`` for anything else."""
+    row = output_for(path)
+    return row.name if row is not None and row.name in VIDEO_KINDS else None
 
 
 def prepare(
@@ -119,8 +130,9 @@ def run_play(scene: Path, options: PlayOptions, progress: Any = None) -> PlayRes
     for target in (options.video, options.record):  # the .mp4 and .simlog writers do not go through write_bytes
         if target is not None:
             check_output(target)
-    if options.video is not None and options.video.suffix.lower() not in (".gif", ".mp4"):
-        raise UsageError(f"{options.video}: video must end in .gif or .mp4")
+    if options.video is not None and video_kind(options.video) is None:
+        kinds = " or ".join(suffix(kind) for kind in VIDEO_KINDS)
+        raise UsageError(f"{options.video}: video must end in {kinds}")
     world = load_scene(scene)
     python = options.commands is not None and options.commands.suffix == ".py"
     commands: list[Command] = load_commands(options.commands) if options.commands and not python else []
@@ -152,7 +164,7 @@ def run_play(scene: Path, options: PlayOptions, progress: Any = None) -> PlayRes
         if recorder is not None:
             recorder.close()
     if options.video is not None:
-        if options.video.suffix.lower() == ".gif":
+        if video_kind(options.video) == "gif":
             write_bytes(options.video, encode_gif(frames, options.fps))
         else:
             encode_mp4(frames, options.fps, options.video)

@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from meshtool.errors import OutputError
+from meshtool.formats import output_named
 from meshtool.nesting import DocumentLimitError, bounded
 from meshtool.outdir import AtomicFile
 from simrun.commands import Command, parse_command
@@ -40,7 +41,7 @@ from simrun.errors import SimrunError
 from simrun.safeio import FileReadError, open_regular, read_regular
 from simrun.world import MAX_TIMESTEP, MIN_TIMESTEP, World
 
-MAGIC = b"\x89SIMLOG\n"
+MAGIC = output_named("simlog").magic[0]  # the formats registry's row
 MAJOR, MINOR = 1, 1
 FRAME, CHECKPOINT, SENSORS = 1, 2, 3
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION

@@ -23,7 +23,7 @@ from simrun import model_cache
 from simrun.assets import AssetLibrary
 from simrun.entity import BuildContext, Entity
 from simrun.environment import Camera
-from simrun.errors import CompileError, EntityError
+from simrun.errors import CompileError, EntityError, SimrunError
 from simrun.registry import Controller, scene_type, service_arguments
 
 INTEGRATORS = {
@@ -214,13 +214,21 @@ class World:
         bodies[full] = body
 
     def _located(self, full: str, entity: Entity, exc: Exception) -> EntityError:
-        """An entity's build error, prefixed with where the entity came from (its scene file and line)."""
-        message = str(exc)
+        """An entity's build error, prefixed with where the entity came from (its scene file and line).
+
+        The parameter is the error's ``key`` field where it has one; else the first word of a message that
+        starts with it (``mass must be ...``), as entities' parameter checks word them.
+        """
+        message = exc.message if isinstance(exc, SimrunError) and exc.message else str(exc)
         for prefix in (f"{entity.TYPE} {entity.name!r}: ", f"{entity.TYPE} {full!r}: "):
             message = message.removeprefix(prefix)
-        field = message.split(" ", 1)[0].split("[", 1)[0].rstrip(":")
+        key = exc.key if isinstance(exc, SimrunError) else None
+        if key:
+            message = f"{key}: {message}"
+        field = key or message.split(" ", 1)[0].split("[", 1)[0].rstrip(":")
         origin = self.origins.get(f"{full}#{field}") or self.origins.get(full) or f"{entity.TYPE} {full!r}"
-        return EntityError(f"{origin}: {message}")
+        hint = exc.hint if isinstance(exc, SimrunError) else None
+        return EntityError(f"{origin}: {message}", hint=hint)
 
     def compile(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
         """Build and compile (done lazily by :attr:`model` and :attr:`data`).

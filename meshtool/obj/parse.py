@@ -15,6 +15,7 @@ from __future__ import annotations
 import re
 from collections import Counter
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -39,6 +40,11 @@ from meshtool.obj.lines import (
     vector_block,
 )
 from meshtool.textio import decode_text
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from meshtool.resolve import Resolver
 
 BoolArray = npt.NDArray[np.bool_]
 
@@ -465,3 +471,8 @@ def _read_vectors(
     if (counts == width).all():
         return values.reshape(-1, width), line_numbers
     return columns(values, counts, list(range(width))), line_numbers
+
+
+def read(data: bytes, path: str, src: Path, resolver: Resolver) -> ObjData:
+    """The formats registry's reader (:data:`meshtool.formats.MESH_FORMATS`): :func:`parse_obj`."""
+    return parse_obj(data, path)

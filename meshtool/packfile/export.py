@@ -11,9 +11,10 @@ import numpy.typing as npt
 
 from meshtool import __version__
 from meshtool.errors import PackFormatError
+from meshtool.gltf_write import GENERATOR, Z_UP_TO_Y_UP, GltfBuilder, column_major
 from meshtool.obj.mtl import Material, TextureMap, format_mtl
-from meshtool.outdir import stamp_glb
 from meshtool.packfile.read import PackedMesh
+from meshtool.packfile.view import DEFAULT_COLOUR, asset_view, unique_names
 
 
 def _floats(values: npt.NDArray[np.float32]) -> list[str]:
@@ -101,144 +102,81 @@ def to_msh(packed: PackedMesh) -> bytes:
     return head + v.tobytes() + n.tobytes() + t.tobytes() + f.tobytes()
 
 
-#: The name the tangents travel under through trimesh's export (renamed ``TANGENT`` in the written tree).
-_TANGENT = "_meshtool_tangent"
-#: Z-up (meshtool, MuJoCo) to Y-up (glTF 2.0): -90 degrees about X, set as each node's matrix.
-Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
-
-
 def to_glb(packed: PackedMesh) -> bytes:
-    """A glTF binary scene with one primitive per submesh, materials and textures, via trimesh.
+    """A glTF binary scene with one primitive per part, materials and textures (:mod:`meshtool.gltf_write`).
 
-    Vertex data stays in metres, Z-up, exactly as packed; each node carries :data:`Z_UP_TO_Y_UP`, so
-    viewers that follow glTF's +Y-up show the asset standing upright.
+    Vertex data stays in metres, Z-up, exactly as packed; each part's node carries :data:`Z_UP_TO_Y_UP` as its
+    ``matrix``, so viewers that follow glTF's +Y-up show the asset standing upright. Texture coordinates are
+    written in glTF's convention (``v`` down from the image top: ``1 - v`` of the pack's).
 
-    Materials: ``Kd`` and ``d`` as ``baseColorFactor``, ``map_Kd`` as ``baseColorTexture`` (sRGB, as glTF
-    defines it), the material's tangent-space normal map (:func:`meshtool.normalmaps.normal_map`) as
-    ``normalTexture`` (linear) with its ``-bm`` strength as ``scale``. Other maps have no glTF slot
+    Materials (one per material of the pack, :func:`meshtool.packfile.view.asset_view`): base colour and
+    ``d`` as ``baseColorFactor`` (blended when ``d < 1``), the colour map as ``baseColorTexture`` (sRGB, as
+    glTF defines it), the tangent-space normal map as ``normalTexture`` (linear) with its ``-bm`` strength as
+    ``scale``, its primitives with ``NORMAL`` and ``TANGENT``. Other maps have no glTF slot
     (:func:`meshtool.normalmaps.export_findings` lists them). Images carry no colour-space chunks.
     """
-    import trimesh  # trimesh and Pillow load on first use (meshtool's start-up stays light)
-    from PIL import Image
+    from meshtool.normalmaps import vertex_normals, vertex_tangents
 
-    from meshtool.normalmaps import normal_map, vertex_tangents
+    view = asset_view(packed)
+    gltf = GltfBuilder(GENERATOR)
+    images: dict[int, int] = {}  # view texture -> glTF texture
+    materials: dict[int, int] = {}  # view material -> glTF material
+    names = unique_names(m.name for m in view.materials)
 
-    scene = trimesh.Scene()
-    positions = np.asarray(packed.positions, dtype=np.float64)
-    indices = np.asarray(packed.indices, dtype=np.int64)
-    images: dict[int, Image.Image] = {}
-    scales: dict[str, float] = {}  # normal-map strength by (distinct) material name
-    names = _distinct_names([str(m.get("name", f"material_{k}")) for k, m in enumerate(packed.materials)])
-    for k, (first, count, material, _) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
-        faces = indices[first : first + count]
-        used, inverse = np.unique(faces, return_inverse=True)
-        mesh = trimesh.Trimesh(vertices=positions[used], faces=inverse.reshape(-1, 3), process=False)
-        spec = packed.materials[material] if packed.materials else {}
-        kd = spec.get("colors", {}).get("Kd", [0.8, 0.8, 0.8])
-        base = [*(float(c) for c in kd), float(spec.get("scalars", {}).get("d", 1.0))]
-        texture = spec.get("maps", {}).get("map_Kd")
-        image = normal_image = None
-        name = names[material] if packed.materials else f"material_{material}"
-        if packed.uvs is not None:
-            if texture is not None:
-                image = _glb_image(packed, int(texture["texture"]), images)
-            normal = normal_map(spec, packed.textures) if spec else None
-            if normal is not None:
-                normal_image = _glb_image(packed, normal.texture, images)
-                if normal.scale != 1.0:
-                    scales[name] = normal.scale
-        pbr = trimesh.visual.material.PBRMaterial(  # type: ignore[no-untyped-call]
-            name=name,
-            baseColorFactor=base,
-            baseColorTexture=image,
-            normalTexture=normal_image,
-            metallicFactor=0.0,
-            roughnessFactor=1.0,
-        )
-        uv = np.asarray(packed.uvs, dtype=np.float64)[used] if packed.uvs is not None else None
-        mesh.visual = trimesh.visual.TextureVisuals(uv=uv, material=pbr)  # type: ignore[no-untyped-call]
-        if packed.normals is not None:
-            mesh.vertex_normals = np.asarray(packed.normals, dtype=np.float64)[used]  # type: ignore[method-assign]
-        if normal_image is not None and uv is not None:  # a normal map needs NORMAL and TANGENT
-            vertex_normals = np.asarray(mesh.vertex_normals, dtype=np.float64)
-            mesh.vertex_normals = vertex_normals  # type: ignore[method-assign]
-            tangents = vertex_tangents(positions[used], inverse.reshape(-1, 3), vertex_normals, uv)
-            mesh.vertex_attributes[_TANGENT] = tangents
-        scene.add_geometry(mesh, geom_name=f"submesh_{k}", transform=Z_UP_TO_Y_UP)
+    def texture(index: int | None) -> int | None:
+        if index is not None and index not in images:
+            images[index] = gltf.texture(_glb_image(view.textures[index].data, index))
+        return images[index] if index is not None else None
 
-    def finish(tree: dict[str, Any]) -> None:
-        stamp_glb(tree)
-        mark_buffer_views(tree)
-        for entry in tree.get("materials", []):
-            if "normalTexture" in entry and entry.get("name") in scales:
-                entry["normalTexture"]["scale"] = scales[entry["name"]]
-        for node in tree.get("meshes", []):  # trimesh writes custom attributes with a leading underscore
-            for primitive in node.get("primitives", []):
-                attributes = primitive.get("attributes", {})
-                if _TANGENT in attributes:
-                    attributes["TANGENT"] = attributes.pop(_TANGENT)
+    def material(index: int) -> int:
+        if index not in materials:
+            spec = view.materials[index] if index >= 0 else None
+            if spec is None:
+                materials[index] = gltf.material("material_0", [*DEFAULT_COLOUR, 1.0], None, False, False)
+            else:
+                base = [*spec.diffuse, spec.alpha]
+                colour, normal = texture(spec.colour_map), texture(spec.normal_map)
+                blend = spec.alpha < 1.0
+                materials[index] = gltf.material(names[index], base, colour, blend, False, normal, spec.normal_scale)
+        return materials[index]
 
-    data: bytes = scene.export(file_type="glb", tree_postprocessor=finish)  # type: ignore[no-untyped-call]
-    return data
+    nodes = []
+    for part in view.parts:
+        glb_material = material(part.material)
+        normal_mapped = part.material >= 0 and view.materials[part.material].normal_map is not None
+        attributes = {"POSITION": gltf.accessor(part.positions, bounds=True)}
+        normals = part.normals
+        if normal_mapped and normals is None:  # a normal map needs NORMAL and TANGENT
+            normals = vertex_normals(part.positions, part.faces)
+        if normals is not None:
+            attributes["NORMAL"] = gltf.accessor(normals)
+        if part.uvs is not None:
+            attributes["TEXCOORD_0"] = gltf.accessor(np.column_stack([part.uvs[:, 0], 1.0 - part.uvs[:, 1]]))
+            if normal_mapped and normals is not None:
+                attributes["TANGENT"] = gltf.accessor(vertex_tangents(part.positions, part.faces, normals, part.uvs))
+        name = f"submesh_{part.index}"
+        mesh = gltf.mesh(name, attributes, gltf.indices(part.faces, len(part.positions)), glb_material)
+        nodes.append(gltf.node({"name": name, "mesh": mesh, "matrix": column_major(Z_UP_TO_Y_UP)}))
+    gltf.scene("asset", nodes)
+    return gltf.glb()
 
 
-#: ``bufferView.target`` values (glTF 2.0, section 5.11): vertex attributes and vertex indices.
-ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
-
-
-def mark_buffer_views(tree: dict[str, Any]) -> None:
-    """Give every bufferView a mesh primitive reads its ``target`` (a ``tree_postprocessor`` for trimesh).
-
-    Attributes read ``ARRAY_BUFFER``, indices ``ELEMENT_ARRAY_BUFFER``; views of images keep none. trimesh
-    writes no targets, which the Khronos validator reports as ``BUFFER_VIEW_TARGET_MISSING`` (a hint) for
-    every view; every GLB the project writes goes through this (asset and scene exports; the recordings'
-    writer sets its own).
-    """
-    accessors = tree.get("accessors", [])
-    views = tree.get("bufferViews", [])
-
-    def mark(accessor: object, target: int) -> None:
-        if isinstance(accessor, int) and 0 <= accessor < len(accessors):
-            view = accessors[accessor].get("bufferView")
-            if isinstance(view, int) and 0 <= view < len(views):
-                views[view]["target"] = target
-
-    for mesh in tree.get("meshes", []):
-        for primitive in mesh.get("primitives", []):
-            for accessor in primitive.get("attributes", {}).values():
-                mark(accessor, ARRAY_BUFFER)
-            mark(primitive.get("indices"), ELEMENT_ARRAY_BUFFER)
-
-
-def _distinct_names(names: list[str]) -> list[str]:
-    """The names in order, a repeated one suffixed ``_2``, ``_3``...: each glTF material keeps its own entry."""
-    out: list[str] = []
-    taken: set[str] = set()
-    for name in names:
-        candidate, n = name, 2
-        while candidate in taken:
-            candidate, n = f"{name}_{n}", n + 1
-        taken.add(candidate)
-        out.append(candidate)
-    return out
-
-
-def _glb_image(packed: PackedMesh, index: int, images: dict[int, Any]) -> Any:
-    """Texture ``index`` of ``packed`` as an RGBA Pillow image without colour-space chunks, decoded once."""
+def _glb_image(data: bytes, index: int) -> bytes:
+    """Packed texture ``index`` as an RGBA PNG without colour-space chunks (glTF fixes each slot's)."""
     from PIL import Image, UnidentifiedImageError
 
-    if index not in images:
-        try:
-            image = Image.open(io.BytesIO(bytes(packed.textures[index]))).convert("RGBA")
-        except (OSError, ValueError, SyntaxError, EOFError, Image.DecompressionBombError) as exc:
-            why = "unknown image format" if isinstance(exc, UnidentifiedImageError) else str(exc)
-            raise PackFormatError(
-                f"a texture cannot be decoded as an image (texture {index}, {type(exc).__name__}: {why})",
-                hint="re-pack the asset from a valid image",
-            ) from None
-        image.info.clear()  # no iCCP/gAMA/cHRM/sRGB chunks: glTF fixes each slot's colour space itself
-        images[index] = image
-    return images[index]
+    try:
+        image = Image.open(io.BytesIO(data)).convert("RGBA")
+    except (OSError, ValueError, SyntaxError, EOFError, Image.DecompressionBombError) as exc:
+        why = "unknown image format" if isinstance(exc, UnidentifiedImageError) else str(exc)
+        raise PackFormatError(
+            f"a texture cannot be decoded as an image (texture {index}, {type(exc).__name__}: {why})",
+            hint="re-pack the asset from a valid image",
+        ) from None
+    image.info.clear()  # no iCCP/gAMA/cHRM/sRGB chunks: glTF fixes each slot's colour space itself
+    buffer = io.BytesIO()
+    image.save(buffer, format="PNG")
+    return buffer.getvalue()
 
 
 def describe(packed: PackedMesh) -> dict[str, Any]:

@@ -16,28 +16,22 @@ from pathlib import Path
 
 import numpy as np
 
-from meshtool.errors import FormatError
 from meshtool.findings import info
+from meshtool.formats import MESH_FORMATS, MeshFormat, mesh_format, mesh_format_named, mesh_suffixes
 from meshtool.frame import Frame, decide_frame
 from meshtool.modelroot import ModelRoot
 from meshtool.obj.mtl import Material
-from meshtool.obj.parse import ObjData, parse_obj
+from meshtool.obj.parse import ObjData
 from meshtool.readers.model import SourceFrame, SourceMesh
 from meshtool.resolve import Resolver
 from meshtool.units import MAX_PLAUSIBLE_M, PLAUSIBLE_OBJECT_M, UNIT_FACTORS, UnitEvidence, unit_scale
 from meshtool.upaxis import FloatArray, UpDecision
 
-#: File suffix (lower case) -> format name.
-FORMATS: dict[str, str] = {
-    ".obj": "obj",
-    ".stl": "stl",
-    ".ply": "ply",
-    ".gltf": "gltf",
-    ".glb": "glb",
-    ".dae": "collada",
-}
-#: Every suffix meshtool reads as a mesh.
-MESH_SUFFIXES = tuple(FORMATS)
+#: File suffix (lower case) -> format name (derived from :data:`meshtool.formats.MESH_FORMATS`).
+FORMATS: dict[str, str] = {suffix: row.name for row in MESH_FORMATS for suffix in row.suffixes}
+#: Every suffix meshtool reads as a mesh (the built-in rows; :func:`meshtool.formats.mesh_suffixes` also
+#: counts formats registered later).
+MESH_SUFFIXES = mesh_suffixes()
 
 __all__ = [
     "FORMATS",
@@ -56,18 +50,18 @@ __all__ = [
 
 def format_of(path: Path) -> str:
     """The format name of ``path`` by its suffix (``obj`` for unknown suffixes: the OBJ reader says so)."""
-    return FORMATS.get(path.suffix.lower(), "obj")
+    row = mesh_format(path)
+    return row.name if row is not None else "obj"
 
 
 def placed_up(src: Path) -> str:
     """The up axis a robot description (URDF) places a mesh file of ``src``'s format with: ``y`` or ``z``.
 
-    A URDF places its meshes as they are, in the link's Z-up frame, whatever a COLLADA file declares (Assimp
-    and MeshLab write ``Y_UP`` whatever they hold). glTF is the exception: Y-up is part of its specification
-    (glTF 2.0, section 3.4 "Coordinate System and Units"), so a glTF mesh is turned Y-up to Z-up exactly as
-    ``obj2bin`` turns the same file, and lands on the collision shapes its robot was modelled with.
+    See :meth:`meshtool.formats.MeshFormat.placed_up`: glTF is turned Y-up to Z-up exactly as ``obj2bin`` turns
+    the same file; every other format is placed as it is, in the link's Z-up frame.
     """
-    return "y" if format_of(src) in ("gltf", "glb") else "z"
+    row = mesh_format(src)
+    return row.placed_up() if row is not None else "z"
 
 
 def read_mesh(src: Path, data: bytes, path: str, resolver: Resolver) -> ObjData:
@@ -85,26 +79,9 @@ def read_mesh(src: Path, data: bytes, path: str, resolver: Resolver) -> ObjData:
     Raises:
         MeshtoolError: ``ObjParseError`` or ``FormatError`` naming the file and line or byte offset.
     """
-    fmt = format_of(src)
-    if fmt == "obj":
-        return parse_obj(data, path)
-    if fmt == "stl":
-        from meshtool.readers.stl import read_stl
-
-        return read_stl(data, path)
-    if fmt == "ply":
-        from meshtool.readers.ply import read_ply
-
-        return read_ply(data, path)
-    if fmt in ("gltf", "glb"):
-        from meshtool.readers.gltf import read_gltf
-
-        return read_gltf(data, path, src, resolver)
-    if fmt == "collada":
-        from meshtool.readers.collada import read_collada
-
-        return read_collada(data, path)
-    raise FormatError(f"unknown mesh format {fmt!r}", path=path)  # pragma: no cover - FORMATS is exhaustive
+    row = mesh_format(src) or mesh_format_named("obj")
+    result: ObjData = row.read()(data, path, src, resolver)
+    return result
 
 
 def source_role(obj: ObjData) -> str:
@@ -194,8 +171,9 @@ def source_frame(
         frame.up_decision = UpDecision(declared.up or spec_up, "format", declared.up_text)
         turned = "rotated +90 degrees about X to Z-up" if spec_up == "y" else "kept as it is"
         frame.findings.append(info("up-axis", f"up axis {spec_up} ({turned}): {declared.up_text}", obj.path))
-    if obj.format == "stl":
-        _stl_defaults(frame, positions, user_unit is None, obj.path)  # --units auto: the same suggestion
+    row = mesh_format_named(obj.format)
+    if row.suggested_unit is not None:
+        _cad_defaults(row, frame, positions, user_unit is None, obj.path)  # --units auto: the same suggestion
     return frame
 
 
@@ -207,15 +185,16 @@ def _unit_key(metres: float) -> tuple[str, float]:
     return "m", metres
 
 
-def _stl_defaults(frame: Frame, positions: FloatArray, suggest_unit: bool, path: str) -> None:
-    """STL comes from CAD: Z-up when nothing else tells, and millimetres suggested when metres is implausible.
+def _cad_defaults(row: MeshFormat, frame: Frame, positions: FloatArray, suggest_unit: bool, path: str) -> None:
+    """A format from CAD (STL): its fallback up axis (Z) when nothing else tells, millimetres suggested.
 
+    Millimetres are suggested when metres is implausible.
     The suggestion becomes the frame's unit evidence (source ``suggestion``) when no consumer file says
     anything: ``asset.json`` records it and the size warning names ``--units mm``.
     """
     if frame.up_decision.rule == "default":
-        frame.up_decision = UpDecision("z", "format", "STL from CAD: Z-up assumed (no other evidence)")
-        frame.up = "z"
+        frame.up_decision = UpDecision(row.fallback_up, "format", row.fallback_reason)
+        frame.up = row.fallback_up
         frame.findings = [f for f in frame.findings if f.code != "up-axis"]
         frame.findings.append(info("up-axis", f"up axis z (kept as it is): {frame.up_decision.evidence}", path))
     finite = positions[np.isfinite(positions).all(axis=1)] if positions.shape[0] else positions

@@ -28,7 +28,7 @@ from __future__ import annotations
 import io
 import re
 import warnings
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import unquote
 
 import numpy as np
@@ -40,6 +40,11 @@ from meshtool.readers.budget import ExpansionBudget
 from meshtool.readers.collada_scene import Instance, SceneWalk
 from meshtool.readers.collada_xml import parse_xml, subset
 from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble, merge_rows, mirrors
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from meshtool.resolve import Resolver
 
 _DECLARATION = re.compile(rb"<!(?:DOCTYPE|ENTITY)", re.IGNORECASE)
 #: What pycollada still reads; geometry and the scene are read by :mod:`meshtool.readers.collada_geometry` and
@@ -291,3 +296,8 @@ def _unique_rows(values: FloatArray, index: IntArray) -> tuple[FloatArray, IntAr
         return values, index
     rows, remap = merge_rows(values)
     return rows, np.where(index >= 0, remap[np.maximum(index, 0)], -1)
+
+
+def read(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMesh:
+    """The formats registry's reader (:data:`meshtool.formats.MESH_FORMATS`): :func:`read_collada`."""
+    return read_collada(data, path)

@@ -521,3 +521,8 @@ def _unit(value: Any) -> float:
     except (TypeError, ValueError):
         return 1.0
     return min(max(v, 0.0), 1.0) if math.isfinite(v) else 1.0
+
+
+def read(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMesh:
+    """The formats registry's reader (:data:`meshtool.formats.MESH_FORMATS`): :func:`read_gltf`."""
+    return read_gltf(data, path, src, resolver)

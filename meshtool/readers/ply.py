@@ -24,7 +24,7 @@ and no up axis. Locations of findings count faces (triangles for a file of trian
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,6 +35,11 @@ from meshtool.obj.mtl import Material, TextureMap
 from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble
 from meshtool.readers.ply_body import READ, AnyArray, Rows, ascii_body, binary_body, number
 from meshtool.readers.ply_header import Element, Header, head, parse_header
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from meshtool.resolve import Resolver
 
 FRAME = SourceFrame(None, "PLY has no unit", None, "PLY has no up axis")
 _UV_NAMES = (("s", "t"), ("u", "v"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
@@ -288,3 +293,8 @@ def _colors(vertex: Element, v: dict[str, AnyArray]) -> FloatArray | None:
         channels.append(np.asarray(v[name], dtype=np.float64) / scale)
     out: FloatArray = np.stack(channels, axis=1)
     return out
+
+
+def read(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMesh:
+    """The formats registry's reader (:data:`meshtool.formats.MESH_FORMATS`): :func:`read_ply`."""
+    return read_ply(data, path)

@@ -15,12 +15,18 @@ in a binary file and lines in an ASCII one.
 from __future__ import annotations
 
 import re
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from meshtool.errors import FormatError
 from meshtool.findings import Finding, info, warning
 from meshtool.readers.model import FloatArray, IntArray, Piece, SourceFrame, SourceMesh, assemble, first_use, merge_rows
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from meshtool.resolve import Resolver
 
 _HEADER = 80
 _FACET = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
@@ -290,3 +296,8 @@ def _against_winding(positions: FloatArray, faces: IntArray, stored: FloatArray)
         sl = np.linalg.norm(stored, axis=1)
         result: np.ndarray = (dot < 0) & (wl > 0) & (sl > 0)
     return result
+
+
+def read(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMesh:
+    """The formats registry's reader (:data:`meshtool.formats.MESH_FORMATS`): :func:`read_stl`."""
+    return read_stl(data, path)

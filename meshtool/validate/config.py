@@ -38,6 +38,8 @@ DEFAULT_TIMEOUT = 300.0
 class ConfigError(MeshtoolError, ValueError):
     """The validation configuration is invalid (a usage error: exit code 2)."""
 
+    exit_code = 2
+
 
 @dataclass(frozen=True, slots=True)
 class Limits:

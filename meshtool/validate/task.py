@@ -22,10 +22,10 @@ import numpy as np
 from meshtool.convert import ConvertOptions
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, Severity
+from meshtool.formats import mesh_format, mesh_format_named, output_named
 from meshtool.hulls import Hull, HullOptions, compute_hulls
 from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
 from meshtool.packfile import pack, parse
-from meshtool.readers import format_of
 from meshtool.resolve import Resolver, file_sha256, printable
 from meshtool.units import scale_findings
 from meshtool.validate.collision import collision_findings
@@ -63,7 +63,7 @@ class AssetTask:
     @property
     def kind(self) -> str:
         """``obj`` or ``mbin``."""
-        return "mbin" if self.path.suffix.lower() == ".mbin" else "obj"
+        return "mbin" if self.path.suffix.lower() in output_named("mbin").suffixes else "obj"
 
 
 @dataclass(slots=True)
@@ -195,7 +195,7 @@ def _read_obj(read: ReadAsset) -> None:
         read.done = True
         return
     result.deps[str(src.resolve())] = hashlib.sha256(data).hexdigest()
-    if format_of(src) == "obj":  # binary formats (STL, PLY, GLB) are no text
+    if (mesh_format(src) or mesh_format_named("obj")).text:  # binary formats (STL, PLY, GLB) are no text
         result.findings.extend(encoding_findings(shown, data))
     try:
         asset = prepare(src, NormaliseOptions())

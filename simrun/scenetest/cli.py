@@ -11,15 +11,16 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import click
 
-from meshtool.cli_common import executor_options
+from meshtool.cli_common import EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_USAGE, executor_options, exit_code_of, fail
 from meshtool.safeopen import printable
-from simrun.errors import SimrunError
+from simrun.errors import SimrunError, UsageError
 
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+#: A test failed (docs/cli.md: exit 1, as a check that failed in every command).
+EXIT_FAILED = EXIT_INPUT
 
 
 def _jobs() -> int:
@@ -117,11 +118,8 @@ def test_command(
         text = printable(to_text(report, verbose) if fmt == "text" else render(report, fmt))
         if output is not None:
             write_file(output, text.encode("utf-8"))
-    except (SpecError, VaryError) as exc:
-        if exc.exit_code != EXIT_USAGE:  # a missing input is exit 1 in every command (docs/cli.md)
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(exc.exit_code)
-        _usage(str(exc))
+    except (SpecError, VaryError) as exc:  # a usage error, or a missing input: exit 1 (docs/cli.md)
+        fail(exc, "simrun", "usage error" if exit_code_of(exc) == EXIT_USAGE else "error")
     except ImportError:
         click.echo("error: the Dask executor needs dask.distributed (pip install 'meshtool-simrun[dask]')", err=True)
         sys.exit(EXIT_FAILED)
@@ -134,8 +132,7 @@ def test_command(
         click.echo(f"error: cannot reach the Dask scheduler at {where}: {exc}; {hint}", err=True)
         sys.exit(EXIT_FAILED)
     except SimrunError as exc:
-        click.echo(f"error: {' '.join(str(exc).split())}", err=True)
-        sys.exit(EXIT_FAILED)
+        fail(exc, "simrun")
     except OSError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(EXIT_FAILED)
@@ -150,9 +147,8 @@ def test_command(
     sys.exit(EXIT_FAILED if report.failed() else EXIT_OK)
 
 
-def _usage(message: str) -> None:
-    click.echo(f"usage error: {message}", err=True)
-    sys.exit(EXIT_USAGE)
+def _usage(message: str) -> NoReturn:
+    fail(UsageError(message), "simrun", "usage error")
 
 
 def _progress_bar() -> Any:

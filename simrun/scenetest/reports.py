@@ -15,6 +15,7 @@ from xml.etree import ElementTree as ET
 
 from meshtool.reportkit import annotation_data, annotation_property
 from simrun import __version__
+from simrun.errors import UsageError
 from simrun.expect import Outcome
 from simrun.scenetest.report_html import to_html
 from simrun.scenetest.report_lines import failure_line, verdict_line
@@ -31,7 +32,7 @@ def render(report: TestReport, fmt: str) -> str:
     """The report in format ``fmt`` (one of :data:`FORMATS`)."""
     renderers = {"text": to_text, "json": to_json, "junit": to_junit, "github": to_github, "html": to_html}
     if fmt not in renderers:
-        raise ValueError(f"unknown report format {fmt!r}")
+        raise UsageError(f"unknown report format {fmt!r}", hint=f"choose one of {', '.join(renderers)}")
     return renderers[fmt](report)
 
 

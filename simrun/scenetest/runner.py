@@ -19,6 +19,7 @@ from typing import Any
 
 import tomli_w
 
+from meshtool.formats import suffix
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes
 from simrun.scenetest.bundle import Bundle
@@ -272,7 +273,7 @@ def _record(runs: list[Run], tasks: list[RunTask], folder: Path, cases: list[Cas
             written.add(bundle.digest)
         scene_dir = base.joinpath(*PurePosixPath(bundle.scene).parent.parts)
         scene = scene_dir / task.scene_name
-        log = scene.with_suffix(".simlog")
+        log = scene.with_suffix(suffix("simlog"))
         write_bytes(scene, task.scene_text)
         write_bytes(log, run.result.simlog)
         run.recording = log.as_posix()

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
 
+from meshtool.formats import suffix
 from simrun.commands import Command
 from simrun.errors import SimrunError
 from simrun.expect import Expectation, Observer, Outcome
@@ -134,7 +135,7 @@ def _run(task: RunTask, bundle: Bundle) -> RunResult:
 
     scene = _scene_path(task, bundle)
     scene.write_bytes(task.scene_text)
-    log = scene.with_suffix(".simlog")
+    log = scene.with_suffix(suffix("simlog"))
     recorder = None
     try:
         world = load_scene(scene)

@@ -7,8 +7,8 @@ import re
 import stat
 from pathlib import Path
 
+from meshtool.formats import mesh_suffixes, output_named
 from meshtool.outdir import check_output, is_within
-from meshtool.readers import MESH_SUFFIXES
 from meshtool.validate.reports.html import to_html
 from meshtool.validate.reports.machine import to_github, to_json, to_junit
 from meshtool.validate.reports.text import to_text
@@ -53,7 +53,11 @@ def is_report(head: bytes) -> bool:
 
 
 #: Suffixes of what validate reads under its PATHS (meshes, packs, materials, textures, robot descriptions).
-INPUT_SUFFIXES = (*MESH_SUFFIXES, ".mbin", ".mtl", ".bin", ".png", ".jpg", ".jpeg", ".tga", ".bmp", ".urdf", ".xacro")
+INPUT_SUFFIXES = (
+    *mesh_suffixes(),
+    *output_named("mbin").suffixes,
+    *(".mtl", ".bin", ".png", ".jpg", ".jpeg", ".tga", ".bmp", ".urdf", ".xacro"),  # companions of meshes
+)
 
 
 def check_report_output(output: Path, paths: list[Path], force: bool) -> None:

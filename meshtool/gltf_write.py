@@ -1,9 +1,15 @@
-"""A small glTF 2.0 writer: buffers, accessors, meshes, materials, textures, nodes and animations, as GLB or .gltf.
+"""The project's one glTF 2.0 writer: buffers, accessors, meshes, materials, textures, nodes, animations.
 
-Written for the animated exports, where trimesh (which writes the static GLB) has no animations. The
-output is deterministic (same calls, same bytes), every buffer view is 4-byte aligned, every accessor used
-as a position or animation input carries its ``min``/``max`` (the Khronos validator requires them), and a
-``.gltf`` holds its buffer and images as ``data:`` URIs, so either form is one self-contained file.
+Every GLB and ``.gltf`` meshtool and simrun write is built here (the formats registry's ``glb`` and
+``gltf`` rows): a packed asset (:func:`meshtool.packfile.export.to_glb`), a world
+(:func:`simrun.glb_export.world_to_glb`) and an animated recording (:func:`simrun.replay_glb.recording_gltf`)
+decorate one :class:`GltfBuilder`. The output is deterministic (same calls, same bytes), every buffer view
+is 4-byte aligned and carries the ``target`` a mesh primitive reads it as, every accessor used as a position
+or animation input carries its ``min``/``max`` (the Khronos validator requires them), and a ``.gltf`` holds
+its buffer and images as ``data:`` URIs, so either form is one self-contained file.
+
+Frames: glTF 2.0 is Y-up, metres (section 3.4 "Coordinate System and Units"); meshtool and MuJoCo are Z-up,
+metres. Vertex data is written as it is (Z-up) under a node turned by :data:`Z_UP_TO_Y_UP`.
 """
 
 from __future__ import annotations
@@ -16,11 +22,22 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from simrun.outfile import GENERATOR
+from meshtool import __version__
 
+#: meshtool's ``asset.generator`` (simrun passes its own).
+GENERATOR = f"meshtool {__version__}"
 FLOAT, UINT16, UINT32 = 5126, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 _TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
+#: Z-up (meshtool, MuJoCo) to Y-up (glTF 2.0): -90 degrees about X, as a 4x4 matrix.
+Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
+#: The same turn as a glTF node ``rotation`` (x, y, z, w): -90 degrees about X.
+Z_UP_TO_Y_UP_ROTATION = [-float(np.sqrt(0.5)), 0.0, 0.0, float(np.sqrt(0.5))]
+
+
+def column_major(matrix: npt.ArrayLike) -> list[float]:
+    """A 4x4 matrix as a glTF node ``matrix`` (16 numbers, column by column)."""
+    return [float(v) for v in np.asarray(matrix, dtype=np.float64).reshape(4, 4).T.ravel()]
 
 
 class GltfBuilder:
@@ -29,8 +46,8 @@ class GltfBuilder:
     Index methods return the new object's index in its glTF array.
     """
 
-    def __init__(self) -> None:
-        self.json: dict[str, Any] = {"asset": {"version": "2.0", "generator": GENERATOR}}
+    def __init__(self, generator: str = GENERATOR) -> None:
+        self.json: dict[str, Any] = {"asset": {"version": "2.0", "generator": generator}}
         self._blob = bytearray()
         self._images: dict[bytes, int] = {}
         self._samplers: dict[tuple[int, int], int] = {}
@@ -95,12 +112,29 @@ class GltfBuilder:
             )
         return self._add("textures", {"sampler": self._samplers[key], "source": self.image(png)})
 
-    def material(self, name: str, rgba: list[float], texture: int | None, blend: bool, double_sided: bool) -> int:
-        """A metallic-roughness material (not metallic, fully rough) of base colour ``rgba`` and ``texture``."""
+    def material(
+        self,
+        name: str,
+        rgba: list[float],
+        texture: int | None,
+        blend: bool,
+        double_sided: bool,
+        normal: int | None = None,
+        normal_scale: float = 1.0,
+    ) -> int:
+        """A metallic-roughness material (not metallic, fully rough) of base colour ``rgba`` and ``texture``.
+
+        ``normal`` is a tangent-space normal texture (its primitives need ``NORMAL`` and ``TANGENT``), with
+        ``normal_scale`` its strength (glTF's default 1 is not written).
+        """
         pbr: dict[str, Any] = {"baseColorFactor": rgba, "metallicFactor": 0.0, "roughnessFactor": 1.0}
         if texture is not None:
             pbr["baseColorTexture"] = {"index": texture}
         item: dict[str, Any] = {"name": name, "pbrMetallicRoughness": pbr}
+        if normal is not None:
+            item["normalTexture"] = {"index": normal}
+            if normal_scale != 1.0:
+                item["normalTexture"]["scale"] = normal_scale
         if blend:
             item["alphaMode"] = "BLEND"
         if double_sided:
@@ -117,9 +151,13 @@ class GltfBuilder:
         return self._add("nodes", item)
 
     def scene(self, name: str, nodes: list[int]) -> None:
-        """The default scene."""
+        """The default scene (scene 0); :meth:`extra_scene` adds others."""
         self.json["scenes"] = [{"name": name, "nodes": nodes}]
         self.json["scene"] = 0
+
+    def extra_scene(self, name: str, nodes: list[int]) -> None:
+        """Another scene after the default one (viewers open the default; tools that know scenes can switch)."""
+        self.json["scenes"].append({"name": name, "nodes": nodes})
 
     def animation(self, name: str, channels: list[tuple[int, str, int, int]]) -> None:
         """One animation of LINEAR channels (node, ``translation``/``rotation``, input accessor, output accessor)."""
