@@ -36,6 +36,7 @@ from meshtool.model import (
 from meshtool.normalmaps import mujoco_findings
 from meshtool.outdir import write_folder
 from meshtool.packfile.read import PackedMesh
+from meshtool.packfile.view import asset_view, unique_names
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,39 +85,20 @@ def mesh_parts(packed: PackedMesh, prefix: str, max_hull_vertices: int = 64, kee
     Submeshes with fewer than 4 vertices (which MuJoCo refuses) are left out unless ``keep_small``.
     """
     parts = MeshParts()
-    files = list(packed.meta.get("textures", []))
-    texture_names: list[str] = []
-    for k, data in enumerate(packed.textures):
-        stem = files[k].rsplit(".", 1)[0] if k < len(files) else f"tex{k}"
-        name = f"{prefix}_{safe_identifier(stem, f'tex{k}')}"
-        while name in texture_names:
-            name += "_"
-        texture_names.append(name)
-        parts.textures.append(TextureDesc(name, bytes(data)))
-    for k, m in enumerate(packed.materials):
-        name = f"{prefix}_{safe_identifier(str(m.get('name', k)), f'material{k}')}"
-        while any(p.name == name for p in parts.materials):
-            name += "_"
-        kd = [float(c) for c in m.get("colors", {}).get("Kd", [0.8, 0.8, 0.8])[:3]]
-        alpha = float(m.get("scalars", {}).get("d", 1.0))
-        texture = m.get("maps", {}).get("map_Kd")
-        if texture is not None and packed.uvs is not None:
-            parts.materials.append(MaterialDesc(name, (1.0, 1.0, 1.0, alpha), texture_names[int(texture["texture"])]))
-        else:
-            parts.materials.append(MaterialDesc(name, (kd[0], kd[1], kd[2], alpha)))
-    positions = np.asarray(packed.positions, dtype=np.float64)
-    indices = np.asarray(packed.indices, dtype=np.int64)
-    for k, (first, count, material, _part) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
-        faces = indices[first : first + count]
-        used, inverse = np.unique(faces, return_inverse=True)
-        if len(used) < 4 and not keep_small:
+    view = asset_view(packed)
+    texture_names = unique_names(f"{prefix}_{safe_identifier(t.stem, f'tex{k}')}" for k, t in enumerate(view.textures))
+    parts.textures = [TextureDesc(name, t.data) for name, t in zip(texture_names, view.textures, strict=True)]
+    names = unique_names(f"{prefix}_{safe_identifier(m.name, f'material{k}')}" for k, m in enumerate(view.materials))
+    for name, m in zip(names, view.materials, strict=True):
+        texture = texture_names[m.colour_map] if m.colour_map is not None else None
+        parts.materials.append(MaterialDesc(name, m.rgba, texture))
+    for part in view.parts:
+        if len(part.positions) < 4 and not keep_small:
             continue  # MuJoCo needs 4 vertices for a mesh; a lone triangle is not worth a geom
-        normals = np.asarray(packed.normals, np.float64)[used] if packed.normals is not None else None
-        uvs = np.asarray(packed.uvs, np.float64)[used] if packed.uvs is not None else None
-        name = f"{prefix}_visual_{k}"
-        tris: IntArray = inverse.reshape(-1, 3).astype(np.int32)
-        parts.meshes.append(MeshDesc(name, positions[used], tris, normals, uvs, "shell"))
-        mat = parts.materials[material].name if parts.materials else None
+        name = f"{prefix}_visual_{part.index}"
+        tris: IntArray = part.faces.astype(np.int32)
+        parts.meshes.append(MeshDesc(name, part.positions, tris, part.normals, part.uvs, "shell"))
+        mat = parts.materials[part.material].name if parts.materials else None
         parts.visual.append(GeomDesc("visual", "mesh", mesh=name, material=mat))
     for k, (hull_vertices, hull_faces) in enumerate(packed.hulls):
         name = f"{prefix}_collision_{k}"

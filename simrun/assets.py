@@ -26,6 +26,7 @@ from PIL import Image
 import meshtool
 from meshtool import cachefile, surface
 from meshtool.packfile import PackedMesh, parse
+from meshtool.packfile.view import asset_view, unique_name
 from meshtool.pnginfo import png_end
 from meshtool.safeopen import printable
 from simrun.errors import EntityError
@@ -123,46 +124,35 @@ class AssetLibrary:
         key = (self.real(path), scale)
         if key in self.added_meshes:
             return self.added_meshes[key]
-        p = self.packed(path)
+        view = asset_view(self.packed(path))  # parts, materials and textures as every consumer reads a pack
         stem = printable(path.stem)  # MuJoCo names are UTF-8: a non-UTF-8 file name's bytes become \xNN
-        base = f"{stem}@{scale:g}" if scale != 1.0 else stem
-        while any(a.name == base for a in self.added_meshes.values()):
-            base += "_"
+        base = unique_name(f"{stem}@{scale:g}" if scale != 1.0 else stem, {a.name for a in self.added_meshes.values()})
         textures = []
-        for k, data in enumerate(p.textures):
-            png = png_without_tail(bytes(data), f"{printable(path.name)}: texture {k}")
+        for k, texture in enumerate(view.textures):
+            png = png_without_tail(texture.data, f"{printable(path.name)}: texture {k}")
             textures.append(self.add_texture(f"{base}/tex{k}", png))
         materials = []
-        for k, m in enumerate(p.materials):
-            name = f"{base}/mat{k}"
-            kd = m.get("colors", {}).get("Kd", [0.8, 0.8, 0.8])
-            alpha = float(m.get("scalars", {}).get("d", 1.0))
-            mat = self.spec.add_material(name=name, rgba=[*(float(c) for c in kd[:3]), alpha])
-            tex = m.get("maps", {}).get("map_Kd")
-            if tex is not None and p.uvs is not None:
-                mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = textures[int(tex["texture"])]
-                mat.rgba = [1.0, 1.0, 1.0, alpha]
-            materials.append(name)
-        positions = np.asarray(p.positions, dtype=np.float64)
-        indices = np.asarray(p.indices, dtype=np.int64)
+        for k, m in enumerate(view.materials):
+            mat = self.spec.add_material(name=f"{base}/mat{k}", rgba=list(m.rgba))
+            if m.colour_map is not None:
+                mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = textures[m.colour_map]
+            materials.append(mat.name)
         visual = []
-        for k, (first, count, material, _) in enumerate(np.asarray(p.submeshes, dtype=np.int64).tolist()):
-            faces = indices[first : first + count]
-            used, inverse = np.unique(faces, return_inverse=True)
-            mesh = self.spec.add_mesh(name=f"{base}/visual{k}")
-            mesh.uservert = positions[used].ravel()
-            mesh.userface = inverse.astype(np.int32).ravel()
-            if p.normals is not None:
-                mesh.usernormal = np.asarray(p.normals, np.float64)[used].ravel()
-            if p.uvs is not None:
-                uv = np.asarray(p.uvs, np.float64)[used].copy()
+        for part in view.parts:
+            mesh = self.spec.add_mesh(name=f"{base}/visual{part.index}")
+            mesh.uservert = part.positions.ravel()
+            mesh.userface = part.faces.astype(np.int32).ravel()
+            if part.normals is not None:
+                mesh.usernormal = part.normals.ravel()
+            if part.uvs is not None:
+                uv = part.uvs.copy()
                 uv[:, 1] = 1.0 - uv[:, 1]  # OBJ/.mbin v = 0 at the image bottom; MuJoCo's texcoords at the top
                 mesh.usertexcoord = uv.ravel()
             mesh.scale = [scale] * 3
             mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-            visual.append((mesh.name, materials[material] if materials else None))
+            visual.append((mesh.name, materials[part.material] if materials else None))
         hulls, volumes = [], []
-        for k, (v, f) in enumerate(p.hulls):
+        for k, (v, f) in enumerate(view.hulls):
             hull = self.spec.add_mesh(name=f"{base}/hull{k}")
             hull.uservert = np.asarray(v, np.float64).ravel()
             hull.userface = np.asarray(f, np.int32).ravel()

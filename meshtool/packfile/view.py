@@ -13,7 +13,7 @@ normalised). Texture coordinates keep the pack's (OBJ) convention: ``v = 0`` at 
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,16 +29,21 @@ IntArray = npt.NDArray[np.int64]
 DEFAULT_COLOUR = (0.8, 0.8, 0.8)
 
 
+def unique_name(name: str, taken: Collection[str]) -> str:
+    """``name``, or ``name_2``, ``name_3``... the first not in ``taken`` (the project's one unique-name rule)."""
+    candidate, n = name, 2
+    while candidate in taken:
+        candidate, n = f"{name}_{n}", n + 1
+    return candidate
+
+
 def unique_names(names: Iterable[str]) -> list[str]:
-    """The names in order, each repeated one suffixed ``_2``, ``_3``... (the project's one unique-name rule)."""
+    """The names in order, each repeated one suffixed ``_2``, ``_3``... (:func:`unique_name`)."""
     out: list[str] = []
     taken: set[str] = set()
     for name in names:
-        candidate, n = name, 2
-        while candidate in taken:
-            candidate, n = f"{name}_{n}", n + 1
-        taken.add(candidate)
-        out.append(candidate)
+        out.append(unique_name(name, taken))
+        taken.add(out[-1])
     return out
 
 
