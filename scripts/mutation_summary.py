@@ -16,7 +16,7 @@ import sys
 from collections import Counter
 from pathlib import Path
 
-MODULES = ["drive", "drive_service", "arm", "arm_joints", "sensors", "cameras", "world"]
+MODULES = ["drive", "drive_service", "arm", "arm_joints", "sensors", "cameras", "joint_service", "world"]
 #: Modules mutated only in some functions (``make mutants``' MUTATE names them): the others are not counted.
 FUNCTIONS = {"world": ("xǁWorldǁstep__", "xǁWorldǁreschedule__")}
 KILLED = {1, 3, -24, 24, 152, 255, 36, 37, -11, -9}
