@@ -94,6 +94,7 @@
     const node = bodies.get(name);
     if (!node) return null;
     node.getWorldPosition(where);
+    camera.updateMatrixWorld();  // before the first frame is drawn, the camera's inverse matrix is still stale
     where.project(camera);
     return [(where.x + 1) / 2 * view.clientWidth, (1 - where.y) / 2 * view.clientHeight, where.z];
   };
