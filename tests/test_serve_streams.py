@@ -43,13 +43,16 @@ def _rate(server: Server, seconds: float) -> float:
 
 
 def test_a_client_that_stops_reading_does_not_change_the_real_time_factor():
-    # at 10x real time the laser sends 100 scans of 14 kB per wall second: stalled clients fill their
-    # socket buffers within about two seconds, then their mailboxes overflow (the oldest messages go)
-    with serve(ROOM, "--rate", "10") as server:
+    # at 4x real time the laser sends 40 scans of 14 kB per wall second: stalled clients fill their socket
+    # buffers within a few seconds, then their mailboxes overflow (the oldest messages go). The world is paced
+    # at 4x, well below what it can do on this machine (more than 8x alone), so the rate it holds does not
+    # depend on how busy the machine is (the suite runs on 2 workers): a loop that waited on a stalled client
+    # would fall below it.
+    with serve(ROOM, "--rate", "4") as server:
         alone = _rate(server, 2.0)
         stalled = [_stalled_stream(server.url) for _ in range(4)]
         try:
-            time.sleep(2.5)
+            time.sleep(5.0)
             assert server.get("/api/state")["streams"]["open"] == 4
             crowded = _rate(server, 3.0)
             streams = server.get("/api/state")["streams"]
@@ -57,8 +60,8 @@ def test_a_client_that_stops_reading_does_not_change_the_real_time_factor():
             for sock in stalled:
                 sock.close()
         assert streams["dropped"] > 0 and streams["queued"] <= 4 * 64  # the bound was reached, and held
-        assert alone > 8.0  # it keeps up with 10x real time on its own (the machine is not swamped)
-        assert crowded == pytest.approx(alone, rel=0.05)  # and four stalled clients change nothing
+        assert alone == pytest.approx(4.0, rel=0.05)  # it holds the rate it was given on its own
+        assert crowded == pytest.approx(4.0, rel=0.05)  # and four stalled clients change nothing
         time.sleep(0.5)
         assert server.get("/api/state")["streams"]["open"] == 0  # vanished clients are let go
 
