@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
 import sys
 from pathlib import Path
@@ -15,6 +14,8 @@ import click
 from meshtool.cli_common import EXIT_INPUT, VocabularyGroup, fail
 from meshtool.safeopen import printable
 from simrun import __version__
+from simrun.cli_serve import serve_command
+from simrun.cli_types import FPS, OUT, SECONDS, Number
 from simrun.errors import SimrunError
 from simrun.outfile import output_policy, write_bytes
 from simrun.scenetest.cli import test_command
@@ -28,6 +29,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 MODES = ("visual", "wireframe", "physics", "combined", "none")
 #: The default image size (simrun.session.DEFAULT_SIZE, checked equal by tests/test_perf_startup.py).
 DEFAULT_SIZE = (640, 480)
+#: The one default image size of play, replay and snapshot (docs/cli.md).
+DEFAULT_SIZE_TEXT = f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}"
 
 #: Exit codes: the one table of :data:`meshtool.cli_common.EXIT_CODES` (docs/cli.md), mapped by
 #: :func:`meshtool.cli_common.fail`. ``SIMRUN_DEBUG=1`` gives the traceback of an internal error (exit 3).
@@ -60,34 +63,6 @@ class _Group(VocabularyGroup):
             fail(exc, "simrun")
 
 
-class _Number(click.ParamType):  # type: ignore[type-arg]
-    """A finite float in [low, high] (click's FloatRange lets NaN through)."""
-
-    name = "number"
-
-    def __init__(self, low: float, high: float, low_open: bool = False) -> None:
-        self.low, self.high, self.low_open = low, high, low_open
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            self.fail(f"{value!r} is not a number", param, ctx)
-        below = number <= self.low if self.low_open else number < self.low
-        if not math.isfinite(number) or below or number > self.high:
-            bracket = "(" if self.low_open else "["
-            self.fail(f"{value!r} is not in {bracket}{self.low:g}, {self.high:g}]", param, ctx)
-        return number
-
-
-#: Longest simulated run from the command line (one day), seconds.
-MAX_SECONDS = 86400.0
-SECONDS = _Number(0.0, MAX_SECONDS)
-FPS = _Number(0.0, 1000.0, low_open=True)
-#: The one default image size of play, replay and snapshot (docs/cli.md).
-DEFAULT_SIZE_TEXT = f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}"
-
-
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="simrun")
 def main() -> None:
@@ -98,6 +73,7 @@ def main() -> None:
     """
 
 
+main.add_command(serve_command)  # simrun serve (simrun/cli_serve.py)
 main.add_command(test_command)  # simrun test: scene tests with [[expect]] (simrun/scenetest/cli.py)
 
 
@@ -373,17 +349,14 @@ def play_command(
         click.echo(f"  wrote {item.path} ({item.size} bytes)")
 
 
-_OUT = click.Path(path_type=Path, dir_okay=False)
-
-
 @main.command("replay")
 @click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--video", type=_OUT, default=None, help="OUT.gif or OUT.mp4.")
-@click.option("--glb", type=_OUT, default=None, help="Animated GLB: visual meshes, one animation (Y-up, metres).")
-@click.option("--gltf", type=_OUT, default=None, help="The same as one .gltf file (buffers as data: URIs).")
-@click.option("--usd", type=_OUT, default=None, help="USD (.usd/.usda/.usdc): the physics export + time samples.")
-@click.option("--html", type=_OUT, default=None, help="A page that plays the recording in a browser, offline.")
-@click.option("--mcap", type=_OUT, default=None, help="MCAP with Foxglove schemas: body transforms, poses, sensors.")
+@click.option("--video", type=OUT, default=None, help="OUT.gif or OUT.mp4.")
+@click.option("--glb", type=OUT, default=None, help="Animated GLB: visual meshes, one animation (Y-up, metres).")
+@click.option("--gltf", type=OUT, default=None, help="The same as one .gltf file (buffers as data: URIs).")
+@click.option("--usd", type=OUT, default=None, help="USD (.usd/.usda/.usdc): the physics export + time samples.")
+@click.option("--html", type=OUT, default=None, help="A page that plays the recording in a browser, offline.")
+@click.option("--mcap", type=OUT, default=None, help="MCAP with Foxglove schemas: body transforms, poses, sensors.")
 @click.option(
     "--render-mode", type=click.Choice([m for m in MODES if m != "none"]), default="visual", show_default=True
 )
@@ -398,7 +371,7 @@ _OUT = click.Path(path_type=Path, dir_okay=False)
 )
 @click.option(
     "--tolerance",
-    type=_Number(1e-9, 1.0, low_open=True),
+    type=Number(1e-9, 1.0, low_open=True),
     default=1e-3,
     show_default=True,
     help="With --fps: the largest pose error of the animations between keyframes, metres and radians.",
@@ -499,70 +472,6 @@ def resim(log: Path, start: float, controller: Path | None) -> None:
     if mismatch is not None:
         raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
     click.echo(f"{printable(log)}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
-
-
-@main.command("serve")
-@click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (others need --token).")
-@click.option("--port", type=click.IntRange(0, 65535), default=8765, show_default=True, help="TCP port (0: any free).")
-@click.option("--realtime/--lockstep", default=True, help="Run with the wall clock, or step only on POST /api/step.")
-@click.option("--rate", type=_Number(0.01, 1000.0), default=1.0, show_default=True, help="Real-time factor.")
-@click.option("--paused", is_flag=True, help="Start paused.")
-@click.option("--record", type=_OUT, default=None, help="Record the session to this .simlog (written at shutdown).")
-@click.option(
-    "--record-as",
-    type=click.Choice(["simlog", "mcap"]),
-    default="simlog",
-    show_default=True,
-    help="mcap: also write the recording as MCAP beside it (same name, .mcap).",
-)
-@click.option("--record-sensors", default=None, help="Comma-separated sensor names whose readings --record keeps.")
-@click.option("--seed", type=int, default=None, help="Reseed every sensor's noise (sensor k gets seed + k).")
-@click.option("--token", envvar="SIMRUN_TOKEN", default=None, help="Bearer token every request must carry.")
-@click.option(
-    "--foxglove-port", type=click.IntRange(0, 65535), default=None,
-    help="Also stream /tf and laser scans in the Foxglove WebSocket protocol on 127.0.0.1 (0: any free port).",
-)  # fmt: skip
-@click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
-def serve_command(
-    scene: Path,
-    host: str,
-    port: int,
-    realtime: bool,
-    rate: float,
-    paused: bool,
-    record: Path | None,
-    record_as: str,
-    record_sensors: str | None,
-    seed: int | None,
-    token: str | None,
-    force: bool,
-    foxglove_port: int | None = None,
-) -> None:
-    """Run SCENE and serve it: HTTP/JSON services and sensors, a WebSocket stream, a dashboard at /.
-
-    Stop with Ctrl+C or SIGTERM (the recording is written then). docs/serve.md describes the interface.
-    """
-    from simrun.serve.loop import ServeOptions
-    from simrun.serve.server import serve
-
-    sensors = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
-    mcap = record.with_suffix(".mcap") if record is not None and record_as == "mcap" else None
-    options = ServeOptions(scene, not realtime, rate, record=record, record_sensors=sensors, record_mcap=mcap,
-                           seed=seed, paused=paused)  # fmt: skip
-    with output_policy(force, [scene]):
-        served = serve(
-            options,
-            host,
-            port,
-            token,
-            on_ready=lambda url: click.echo(f"{'foxglove' if url.startswith('ws:') else 'serving'} {url}"),
-            foxglove_port=foxglove_port,
-        )
-    for path in served.written:
-        click.echo(f"wrote {printable(path)}")
-    if served.error:
-        raise SimrunError(served.error)
 
 
 @main.command("view")

@@ -237,10 +237,8 @@ class SimLoop:
             if self._factory is not None:
                 self.recording = self._factory(world, self)
             self._publish(world, poses=True)
-        except BaseException as exc:
-            self._started.set_exception(
-                exc if isinstance(exc, SimrunError) else SimrunError(f"{type(exc).__name__}: {exc}")
-            )
+        except Exception as exc:  # a refused scene (SimrunError), or a bug the command reports as one (exit 3)
+            self._started.set_exception(exc)
             return
         self._started.set_result(None)
         try:
@@ -305,7 +303,7 @@ class SimLoop:
             return
         try:
             future.set_result(fn(world))
-        except BaseException as exc:  # handed to the request that asked (a RequestError, or a bug)
+        except Exception as exc:  # handed to the request that asked (a RequestError, or a bug)
             future.set_exception(exc)
 
     # -- calls (from any thread) ---------------------------------------------------------------------------
