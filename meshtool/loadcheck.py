@@ -29,8 +29,9 @@ from pathlib import Path
 from meshtool.cachefile import read_entry, write_entry
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, info
-from meshtool.model import GROUP, BodyDesc, ModelDesc, ModelError, TextureDesc, check_model
+from meshtool.model import BodyDesc, ModelDesc, ModelError, TextureDesc
 from meshtool.packfile.read import PackedMesh
+from meshtool.plugins import MJCF_GROUP, check_model, installed
 from meshtool.safeopen import sha256_of
 
 #: The name every element of the checked model starts with.
@@ -98,10 +99,9 @@ def plugin_identity() -> str | None:
     and SHA-256 of its content: modification times decide nothing) and the installed MuJoCo distribution's
     version.
     """
-    points = list(metadata.entry_points(group=GROUP, name="check"))
-    if not points:
+    point = installed(MJCF_GROUP, "check")
+    if point is None:
         return None
-    point = points[0]
     dist = getattr(point, "dist", None)
     parts = [point.value, f"{dist.name} {dist.version}" if dist is not None else "?"]
     spec = importlib.util.find_spec(point.value.split(":")[0].split(".")[0])  # a top-level name: not imported

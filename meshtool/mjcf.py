@@ -31,12 +31,12 @@ from meshtool.model import (
     MeshDesc,
     ModelDesc,
     TextureDesc,
-    mjcf_files,
 )
 from meshtool.normalmaps import mujoco_findings
 from meshtool.outdir import write_folder
 from meshtool.packfile.read import PackedMesh
 from meshtool.packfile.view import asset_view, unique_names
+from meshtool.plugins import mjcf_files
 
 
 @dataclass(frozen=True, slots=True)

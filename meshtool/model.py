@@ -1,14 +1,15 @@
-"""A neutral description of a MuJoCo model, and the plugin that turns it into a compiled MJCF folder.
+"""A neutral description of a MuJoCo model, and the signatures of the plugins that compile it.
 
 meshtool never imports MuJoCo: ``meshtool mjcf`` and ``meshtool urdf`` describe the model they want
 (:class:`ModelDesc`: bodies, joints, inertials, geoms, meshes as arrays, PNG textures, materials,
 equalities, motors) and hand it to the *MJCF builder*, a callable registered under the entry-point group
 ``meshtool.mjcf`` with the name ``builder``. simrun registers :func:`simrun.mjcf_builder.build_files`,
 which builds a ``mujoco.MjSpec``, writes the XML with its OBJ meshes and PNG textures, and compiles
-the written folder before returning it. Without simrun installed, :func:`mjcf_files` raises
-:class:`ModelError` with the hint to install it. The same group's ``check`` plugin
-(:func:`simrun.mjcf_builder.check_model`) only compiles a model in memory: :func:`check_model` is how
-``obj2bin`` asks whether MuJoCo accepts what it packed.
+the written folder before returning it. Without simrun installed, :func:`meshtool.plugins.mjcf_files`
+raises :class:`ModelError` with the hint to install it. The same group's ``check`` plugin
+(:func:`simrun.mjcf_builder.check_model`) only compiles a model in memory:
+:func:`meshtool.plugins.check_model` is how ``obj2bin`` asks whether MuJoCo accepts what it packed. The
+plugins are found and called in :mod:`meshtool.plugins` only; this module holds the types they share.
 
 Frames and units: metres, radians, kilograms; every pose is relative to the parent body, positions
 ``(3,)`` and quaternions ``(4,)`` as ``(w, x, y, z)``. Mesh texture coordinates follow OBJ (``v = 0`` at
@@ -18,16 +19,13 @@ the image bottom); the builder converts them to MuJoCo's convention.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cache
-from importlib.metadata import entry_points
-from typing import Any, Literal, Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from meshtool.errors import MeshtoolError
 
-GROUP = "meshtool.mjcf"
 #: Deepest chain of bodies a model may nest. MuJoCo reads MJCF with tinyxml2, which refuses documents nesting
 #: more than 500 elements (``TINYXML2_MAX_ELEMENT_DEPTH``, "XML parse error 18"): a flat MJCF holds 496
 #: bodies in one chain; 16 levels are left for the bodies a scene puts around an imported robot.
@@ -225,20 +223,6 @@ class MjcfBuilder(Protocol):
         ...
 
 
-def load_plugin(group: str, name: str) -> Any:
-    """What the first installed entry point ``name`` of ``group`` names (loaded), or ``None``."""
-    for point in entry_points(group=group, name=name):
-        return point.load()
-    return None
-
-
-@cache
-def mjcf_builder() -> MjcfBuilder | None:
-    """The installed MJCF builder plugin, or ``None``."""
-    builder: MjcfBuilder | None = load_plugin(GROUP, "builder")
-    return builder
-
-
 class ModelChecker(Protocol):
     """The signature of the ``meshtool.mjcf`` ``check`` plugin."""
 
@@ -249,51 +233,6 @@ class ModelChecker(Protocol):
             ModelError: MuJoCo refuses the model (its message and the element at fault).
         """
         ...
-
-
-@cache
-def mjcf_checker() -> ModelChecker | None:
-    """The installed model check plugin (entry point ``meshtool.mjcf:check``), or ``None``."""
-    checker: ModelChecker | None = load_plugin(GROUP, "check")
-    return checker
-
-
-def check_model(model: ModelDesc) -> bool:
-    """Whether MuJoCo could be asked: compile ``model`` with the installed plugin, writing nothing.
-
-    Uses the ``check`` plugin (a compile in memory); an installation that registers only the ``builder``
-    is asked through it (it also writes and reloads the folder in a scratch directory).
-
-    Returns:
-        ``True`` when MuJoCo compiled the model, ``False`` when no plugin is installed (nothing was checked).
-
-    Raises:
-        ModelError: MuJoCo refuses the model.
-    """
-    checker = mjcf_checker()
-    if checker is not None:
-        checker(model)
-        return True
-    builder = mjcf_builder()
-    if builder is not None:
-        builder(model)
-        return True
-    return False
-
-
-def mjcf_files(model: ModelDesc) -> dict[str, bytes]:
-    """Build, write and compile ``model`` with the installed builder; the files by name.
-
-    Raises:
-        ModelError: No builder is installed, or MuJoCo refuses the model.
-    """
-    builder = mjcf_builder()
-    if builder is None:
-        raise ModelError(
-            "MJCF output needs a MuJoCo builder and none is installed (entry point 'meshtool.mjcf:builder')",
-            hint="install simrun: pip install meshtool-simrun",
-        )
-    return builder(model)
 
 
 def balance_inertia(moments: FloatArray) -> tuple[FloatArray, bool]:

@@ -45,9 +45,9 @@ from meshtool.model import (
     ModelDesc,
     MotorDesc,
     balance_inertia,
-    mjcf_files,
 )
 from meshtool.outdir import GENERATOR
+from meshtool.plugins import mjcf_files
 from meshtool.resolve import Resolver
 from meshtool.urdf_geoms import LinkParts, fmt, quat, vec3
 from meshtool.urdf_locate import UrdfError

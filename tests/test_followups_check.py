@@ -17,7 +17,7 @@ import mujoco
 import pytest
 from click.testing import CliRunner
 
-import meshtool.model
+import meshtool.plugins
 from meshtool.cli import main, obj2bin
 from meshtool.convert import ConvertOptions, convert
 from meshtool.errors import MeshtoolError
@@ -94,8 +94,8 @@ def test_a_part_under_4_vertices_is_refused_by_the_check() -> None:
 
 
 def test_without_the_plugin_the_check_is_skipped_with_a_note(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(meshtool.model, "mjcf_checker", lambda: None)
-    monkeypatch.setattr(meshtool.model, "mjcf_builder", lambda: None)
+    monkeypatch.setattr(meshtool.plugins, "mjcf_checker", lambda: None)
+    monkeypatch.setattr(meshtool.plugins, "mjcf_builder", lambda: None)
     result = convert(MICRO, tmp_path / "micro.mbin", ConvertOptions())
     assert result.stats["mujoco_check"] == "skipped"
     (note,) = [f for f in result.findings if f.code == "mujoco-check-skipped"]
@@ -106,7 +106,7 @@ def test_without_the_plugin_the_check_is_skipped_with_a_note(tmp_path: Path, mon
 def test_an_installation_with_only_the_builder_is_checked_through_it(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(meshtool.model, "mjcf_checker", lambda: None)
+    monkeypatch.setattr(meshtool.plugins, "mjcf_checker", lambda: None)
     with pytest.raises(MeshtoolError, match="mesh volume is too small"):
         convert(MICRO, tmp_path / "micro.mbin", ConvertOptions())
     assert not (tmp_path / "micro.mbin").exists()

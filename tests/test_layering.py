@@ -151,6 +151,44 @@ def import_edges(module: str) -> list[tuple[str, str]]:
     return edges
 
 
+def entry_point_targets() -> dict[tuple[str, str], str]:
+    """(group, name) -> target module of every ``meshtool.*`` entry point pyproject.toml declares."""
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    return {
+        (group, name): value.split(":")[0]
+        for group, points in project.get("entry-points", {}).items()
+        if group.startswith("meshtool.")
+        for name, value in points.items()
+    }
+
+
+def plugin_loads(module: str) -> list[tuple[str, str, int]]:
+    """(group, name, line) of every ``load_plugin(GROUP, "name")`` call in ``module``.
+
+    ``GROUP`` is a string literal or a module-level constant of ``module`` bound to one.
+    """
+    tree = ast.parse(MODULES[module].read_text())
+    constants = {
+        node.targets[0].id: node.value.value
+        for node in tree.body
+        if isinstance(node, ast.Assign)
+        and len(node.targets) == 1
+        and isinstance(node.targets[0], ast.Name)
+        and isinstance(node.value, ast.Constant)
+        and isinstance(node.value.value, str)
+    }
+    loads = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and ast.unparse(node.func).endswith("load_plugin") and len(node.args) == 2:
+            group, name = node.args
+            value = group.value if isinstance(group, ast.Constant) else constants.get(getattr(group, "id", ""))
+            assert isinstance(value, str) and isinstance(name, ast.Constant), ast.unparse(node)
+            loads.append((value, name.value, node.lineno))
+    return loads
+
+
 def import_graph(packages: tuple[str, ...] = PACKAGES) -> dict[str, dict[str, str]]:
     """Module -> {imported module: where the first such import is} among the modules of ``packages``.
 
@@ -163,6 +201,12 @@ def import_graph(packages: tuple[str, ...] = PACKAGES) -> dict[str, dict[str, st
         for target, where in import_edges(module):
             if target in inside:
                 graph[module].setdefault(target, where)
+    targets = entry_point_targets()
+    for module in inside:  # an entry point loaded at run time is an import of its target by the loading module
+        for group, name, line in plugin_loads(module) if module.startswith("meshtool") else []:
+            target = targets.get((group, name))
+            if target in inside:
+                graph[module].setdefault(target, f"{_rel(MODULES[module])}:{line}: loads entry point {group}:{name}")
     if "simrun.registry" in graph:
         from simrun.registry import REGISTRY
 
@@ -250,6 +294,36 @@ def test_packages_have_no_import_cycle():
     assert {"meshtool.validate.reports.html", "simrun.scenetest.report_html"} <= set(graph)
     cycles = import_cycles(graph)
     assert not cycles, describe_cycles(graph, cycles)
+
+
+def test_entry_points_count_as_imports_by_the_module_that_loads_them():
+    """meshtool reaches simrun at run time only through entry points, and each load is an edge of the graph.
+
+    Entry points are looked up in ``meshtool/plugins.py`` only and loaded through its ``load_plugin``; every
+    entry point pyproject.toml declares is loaded somewhere, and each load is an import of its target, so
+    :func:`test_packages_have_no_import_cycle` counts them.
+    """
+    targets = entry_point_targets()
+    assert set(targets.values()) >= {"simrun.mjcf_builder", "simrun.asset_check"}
+    graph = import_graph()
+    loaded = {}
+    for module in MODULES:
+        if module.startswith("meshtool"):
+            for group, name, _ in plugin_loads(module):
+                loaded[(group, name)] = module
+                assert targets[(group, name)] in graph[module], (module, group, name)
+    assert set(loaded) == set(targets), "declared but never loaded, or loaded but not declared"
+    lookups = [
+        f"{_rel(path)}:{node.lineno}"
+        for path in package_files("meshtool")
+        for node in ast.walk(ast.parse(path.read_text()))
+        if (isinstance(node, ast.Name) and node.id == "entry_points")
+        or (isinstance(node, ast.Attribute) and node.attr == "entry_points")
+        or (isinstance(node, ast.alias) and node.name == "entry_points")
+    ]
+    assert lookups and all(where.startswith("meshtool/plugins.py:") for where in lookups), lookups
+    loader = loaded[("meshtool.mjcf", "builder")]  # the edge would close a cycle if the plugin imported its loader
+    assert import_cycles({**graph, "simrun.mjcf_builder": {**graph["simrun.mjcf_builder"], loader: "probe"}})
 
 
 def test_the_cycle_check_sees_function_level_and_relative_imports():

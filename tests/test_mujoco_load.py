@@ -66,10 +66,10 @@ def test_exported_scene_folder_loads_alone_after_being_moved(scene, tmp_path):
 def test_meshtool_mjcf_without_a_builder_is_one_error_line(fixtures, tmp_path, monkeypatch):
     from click.testing import CliRunner
 
-    import meshtool.model
+    import meshtool.plugins
     from meshtool.cli import main as meshtool_main
 
-    monkeypatch.setattr(meshtool.model, "mjcf_builder", lambda: None)
+    monkeypatch.setattr(meshtool.plugins, "mjcf_builder", lambda: None)
     result = CliRunner().invoke(meshtool_main, ["mjcf", str(SCENES / "head.mbin"), "-o", str(tmp_path / "m")])
     assert result.exit_code == 1 and result.output.count("\n") == 1
     assert "pip install meshtool-simrun" in result.output and not (tmp_path / "m").exists()

@@ -26,7 +26,7 @@ from typing import Any
 from meshtool import __version__, cachefile
 from meshtool.findings import Finding, Severity
 from meshtool.resolve import file_sha256
-from meshtool.validate.plugins import environment
+from meshtool.validate.physics import environment
 from meshtool.validate.snapshot import dependency_listings, listing_digest
 from meshtool.validate.task import RULESET_VERSION, AssetResult, AssetTask
 

@@ -1,22 +1,18 @@
-"""Rules that need a simulator come from plugins, so that meshtool itself never imports one.
+"""Rules that need a simulator come from plugins, so that meshtool itself never imports one: their types.
 
 A plugin is a callable registered under the entry-point group ``meshtool.validate`` with the name
 ``physics``; this distribution registers :func:`simrun.asset_check.check_pack` (MuJoCo). It receives one
 packed asset (``.mbin`` bytes) and returns a :class:`PhysicsOutcome`. When no plugin is installed the
-physics rules are reported as not run.
+physics rules are reported as not run. The plugin is found and called through :mod:`meshtool.plugins`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cache
-from importlib.metadata import PackageNotFoundError, entry_points, version
 from typing import Any, Protocol
 
 from meshtool.findings import Finding
-from meshtool.model import load_plugin
 
-GROUP = "meshtool.validate"
 #: Libraries whose versions change what rules compute (hulls, volumes, decoding, simulation).
 COMPUTED_WITH = ("numpy", "scipy", "trimesh", "Pillow", "mujoco")
 
@@ -51,30 +47,3 @@ class PhysicsCheck(Protocol):
             thumbnail: Whether to render a thumbnail.
         """
         ...
-
-
-@cache
-def physics_plugin() -> PhysicsCheck | None:
-    """The installed ``physics`` plugin, or ``None``."""
-    plugin: PhysicsCheck | None = load_plugin(GROUP, "physics")
-    return plugin
-
-
-def environment() -> dict[str, Any]:
-    """What the results depend on besides the files and options: the physics plugin and library versions.
-
-    Part of the cache key: installing or removing the plugin, or upgrading MuJoCo or trimesh, re-checks
-    every asset. Read from the installed distributions' metadata (nothing is imported).
-    """
-    plugin = None
-    for point in entry_points(group=GROUP, name="physics"):
-        dist = point.dist
-        plugin = f"{point.value} ({dist.name} {dist.version})" if dist is not None else point.value
-        break
-    versions: dict[str, str | None] = {}
-    for name in COMPUTED_WITH:
-        try:
-            versions[name] = version(name)
-        except PackageNotFoundError:
-            versions[name] = None
-    return {"plugin": plugin, "versions": versions}

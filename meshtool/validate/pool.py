@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from meshtool import workpool
-from meshtool.validate.plugins import physics_plugin
+from meshtool.validate.physics import physics_plugin
 from meshtool.validate.rules import hit
 from meshtool.validate.task import AssetResult, AssetTask, ReadAsset, check_asset, judge_asset, read_asset
 

@@ -31,7 +31,7 @@ from meshtool.units import scale_findings
 from meshtool.validate.collision import collision_findings
 from meshtool.validate.config import Limits
 from meshtool.validate.geometry import geometry_findings
-from meshtool.validate.plugins import physics_plugin
+from meshtool.validate.physics import physics_plugin
 from meshtool.validate.rules import RULES, hit
 from meshtool.validate.source import encoding_findings, from_normaliser, name_findings, reference_findings
 
