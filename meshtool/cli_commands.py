@@ -8,7 +8,6 @@ URDF, GLB/USD export) are imported by that command.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import stat
 import sys
@@ -19,8 +18,19 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from meshtool import __version__
-from meshtool.changes import TOLD_NOTES, split_findings
-from meshtool.cli_common import EXIT_INPUT, VocabularyCommand, exit_on_bug, fail, progress_enabled, quiet_requested
+from meshtool.cli_common import VocabularyCommand, progress_enabled
+from meshtool.cli_output import (
+    EXIT_INPUT,
+    exit_on_bug,
+    fail,
+    failed_item,
+    findings,
+    findings_of,
+    report,
+    say,
+    told_once,
+    wrote,
+)
 from meshtool.errors import MeshtoolError, OptionsError
 from meshtool.findings import Finding, Severity
 from meshtool.formats import mesh_suffixes, suffix
@@ -215,12 +225,9 @@ def normalize(
     with _guard(as_json), overwrite_allowed(force), subject(src.name):
         options = _normalise_options(normalise_kw, name=name)
         folder, asset = normalise_to(src, out_dir, options)
-    if as_json:
-        click.echo(json.dumps(_report("ok", folder, asset.findings, asset.stats)))
-        return
-    stats = asset.stats
-    click.echo(f"wrote {folder}: {_summary(stats)}")
-    _echo_findings(asset.findings)
+    report(_report("ok", folder, asset.findings, asset.stats))
+    wrote(folder, f"wrote {folder}: {_summary(asset.stats)}", kind="folder")
+    findings(asset.findings)
 
 
 @click.command("obj2bin", cls=VocabularyCommand, context_settings={"help_option_names": ["-h", "--help"]})
@@ -287,11 +294,9 @@ def obj2bin(
         default_name = f"{safe_file_stem(src.stem) or 'asset'}{suffix('mbin')}"
         target = out / default_name if out is not None and _is_folder(out) else out or Path(default_name)
         result = convert(src, target, options, force=force)
-    if as_json:
-        click.echo(json.dumps(_report("ok", result.output, result.findings, result.stats)))
-        return
-    click.echo(f"wrote {result.output}: {_summary(result.stats)}, {result.stats['bytes']} bytes")
-    _echo_findings(result.findings)
+    report(_report("ok", result.output, result.findings, result.stats))
+    wrote(result.output, f"wrote {result.output}: {_summary(result.stats)}, {result.stats['bytes']} bytes", kind="mbin")
+    findings(result.findings)
 
 
 def _obj2bin_mjcf(
@@ -304,15 +309,13 @@ def _obj2bin_mjcf(
     target = None
     if out is not None:
         target = out / f"{safe_file_stem(src.stem) or 'asset'}{suffix('mbin')}" if _is_folder(out) else out
-    xml, packed, findings = mesh_mjcf(src, mjcf_dir, options, force=force, mbin=target)
-    if as_json:
-        shown = {"status": "ok", "output": str(xml), "mbin": str(target) if target else None}
-        click.echo(json.dumps({**shown, "findings": [f.to_dict() for f in findings], "stats": packed.stats}))
-        return
+    xml, packed, found = mesh_mjcf(src, mjcf_dir, options, force=force, mbin=target)
+    shown = {"status": "ok", "output": str(xml), "mbin": str(target) if target else None}
+    report({**shown, "findings": [f.to_dict() for f in found], "stats": packed.stats})
     if target is not None:
-        click.echo(f"wrote {target}: {_summary(packed.stats)}, {packed.stats['bytes']} bytes")
-    click.echo(f"wrote {xml}")
-    _echo_findings(findings)
+        wrote(target, f"wrote {target}: {_summary(packed.stats)}, {packed.stats['bytes']} bytes", kind="mbin")
+    wrote(xml, kind="mjcf")
+    findings(found)
 
 
 def _is_folder(path: Path) -> bool:
@@ -334,37 +337,32 @@ def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as
     else:
         for k, result in enumerate(stream, start=1):
             results.append(result)
-            if not as_json:
-                detail = result.error if result.error else str(result.output)
-                click.echo(f"[{k}/{total}] {result.status}: {result.source} -> {detail}")
+            detail = result.error if result.error else str(result.output)
+            say(f"[{k}/{total}] {result.status}: {result.source} -> {detail}")
     results.sort(key=lambda r: str(r.source))
     counts = {s: sum(r.status == s for r in results) for s in ("written", "unchanged", "failed")}
-    if as_json:
-        click.echo(
-            json.dumps(
+    report(
+        {
+            "status": "error" if counts["failed"] else "ok",
+            "counts": counts,
+            "assets": [
                 {
-                    "status": "error" if counts["failed"] else "ok",
-                    "counts": counts,
-                    "assets": [
-                        {
-                            "source": str(r.source),
-                            "output": str(r.output),
-                            "status": r.status,
-                            "error": r.error,
-                            "findings": [f.to_dict() for f in r.findings],
-                            "stats": r.stats,
-                        }
-                        for r in results
-                    ],
+                    "source": str(r.source),
+                    "output": str(r.output),
+                    "status": r.status,
+                    "error": r.error,
+                    "findings": [f.to_dict() for f in r.findings],
+                    "stats": r.stats,
                 }
-            )
-        )
-    else:
-        for r in results:
-            if r.status == "failed":
-                click.echo(f"error: {r.error}", err=True)
-        _echo_grouped([(str(r.source), r.findings) for r in results])  # each asset's warnings under its name
-        click.echo(f"{counts['written']} written, {counts['unchanged']} unchanged, {counts['failed']} failed")
+                for r in results
+            ],
+        }
+    )
+    for r in results:
+        if r.status == "failed":
+            failed_item(str(r.error))
+    findings_of([(str(r.source), r.findings) for r in results])  # each asset's warnings under its name
+    say(f"{counts['written']} written, {counts['unchanged']} unchanged, {counts['failed']} failed")
     if counts["failed"]:
         sys.exit(EXIT_INPUT)
 
@@ -384,15 +382,13 @@ def hulls(src: Path, as_json: bool, **kw: Any) -> None:
         options = _hull_options(kw)
         asset = prepare(src, _normalise_options(kw, strict=False))
         result = compute_hulls(asset.mesh, options, src.name)
-        report = quality(asset.mesh, result.hulls)
-        report["cache_hits"] = result.cache_hits
+        summary = quality(asset.mesh, result.hulls)
+        summary["cache_hits"] = result.cache_hits
         if strict and any(f.severity is not Severity.INFO for f in result.findings):
             raise OptionsError("hull warnings in strict mode", hint="see the findings")
-    if as_json:
-        click.echo(json.dumps({"status": "ok", "hulls": report, "findings": [f.to_dict() for f in result.findings]}))
-        return
-    click.echo(f"{src}: {_hull_summary(report)}")
-    _echo_findings(result.findings)
+    report({"status": "ok", "hulls": summary, "findings": [f.to_dict() for f in result.findings]})
+    say(f"{src}: {_hull_summary(summary)}")
+    findings(result.findings)
 
 
 def _hull_summary(report: dict[str, Any]) -> str:
@@ -442,9 +438,9 @@ def mjcf(
             from meshtool.mesh_mjcf import mesh_mjcf
 
             convert_options = ConvertOptions(NormaliseOptions(units=units, up=up))
-            xml, _, findings = mesh_mjcf(src, out_dir, convert_options, options, force=force)
-            click.echo(f"wrote {xml}")
-            _echo_findings(findings)
+            xml, _, found = mesh_mjcf(src, out_dir, convert_options, options, force=force)
+            wrote(xml, kind="mjcf")
+            findings(found)
             return
         sources = find_files(src, suffix("mbin")) if _is_folder(src) else [src]
         if not sources:
@@ -460,8 +456,8 @@ def mjcf(
                     packed, out_dir, safe_file_stem(path.stem) or "asset", path, options, force=force, inputs=sources
                 )
             told += found
-            click.echo(f"wrote {xml}")
-    _echo_told(told)
+            wrote(xml, kind="mjcf")
+    told_once(told)
 
 
 def _package_dir(_ctx: click.Context, _param: click.Parameter, values: tuple[str, ...]) -> tuple[tuple[str, Path], ...]:
@@ -513,11 +509,14 @@ def urdf(
     with _guard(False), overwrite_allowed(force):
         options = UrdfOptions(package_dirs, _hull_options(hull_kw), actuators, free_base, allow_outside, package_search)
         result = import_urdf(robot, options)
-        _echo_findings(result.findings)
+        findings(result.findings)
         write_import(result, out_dir)
-        click.echo(
-            f"wrote {out_dir / (result.name + suffix('mjcf'))}: {len(result.links)} links, {len(result.joints)} moving "
-            f"joints, {len(result.mbins)} mesh(es) in {out_dir / 'meshes'}"
+        xml = out_dir / (result.name + suffix("mjcf"))
+        wrote(
+            xml,
+            f"wrote {xml}: {len(result.links)} links, {len(result.joints)} moving "
+            f"joints, {len(result.mbins)} mesh(es) in {out_dir / 'meshes'}",
+            kind="mjcf",
         )
 
 
@@ -533,58 +532,14 @@ def _report(status: str, output: Path, findings: list[Finding], stats: dict[str,
     return {"status": status, "output": str(output), "findings": [f.to_dict() for f in findings], "stats": stats}
 
 
-def _echo_findings(findings: list[Finding]) -> None:
-    """Warnings (and with ``-v`` every note) on stderr, then the told notes; nothing with ``-q``."""
-    _echo_grouped([(None, findings)])
-
-
-def _echo_grouped(groups: list[tuple[str | None, list[Finding]]]) -> None:
-    """The findings of each asset, under its name when it has one (a folder conversion); nothing with ``-q``.
-
-    Warnings are shown, notes on how the input was read only with ``-v`` (else counted in one closing line), and
-    the :data:`~meshtool.changes.TOLD_NOTES` once per code for the whole command.
-    """
-    if quiet_requested():
-        return
-    verbose = bool(os.environ.get("MESHTOOL_VERBOSE"))
-    told: list[Finding] = []
-    hidden = 0
-    for heading, findings in groups:
-        told += [f for f in findings if f.code in TOLD_NOTES]
-        shown, notes = split_findings(f for f in findings if f.code not in TOLD_NOTES)
-        listed = [*shown, *notes] if verbose else shown
-        hidden += 0 if verbose else len(notes)
-        if heading is not None and listed:
-            click.echo(f"{heading}:", err=True)
-        for finding in listed:
-            click.echo(("  " if heading is not None else "") + finding.one_line(), err=True)
-    _echo_told(told)
-    if hidden:
-        click.echo(f"note: {hidden} more note(s) on how the input was read (-v shows them)", err=True)
-
-
-def _echo_told(told: list[Finding]) -> None:
-    """The :data:`~meshtool.changes.TOLD_NOTES` as ``note:`` lines, one per code for the whole command."""
-    if quiet_requested():
-        return
-    for code in sorted({f.code for f in told}):
-        same = [f for f in told if f.code == code]
-        first = same[0]
-        where = f"{first.where}: " if first.where else ""
-        more = f" (and in {len(same) - 1} more file(s))" if len(same) > 1 else ""
-        click.echo(f"note: {where}{first.message}{more} [{code}]", err=True)
-
-
 @contextlib.contextmanager
 def _guard(as_json: bool) -> Iterator[None]:
     """Map library errors to exit 1 (one ``error:`` line) and bugs to exit 3."""
     try:
         yield
     except MeshtoolError as exc:
-        if as_json:  # the command's own JSON document (normalize, obj2bin --json)
-            click.echo(
-                json.dumps({"status": "error", "output": None, "error": exc.to_dict(), "findings": [], "stats": None})
-            )
+        if as_json:  # the command's own JSON document (normalize, obj2bin, hulls, info --json)
+            report({"status": "error", "output": None, "error": exc.to_dict(), "findings": [], "stats": None})
         fail(exc)
     except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
         exit_on_bug(exc)

@@ -3,14 +3,13 @@
 Every command of the three gets, from :class:`VocabularyGroup` / :class:`VocabularyCommand`:
 
 - ``--json``: one JSON object on stdout, errors included (``{"status": "error", "exit_code": 1, "error":
-  {"message": ...}}``); a command that writes its own JSON keeps it, one with text output has its lines
-  wrapped (``{"status": "ok", "command": ..., "output": [...]}``); ``--format json`` means the same where a
-  command has ``--format``;
+  {"message": ...}}``), rendered from the command's :class:`meshtool.cli_output.Outcome` (its own document,
+  or its lines, outputs, findings and stats); ``--format json`` means the same where a command has ``--format``;
 - ``-q/--quiet``: nothing on stdout unless ``--json``, and no findings (warnings, notes) on stderr: errors
-  still are, and the exit code says the rest (:func:`quiet_requested`);
+  still are, and the exit code says the rest (:func:`meshtool.cli_output.quiet_requested`);
 - ``-v/--verbose``: more detail (``MESHTOOL_VERBOSE=1``: every finding); ``-vv`` also the traceback of an
   internal error (``MESHTOOL_DEBUG=1`` / ``SIMRUN_DEBUG=1``);
-- the exit codes of :data:`EXIT_CODES`, and one ``error:`` line on stderr for a mistake: libraries'
+- the exit codes of :data:`meshtool.cli_output.EXIT_CODES`, and one ``error:`` line on stderr for a mistake: libraries'
   warnings and log records (numpy, trimesh, yourdfpy) are shown only with -v (:func:`quiet_libraries`).
 
 Progress displays go to stderr and only when stderr is a terminal (:func:`progress_enabled`).
@@ -19,96 +18,27 @@ Progress displays go to stderr and only when stderr is a terminal (:func:`progre
 from __future__ import annotations
 
 import contextlib
-import contextvars
 import io
-import json
 import logging
 import os
 import sys
 import warnings
 from collections.abc import Iterator, Sequence
-from typing import Any, NoReturn, Protocol, runtime_checkable
+from typing import Any
 
 import click
 
+from meshtool.cli_output import (
+    DEBUG_VARIABLES,
+    EXIT_INPUT,
+    EXIT_OK,
+    begin,
+    current,
+    end,
+    render_json,
+    usage_failed,
+)
 from meshtool.progress import Display, reporting
-from meshtool.safeopen import printable
-
-EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
-#: Exit code for each kind of outcome, the same in every command (docs/cli.md).
-EXIT_CODES: dict[str, int] = {
-    "success (warnings allowed)": EXIT_OK,
-    "an input file that does not exist, cannot be read or is not the right kind of file": EXIT_INPUT,
-    "an input refused: bad syntax, values out of range, a broken reference (one error line with file:line)": EXIT_INPUT,
-    "a check failed: validate findings, a scene warning, a re-simulation that differs": EXIT_INPUT,
-    "an output refused: it would replace an input or a file the tool did not write (--force)": EXIT_INPUT,
-    "a service that cannot be reached (a Dask scheduler), a per-asset timeout": EXIT_INPUT,
-    "usage: an unknown option or command, a bad option value, a missing argument": EXIT_USAGE,
-    "the tool itself failed (a bug: 'internal error:' line; -vv shows the traceback)": EXIT_INTERNAL,
-}
-#: Environment variable that makes an internal error raise its traceback, per program.
-DEBUG_VARIABLES = {"meshtool": "MESHTOOL_DEBUG", "obj2bin": "MESHTOOL_DEBUG", "simrun": "SIMRUN_DEBUG"}
-#: ``-q`` of the command running now: its findings (warnings, notes) are not printed either (errors are).
-_QUIET: contextvars.ContextVar[bool] = contextvars.ContextVar("meshtool_quiet", default=False)
-#: The error the running command reported through :func:`fail`, with its fields (``--json`` shows them).
-_ERROR: contextvars.ContextVar[dict[str, object] | None] = contextvars.ContextVar("meshtool_error", default=None)
-
-
-def quiet_requested() -> bool:
-    """Whether the running command was given ``-q``/``--quiet``: print no findings, only errors."""
-    return _QUIET.get()
-
-
-def exit_on_bug(exc: Exception, program: str = "meshtool") -> NoReturn:
-    """Say that the tool failed (a bug: please report it) and exit 3; re-raise with its debug variable set."""
-    variable = DEBUG_VARIABLES.get(program, "MESHTOOL_DEBUG")
-    if os.environ.get(variable):
-        raise exc
-    message = _single_line(f"{type(exc).__name__}: {exc}")
-    click.echo(f"internal error: {message} (please report; {variable}=1 shows more)", err=True)
-    sys.exit(EXIT_INTERNAL)
-
-
-@runtime_checkable
-class ReportedError(Protocol):
-    """What meshtool's and simrun's errors share (``MeshtoolError``, ``SimrunError``): one line and fields."""
-
-    def one_line(self) -> str:
-        """The error in one line: where, what, how to fix it."""
-
-    def to_dict(self) -> dict[str, object]:
-        """Its fields, JSON-ready."""
-
-
-def exit_code_of(exc: BaseException) -> int:
-    """The one mapping of errors to exit codes (:data:`EXIT_CODES`, docs/cli.md).
-
-    An error of meshtool or simrun exits with its kind's ``exit_code`` where it has one (usage errors: 2; a
-    validation whose executor failed: 3) and 1 otherwise (an input, check or output refused); anything else
-    is a bug: 3.
-    """
-    if not isinstance(exc, ReportedError):
-        return EXIT_INTERNAL
-    code = getattr(exc, "exit_code", None)
-    return code if isinstance(code, int) and code in (EXIT_INPUT, EXIT_USAGE, EXIT_INTERNAL) else EXIT_INPUT
-
-
-def fail(exc: Exception, program: str = "meshtool", prefix: str = "error") -> NoReturn:
-    """Report ``exc`` and exit with :func:`exit_code_of`: one ``PREFIX: ...`` line on stderr, its fields for ``--json``.
-
-    A bug (not an error of the project's) goes to :func:`exit_on_bug`.
-    """
-    if not isinstance(exc, ReportedError):
-        exit_on_bug(exc, program)
-    line = _single_line(exc.one_line())
-    _ERROR.set({**exc.to_dict(), "message": line})
-    click.echo(f"{prefix}: {line}", err=True)
-    sys.exit(exit_code_of(exc))
-
-
-def _single_line(text: str) -> str:
-    r"""Messages (MuJoCo's among them) may hold line breaks: joined with ``; ``; stray bytes shown as ``\xNN``."""
-    return printable("; ".join(part.strip() for part in text.splitlines() if part.strip()))
 
 
 def executor_options(func: Any) -> Any:
@@ -238,29 +168,6 @@ def _with_format(command: click.Command, args: list[str]) -> list[str]:
     return args
 
 
-class _Tee(io.StringIO):
-    """Keeps what is written (and passes it on to ``target`` when given)."""
-
-    def __init__(self, target: Any = None) -> None:
-        super().__init__()
-        self.target = target
-
-    def write(self, text: str) -> int:
-        """Keep, and pass on."""
-        if self.target is not None:
-            self.target.write(text)
-        return super().write(text)
-
-    def flush(self) -> None:
-        """Flush the target."""
-        if self.target is not None:
-            self.target.flush()
-
-    def text(self) -> str:
-        """Everything written."""
-        return self.getvalue()
-
-
 @contextlib.contextmanager
 def quiet_libraries() -> Iterator[None]:
     """Keep what libraries say off stderr: Python warnings and log records nobody configured.
@@ -299,17 +206,16 @@ def vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
 @contextlib.contextmanager
 def _vocabulary(program: str, name: str, args: Sequence[str]) -> Iterator[None]:
     as_json, quiet, verbose = _flags(args)
-    token, reported = _QUIET.set(quiet), _ERROR.set(None)
+    token = begin(name, as_json, quiet)
     try:
-        with _run_vocabulary(name, as_json, quiet, verbose, program):
+        with _run_vocabulary(as_json, quiet, verbose, program):
             yield
     finally:
-        _QUIET.reset(token)
-        _ERROR.reset(reported)
+        end(token)
 
 
 @contextlib.contextmanager
-def _run_vocabulary(name: str, as_json: bool, quiet: bool, verbose: int, program: str) -> Iterator[None]:
+def _run_vocabulary(as_json: bool, quiet: bool, verbose: int, program: str) -> Iterator[None]:
     if verbose >= 1 and program in ("meshtool", "obj2bin"):
         os.environ["MESHTOOL_VERBOSE"] = "1"
     if verbose >= 2:
@@ -322,56 +228,33 @@ def _run_vocabulary(name: str, as_json: bool, quiet: bool, verbose: int, program
                     stack.enter_context(contextlib.redirect_stderr(_ClearFirst(display)))
                     if not quiet and _is_tty(sys.stdout):  # the same terminal: a line never runs into the progress
                         stack.enter_context(contextlib.redirect_stdout(_ClearFirst(display, sys.stdout)))
-                if quiet:
-                    with contextlib.redirect_stdout(io.StringIO()):
-                        yield
-                else:
-                    yield
+                if quiet:  # click's own text too (the result lines are not said with -q)
+                    stack.enter_context(contextlib.redirect_stdout(io.StringIO()))
+                yield
         finally:
             display.close()
         return
-    out, err = _Tee(), _Tee(sys.stderr)
-    code = EXIT_OK
+    extra = io.StringIO()  # only click's own text (--help, --version) reaches stdout in JSON mode
     try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        with contextlib.redirect_stdout(extra):
             yield
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else (EXIT_OK if exc.code is None else EXIT_INPUT)
-        _emit_json(name, out.text(), err.text(), code)
+        _emit(code, extra.getvalue())
         raise
     except click.exceptions.Exit as exc:
-        code = exc.exit_code
-        _emit_json(name, out.text(), err.text(), code)
+        _emit(exc.exit_code, extra.getvalue())
         raise
     except click.ClickException as exc:
-        _emit_json(name, out.text(), f"error: {exc.format_message()}\n", exc.exit_code)
+        usage_failed(exc.format_message(), exc.exit_code)
+        _emit(exc.exit_code, extra.getvalue())
         raise
-    _emit_json(name, out.text(), err.text(), code)
+    _emit(EXIT_OK, extra.getvalue())
 
 
-def _emit_json(name: str, out: str, err: str, code: int) -> None:
-    """Pass the command's own JSON through, else wrap its text lines (and its error) in one JSON object."""
-    text = out.strip()
-    if text:
-        try:
-            json.loads(text)
-        except ValueError:
-            pass
-        else:
-            sys.stdout.write(out if out.endswith("\n") else out + "\n")
-            sys.stdout.flush()
-            return
-    prefixes = ("error: ", "usage error: ", "internal error: ", "Error: ")  # the last is click's usage message
-    lines = err.splitlines()
-    errors = [line[len(p) :] for line in lines for p in prefixes if line.startswith(p)]
-    verdicts = [line for line in lines if line.startswith("FAILED: ")]  # a report's (validate, simrun test)
-    document: dict[str, Any] = {"status": "ok" if code == EXIT_OK else "error", "command": name, "exit_code": code}
-    document["output"] = [line for line in out.splitlines() if line.strip()]
-    if code != EXIT_OK:
-        reported = _ERROR.get()
-        message = (errors or verdicts or [line for line in lines if line.strip()][-1:] or ["failed"])[0]
-        document["error"] = reported if reported is not None else {"message": message}
-    sys.stdout.write(json.dumps(document) + "\n")
+def _emit(code: int, extra: str) -> None:
+    """Write the command's one JSON document (:func:`meshtool.cli_output.render_json`) on the real stdout."""
+    sys.stdout.write(render_json(current(), code, extra) + "\n")
     sys.stdout.flush()
 
 

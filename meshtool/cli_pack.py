@@ -13,7 +13,8 @@ from typing import Any
 
 import click
 
-from meshtool.cli_commands import _echo_findings, _guard, _hull_summary, force_option, output_dir_option
+from meshtool.cli_commands import _guard, _hull_summary, force_option, output_dir_option
+from meshtool.cli_output import findings, report, say, wrote
 from meshtool.errors import PackFormatError
 from meshtool.outdir import check_output, write_folder, write_output
 
@@ -26,11 +27,10 @@ def info(file: Path, as_json: bool) -> None:
     from meshtool.packfile import load
     from meshtool.packfile.export import describe
 
-    with _guard(as_json):  # everything that reads the file's content, META included, is inside the guard
-        with load(file, verify=True) as packed:
-            summary = describe(packed)
-        text = json.dumps(summary) if as_json else "\n".join(_info_lines(file, summary))
-    click.echo(text)
+    with _guard(as_json), load(file, verify=True) as packed:  # every read of the file's content, META too
+        summary = describe(packed)
+    report(summary)
+    say("\n".join(_info_lines(file, summary)))
 
 
 def _info_lines(file: Path, summary: dict[str, Any]) -> list[str]:
@@ -72,7 +72,7 @@ def unpack(file: Path, out_dir: Path, force: bool) -> None:
         files = unpack_files(packed, name)
         files["asset.json"] = (json.dumps(packed.meta, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
         folder = write_folder(out_dir, name, files, force=force, inputs=[file])
-    click.echo(f"wrote {folder}: {', '.join(sorted(files))}")
+    wrote(folder, f"wrote {folder}: {', '.join(sorted(files))}", kind="folder")
 
 
 @click.command("export")
@@ -104,17 +104,19 @@ def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, for
             if path is not None:
                 data = _made(make, packed, file)
                 write_output(path, data, kind, force=force, inputs=[file])
-                click.echo(f"wrote {path} ({len(data)} bytes)")
+                wrote(path, f"wrote {path} ({len(data)} bytes)", kind=kind, bytes=len(data))
                 if kind == "glb":
-                    _echo_findings(export_findings(packed, "glb"))  # maps glTF has no slot for
+                    findings(export_findings(packed, "glb"))  # maps glTF has no slot for
         if usd is not None:
             check_output(usd, "usd", force=force, inputs=[file])
             names = list(packed.meta.get("textures", []))
             for name, texture in zip(names, packed.textures, strict=True):  # the PNGs written beside the USD
                 check_output(usd.parent / name, None, force=force, inputs=[file], data=bytes(texture))
             written = export_usd(packed, usd, safe_file_stem(file.stem) or "asset")
-            click.echo(f"wrote {', '.join(str(p) for p in written)}")
-            _echo_findings(export_findings(packed, "usd"))
+            wrote(
+                written[0], f"wrote {', '.join(str(p) for p in written)}", kind="usd", files=[str(p) for p in written]
+            )
+            findings(export_findings(packed, "usd"))
 
 
 def _made(make: Callable[[Any], bytes], packed: Any, file: Path) -> bytes:

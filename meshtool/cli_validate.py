@@ -15,7 +15,20 @@ from typing import TYPE_CHECKING, Any, NoReturn
 import click
 import platformdirs
 
-from meshtool.cli_common import EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, executor_options, exit_on_bug, fail
+from meshtool.cli_common import executor_options
+from meshtool.cli_output import (
+    EXIT_INPUT,
+    EXIT_INTERNAL,
+    EXIT_OK,
+    exit_on_bug,
+    fail,
+    note,
+    report,
+    say,
+    tell,
+    verdict,
+    wrote,
+)
 from meshtool.errors import MeshtoolError
 from meshtool.outdir import write_file
 
@@ -125,13 +138,13 @@ def validate_command(
             timeout=timeout,
             connect_timeout=scheduler_timeout,
         )
-        report = run_validate(list(paths), options, _progress_bar())
-        for note in report.cache_notes:  # a damaged or foreign cache entry: checked again, said once
-            click.echo(f"note: {note}", err=True)
+        result = run_validate(list(paths), options, _progress_bar())
+        for line in result.cache_notes:  # a damaged or foreign cache entry: checked again, said once
+            note(line)
         text = (
-            to_text(report, strict, colour=_colour(output), verbose=verbose)
+            to_text(result, strict, colour=_colour(output), verbose=verbose)
             if fmt == "text"
-            else render(report, fmt, strict)
+            else render(result, fmt, strict)
         )
         if output is not None:
             write_file(output, text.encode("utf-8"))
@@ -146,14 +159,16 @@ def validate_command(
     except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
         exit_on_bug(exc)
     if output is None:
-        click.echo(text, nl=False)
+        report(text) if fmt == "json" else say(text, nl=False)
     else:
-        click.echo(f"wrote {output}", err=True)
-        for line in summary_lines(report, strict, colour=sys.stderr.isatty()):
-            click.echo(line, err=True)
-    if report.internal_errors():
+        wrote(output, kind=f"validate report ({fmt})", err=True)
+        first, *rest = summary_lines(result, strict, colour=sys.stderr.isatty())  # the verdict, then the run
+        (verdict if result.failed(strict) else tell)(first)
+        for line in rest:
+            tell(line)
+    if result.internal_errors():
         sys.exit(EXIT_INTERNAL)
-    sys.exit(EXIT_FINDINGS if report.failed(strict) else EXIT_OK)
+    sys.exit(EXIT_FINDINGS if result.failed(strict) else EXIT_OK)
 
 
 def _usage(exc: MeshtoolError) -> NoReturn:

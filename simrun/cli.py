@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import io
-import json
 import os
 import sys
 from pathlib import Path
@@ -11,7 +10,9 @@ from typing import Any
 
 import click
 
-from meshtool.cli_common import EXIT_INPUT, VocabularyGroup, fail
+from meshtool import cli_output as out
+from meshtool.cli_common import VocabularyGroup
+from meshtool.cli_output import EXIT_INPUT, fail
 from meshtool.safeopen import printable
 from simrun import __version__
 from simrun.cli_serve import serve_command
@@ -32,8 +33,9 @@ DEFAULT_SIZE = (640, 480)
 #: The one default image size of play, replay and snapshot (docs/cli.md).
 DEFAULT_SIZE_TEXT = f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}"
 
-#: Exit codes: the one table of :data:`meshtool.cli_common.EXIT_CODES` (docs/cli.md), mapped by
-#: :func:`meshtool.cli_common.fail`. ``SIMRUN_DEBUG=1`` gives the traceback of an internal error (exit 3).
+#: Exit codes: the one table of :data:`meshtool.cli_output.EXIT_CODES` (docs/cli.md), mapped by
+#: :func:`meshtool.cli_output.fail`; what a command produced is said through :mod:`meshtool.cli_output`.
+#: ``SIMRUN_DEBUG=1`` gives the traceback of an internal error (exit 3).
 
 
 class _Group(VocabularyGroup):
@@ -52,14 +54,14 @@ class _Group(VocabularyGroup):
         finally:  # a damaged or foreign compiled-model cache entry: compiled again, said once
             model_cache = sys.modules.get("simrun.model_cache")  # no cache opened when it was never imported
             for note in model_cache.notes() if model_cache is not None else ():
-                click.echo(f"note: {note}", err=True)
+                out.note(note)
 
     def _mapped(self, ctx: click.Context) -> Any:
         try:
             return super().run_command(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
-        except Exception as exc:  # one mapping (meshtool.cli_common.fail): its kind decides 1 or 2; a bug is 3
+        except Exception as exc:  # one mapping (meshtool.cli_output.fail): its kind decides 1 or 2; a bug is 3
             fail(exc, "simrun")
 
 
@@ -84,16 +86,14 @@ def doctor(as_json: bool) -> None:
     from simrun.doctor import check_environment
 
     report = check_environment()
-    if as_json:
-        choice = report.choice
-        gl = {"backend": choice.backend, "reason": choice.reason, "problem": choice.problem} if choice else None
-        document: dict[str, Any] = {"status": "ok" if report.physics_ok else "error", "mujoco": report.mujoco_version}
-        document |= {"physics_ok": report.physics_ok, "physics_error": report.physics_error}
-        document |= {"rendering": gl, "backends": {k: v is None for k, v in report.gl.items()}, "problems": report.gl}
-        click.echo(json.dumps(document))
-    else:
-        for line in report.lines():
-            click.echo(line)
+    choice = report.choice
+    gl = {"backend": choice.backend, "reason": choice.reason, "problem": choice.problem} if choice else None
+    document: dict[str, Any] = {"status": "ok" if report.physics_ok else "error", "mujoco": report.mujoco_version}
+    document |= {"physics_ok": report.physics_ok, "physics_error": report.physics_error}
+    document |= {"rendering": gl, "backends": {k: v is None for k, v in report.gl.items()}, "problems": report.gl}
+    out.report(document)
+    for line in report.lines():
+        out.say(line)
     if not report.physics_ok:
         raise SystemExit(EXIT_INPUT)
 
@@ -118,19 +118,17 @@ def check(scene: Path, seconds: float, as_json: bool) -> None:
     if not np.isfinite(world.data.qpos).all():
         raise SimrunError(f"{scene}: the state became non-finite within {seconds:g} s")
     model = world.model
-    if as_json:
-        counts = {"entities": len(world), "bodies": model.nbody - 1, "geoms": model.ngeom, "meshes": model.nmesh}
-        result: dict[str, Any] = {
-            "status": "ok",
-            "scene": str(scene),
-            **counts,
-            "textures": model.ntex,
-            "duration_s": seconds,
-        }
-        result |= {"services": len(world.services), "sensors": len(world.sensors)}
-        click.echo(json.dumps(result))
-        return
-    click.echo(
+    counts = {"entities": len(world), "bodies": model.nbody - 1, "geoms": model.ngeom, "meshes": model.nmesh}
+    result: dict[str, Any] = {
+        "status": "ok",
+        "scene": str(scene),
+        **counts,
+        "textures": model.ntex,
+        "duration_s": seconds,
+    }
+    result |= {"services": len(world.services), "sensors": len(world.sensors)}
+    out.report(result)
+    out.say(
         f"{scene}: ok: {len(world)} entities, {model.nbody - 1} bodies, {model.ngeom} geoms, {model.nmesh} meshes, "
         f"{model.ntex} textures; stepped {seconds:g} s with no warning"
     )
@@ -185,24 +183,24 @@ def export(
             from simrun.mjcf_builder import export_world_mjcf
 
             written = export_world_mjcf(world, mjcf)
-            click.echo(f"wrote {mjcf} and {len(written) - 1} mesh and texture file(s) beside it")
+            out.wrote(mjcf, f"wrote {mjcf} and {len(written) - 1} mesh and texture file(s) beside it", kind="mjcf")
         if mjz is not None:
             from simrun.archive import save_mjz
 
             save_mjz(world, mjz)
-            click.echo(f"wrote {mjz}")
+            out.wrote(mjz, kind="mjz")
         if usd is not None:
             from simrun.usd_export import export_world_usd
 
             unmapped = export_world_usd(world, usd)
-            click.echo(f"wrote {usd}")
+            out.wrote(usd, kind="usd")
             for gap in unmapped:  # no UsdPhysics counterpart: listed, not silently dropped (docs/interop.md)
-                click.echo(f"note: {usd}: not in the USD: {gap}", err=True)
+                out.note(f"{usd}: not in the USD: {gap}")
         if glb is not None:
             from simrun.glb_export import export_world_glb
 
             export_world_glb(world, glb, collision=glb_collision)
-            click.echo(f"wrote {glb}")
+            out.wrote(glb, kind="glb")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -333,20 +331,18 @@ def play_command(
     summary = result.to_dict()
     if watchable is not None:
         summary["recording_outputs"] = {str(item.path): item.size for item in written}
-    if as_json:
-        click.echo(json.dumps(summary))
-        return
-    click.echo(
+    out.report(summary)
+    out.say(
         f"{scene}: {summary['simulated_s']:g} s simulated in {summary['wall_s']:.2f} s "
         f"({summary['steps_per_s']:.0f} steps/s, {summary['realtime_factor']:.1f}x real time), "
         f"{summary['frames']} frame(s)"
     )
     for name, metres in summary["distances_m"].items():
-        click.echo(f"  {name}: drove {metres:.3f} m")
+        out.say(f"  {name}: drove {metres:.3f} m")
     for name, count in summary["sensor_samples"].items():
-        click.echo(f"  sensor {name}: {count} sample(s)")
+        out.say(f"  sensor {name}: {count} sample(s)")
     for item in written:
-        click.echo(f"  wrote {item.path} ({item.size} bytes)")
+        out.wrote(item.path, f"  wrote {item.path} ({item.size} bytes)", bytes=item.size)
 
 
 @main.command("replay")
@@ -407,13 +403,14 @@ def replay(
         with output_policy(force, [log]):
             summary = export_mcap(log, mcap)
         topics = ", ".join(f"{topic} {n}" for topic, n in summary.messages.items())
-        click.echo(f"wrote {mcap} ({summary.size} bytes; messages: {topics}) from {printable(log)}")
+        out.wrote(mcap, f"wrote {mcap} ({summary.size} bytes; messages: {topics}) from {printable(log)}", kind="mcap")
     if outputs:
         from simrun.replay_export import export_recording
 
         with output_policy(force, [log]):
             for item in export_recording(log, outputs, fps, tolerance):
-                click.echo(f"wrote {item.path} ({item.size} bytes, {item.keyframes} keyframes) from {printable(log)}")
+                text = f"wrote {item.path} ({item.size} bytes, {item.keyframes} keyframes) from {printable(log)}"
+                out.wrote(item.path, text, bytes=item.size, keyframes=item.keyframes)
     if video is None:
         return
     fps = 15.0 if fps is None else fps
@@ -440,7 +437,7 @@ def replay(
             write_bytes(video, encode_gif(frames, fps))
         else:
             encode_mp4(frames, fps, video)
-    click.echo(f"wrote {video}: {len(frames)} frame(s) replayed from {printable(log)}")
+    out.wrote(video, f"wrote {video}: {len(frames)} frame(s) replayed from {printable(log)}", kind="video")
 
 
 @main.command("resim")
@@ -471,7 +468,8 @@ def resim(log: Path, start: float, controller: Path | None) -> None:
     compared, mismatch = run_resim(log, start, controller)
     if mismatch is not None:
         raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
-    click.echo(f"{printable(log)}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
+    out.stats(frames_compared=compared, from_s=start)
+    out.say(f"{printable(log)}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
 
 
 @main.command("view")
@@ -479,12 +477,11 @@ def resim(log: Path, start: float, controller: Path | None) -> None:
 def view(scene: Path) -> None:
     """Open SCENE in MuJoCo's viewer; arrows drive the first robot (cmd_vel), space stops it."""
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        click.echo(
-            "error: no display: simrun view needs a desktop session; use "
+        out.problem(
+            "no display: simrun view needs a desktop session; use "
             f"'simrun play {scene} --video OUT.gif' to see it headless",
-            err=True,
+            EXIT_INPUT,
         )
-        sys.exit(EXIT_INPUT)
     from simrun.scene import load_scene
     from simrun.teleop import run_viewer
 
@@ -522,4 +519,4 @@ def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, si
     buffer = io.BytesIO()
     Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")
     write_bytes(output, buffer.getvalue())
-    click.echo(f"wrote {output} ({width}x{height}, {render_mode})")
+    out.wrote(output, f"wrote {output} ({width}x{height}, {render_mode})", kind="png")

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from meshtool.cli_output import say, wrote
 from meshtool.safeopen import printable
 from simrun.cli_types import OUT, Number
 from simrun.errors import SimrunError
@@ -67,10 +68,10 @@ def serve_command(
             host,
             port,
             token,
-            on_ready=lambda url: click.echo(f"{'foxglove' if url.startswith('ws:') else 'serving'} {url}"),
+            on_ready=lambda url: say(f"{'foxglove' if url.startswith('ws:') else 'serving'} {url}"),
             foxglove_port=foxglove_port,
         )
     for path in served.written:
-        click.echo(f"wrote {printable(path)}")
+        wrote(path, f"wrote {printable(path)}")
     if served.error:
         raise SimrunError(served.error)

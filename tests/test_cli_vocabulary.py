@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from meshtool.cli import main as meshtool_main
 from meshtool.cli_commands import obj2bin
-from meshtool.cli_common import EXIT_CODES
+from meshtool.cli_output import EXIT_CODES
 from simrun.cli import main as simrun_main
 
 ROOT = Path(__file__).resolve().parent.parent

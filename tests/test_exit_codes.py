@@ -1,6 +1,6 @@
 """Exit codes as docs/cli.md's table says, where two commands used to disagree (issue 26).
 
-The table itself is tested against ``meshtool.cli_common.EXIT_CODES`` in ``tests/test_cli_vocabulary.py``;
+The table itself is tested against ``meshtool.cli_output.EXIT_CODES`` in ``tests/test_cli_vocabulary.py``;
 these are the cases that mapped errors elsewhere.
 """
 

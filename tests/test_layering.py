@@ -30,7 +30,7 @@ def test_meshtool_never_imports_simrun_or_mujoco(path):
     "path", sorted((ROOT / "meshtool").rglob("*.py")), ids=lambda p: p.relative_to(ROOT).as_posix()
 )
 def test_library_code_does_not_print_or_exit(path):
-    entry_points = ("cli.py", "cli_commands.py", "cli_common.py", "cli_validate.py", "coacd_worker.py")  # CLI, CoACD
+    entry_points = ("cli.py", "cli_commands.py", "cli_common.py", "cli_output.py", "cli_validate.py", "coacd_worker.py")
     if path.name in entry_points:
         return
     tree = ast.parse(path.read_text())
@@ -45,6 +45,41 @@ def test_library_code_does_not_print_or_exit(path):
         and node.value.id == "sys"
     ]
     assert not exits
+
+
+CLI_MODULES = sorted(
+    p
+    for package in ("meshtool", "simrun")
+    for p in (ROOT / package).rglob("*.py")
+    if p.name.startswith("cli") or p.name == "cli.py"
+)
+
+
+@pytest.mark.parametrize("path", CLI_MODULES, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_commands_say_what_they_did_through_the_one_reporting_layer(path):
+    """No command prints: lines, files written, findings and errors go through meshtool/cli_output.py.
+
+    That is how ``--json`` is made from what the command did (not from captured text), and how ``-q`` and
+    the exit codes are the same everywhere.
+    """
+    if path.name in ("cli_output.py", "cli_common.py"):
+        return
+    tree = ast.parse(path.read_text())
+    printing = [
+        f"{path.name}:{node.lineno}: {ast.unparse(node.func)}"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call)
+        and (
+            (isinstance(node.func, ast.Name) and node.func.id in ("print", "exit"))
+            or ast.unparse(node.func) in ("click.echo", "click.secho", "sys.stdout.write", "sys.stderr.write")
+        )
+    ]
+    assert not printing
+
+
+def test_the_reporting_check_sees_every_cli_module():
+    names = {p.relative_to(ROOT).as_posix() for p in CLI_MODULES}
+    assert {"meshtool/cli_commands.py", "simrun/cli.py", "simrun/scenetest/cli.py", "meshtool/cli_output.py"} <= names
 
 
 def test_only_the_resolver_reads_references():

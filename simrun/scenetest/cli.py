@@ -15,7 +15,21 @@ from typing import Any, NoReturn
 
 import click
 
-from meshtool.cli_common import EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_USAGE, executor_options, exit_code_of, fail
+from meshtool.cli_common import executor_options
+from meshtool.cli_output import (
+    EXIT_INPUT,
+    EXIT_INTERNAL,
+    EXIT_OK,
+    EXIT_USAGE,
+    exit_code_of,
+    fail,
+    problem,
+    report,
+    say,
+    tell,
+    verdict,
+    wrote,
+)
 from meshtool.safeopen import printable
 from simrun.errors import SimrunError, UsageError
 
@@ -113,38 +127,35 @@ def test_command(
             _usage("--vary: a key is given twice")
         check_run_count(options.seeds, options.axes, max_runs)  # before any scene is read or run planned
         with output_policy(force, list(paths)):
-            report = run_tests(list(paths), options, _progress_bar())
+            result = run_tests(list(paths), options, _progress_bar())
         # names on disk that are not UTF-8 (surrogate escapes) are shown as \xNN, as everywhere else
-        text = printable(to_text(report, verbose) if fmt == "text" else render(report, fmt))
+        text = printable(to_text(result, verbose) if fmt == "text" else render(result, fmt))
         if output is not None:
             write_file(output, text.encode("utf-8"))
     except (SpecError, VaryError) as exc:  # a usage error, or a missing input: exit 1 (docs/cli.md)
         fail(exc, "simrun", "usage error" if exit_code_of(exc) == EXIT_USAGE else "error")
     except ImportError:
-        click.echo("error: the Dask executor needs dask.distributed (pip install 'meshtool-simrun[dask]')", err=True)
-        sys.exit(EXIT_FAILED)
+        problem("the Dask executor needs dask.distributed (pip install 'meshtool-simrun[dask]')", EXIT_FAILED)
     except SchedulerError as exc:
         where = scheduler or "a new local cluster"
         hint = getattr(exc, "hint", None) or (
             "start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
             "or raise --scheduler-timeout"
         )
-        click.echo(f"error: cannot reach the Dask scheduler at {where}: {exc}; {hint}", err=True)
-        sys.exit(EXIT_FAILED)
+        problem(f"cannot reach the Dask scheduler at {where}: {exc}; {hint}", EXIT_FAILED)
     except SimrunError as exc:
         fail(exc, "simrun")
     except OSError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(EXIT_FAILED)
-    click.echo(session_line(report), err=True)
+        problem(str(exc), EXIT_FAILED)
+    tell(session_line(result))
     if output is None:
-        click.echo(text, nl=False)
+        report(text) if fmt == "json" else say(text, nl=False)
     else:  # the verdict last: it is the message of --json's envelope when the report went to a file
-        click.echo(f"wrote {output}", err=True)
-        click.echo(verdict_line(report), err=True)
-    if report.internal():
+        wrote(output, kind=f"scene test report ({fmt})", err=True)
+        (verdict if result.failed() else tell)(verdict_line(result))
+    if result.internal():
         sys.exit(EXIT_INTERNAL)
-    sys.exit(EXIT_FAILED if report.failed() else EXIT_OK)
+    sys.exit(EXIT_FAILED if result.failed() else EXIT_OK)
 
 
 def _usage(message: str) -> NoReturn:
