@@ -96,10 +96,3 @@ def write_text(path: Path, text: str) -> None:
 def stamp_glb(tree: dict[str, Any]) -> None:
     """Record simrun as a GLB's ``asset.generator`` (a ``tree_postprocessor`` for trimesh's export)."""
     tree.setdefault("asset", {"version": "2.0"})["generator"] = GENERATOR
-
-
-def stamp_usd(layer: Any) -> None:
-    """Record simrun in a USD layer's ``customLayerData`` so a later export may replace the file."""
-    data = dict(layer.customLayerData)
-    data["generator"] = GENERATOR
-    layer.customLayerData = data

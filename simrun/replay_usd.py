@@ -1,6 +1,7 @@
 """Animated USD of a recording: the static USD export with time samples on each moving body's transform.
 
-The stage is :mod:`simrun.usd_export`'s, physics schemas and all.
+The stage is :mod:`simrun.usd_export`'s, physics schemas and all, decorated through the project's one USD
+writer (:meth:`meshtool.usd_write.UsdBuilder.timeline` and :meth:`~meshtool.usd_write.UsdBuilder.sample_pose`).
 
 Each body prim's ``xformOp:translate`` (double3, metres) and ``xformOp:orient`` (quatd, w x y z) get one
 time sample per keyframe (:func:`simrun.replay_tracks.animation_keys`); the stage's
@@ -15,10 +16,10 @@ poses at ``qpos0``, the frame the joints are defined in. Z-up, metres.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from meshtool.usd_write import UsdBuilder
 from simrun.replay_tracks import I64, STILL, Tracks, rotation_error
 from simrun.usd_export import export_world_usd
 from simrun.world import World
@@ -48,20 +49,18 @@ def export_recording_usd(world: World, tracks: Tracks, keys: dict[int, I64], out
         SimrunError: An unsupported extension or a failed write.
     """
 
-    def decorate(stage: Any, paths: dict[int, str]) -> None:
-        from pxr import Gf, UsdGeom
+    def decorate(usd: UsdBuilder, paths: dict[int, str]) -> None:
+        from pxr import UsdGeom
 
         rate = time_codes_per_second(tracks.frame_period)
-        stage.SetTimeCodesPerSecond(rate)
-        stage.SetFramesPerSecond(rate)
-        stage.SetStartTimeCode(time_code(float(tracks.times[0]), rate))
-        stage.SetEndTimeCode(time_code(float(tracks.times[-1]), rate))
+        usd.timeline(rate, time_code(float(tracks.times[0]), rate), time_code(float(tracks.times[-1]), rate))
         for b, path in sorted(paths.items()):
             if b == 0:
                 continue
-            translate, orient = UsdGeom.Xformable(stage.GetPrimAtPath(path)).GetOrderedXformOps()[:2]
+            prim = usd.stage.GetPrimAtPath(path)
             frames = keys.get(b)
             if frames is None:
+                translate, orient = UsdGeom.Xformable(prim).GetOrderedXformOps()[:2]
                 held = orient.Get()
                 here = np.array([held.GetReal(), *held.GetImaginary()], dtype=np.float64)
                 moved = np.linalg.norm(np.array(translate.Get()) - tracks.positions[0, b]) > STILL
@@ -70,7 +69,6 @@ def export_recording_usd(world: World, tracks: Tracks, keys: dict[int, I64], out
                 frames = np.array([0], dtype=np.int64)
             for k in frames.tolist():
                 code = time_code(float(tracks.times[k]), rate)
-                translate.Set(Gf.Vec3d(*(float(v) for v in tracks.positions[k, b])), code)
-                orient.Set(Gf.Quatd(*(float(v) for v in tracks.quats[k, b])), code)
+                usd.sample_pose(prim, code, tracks.positions[k, b], tracks.quats[k, b])
 
     export_world_usd(world, out, decorate)

@@ -1,8 +1,12 @@
 """USD export of a whole world from its compiled MuJoCo model, with UsdPhysics schemas physics tools read.
 
+Built with the project's one USD writer (:class:`meshtool.usd_write.UsdBuilder`: stage, prim names, meshes,
+colliders, poses, stamp), as the asset and recording exports are; this module adds what it reads from
+MuJoCo: bodies, joints, drives, geoms.
+
 Layout: ``/World/TREE/BODY`` for every body (one ``Xform`` per kinematic tree hanging from the world, its
 bodies flat under it at their world poses at ``qpos0``, full names in a ``simrun:name`` attribute; prim
-names sanitised to ``[A-Za-z0-9_]``, never starting with a digit, clashes numbered). Each body is a
+names made valid and unique by the builder's one rule, :func:`meshtool.usd_write.prim_name`). Each body is a
 ``RigidBodyAPI`` with ``MassAPI`` (MuJoCo's mass, centre of mass, principal moments and axes; massless
 bodies author the mass only); mocap bodies are kinematic. Hinge and slide joints become
 ``RevoluteJoint``/``PrismaticJoint`` (ball joints ``SphericalJoint``) in ``TREE/joints`` from the parent
@@ -17,8 +21,6 @@ or its ``visuals`` scope (purpose ``render``). Z-up, metres, a physics scene wit
 from __future__ import annotations
 
 import math
-import re
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -27,27 +29,20 @@ import mujoco
 import numpy as np
 import trimesh
 
-from meshtool.formats import check_suffix
+from meshtool.errors import OutputError
+from meshtool.usd_write import UsdBuilder
 from simrun.compiled_mesh import compiled_mesh
 from simrun.errors import SimrunError
-from simrun.outfile import stamp_usd, write_bytes
+from simrun.outfile import GENERATOR, write_bytes
 from simrun.world import World
-
-_UNSAFE = re.compile(r"[^A-Za-z0-9_]")
-
-
-def _ident(name: str, fallback: str) -> str:
-    """A valid prim name: ``[A-Za-z0-9_]``, not starting with a digit."""
-    text = _UNSAFE.sub("_", name) or fallback
-    return text if not text[0].isdigit() else f"_{text}"
 
 
 def export_world_usd(
-    world: World, out: Path, decorate: Callable[[Any, dict[int, str]], None] | None = None
+    world: World, out: Path, decorate: Callable[[UsdBuilder, dict[int, str]], None] | None = None
 ) -> list[str]:
     """Write the world (at its initial state) as ``.usda``/``.usdc``.
 
-    Actuators on hinge and slide joints become ``UsdPhysics.DriveAPI`` on their joint (:func:`_drive`),
+    Actuators on hinge and slide joints become ``UsdPhysics.DriveAPI`` on their joint (:func:`_drives`),
     contact exclusions ``FilteredPairsAPI`` on the first body of each pair; what has no UsdPhysics
     counterpart (equality constraints such as a gripper's mirrored finger, actuators on other
     transmissions) is listed, one line each, in the returned findings and in the root layer's
@@ -56,8 +51,8 @@ def export_world_usd(
     Args:
         world: The world (compiled if needed).
         out: The output file.
-        decorate: Called as ``decorate(stage, body_paths)`` (body id to prim path) before the stage is saved:
-            how :mod:`simrun.replay_usd` adds time samples to the same stage.
+        decorate: Called as ``decorate(builder, body_paths)`` (body id to prim path) before the stage is
+            saved: how :mod:`simrun.replay_usd` adds time samples to the same stage.
 
     Raises:
         SimrunError: An unsupported extension or a failed write.
@@ -65,74 +60,61 @@ def export_world_usd(
     Returns:
         The unmapped elements, one line each (empty when everything has a UsdPhysics counterpart).
     """
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, Vt
+    from pxr import Sdf, UsdPhysics, Vt
 
-    wrong = check_suffix(out, "usd")
-    if wrong is not None:
-        raise SimrunError(f"{out}: {wrong}")
-    model = world.model
-    with tempfile.TemporaryDirectory(prefix="simrun-usd-") as tmp:
-        scratch = Path(tmp) / out.name
-        stage = Usd.Stage.CreateNew(str(scratch))
-        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-        UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-        root = UsdGeom.Xform.Define(stage, "/World")
-        stage.SetDefaultPrim(root.GetPrim())
-        scene = UsdPhysics.Scene.Define(stage, "/PhysicsScene")
-        gravity = np.asarray(model.opt.gravity, dtype=float)
-        magnitude = float(np.linalg.norm(gravity))
-        if magnitude > 0:
-            scene.CreateGravityDirectionAttr(Gf.Vec3f(*(gravity / magnitude).tolist()))
-        scene.CreateGravityMagnitudeAttr(magnitude)
+    try:
+        usd = UsdBuilder(out, "World", GENERATOR)
+    except OutputError as exc:
+        raise SimrunError(f"{out}: {exc.message}") from None
+    with usd:
+        model = world.model
+        stage = usd.stage
+        usd.physics_scene(model.opt.gravity)
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)  # body poses at qpos0, the frame the joints are defined in
-        names = _Names()
         joint_paths: dict[int, str] = {}
-        paths: dict[int, str] = {0: "/World"}
+        paths: dict[int, str] = {0: usd.root}
         trees: dict[int, str] = {}
         for b in range(1, model.nbody):
             root_body = int(model.body_rootid[b])
             if root_body not in trees:
-                trees[root_body] = names.claim("/World", model.body(root_body).name or f"body{root_body}")
-                tree = UsdGeom.Xform.Define(stage, trees[root_body])
+                trees[root_body] = usd.child(usd.root, model.body(root_body).name or f"body{root_body}")
+                tree = usd.xform(trees[root_body])
                 if _articulated(model, root_body):
                     UsdPhysics.ArticulationRootAPI.Apply(tree.GetPrim())
             name = model.body(b).name or f"body{b}"
-            paths[b] = names.claim(trees[root_body], name)
-            xform = UsdGeom.Xform.Define(stage, paths[b])
+            paths[b] = usd.child(trees[root_body], name)
+            xform = usd.xform(paths[b])
             # Bodies are flat under their tree, at their world pose; the full name travels as an attribute.
             xform.GetPrim().CreateAttribute("simrun:name", Sdf.ValueTypeNames.String).Set(name)
-            _place(xform, data.xpos[b], data.xquat[b], Gf)
-            _rigid_body(xform.GetPrim(), model, b, UsdPhysics, Gf)
+            usd.place(xform, data.xpos[b], data.xquat[b])
+            _rigid_body(xform.GetPrim(), model, b)
             joints = [j for j in _joints(model, b) if int(model.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_FREE)]
             free = len(joints) != len(_joints(model, b))
             parent = int(model.body_parentid[b])
             if not joints and not free and model.body_mocapid[b] < 0:
                 # welded to its parent (or to the world): a fixed joint keeps it there
-                path = names.claim(f"{trees[root_body]}/joints", f"{name}_fixed")
+                path = usd.child(usd.group(trees[root_body], "joints"), f"{name}_fixed")
                 fixed = UsdPhysics.FixedJoint.Define(stage, path)
-                _fixed_frames(fixed, model, b, paths[parent] if parent else None, paths[b], data, Gf)
+                _fixed_frames(fixed, model, b, paths[parent] if parent else None, paths[b], data)
             for j in joints:
                 joint_paths[j] = _joint(
-                    stage, model, j, (paths[parent] if parent else None, paths[b]), data, names, trees[root_body]
+                    usd, model, j, (paths[parent] if parent else None, paths[b]), data, trees[root_body]
                 )
         for g in range(model.ngeom):
-            body = int(model.geom_bodyid[g])
-            _geom(stage, model, g, paths[body], names, UsdGeom, UsdPhysics, Gf, Vt, Sdf)
+            _geom(usd, model, g, paths[int(model.geom_bodyid[g])])
         unmapped = _drives(stage, model, joint_paths) + _filtered_pairs(stage, model, paths)
         unmapped += [_equality_gap(model, e) for e in range(model.neq)]
         if unmapped:
             layer = stage.GetRootLayer()
             layer.customLayerData = {**layer.customLayerData, "simrun:unmapped": Vt.StringArray(unmapped)}
         if decorate is not None:
-            decorate(stage, paths)
-        stamp_usd(stage.GetRootLayer())  # how a later export knows this file is simrun's to replace
-        stage.GetRootLayer().Save()
+            decorate(usd, paths)
         try:
-            data = scratch.read_bytes()
-        except OSError as exc:
-            raise SimrunError(f"{out}: usd-core did not write the stage ({exc.strerror})") from None
-    write_bytes(out, data)
+            saved = usd.finish()
+        except OutputError as exc:
+            raise SimrunError(f"{out}: {exc.message}") from None
+    write_bytes(out, saved)
     return unmapped
 
 
@@ -214,35 +196,6 @@ def _joints(model: mujoco.MjModel, body: int) -> range:
     return range(first, first + int(model.body_jntnum[body])) if first >= 0 else range(0)
 
 
-def _place(xform: Any, pos: Any, quat: Any, Gf: Any) -> None:
-    """Translate (double3) and orient (quatd) ops.
-
-    The orientation is double precision: a float quaternion near the identity turns into a rotation off by
-    up to 1e-5 rad when USD composes the transform.
-    """
-    from pxr import UsdGeom
-
-    xform.AddTranslateOp().Set(Gf.Vec3d(*(float(v) for v in pos)))
-    w, x, y, z = (float(v) for v in quat)
-    xform.AddOrientOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Quatd(w, x, y, z))
-
-
-class _Names:
-    """Unique, valid prim paths: names sanitised (``[A-Za-z0-9_]``, no leading digit), clashes numbered."""
-
-    def __init__(self) -> None:
-        self.taken: set[str] = set()
-
-    def claim(self, parent: str, name: str) -> str:
-        base = _ident(name, "prim")
-        path, n = f"{parent}/{base}", 1
-        while path in self.taken:
-            n += 1
-            path = f"{parent}/{base}_{n}"
-        self.taken.add(path)
-        return path
-
-
 def _articulated(model: mujoco.MjModel, root: int) -> bool:
     """Whether the tree under ``root`` has a hinge, slide or ball joint (an articulation)."""
     moving = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_BALL))
@@ -252,8 +205,10 @@ def _articulated(model: mujoco.MjModel, root: int) -> bool:
     )
 
 
-def _rigid_body(prim: Any, model: mujoco.MjModel, b: int, UsdPhysics: Any, Gf: Any) -> None:
+def _rigid_body(prim: Any, model: mujoco.MjModel, b: int) -> None:
     """RigidBodyAPI and MassAPI with MuJoCo's mass, centre of mass, principal moments and axes."""
+    from pxr import Gf, UsdPhysics
+
     rigid = UsdPhysics.RigidBodyAPI.Apply(prim)
     if model.body_mocapid[b] >= 0:
         rigid.CreateKinematicEnabledAttr(True)
@@ -267,9 +222,11 @@ def _rigid_body(prim: Any, model: mujoco.MjModel, b: int, UsdPhysics: Any, Gf: A
 
 
 def _fixed_frames(
-    joint: Any, model: mujoco.MjModel, b: int, parent: str | None, child: str, data: mujoco.MjData, Gf: Any
+    joint: Any, model: mujoco.MjModel, b: int, parent: str | None, child: str, data: mujoco.MjData
 ) -> None:
     """A fixed joint at the child's origin: its pose in the parent's frame (the world's when ``parent`` is None)."""
+    from pxr import Gf
+
     if parent is not None:
         joint.CreateBody0Rel().SetTargets([parent])
         pos, quat = model.body_pos[b], model.body_quat[b]
@@ -283,20 +240,15 @@ def _fixed_frames(
 
 
 def _joint(
-    stage: Any,
-    model: mujoco.MjModel,
-    j: int,
-    bodies: tuple[str | None, str],
-    data: mujoco.MjData,
-    names: _Names,
-    tree: str,
+    usd: UsdBuilder, model: mujoco.MjModel, j: int, bodies: tuple[str | None, str], data: mujoco.MjData, tree: str
 ) -> str:
     """A revolute, prismatic or spherical joint from the parent body (the world when None) to the child."""
     from pxr import Gf, Sdf, UsdPhysics
 
     parent, child = bodies
     kind = int(model.jnt_type[j])  # plain ints: `in` on numpy ints vs. the enum tuple is unreliable
-    path = names.claim(f"{tree}/joints", model.joint(j).name or f"joint{j}")
+    stage = usd.stage
+    path = usd.child(usd.group(tree, "joints"), model.joint(j).name or f"joint{j}")
     body = int(model.jnt_bodyid[j])
     if kind == int(mujoco.mjtJoint.mjJNT_HINGE):
         joint = UsdPhysics.RevoluteJoint.Define(stage, path)
@@ -345,78 +297,71 @@ def _x_to(axis: np.ndarray) -> np.ndarray:
     return quat
 
 
-def _geom(
-    stage: Any,
-    model: mujoco.MjModel,
-    g: int,
-    body_path: str,
-    names: _Names,
-    UsdGeom: Any,
-    UsdPhysics: Any,
-    Gf: Any,
-    Vt: Any,
-    Sdf: Any,
-) -> None:
-    """The geom as a gprim under the body's ``collisions`` scope (colliding) or ``visuals`` scope (not)."""
-    colliding = bool(model.geom_contype[g] or model.geom_conaffinity[g])
-    scope = f"{body_path}/{'collisions' if colliding else 'visuals'}"
-    if not stage.GetPrimAtPath(scope):
-        UsdGeom.Scope.Define(stage, scope)
-    path = names.claim(scope, model.geom(g).name.rsplit("/", 1)[-1] or f"geom{g}")
+#: Geom types the export writes (height fields and others are left out).
+_EXPORTED = {
+    int(t)
+    for t in (
+        mujoco.mjtGeom.mjGEOM_BOX,
+        mujoco.mjtGeom.mjGEOM_PLANE,
+        mujoco.mjtGeom.mjGEOM_SPHERE,
+        mujoco.mjtGeom.mjGEOM_ELLIPSOID,
+        mujoco.mjtGeom.mjGEOM_CAPSULE,
+        mujoco.mjtGeom.mjGEOM_CYLINDER,
+        mujoco.mjtGeom.mjGEOM_MESH,
+    )
+}
+
+
+def _geom(usd: UsdBuilder, model: mujoco.MjModel, g: int, body_path: str) -> None:
+    """The geom as a gprim under the body's ``collisions`` scope (colliding) or ``visuals`` scope (not).
+
+    Boxes are unit ``Cube`` prims scaled to their full size, planes thin cubes of their drawn size (50 m
+    half-sizes when infinite), ellipsoids icosphere meshes (USD physics has no scaled-sphere collider),
+    capsules and cylinders along Z; meshes are MuJoCo's compiled vertices (the mesh frame MuJoCo centred and
+    aligned) under the geom's pose in its body.
+    """
+    from pxr import Gf, Sdf, UsdGeom
+
     kind, size = int(model.geom_type[g]), np.asarray(model.geom_size[g], dtype=float)
-    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+    if kind not in _EXPORTED:
+        return
+    stage = usd.stage
+    colliding = bool(model.geom_contype[g] or model.geom_conaffinity[g])
+    scope = usd.group(body_path, "collisions" if colliding else "visuals")
+    path = usd.child(scope, model.geom(g).name.rsplit("/", 1)[-1] or f"geom{g}")
+    scale = None
+    if kind in (int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_PLANE)):
         prim = UsdGeom.Cube.Define(stage, path)
         prim.CreateSizeAttr(1.0)
-        scale = (2 * size).tolist()
-    elif kind == mujoco.mjtGeom.mjGEOM_PLANE:
-        prim = UsdGeom.Cube.Define(stage, path)
-        prim.CreateSizeAttr(1.0)
-        half = float(size[0]) if size[0] > 0 else 50.0
-        scale = [2 * half, 2 * (float(size[1]) if size[1] > 0 else 50.0), 0.001]
-    elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        if kind == int(mujoco.mjtGeom.mjGEOM_BOX):
+            scale = (2 * size).tolist()
+        else:
+            half_x = float(size[0]) if size[0] > 0 else 50.0
+            half_y = float(size[1]) if size[1] > 0 else 50.0
+            scale = [2 * half_x, 2 * half_y, 0.001]
+    elif kind == int(mujoco.mjtGeom.mjGEOM_SPHERE):
         prim = UsdGeom.Sphere.Define(stage, path)
         prim.CreateRadiusAttr(float(size[0]))
-        scale = None
-    elif kind == mujoco.mjtGeom.mjGEOM_ELLIPSOID:  # a mesh: USD physics has no scaled-sphere collider
+    elif kind == int(mujoco.mjtGeom.mjGEOM_ELLIPSOID):
         sphere = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
-        vertices = np.asarray(sphere.vertices, dtype=float) * size
-        prim = UsdGeom.Mesh.Define(stage, path)
-        prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(vertices.astype(np.float32)))
-        prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(sphere.faces)))
-        prim.CreateFaceVertexIndicesAttr(Vt.IntArray(np.asarray(sphere.faces).ravel().tolist()))
-        prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        scale = None
+        prim = usd.mesh(path, np.asarray(sphere.vertices, dtype=float) * size, np.asarray(sphere.faces))
     elif kind in (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER)):
-        cls = UsdGeom.Capsule if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else UsdGeom.Cylinder
+        cls = UsdGeom.Capsule if kind == int(mujoco.mjtGeom.mjGEOM_CAPSULE) else UsdGeom.Cylinder
         prim = cls.Define(stage, path)
         prim.CreateRadiusAttr(float(size[0]))
         prim.CreateHeightAttr(float(2 * size[1]))
         prim.CreateAxisAttr(UsdGeom.Tokens.z)
-        scale = None
-    elif kind == mujoco.mjtGeom.mjGEOM_MESH:
-        vertices, faces = compiled_mesh(model, int(model.geom_dataid[g]))
-        prim = UsdGeom.Mesh.Define(stage, path)
-        prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(vertices.astype(np.float32)))
-        prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(faces)))
-        prim.CreateFaceVertexIndicesAttr(Vt.IntArray(faces.ravel().tolist()))
-        prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        scale = None
     else:
-        return  # height fields and other types: not exported
-    xform = UsdGeom.Xformable(prim)
+        prim = usd.mesh(path, *compiled_mesh(model, int(model.geom_dataid[g])))
     if model.geom(g).name:
         prim.GetPrim().CreateAttribute("simrun:name", Sdf.ValueTypeNames.String).Set(model.geom(g).name)
-    _place(xform, model.geom_pos[g], model.geom_quat[g], Gf)
+    usd.place(prim, model.geom_pos[g], model.geom_quat[g])
     if scale is not None:
-        xform.AddScaleOp().Set(Gf.Vec3f(*scale))
-    rgba = [float(c) for c in model.geom_rgba[g]]
-    UsdGeom.Gprim(prim).CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*rgba[:3])]))
+        UsdGeom.Xformable(prim).AddScaleOp().Set(Gf.Vec3f(*scale))
+    usd.display_colour(prim, model.geom_rgba[g])
     if colliding:
         if int(model.geom_group[g]) >= 3:  # collision-only geometry (hulls): not rendered, like MuJoCo's viewer
-            UsdGeom.Imageable(prim).CreatePurposeAttr(UsdGeom.Tokens.guide)
-        UsdPhysics.CollisionAPI.Apply(prim.GetPrim())
-        if kind in (int(mujoco.mjtGeom.mjGEOM_MESH), int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)):
-            api = UsdPhysics.MeshCollisionAPI.Apply(prim.GetPrim())
-            api.CreateApproximationAttr(UsdPhysics.Tokens.convexHull)
+            usd.purpose(prim, guide=True)
+        usd.collider(prim, convex_hull=kind in (int(mujoco.mjtGeom.mjGEOM_MESH), int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)))
     else:
-        UsdGeom.Imageable(prim).CreatePurposeAttr(UsdGeom.Tokens.render)
+        usd.purpose(prim, guide=False)
