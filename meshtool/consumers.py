@@ -60,8 +60,9 @@ def search_folders(obj_dir: Path, root: ModelRoot | None) -> list[Path]:
     """Folders searched for description files.
 
     The OBJ's folder up to the model root and the model root's subfolders (``urdf/``, ``robots/``); without
-    a model root, the OBJ's folder and its parent (``model.xml`` beside ``assets/``). The temporary folder,
-    the home folder and ``/`` are never searched unless they hold the OBJ.
+    a model root, the OBJ's folder, its parent (``model.xml`` beside ``assets/``) and the parent's
+    subfolders (``robot/urdf/`` beside ``robot/meshes/``). The temporary folder, the home folder and ``/``
+    are never searched (nor their subfolders) unless they hold the OBJ.
     """
     here = Path(os.path.realpath(obj_dir))
     chain = [here, *here.parents]
@@ -69,8 +70,9 @@ def search_folders(obj_dir: Path, root: ModelRoot | None) -> list[Path]:
     folders = chain[: chain.index(root.folder) + 1] if root is not None and inside_root else chain[:2]
     unsafe = {Path(os.path.realpath(tempfile.gettempdir())), Path(os.path.realpath(Path.home())), Path("/")}
     folders = [f for f in folders if f not in unsafe or f == here]
-    if root is not None and inside_root:  # pkg/urdf/robot.urdf, model/sdf/...: the root's own subfolders
-        subfolders = [root.folder / n for n in list_names(root.folder) if (root.folder / n).is_dir()]
+    top = root.folder if root is not None and inside_root else (chain[1] if len(chain) > 1 else None)
+    if top is not None and top in folders:  # pkg/urdf/robot.urdf, robot/urdf/ beside robot/meshes/: subfolders
+        subfolders = [top / n for n in list_names(top) if (top / n).is_dir()]
         folders.extend(f for f in subfolders if Path(os.path.realpath(f)) not in folders)
     return folders
 

@@ -258,12 +258,6 @@ def test_validate_mjcf_and_simrun_see_the_vertices_every_other_path_sees(
     _assert_same_points(_mesh_geoms_in_world(model, data, 2), truth, f"{fmt}: simrun UrdfRobot (visual)")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="consumer discovery without a model root searches only the mesh's folder and its parent "
-    "(meshtool/consumers.py search_folders), not robot/urdf/ beside robot/meshes/: obj2bin takes the OBJ "
-    "convention (Y-up) while the URDF places the file as it is (Z-up); reported to the lead (issue 26)",
-)
 @pytest.mark.parametrize("fmt", LOOSE_Y_UP)
 def test_a_urdf_outside_a_ros_package_is_seen_by_every_path(tmp_path: Path, fmt: str) -> None:
     """``robot/urdf/w.urdf`` using ``../meshes/wedge.*`` with no ``package.xml``: obj2bin FILE vs simrun's URDF."""
