@@ -195,6 +195,10 @@ OUTPUTS: list[OutputFormat] = [
         "simlog", (".simlog",), "recording (docs/recordings.md)", "simrun", "",
         "no room: .simlog magic line", "simrun.simlog:Recorder", False, (b"\x89SIMLOG\n",),
     ),
+    OutputFormat(
+        "mcap", (".mcap",), "a recording as MCAP messages (poses, odometry, sensors) for Foxglove", "simrun", "",
+        "no room: MCAP magic number", "simrun.mcap_export:export_mcap", False, (b"\x89MCAP0\r\n",),
+    ),
 ]  # fmt: skip
 
 
@@ -202,6 +206,11 @@ OUTPUTS: list[OutputFormat] = [
 #: evidence for the mesh's frame), by suffix: URDF, SDFormat (``.sdf``, ``.world``), and ``.xml``, which may
 #: hold either (or MJCF).
 DESCRIPTION_SUFFIXES: tuple[str, ...] = (".urdf", ".sdf", ".xml", ".world")
+#: The URDF's own suffix among them (a ROS package's robot: :mod:`meshtool.modelroot`).
+URDF_SUFFIX = DESCRIPTION_SUFFIXES[0]
+#: Files a mesh may read besides itself (materials, textures, glTF buffers) or be read by (URDF, xacro):
+#: ``validate``'s reports list them as the inputs of an asset.
+COMPANION_SUFFIXES: tuple[str, ...] = (".mtl", ".bin", ".png", ".jpg", ".jpeg", ".tga", ".bmp", URDF_SUFFIX, ".xacro")
 
 
 def _resolve(target: str) -> Any:

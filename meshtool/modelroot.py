@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from meshtool.findings import Finding, info
+from meshtool.formats import URDF_SUFFIX
 from meshtool.resolve import Resolver, list_names
 
 #: File names that mark the top folder of a model (Gazebo, SDFormat, ROS).
@@ -73,7 +74,7 @@ def find_model_root(
                     kind = "ros" if marker == "package.xml" else "gazebo"
                     return ModelRoot(folder, marker, kind)
         if level <= max_levels:
-            urdfs = [n for n in names if n.lower().endswith(".urdf") and (folder / n).is_file()]
+            urdfs = [n for n in names if n.lower().endswith(URDF_SUFFIX) and (folder / n).is_file()]
             if urdfs:
                 return ModelRoot(folder, urdfs[0], "urdf")
         if any(marker in names for marker in REPOSITORY_MARKERS):  # the repository's top: nothing above it

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from meshtool.cli_output import say, wrote
+from meshtool.formats import suffix
 from meshtool.safeopen import printable
 from simrun.cli_types import OUT, Number
 from simrun.errors import SimrunError
@@ -59,7 +60,7 @@ def serve_command(
     from simrun.serve.server import serve
 
     sensors = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
-    mcap = record.with_suffix(".mcap") if record is not None and record_as == "mcap" else None
+    mcap = record.with_suffix(suffix("mcap")) if record is not None and record_as == "mcap" else None
     options = ServeOptions(scene, not realtime, rate, record=record, record_sensors=sensors, record_mcap=mcap,
                            seed=seed, paused=paused)  # fmt: skip
     with output_policy(force, [scene]):

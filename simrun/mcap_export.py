@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from meshtool.formats import check_suffix
 from simrun.errors import SimrunError
 from simrun.outfile import check_output
 from simrun.scene import load_scene
@@ -63,8 +64,9 @@ def export_mcap(log_path: Path, out: Path) -> McapSummary:
         SimrunError: A bad recording, a changed scene, or an output that cannot be written.
     """
     check_output(out, inputs=[log_path])
-    if out.suffix.lower() != ".mcap":
-        raise SimrunError(f"{out}: an MCAP file must end in .mcap")
+    wrong = check_suffix(out, "mcap")
+    if wrong is not None:
+        raise SimrunError(wrong, path=str(out))
     log = Simlog(log_path)
     try:
         scene = log.scene_path()

@@ -143,6 +143,11 @@ def _simrun_written(kind: str, tmp: Path) -> Path:
             run_play(BOX, PlayOptions(duration=0.05, record=log))
         if kind == "simlog":
             return log
+        if kind == "mcap":
+            from simrun.mcap_export import export_mcap
+
+            export_mcap(log, target)
+            return target
         export_recording(log, {kind: target})
     return target
 

@@ -7,7 +7,7 @@ import re
 import stat
 from pathlib import Path
 
-from meshtool.formats import mesh_suffixes, output_named
+from meshtool.formats import COMPANION_SUFFIXES, mesh_suffixes, output_named
 from meshtool.outdir import check_output, is_within
 from meshtool.validate.reports.html import to_html
 from meshtool.validate.reports.machine import to_github, to_json, to_junit
@@ -56,7 +56,7 @@ def is_report(head: bytes) -> bool:
 INPUT_SUFFIXES = (
     *mesh_suffixes(),
     *output_named("mbin").suffixes,
-    *(".mtl", ".bin", ".png", ".jpg", ".jpeg", ".tga", ".bmp", ".urdf", ".xacro"),  # companions of meshes
+    *COMPANION_SUFFIXES,  # companions of meshes
 )
 
 
