@@ -51,6 +51,9 @@ class RangeCone(Sensor):
         seed: Noise seed.
         exclude: What the rays ignore (:data:`simrun.sensors.EXCLUDES`): by default every geom of the robot
             the sensor is mounted on.
+        body: Mount on this body of the entity (``ENTITY/link``, a link of an MJCF or URDF robot) instead of
+            the entity's own body; ``offset`` and ``direction`` are then in that body's frame, and the cone
+            turns with it.
     """
 
     def __init__(
@@ -68,11 +71,12 @@ class RangeCone(Sensor):
         noise: float = 0.0,
         seed: int = 0,
         exclude: str = "robot",
+        body: str | None = None,
     ) -> None:
         if max_range <= min_range or rays < 1 or cone_deg < 0:
             raise EntityError("range cone: 0 <= min_range < max_range, rays >= 1, cone >= 0")
-        self.caster = RayCaster(entity, exclude)
-        super().__init__(world, entity, rate, noise, seed)  # registers it: checks first
+        self.caster = RayCaster(body or entity, exclude)
+        super().__init__(world, entity, rate, noise, seed, body)  # registers it: checks first
         self.offset = np.asarray(offset, dtype=float)
         self.min_range, self.max_range, self.response = min_range, max_range, response
         forward = np.asarray(direction, dtype=float) / np.linalg.norm(direction)

@@ -11,24 +11,37 @@ the actuator (read from the compiled model, never from names):
   which is ``gear q*`` for ``<position>`` (the servo's own loop; a velocity target moves the position target
   at that speed).
 * **velocity servo** (``biasprm[1] = 0``, ``biasprm[2] = -kv``): ``ctrl = gear * (v* + w (q* - q))``, a
-  position loop of bandwidth ``w`` (rad/s) around the servo (``v*``: the velocity target, 0 when holding).
+  position loop of bandwidth ``w`` (rad/s) around the servo (``v*``: the velocity target, 0 when holding),
+  damped by the servo itself: joint torque ``K (ctrl / gear - v)``, ``K = gear^2 kv``, so the loop is
+  ``m s^2 + (K + b) s + K w`` (``m`` the joint's diagonal of the mass matrix, ``b`` its damping), at least
+  critically damped where ``(K + b)^2 >= 4 m K w``. A servo too weak for that rings: dm_control's jumping
+  ball's camera slide (``kv`` 1 on 1 kg, damping ratio 0.14) still swung 40 % of its step 5 s after the
+  walker's kick. Such a servo is used as a torque source: ``ctrl = gear (v + m (w^2 e + 2 w (v* - v)) / K)``
+  puts both poles at ``-w``; the ``v`` in it cancels the servo's damping explicitly, stable because
+  ``K h / m < 4 w h`` there (``h`` how long a control holds, the control period or the timestep; ``K h / m``
+  is required below 1).
 * **integrated velocity servo** (``intvelocity``: integrator dynamics, position bias): the activation is
   the servo's position target; ``ctrl = gear v* + w (gear q* - act)`` steers it to ``gear q*``.
 * **force** (a motor, or any other fixed-gain actuator with affine or no bias, with or without a filter):
   a PID loop in joint space with
   feed-forward of MuJoCo's bias, spring and gravity-compensation forces, ``tau = qfrc_bias - qfrc_spring -
-  qfrc_gravcomp + m (3 w^2 e + 3 w (v* - v) + w^3 integral(e))``, ``e = q* - q``; ``m`` is the joint's
-  diagonal of the mass matrix (armature included) at the model's initial pose and ``w`` the bandwidth:
-  the three closed-loop poles sit at ``-w`` (critically damped, ``(s + w)^3``) for that inertia. The
-  joint's damping ``b`` is not cancelled: MuJoCo integrates it implicitly, a cancellation held over a
-  control period is explicit and diverges where ``b * period / m > 2`` (light wrists and fingers); the
-  gains are designed for ``m + b / (3 w)`` instead of ``m``, so a joint whose damping dwarfs its inertia
-  still closes its loop in about ``1 / w`` (poles ``w (-1 +- 1.29 i) / 4`` in that limit). (The whole mass
-  matrix in place of its diagonal, computed torque, did worse on the floating walkers of
-  ``bench/mjcf_robots.py``: 46 against 52 of 62 passing, both without damping cancelled.)
-  The integral removes what the feed-forward misses (friction loss, contacts) and stops growing while the
-  control is clipped in the error's direction (no wind-up). The actuator's own bias is subtracted:
-  ``ctrl = (tau / gear - b0 - b1 gear q - b2 gear v) / gain``.
+  qfrc_gravcomp + S a + B a / (3 w)``, ``a = 3 w^2 e + 3 w (v* - v) + w^3 integral(e)`` per joint,
+  ``e = q* - q``, ``w`` the bandwidth: the three closed-loop poles sit at ``-w`` (critically damped,
+  ``(s + w)^3``). ``S`` is the inertia the commanded force joints see together, every other degree of
+  freedom free: the Schur complement of MuJoCo's mass matrix (armature included) at the model's initial
+  pose over the rest (a free root, passive joints, servo-driven joints). Each joint's own diagonal of the
+  mass matrix (its inertia with everything else held), as before issue 29's walker roots, made the force
+  loops of a floating body fight each other through it: on the CMU humanoids of dm_control with their free
+  root the spine joints chattered at half the control rate between the actuators' full forces (the
+  smallest inertia a spine joint sees, everything else free, is 1/66 of its diagonal); with ``S`` they
+  settle (``bench/mjcf_robots.py``: 58 of 62 models reach their targets, against 56 with the diagonal and
+  no regression). ``S`` is computed once per set of commanded joints. The joints' damping ``B`` (diagonal)
+  is not cancelled: MuJoCo integrates it implicitly, a cancellation held over a control period is explicit
+  and diverges where ``b * period / m > 2`` (light wrists and fingers); ``B / (3 w)`` is added to the
+  inertia instead, so a joint whose damping dwarfs its inertia still closes its loop in about ``1 / w``
+  (poles ``w (-1 +- 1.29 i) / 4`` in that limit). The integral removes what the feed-forward misses
+  (friction loss, contacts) and stops growing while the control is clipped in the error's direction (no
+  wind-up). The actuator's own bias is subtracted: ``ctrl = (tau / gear - b0 - b1 gear q - b2 gear v) / gain``.
 
 Muscles, user-defined gains or biases, integrator dynamics without a position bias and actuators on
 tendons, sites or bodies are not commanded (:meth:`JointService.joints` leaves their joints out).
@@ -126,6 +139,8 @@ class JointService:
         self._plan: dict[str, Any] | None = None  # a trajectory: start time, times, joints, positions
         self._integral: dict[str, float] = {}  # joint -> integral of the position error (force joints), rad s
         self._scratch: _Scratch | None = None  # feed-forward forces are computed here, from the state alone
+        self._mass = np.zeros((0, 0))  # MuJoCo's mass matrix at the model's initial pose (nv x nv)
+        self._inertia: dict[tuple[str, ...], np.ndarray[Any, np.dtype[np.float64]]] = {}  # force joints -> S
         world.controllers.append(self)
 
     # -- commands ------------------------------------------------------------------------------------------
@@ -240,7 +255,14 @@ class JointService:
                 bias = model.actuator_biasprm[drive.actuator]
                 ctrl = -(bias[0] + bias[1] * drive.gear * position) / drive.gain
             elif drive.kind == "velocity":
-                ctrl = drive.gear * (velocity + w * (position - q))
+                servo = drive.gear * drive.gear * drive.gain  # joint torque per rad/s of speed error
+                hold = max(h, float(model.opt.timestep))  # how long a control stays
+                weak = (servo + drive.damping) ** 2 < 4.0 * drive.mass * servo * w and servo * hold < drive.mass
+                if weak:  # its own damping cannot damp the loop: command the torque (see the module)
+                    torque = drive.mass * (w * w * (position - q) + 2.0 * w * (velocity - v))
+                    ctrl = drive.gear * (v + torque / servo)
+                else:
+                    ctrl = drive.gear * (velocity + w * (position - q))
             elif drive.kind == "intvelocity":  # the servo's target is the activation: steer it to gear * q*
                 act = float(data.act[model.actuator_actadr[drive.actuator]])
                 ctrl = drive.gear * velocity + w * (drive.gear * position - act)
@@ -284,17 +306,32 @@ class JointService:
         w, h = self.bandwidth, self.period
         dofs = [self._drives[j].dof for j in joints]
         feed = self._feed_forward(model, data)[dofs]
-        accel, errors, integrals = [], [], []
+        rates, damped, errors, integrals = [], [], [], []
         for joint in joints:
             drive, (position, velocity) = self._drives[joint], self._targets[joint]
             error = position - float(data.qpos[drive.qpos])
             integral = self._integral.get(joint, 0.0) + error * h
             rate = 3.0 * w * w * error + 3.0 * w * (velocity - float(data.qvel[drive.dof])) + w * w * w * integral
-            accel.append((drive.mass + drive.damping / (3.0 * w)) * rate)
+            rates.append(rate)
+            damped.append(drive.damping / (3.0 * w) * rate)
             errors.append(error)
             integrals.append(integral)
-        torque = np.asarray(accel) + feed
+        torque = self._joint_inertia(tuple(joints), dofs) @ np.asarray(rates) + np.asarray(damped) + feed
         return {j: (float(torque[k]), errors[k], integrals[k]) for k, j in enumerate(joints)}
+
+    def _joint_inertia(self, joints: tuple[str, ...], dofs: list[int]) -> np.ndarray[Any, np.dtype[np.float64]]:
+        """The inertia matrix the force joints ``joints`` (dofs ``dofs``) see with every other dof free."""
+        found = self._inertia.get(joints)
+        if found is None:
+            mass, mine = self._mass, np.asarray(dofs, dtype=np.intp)
+            rest = np.setdiff1d(np.arange(mass.shape[0]), mine)
+            found = mass[np.ix_(mine, mine)]
+            if rest.size:
+                found = found - mass[np.ix_(mine, rest)] @ np.linalg.solve(
+                    mass[np.ix_(rest, rest)], mass[np.ix_(rest, mine)]
+                )
+            self._inertia[joints] = found
+        return found
 
     def _follow(self, now: float) -> None:
         plan = self._plan
@@ -411,6 +448,7 @@ class JointService:
                 *_ctrl_range(model, a),
             )
         self._joints, self._drives, self._bound = joints, drives, model
+        self._mass, self._inertia = full, {}
         self._targets = {k: v for k, v in self._targets.items() if k in drives}
 
 

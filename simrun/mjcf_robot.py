@@ -20,6 +20,23 @@ bodies keeps them; MuJoCo allows those only on bodies of the world itself, so su
 world at the entity's pose (the entity must then be top level, neither ``free`` nor ``kinematic``), and
 the entity's own body stays an empty marker there.
 
+A model with no free joint of its own (dm_control's locomotion walkers: their Python adds the root joints
+when it puts a walker into an arena) is welded where it is put unless given one of two roots:
+
+- ``free = true`` (every entity's key): the entity's body gets a free joint ``NAME/free`` and the model
+  hangs from it, as dm_control's ``Walker.create_root_joints`` adds a ``freejoint`` to the walker's
+  attachment frame (``dm_control/locomotion/walkers/base.py``): the model falls, lands and can walk. The
+  entity's body has no mass and MuJoCo refuses a moving body without mass, so one of the model's top-level
+  bodies must have no joint of its own (the CMU humanoid's ``root``); the entity must be top level.
+- ``root_slides = true``: three slide joints ``NAME/root_x``, ``NAME/root_y``, ``NAME/root_z`` along the
+  axes of the entity's frame on the model's one top-level body, before its own joints, without limits,
+  springs, damping or armature: the body translates but keeps its orientation (its own hinges still turn
+  it). dm_control's ball walkers get exactly these (``create_root_joints`` of ``BoxHead``,
+  ``dm_control/locomotion/soccer/boxhead.py``, and ``JumpingBall``, ``.../walkers/jumping_ball.py``:
+  slides ``root_x``, ``root_y``, ``root_z`` of class ``root`` on the attachment frame); here they sit on the
+  top-level body itself, which has the mass MuJoCo wants (same motion: a massless frame adds nothing).
+  The model's keyframes get the slides at 0.
+
 The world's options (timestep, integrator, gravity, fluid density and viscosity, solver) govern: the
 model's ``<option>`` is replaced by them before the attach (MuJoCo's attach keeps the parent's anyway, with
 a printed warning per difference), and its ``<size>`` is not carried over. Unnamed keyframes are named
@@ -100,6 +117,8 @@ class MjcfRobot(Entity):
         track: Metres; ``None``: the distance between the two wheel bodies at the initial pose.
         stall_torque: Wheel torque at power 1 held still, N m (the DC motors ``wheels`` adds).
         no_load_speed: Wheel speed at power 1 without load, rad/s.
+        root_slides: Three slide joints on the model's top-level body (see the module); not with ``free``
+            or ``kinematic``.
     """
 
     TYPE: ClassVar[str] = "MjcfRobot"
@@ -112,6 +131,7 @@ class MjcfRobot(Entity):
     track: float | None = None
     stall_torque: float = 1.0
     no_load_speed: float = 10.0
+    root_slides: bool = False
 
     # -- building ------------------------------------------------------------------------------------------
 
@@ -124,6 +144,10 @@ class MjcfRobot(Entity):
         child.assets = dict(files)
         if self.wheels:
             self._add_motors(child)
+        if self.root_slides:  # before any compile of the model: a compile ties its keyframes to its joints
+            self._add_root_slides(child, path)
+        elif self.free:
+            self._check_free(child, path)
         _scale_total_mass(child, lambda: self._compiled(child, path))
         self._compiled(child, path)  # MuJoCo must take the model alone first: its message names the element
         for k, key in enumerate(child.keys):
@@ -192,6 +216,61 @@ class MjcfRobot(Entity):
         elif named:
             what = f" element named {named.group(1)!r}:"
         return EntityError(f"MjcfRobot {self.name!r}: {where}:{what} {first}; {hint}")
+
+    def _add_root_slides(self, child: mujoco.MjSpec, path: Path) -> None:
+        """Slides ``root_x``, ``root_y``, ``root_z`` (the entity frame's axes) first on the one top-level body."""
+        who = f"MjcfRobot {self.name!r}"
+        if self.free or self.kinematic:
+            raise EntityError(f"{who}: root_slides moves the model's root; it cannot also be free or kinematic")
+        tops = list(child.worldbody.bodies)
+        if len(tops) != 1 or _world_only(tops[0]):
+            found = ", ".join(b.name or "(unnamed)" for b in tops) or "none"
+            raise EntityError(
+                f"{who}: root_slides needs one top-level body without a free joint, not mocap, in {path} "
+                f"(top-level bodies: {found}); drop root_slides"
+            )
+        top = tops[0]
+        rotation = np.zeros(9)
+        mujoco.mju_quat2Mat(rotation, self._compiled(child.copy(), path).body_quat[1])  # its frame in the entity's
+        names = {j.name for j in child.joints}
+        clash = sorted(n for n in ("root_x", "root_y", "root_z") if n in names)
+        if clash:
+            raise EntityError(f"{who}: root_slides adds {', '.join(clash)}, already a joint of {path}")
+        own = [(_joint_fields(j), j.frame) for j in top.joints]
+        for joint in list(top.joints):
+            child.delete(joint)
+        blank = _joint_fields(mujoco.MjSpec().worldbody.add_body().add_joint())  # MuJoCo's defaults, not the model's
+        for k, axis in enumerate(rotation.reshape(3, 3)):  # row k of R = R^T e_k: entity axis k in the body's
+            slide = top.add_joint()
+            for key, value in blank.items():
+                setattr(slide, key, value)
+            slide.name, slide.type, slide.axis = f"root_{'xyz'[k]}", mujoco.mjtJoint.mjJNT_SLIDE, list(axis)
+            slide.limited = slide.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        for fields, frame in own:
+            joint = top.add_joint()
+            for key, value in fields.items():
+                setattr(joint, key, value)
+            if frame is not None:
+                joint.set_frame(frame)
+        for key in child.keys:  # the top-level body's joints come first in qpos and qvel
+            if len(key.qpos):
+                key.qpos = [0.0, 0.0, 0.0, *key.qpos]
+            if len(key.qvel):
+                key.qvel = [0.0, 0.0, 0.0, *key.qvel]
+
+    def _check_free(self, child: mujoco.MjSpec, path: Path) -> None:
+        """Refuse ``free`` where every top-level body has joints of its own: nothing with mass under the free joint."""
+        tops = list(child.worldbody.bodies)
+        if not tops or any(_world_only(b) for b in tops) or any(not list(b.joints) for b in tops):
+            return
+        jointed = ", ".join(
+            f"{b.name or '(unnamed)'} ({', '.join(j.name or 'unnamed' for j in b.joints)})" for b in tops
+        )
+        raise EntityError(
+            f"MjcfRobot {self.name!r}: free = true hangs {path} from a free joint on the entity's body, which "
+            f"has no mass, and every top-level body has joints of its own: {jointed}; MuJoCo refuses a moving "
+            "body without mass: use root_slides = true (translation only, as dm_control's ball walkers)"
+        )
 
     def _add_motors(self, child: mujoco.MjSpec) -> None:
         who = f"MjcfRobot {self.name!r}"
@@ -367,6 +446,19 @@ def _take_settings(child: mujoco.MjSpec, world: mujoco.MjSpec) -> None:
 def _world_only(body: Any) -> bool:
     """Whether a top-level body must stay a child of the world: a free joint, or a mocap body."""
     return bool(body.mocap) or any(int(j.type) == int(mujoco.mjtJoint.mjJNT_FREE) for j in body.joints)
+
+
+#: Joint settings that are not values (identity, place in the tree, the frame set through ``set_frame``).
+_NOT_COPIED = {"id", "parent", "frame", "signature", "compiler", "classname", "set_frame"}
+
+
+def _joint_fields(joint: Any) -> dict[str, Any]:
+    """Every setting of a spec joint, to add it again (MuJoCo's spec has no way to move a joint in its body)."""
+    return {
+        name: getattr(joint, name)
+        for name in dir(joint)
+        if not name.startswith("_") and name not in _NOT_COPIED and not callable(getattr(joint, name))
+    }
 
 
 def _root_tag(path: Path) -> str:
