@@ -9,6 +9,7 @@ command it concerns) and *how to fix it* (``hint``); ``str(error)`` is one line,
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 
@@ -127,3 +128,26 @@ class SceneError(SimrunError, ValueError):
 
 class CompileError(SimrunError, RuntimeError):
     """MuJoCo refused the model, or stepping produced warnings where none are allowed."""
+
+
+@dataclass(frozen=True, slots=True)
+class Origin:
+    """Where an item of a world came from: its file, line, key path (``entities[3]``) and name.
+
+    ``str(origin)`` is the ``FILE:LINE: KEY 'NAME'`` prefix of the errors it locates; :meth:`error` gives an
+    error with those fields.
+    """
+
+    path: str | None
+    line: int | None
+    key: str
+    label: str | None = None
+
+    def __str__(self) -> str:
+        head = f"{self.path}:{self.line}" if self.path and self.line else (self.path or "")
+        what = f"{self.key} {self.label!r}" if self.label else self.key
+        return f"{head}: {what}" if head else what
+
+    def error(self, message: str, hint: str | None = None) -> EntityError:
+        """An :class:`EntityError` located here (path, line, key and entity as fields)."""
+        return EntityError(message, path=self.path, line=self.line, key=self.key, entity=self.label, hint=hint)

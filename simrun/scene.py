@@ -20,7 +20,7 @@ import tomli_w
 
 from meshtool.formats import suffix
 from simrun.entity import Entity, Material
-from simrun.errors import EntityError, SceneError, SimrunError
+from simrun.errors import EntityError, Origin, SceneError, SimrunError
 from simrun.mesh_entity import MeshEntity
 from simrun.outfile import write_text
 from simrun.pose import Pose
@@ -105,10 +105,9 @@ class _Loader:
                 world.insert(entity)
             except EntityError as exc:
                 raise self.error(str(exc).removeprefix(f"{full!r}: "), where) from None
-            label = f"entities[{k}] {entity.name!r}"
-            world.origins[full] = f"{self.name}:{line_of(self.lines, where)}: {label}"
+            world.origins[full] = self.origin(where, where, entity.name)
             for key in table:  # build errors that start with a parameter's name point at its line
-                world.origins[f"{full}#{key}"] = f"{self.name}:{line_of(self.lines, (*where, key))}: {label}"
+                world.origins[f"{full}#{key}"] = self.origin(where, (*where, key), entity.name)
         self.services(doc.get("services", []), world)
         self.sensors(doc.get("sensors", []), world)
         if "state" in doc:
@@ -203,7 +202,7 @@ class _Loader:
             if any(s["type"] == kind and s["entity"] == service["entity"] for s in world.services):
                 raise self.error(f"a {kind} is already bound to {service['entity']!r}", where)
             world.services.append(dict(service))
-            world.origins[f"services:{kind}:{service['entity']}"] = self.where_text(where)
+            world.origins[f"services:{kind}:{service['entity']}"] = self.origin(where, where)
 
     def sensors(self, sensors: Any, world: World) -> None:
         if not isinstance(sensors, list):
@@ -234,13 +233,12 @@ class _Loader:
                 world.add_sensor(dict(spec))
             except (EntityError, TypeError, ValueError) as exc:
                 raise self.error(str(exc), where) from None
-            world.origins[f"sensors:{spec['name']}"] = self.where_text(where)
+            world.origins[f"sensors:{spec['name']}"] = self.origin(where, where)
 
-    def where_text(self, where: KeyPath) -> str:
-        line = line_of(self.lines, where)
-        label = self.labels.get(where)
-        head = f"{self.name}:{line}" if line else self.name
-        return f"{head}: {where[0]}[{where[1]}]" + (f" {label!r}" if label else "")
+    def origin(self, where: KeyPath, line_at: KeyPath, label: str | None = None) -> Origin:
+        """Where the item at ``where`` (``("entities", 3)``) came from, at the line of ``line_at``."""
+        line = line_of(self.lines, line_at) or None
+        return Origin(self.name, line, f"{where[0]}[{where[1]}]", label or self.labels.get(where))
 
 
 def scene_text(world: World, state: str = "initial", folder: str | Path | None = None) -> str:

@@ -23,7 +23,7 @@ from simrun import model_cache
 from simrun.assets import AssetLibrary
 from simrun.entity import BuildContext, Entity
 from simrun.environment import Camera
-from simrun.errors import CompileError, EntityError, SimrunError
+from simrun.errors import CompileError, EntityError, Origin, SimrunError
 from simrun.registry import Controller, scene_type, service_arguments
 
 INTEGRATORS = {
@@ -99,9 +99,10 @@ class World:
         #: Asset names (used by ``MeshEntity.asset``) to ``.mbin`` paths relative to ``base_dir``.
         self.assets: dict[str, str] = {}
         #: Where each entity (by full name), service (``services:TYPE:ENTITY``) and sensor (``sensors:NAME``)
-        #: came from, e.g. ``scene.toml:12: entities[3] 'box'`` (set by ``load_scene``), for later errors;
+        #: came from (file, line, ``entities[3]``, name: ``scene.toml:12: entities[3] 'box'``; set by
+        #: ``load_scene``), for later errors, which carry them as fields;
         #: ``NAME#PARAM`` keys hold the line of one parameter (a build error starting with ``mass`` points there).
-        self.origins: dict[str, str] = {}
+        self.origins: dict[str, Origin] = {}
 
     # -- entities ------------------------------------------------------------------------------------------
 
@@ -226,9 +227,11 @@ class World:
         if key:
             message = f"{key}: {message}"
         field = key or message.split(" ", 1)[0].split("[", 1)[0].rstrip(":")
-        origin = self.origins.get(f"{full}#{field}") or self.origins.get(full) or f"{entity.TYPE} {full!r}"
+        origin = self.origins.get(f"{full}#{field}") or self.origins.get(full)
         hint = exc.hint if isinstance(exc, SimrunError) else None
-        return EntityError(f"{origin}: {message}", hint=hint)
+        if origin is None:  # an entity added from Python
+            return EntityError(f"{entity.TYPE} {full!r}: {message}", entity=full, hint=hint)
+        return origin.error(message, hint)
 
     def compile(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
         """Build and compile (done lazily by :attr:`model` and :attr:`data`).
@@ -421,16 +424,22 @@ class World:
             try:
                 self.service(kind, entity)
             except EntityError as exc:
-                origin = self.origins.get(f"services:{kind}:{entity}", f"service {kind} of {entity!r}")
-                raise EntityError(f"{origin}: {exc}") from None
+                origin = self.origins.get(f"services:{kind}:{entity}")
+                if origin is None:
+                    raise EntityError(f"service {kind} of {entity!r}: {exc}", entity=entity) from None
+                raise origin.error(str(exc)) from None
         for name, sensor in self.sensors.items():
             state, reading = sensor.snapshot(), sensor.reading
             try:
                 sensor.sample(model, data)
             except (EntityError, KeyError, IndexError, ValueError) as exc:
-                origin = self.origins.get(f"sensors:{name}", f"sensor {name!r}")
+                origin = self.origins.get(f"sensors:{name}")
                 reason = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-                raise EntityError(f"{origin}: cannot read {sensor.entity!r}: {reason}") from None
+                if origin is None:
+                    raise EntityError(
+                        f"sensor {name!r}: cannot read {sensor.entity!r}: {reason}", entity=name
+                    ) from None
+                raise origin.error(f"cannot read {sensor.entity!r}: {reason}") from None
             finally:
                 sensor.restore(state)
                 sensor.reading = reading

@@ -108,3 +108,29 @@ def test_the_json_document_is_rendered_from_the_outcome(outcome, code, expected)
     if outcome.document is None:
         assert {"status", "command", "exit_code", "output", "outputs", "findings", "notes", "stats"} <= set(document)
         assert ("error" in document) == (code != 0)
+
+
+def test_an_entity_build_error_carries_its_location_as_fields(tmp_path):
+    """A parameter refused when the world is built names its file, line, key and entity as JSON fields."""
+    scene = tmp_path / "bad.toml"
+    scene.write_text('[[entities]]\ntype = "Box"\nname = "b"\ndimensions = [0.1, 0.1, 0.1]\nmass = -2.0\n')
+    result = _run(simrun_main, ["check", scene, "--json"])
+    assert result.exit_code == EXIT_INPUT
+    error = json.loads(result.stdout)["error"]
+    assert (error["path"], error["line"], error["key"], error["entity"]) == (str(scene), 5, "entities[0]", "b")
+    assert error["message"] == f"{scene}:5: entities[0] 'b': mass must be a positive number, got -2.0"
+    assert result.stderr.strip() == f"error: {error['message']}"
+
+
+def test_a_sensor_that_cannot_bind_carries_its_location_as_fields(tmp_path):
+    """Wheel encoders on a box (no wheel joints) fail when bound: the error points at the [[sensors]] table."""
+    scene = tmp_path / "sensor.toml"
+    scene.write_text(
+        '[[entities]]\ntype = "Box"\nname = "b"\ndimensions = [0.1, 0.1, 0.1]\n\n'
+        '[[sensors]]\ntype = "Encoders"\nname = "enc"\nentity = "b"\nrate = 10\n'
+    )
+    result = _run(simrun_main, ["check", scene, "--json"])
+    assert result.exit_code == EXIT_INPUT
+    error = json.loads(result.stdout)["error"]
+    assert (error["path"], error["line"], error["key"], error["entity"]) == (str(scene), 6, "sensors[0]", "enc")
+    assert error["message"].startswith(f"{scene}:6: sensors[0] 'enc': cannot read 'b': ")
