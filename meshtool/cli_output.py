@@ -43,6 +43,7 @@ EXIT_CODES: dict[str, int] = {
     "an input refused: bad syntax, values out of range, a broken reference (one error line with file:line)": EXIT_INPUT,
     "a check failed: validate findings, a scene warning, a re-simulation that differs": EXIT_INPUT,
     "an output refused: it would replace an input or a file the tool did not write (--force)": EXIT_INPUT,
+    "an output that cannot be written: a name over 255 bytes, a missing or read-only folder, a full disk": EXIT_INPUT,
     "a service that cannot be reached (a Dask scheduler), a per-asset timeout": EXIT_INPUT,
     "usage: an unknown option or command, a bad option value, a missing argument": EXIT_USAGE,
     "the tool itself failed (a bug: 'internal error:' line; -vv shows the traceback)": EXIT_INTERNAL,

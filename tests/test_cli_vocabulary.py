@@ -156,6 +156,13 @@ def test_exit_code_table_is_documented():
         assert f"| {code} | {what} |" in DOC
 
 
+def test_the_documented_exit_code_table_is_the_one_table():
+    """docs/cli.md's exit-code table has exactly the rows of ``EXIT_CODES``, in its order."""
+    section = DOC.split("## Exit codes", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in section.splitlines() if line.startswith("| ") and not line.startswith("| exit")]
+    assert rows == [f"| {code} | {what} |" for what, code in EXIT_CODES.items()]
+
+
 @pytest.mark.parametrize("program", ["meshtool", "obj2bin", "simrun"])
 def test_shell_completion_script_is_generated(program):
     variable = f"_{program.upper()}_COMPLETE"
