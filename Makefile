@@ -76,6 +76,7 @@ bench: $(TEST_STAMP) $(PEERS)/.installed
 	$(BIN)/python bench/formats_check.py ../shared/robots --corpus ../shared/corpus --derived 10 --docs
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python bench/recordings.py --repeat 3
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python bench/scenetest.py --seeds 50 --rounds 2
+	$(BIN)/python bench/serve.py . --repeat 3
 
 # The benchmarks' peers (obj2mjcf, the C++ tinyobjloader binding) live in their own environment inside the
 # checkout (ignored by git), never in the project's .venv.

@@ -32,6 +32,13 @@ def arguments(doc: str | None, repeat: int) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, default=Path("docs/benchmarks.md"))
     parser.add_argument("--obj2mjcf", default=None, help="path of the obj2mjcf executable (bench/hulls.py)")
     parser.add_argument("--peer-python", default=None, help="Python of the peers' environment (bench/parse.py)")
+    parser.add_argument(
+        "--max-entities", type=int, default=10_000, help="largest world of the growth curve (bench/world.py)"
+    )
+    parser.add_argument(
+        "--max-assets", type=int, default=1000, help="largest folder of the growth curve (bench/validate.py)"
+    )
+    parser.add_argument("--growth-only", action="store_true", help="only the growth curves (world, validate)")
     return parser.parse_args()
 
 
@@ -119,16 +126,21 @@ def timed(fn: Callable[[], object], inner: int | None = 1) -> Callable[[], tuple
     return run
 
 
-def command(argv: list[str], env: dict[str, str] | None = None) -> Callable[[], tuple[float, float]]:
-    """A contender that runs a command: (wall, user + system CPU of that process and its children) seconds."""
+def command(
+    argv: list[str], env: dict[str, str] | None = None, cwd: Path | None = None, ok: tuple[int, ...] = (0,)
+) -> Callable[[], tuple[float, float]]:
+    """A contender that runs a command: (wall, user + system CPU of that process and its children) seconds.
+
+    ``ok``: the exit statuses that count as success (``meshtool validate`` exits 1 when it finds errors).
+    """
 
     def run() -> tuple[float, float]:
         wall = time.perf_counter()
-        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, cwd=cwd)
         _, status, usage = os.wait4(proc.pid, 0)
         elapsed = time.perf_counter() - wall
         proc.returncode = os.waitstatus_to_exitcode(status)
-        if proc.returncode != 0:
+        if proc.returncode not in ok:
             raise RuntimeError(f"{' '.join(argv)} exited {proc.returncode}")
         return elapsed, usage.ru_utime + usage.ru_stime
 

@@ -132,7 +132,9 @@ def table(rows: list[tuple[str, dict[str, float], dict[str, Timing]]], repeat: i
         "",
         "*parse* = `parse_obj` (arrays, polygons); *mesh* = parse + triangulation + cleaning (`build_mesh`), "
         "the like-for-like peer of `trimesh.load` and of tinyobjloader with `triangulate`; *prepare* = what "
-        "`obj2bin` runs before hulls (read, mesh, units, up axis, small parts, statistics); *convert* = "
+        "`obj2bin` runs before hulls (read, mesh, units, up axis, small parts, statistics, textures to PNG: "
+        "the fuze's 1024 x 1024 JPEG is decoded by trimesh.load too, but only prepare encodes it as the PNG "
+        "MuJoCo needs, once, at zlib level 1, `meshtool/textures.py`); *convert* = "
         "`pack_file` with the default single hull, no MuJoCo check (the whole `obj2bin` but the check and "
         "the write). Goals (issue 28): prepare >= 2x faster than trimesh.load and within 1.5x of "
         "tinyobjloader at every size, linear growth (the CPU per million triangles column).",

@@ -4,24 +4,34 @@ Peers in the same run, for scale: reading every OBJ with trimesh (``trimesh.load
 compiling every OBJ as a MuJoCo mesh (``MjSpec`` mesh from the file, what obj2mjcf relies on). Ratios are
 validate's time over trimesh's.
 
-Usage: python bench/validate.py ../shared/corpus [--out docs/benchmarks.md]
+A second section (``<!-- validate-growth:begin -->``) is the growth curve of issue 28: ``meshtool validate``
+(the command, a fresh process, ``--no-cache``) over folders of 1, 10, 100 and 1,000 assets, with ``-j 1``
+and ``-j 2``. The folders are built in a temporary folder from ten self-contained corpus OBJs (no MTL,
+1.5 to 110 KB) cycled with distinct names, each copy given a distinct comment line so no two files hold
+the same bytes; the corpus itself is only read.
+
+Usage: python bench/validate.py ../shared/corpus [--repeat 2] [--max-assets 1000] [--out docs/benchmarks.md]
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import platform
 import resource
+import shutil
+import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco
 import trimesh
-from _report import Timing, arguments, load_average, write_section
+from _report import Timing, arguments, command, interleave, load_average, write_section
 
 from meshtool.validate import ValidateOptions, discover, validate
 
@@ -64,8 +74,134 @@ CONFIGURATIONS = (
 )
 
 
+# ------------------------------------------------------------------------------------ growth curve (issue 28)
+
+GROWTH = (1, 10, 100, 1000)
+GROWTH_BEGIN, GROWTH_END = "<!-- validate-growth:begin -->", "<!-- validate-growth:end -->"
+#: Ten self-contained corpus OBJs (no mtllib), 1.5 to 110 KB, in the order the folders cycle through them.
+GROWTH_ASSETS = (
+    "src/alecjacobson__common-3d-test-models/data/suzanne.obj",
+    "src/kevinzakka__mujoco_menagerie/bitcraze_crazyflie_2/assets/cf2_collision_0.obj",
+    "src/tinyobjloader__tinyobjloader/models/catmark_torus_creases0.obj",
+    "src/kevinzakka__mujoco_menagerie/leap_hand/assets/tip.obj",
+    "src/google-deepmind__mujoco/mjx/mujoco/mjx/test_data/shadow_hand/assets/th_distal_pst_190.obj",
+    "src/mikedh__trimesh/models/not_convex.obj",
+    "src/google-deepmind__mujoco/model/flex/asset/cap.obj",
+    "src/google-deepmind__mujoco/test/engine/testdata/collision_convex/cone.obj",
+    "src/google-deepmind__mujoco/test/user/testdata/torus_quads.obj",
+    "src/kevinzakka__mujoco_menagerie/shadow_hand/assets/wrist.obj",
+)
+
+
+def growth_folder(sources: list[bytes], folder: Path, count: int) -> None:
+    """``count`` OBJs in ``folder``: the sources in turn, copy k ending with its own comment line."""
+    folder.mkdir(parents=True)
+    for k in range(count):
+        data = sources[k % len(sources)]
+        (folder / f"a{k:04d}.obj").write_bytes(data + (b"" if data.endswith(b"\n") else b"\n") + b"# copy %d\n" % k)
+
+
+def _reporting(run: Callable[[], tuple[float, float]], report: Path) -> Callable[[], tuple[float, float]]:
+    """``run`` that must write ``report`` (exit status 1 is also how a crash ends: the report tells them apart)."""
+
+    def checked() -> tuple[float, float]:
+        report.unlink(missing_ok=True)
+        result = run()
+        if not report.exists():
+            raise RuntimeError(f"meshtool validate wrote no report {report}: it failed")
+        return result
+
+    return checked
+
+
+def growth(corpus: Path, work: Path, repeat: int, sizes: tuple[int, ...]) -> tuple[str, dict[str, Timing]] | None:
+    """Time ``meshtool validate`` at every size, -j 1 and -j 2; the largest size runs ``max(1, repeat // 2)`` rounds."""
+    paths = [corpus / rel for rel in GROWTH_ASSETS]
+    missing = [p for p in paths if not p.exists()]
+    if missing:
+        print(f"skip the validate growth curve: {missing[0]} not found", file=sys.stderr)
+        return None
+    sources = [p.read_bytes() for p in paths]
+    meshtool = str(Path(sys.executable).with_name("meshtool"))
+    before = load_average()
+    results: dict[str, Timing] = {}
+    for n in sizes:
+        folder = work / f"n{n}"
+        growth_folder(sources, folder, n)
+        contenders = {}
+        for jobs in (1, 2):
+            report = work / f"n{n}-j{jobs}.json"
+            argv = [meshtool, "validate", str(folder), "-j", str(jobs), "--no-cache", "--json", "-o", str(report)]
+            # cwd: the temporary folder, so no project's configuration is found; exit 1 means errors found
+            contenders[f"{n} j{jobs}"] = _reporting(command(argv, cwd=work, ok=(0, 1)), report)
+        rounds = repeat if n < max(sizes) else max(1, repeat // 2)
+        results.update(interleave(contenders, rounds))
+        for jobs in (1, 2):
+            summary = json.loads((work / f"n{n}-j{jobs}.json").read_text())["summary"]
+            assert summary["assets"] == n, f"{summary['assets']} assets reported for {n}"
+            t = results[f"{n} j{jobs}"]
+            print(f"validate {n} assets -j {jobs}: CPU {t.cpu_median:.2f} s, wall {t.wall_median:.2f} s", flush=True)
+        shutil.rmtree(folder)
+    return before, results
+
+
+def growth_table(before: str, r: dict[str, Timing], repeat: int, sizes: tuple[int, ...]) -> str:
+    big = max(sizes)
+    lines = [
+        GROWTH_BEGIN,
+        "## Validation: growth from 1 to 1,000 assets",
+        "",
+        f"`python bench/validate.py ../shared/corpus --repeat {repeat}` (part of `make bench`): `meshtool validate "
+        "FOLDER -j J --no-cache --json -o REPORT`, each run a fresh process (start-up included; CPU is user + "
+        "system of it and its worker processes), over folders of N OBJs built in a temporary folder from ten "
+        "self-contained corpus OBJs (1.5 to 110 KB: Suzanne, menagerie and MuJoCo test meshes) cycled with "
+        "distinct names, each copy with its own comment line (no two files alike; N = 1 is Suzanne alone, "
+        "every larger N holds each of the ten N / 10 times). Every rule, the MuJoCo drop test included. "
+        f"-j 1 and -j 2 interleaved, {repeat} rounds ({max(1, repeat // 2)} at N = {big:,}); seconds as min / "
+        f"median. {before} before, {load_average()} after the run: the -j 2 speed-up needs 2 idle CPUs, which "
+        "a shared machine does not have.",
+        "",
+        "| N | -j 1 wall min / median s | -j 1 CPU min / median s | -j 2 wall min / median s | -j 2 CPU min / "
+        "median s | CPU ms per asset (-j 1 / -j 2) | CPU ms per asset beyond N = 1 (-j 1 / -j 2) | -j 2 speed-up "
+        "(median wall) | goal -j 2 >= 1.7x |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    first = min(sizes)
+    for n in sizes:
+        one, two = r[f"{n} j1"], r[f"{n} j2"]
+        speed = one.wall_median / two.wall_median
+        goal = ("met" if speed >= 1.7 else f"short: {speed:.2f}x of 1.7x") if n >= 100 else ""
+        if n > first:
+            extra = [
+                (t.cpu_median - r[f"{first} {j}"].cpu_median) / (n - first) * 1e3 for j, t in (("j1", one), ("j2", two))
+            ]
+            beyond = f"{extra[0]:.1f} / {extra[1]:.1f}"
+        else:
+            beyond = "-"
+        lines.append(
+            f"| {n:,} | {one.wall_min:.2f} / {one.wall_median:.2f} | {one.cpu_min:.2f} / {one.cpu_median:.2f} | "
+            f"{two.wall_min:.2f} / {two.wall_median:.2f} | {two.cpu_min:.2f} / {two.cpu_median:.2f} | "
+            f"{one.cpu_median / n * 1e3:.1f} / {two.cpu_median / n * 1e3:.1f} | {beyond} | {speed:.2f}x | {goal} |"
+        )
+    lines += [
+        "",
+        "*Beyond N = 1*: the CPU a run costs over the one-asset run (the command's start-up, and with -j 2 the "
+        "workers'), per extra asset; linear growth shows as a flat column. The goal (issue 28, on an idle 2-core "
+        "machine) is judged where the work outweighs starting the workers (N >= 100).",
+        GROWTH_END,
+    ]
+    return "\n".join(lines)
+
+
 def main() -> None:
     args = arguments(__doc__, 5)
+    sizes = tuple(n for n in GROWTH if n <= args.max_assets)
+    with tempfile.TemporaryDirectory() as tmp:
+        curve = growth(args.corpus, Path(tmp), args.repeat, sizes)
+    if curve is not None:
+        write_section(args.out, growth_table(curve[0], curve[1], args.repeat, sizes), GROWTH_BEGIN, GROWTH_END)
+    if args.growth_only:
+        return
     assets = [p for p, _ in discover([args.corpus])]
     objs = [p for p in assets if p.suffix.lower() == ".obj"]
     before = load_average()

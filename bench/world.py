@@ -14,15 +14,27 @@ fresh file copies so that no cold contender profits from a cache (MuJoCo caches 
 
 A second pair uses 50 *different* textures (one pixel changed per copy), where every image must be decoded
 on a cold load by both. Wall-clock and process CPU time (all threads) are reported as min / median.
+
+A second section (``<!-- world-growth:begin -->``) is the growth curve of issue 28: 10, 100, 1,000 and
+10,000 static entities of the corpus's Suzanne (untextured, one convex hull), each one body with a visual
+mesh geom and a collision hull geom, built and compiled by simrun from ``.mbin`` files and by MuJoCo from an
+equivalent MJCF (the same visual and hull meshes as OBJ files, the same geoms, groups and inertia modes);
+once with every entity naming one shared mesh file, once with a distinct file per entity (each scaled by
+its own tiny factor, so no two files hold the same bytes). Every build reads fresh files and starts with
+meshtool's per-content check caches emptied. The per-entity CPU column shows whether growth is linear.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import io
+import os
 import platform
+import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -33,7 +45,9 @@ from PIL import Image
 from meshtool import NormaliseOptions, normalise, normalise_to
 from meshtool.convert import ConvertOptions, convert
 from meshtool.hulls import HullOptions, compute_hulls
+from meshtool.obj.write import format_obj
 from meshtool.packfile import pack
+from meshtool.packfile.read import forget_checks
 from simrun import MeshEntity, Pose, World
 from simrun.model_cache import ModelCache
 
@@ -135,6 +149,210 @@ class Rounds:
         return result
 
 
+# ------------------------------------------------------------------------------------ growth curve (issue 28)
+
+GROWTH = (10, 100, 1000, 10000)
+SUZANNE = "src/alecjacobson__common-3d-test-models/data/suzanne.obj"
+GROWTH_BEGIN, GROWTH_END = "<!-- world-growth:begin -->", "<!-- world-growth:end -->"
+
+
+def growth_variants(src: Path, count: int, folder: Path) -> None:
+    """Write ``count`` versions of the asset into ``folder``: version k scaled by 1 + k * 1e-6 (distinct bytes,
+    the same shape) as ``a{k}.mbin`` and as the OBJs of its visual mesh ``v{k}.obj`` and its hull ``h{k}.obj``."""
+    asset = normalise(src, NormaliseOptions())
+    hulls = compute_hulls(asset.mesh, HullOptions()).hulls
+    names = [m.name for m in asset.materials]
+    folder.mkdir(parents=True)
+    for k in range(count):
+        factor = 1.0 + k * 1e-6
+        mesh = dataclasses.replace(asset.mesh, positions=asset.mesh.positions * factor)
+        (only,) = [dataclasses.replace(h, vertices=h.vertices * factor) for h in hulls]  # one convex hull
+        (folder / f"a{k}.mbin").write_bytes(pack(dataclasses.replace(asset, mesh=mesh), hulls=[only]))
+        (folder / f"v{k}.obj").write_text(format_obj(mesh, names, None, "growth benchmark"))
+        (folder / f"h{k}.obj").write_text(
+            "".join(
+                [f"v {x!r} {y!r} {z!r}\n" for x, y, z in only.vertices.tolist()]
+                + [f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in only.faces.tolist()]
+            )
+        )
+
+
+def _place(k: int) -> tuple[float, float, float]:
+    return (0.5 * (k % 100), 0.5 * (k // 100), 0.5)
+
+
+def growth_world(run: Path, count: int, shared: bool) -> World:
+    world = World(base_dir=run)
+    world.model_cache = None
+    for k in range(count):
+        asset = "a0.mbin" if shared else f"a{k}.mbin"
+        world.insert(MeshEntity(name=f"e{k}", asset=asset, pose=Pose(_place(k))))
+    return world
+
+
+def growth_simrun(run: Path, count: int, shared: bool) -> mujoco.MjModel:
+    """The world's spec built and compiled: the work of ``MjModel.from_xml_path`` (``World.compile`` also
+    makes the ``MjData`` and runs ``mj_forward``, which the MJCF contender does not)."""
+    return growth_world(run, count, shared).build_spec().compile()
+
+
+def growth_ready(work: Path, variants: Path, count: int) -> str:
+    """Whether ``World.compile`` (spec, model, data, ``mj_forward``) succeeds at ``count`` shared entities."""
+    run = work / "ready"
+    run.mkdir()
+    os.link(variants / "a0.mbin", run / "a0.mbin")
+    try:
+        growth_world(run, count, True).compile()
+    except mujoco.FatalError as exc:
+        return f"fails: `{str(exc).splitlines()[0]}`"
+    finally:
+        shutil.rmtree(run)
+    return "succeeds"
+
+
+def growth_mjcf(run: Path, count: int, shared: bool) -> Path:
+    meshes = 1 if shared else count
+    assets = [
+        f'<mesh name="v{k}" file="v{k}.obj" inertia="shell"/><mesh name="h{k}" file="h{k}.obj" inertia="convex"/>'
+        for k in range(meshes)
+    ]
+    bodies = []
+    for k in range(count):
+        m = 0 if shared else k
+        x, y, z = _place(k)
+        bodies.append(
+            f'<body name="e{k}" pos="{x} {y} {z}"><geom type="mesh" mesh="v{m}" group="2" contype="0" '
+            f'conaffinity="0" density="0"/><geom type="mesh" mesh="h{m}" group="3"/></body>'
+        )
+    xml = run / "world.xml"
+    xml.write_text(f"<mujoco><asset>{''.join(assets)}</asset><worldbody>{''.join(bodies)}</worldbody></mujoco>")
+    return xml
+
+
+class Growth:
+    """The growth contenders; each call builds in a fresh folder (files written outside the timed part)."""
+
+    def __init__(self, work: Path, variants: Path) -> None:
+        self.work, self.variants, self.serial = work, variants, 0
+
+    def _folder(self, count: int, shared: bool, mjcf: bool) -> Path:
+        """A new folder of hard links to the variants: new paths, so neither MuJoCo nor simrun has seen them."""
+        self.serial += 1
+        run = self.work / f"g{self.serial}"
+        run.mkdir()
+        for k in range(1 if shared else count):
+            for name in (f"v{k}.obj", f"h{k}.obj") if mjcf else (f"a{k}.mbin",):
+                os.link(self.variants / name, run / name)
+        return run
+
+    def contender(self, count: int, shared: bool, mjcf: bool) -> Callable[[], tuple[float, float]]:
+        def run() -> tuple[float, float]:
+            folder = self._folder(count, shared, mjcf)
+            forget_checks()
+            cpu, wall = time.process_time(), time.perf_counter()
+            if mjcf:
+                model = mujoco.MjModel.from_xml_path(str(growth_mjcf(folder, count, shared)))
+                nbody = model.nbody
+            else:
+                nbody = growth_simrun(folder, count, shared).nbody
+            result = time.perf_counter() - wall, time.process_time() - cpu
+            assert nbody == count + 1, f"{nbody} bodies for {count} entities"
+            shutil.rmtree(folder)
+            return result
+
+        return run
+
+
+def growth(corpus: Path, work: Path, repeat: int, sizes: tuple[int, ...]) -> tuple[str, dict[str, Timing], str] | None:
+    """Time every N of ``sizes``; the rounds of the largest N are ``max(2, repeat // 2)``."""
+    src = corpus / SUZANNE
+    if not src.exists():
+        print(f"skip the growth curve: {src} not found", file=sys.stderr)
+        return None
+    before = load_average()
+    growth_variants(src, max(sizes), work / "variants")
+    bench = Growth(work, work / "variants")
+    results: dict[str, Timing] = {}
+    for n in sizes:
+        rounds = repeat if n < max(sizes) else max(2, repeat // 2)
+        contenders = {
+            f"{kind} {n} {who}": bench.contender(n, kind == "shared", who == "mjcf")
+            for kind in ("shared", "distinct")
+            for who in ("mjcf", "simrun")
+        }
+        results.update(interleave(contenders, rounds))
+        for key in contenders:
+            t = results[key]
+            print(f"{key}: CPU {t.cpu_median:.4f} s, {t.cpu_median / n * 1e6:.1f} us per entity", flush=True)
+    ready = growth_ready(work, work / "variants", max(sizes))
+    return before, results, ready
+
+
+def spec_adds(count: int) -> float:
+    """CPU seconds per body + geom of ``count`` added to a bare ``MjSpec`` through MuJoCo's Python bindings."""
+    spec = mujoco.MjSpec()
+    cpu = time.process_time()
+    for k in range(count):
+        body = spec.worldbody.add_body(name=f"b{k}", pos=[0.0, 0.0, 1.0])
+        body.add_geom(name=f"g{k}", size=[0.1, 0.0, 0.0])
+    return (time.process_time() - cpu) / count
+
+
+def growth_table(before: str, r: dict[str, Timing], ready: str, repeat: int, sizes: tuple[int, ...]) -> str:
+    big = max(sizes)
+    probe = sorted({min(1000, big), big})
+    adds = {n: spec_adds(n) for n in probe}
+    grows = ", ".join(f"{adds[n] * 1e6:.1f} us at N = {n:,}" for n in probe)
+    verdict = ""
+    if adds[big] > 1.5 * adds[probe[0]]:
+        verdict = (
+            ": the cost of one addition grows with the spec, so a build through the bindings is not linear in N "
+            "however little simrun adds to it"
+        )
+    lines = [
+        GROWTH_BEGIN,
+        "## World building: growth from 10 to 10,000 entities",
+        "",
+        f"`python bench/world.py ../shared/corpus --repeat {repeat}` (part of `make bench`): N static entities of "
+        "the corpus's Suzanne (968 triangles, untextured, one convex hull), each a body with a visual mesh geom "
+        "(group 2, no contacts, no mass) and a collision hull geom (group 3). simrun builds a `World` of "
+        "`MeshEntity` from `.mbin` files into its spec and compiles it (`World.build_spec().compile()`, no model "
+        "cache); MuJoCo compiles an equivalent MJCF (`MjModel.from_xml_path`: the same visual mesh and hull as "
+        "OBJ files, the same geoms, groups and inertia modes). *Shared*: every entity names one file; "
+        "*distinct*: one file per entity, each scaled by its own factor 1 + k x 1e-6 (no two files alike). "
+        "Every build reads files written for it alone (MuJoCo "
+        "caches meshes by file name) and starts with meshtool's per-content check caches emptied. Interleaved, "
+        f"{repeat} rounds ({max(2, repeat // 2)} at N = {big:,}); seconds of process CPU as min / median, wall "
+        f"median beside it. {before} before, {load_average()} after the run (shared machine: CPU time is the "
+        "measure). Goal (issue 28): simrun's build <= MuJoCo's at every N, shared and distinct.",
+        "",
+        "| meshes | N | MuJoCo CPU min / median s | simrun CPU min / median s | MuJoCo wall median s | simrun wall "
+        "median s | MuJoCo us per entity | simrun us per entity | simrun / MuJoCo | goal <= 1x |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for kind in ("shared", "distinct"):
+        for n in sizes:
+            m, s = r[f"{kind} {n} mjcf"], r[f"{kind} {n} simrun"]
+            ratio = s.cpu_median / m.cpu_median
+            goal = "met" if ratio <= 1.0 else f"short by {ratio:.2f}x"
+            lines.append(
+                f"| {kind} | {n:,} | {m.cpu_min:.4f} / {m.cpu_median:.4f} | {s.cpu_min:.4f} / {s.cpu_median:.4f} | "
+                f"{m.wall_median:.4f} | {s.wall_median:.4f} | {m.cpu_median / n * 1e6:.1f} | "
+                f"{s.cpu_median / n * 1e6:.1f} | {ratio:.2f}x | {goal} |"
+            )
+    lines += [
+        "",
+        "Linear growth shows as a flat *us per entity* column down each group; the fixed cost of a build "
+        "(the spec, the compile's own set-up) dominates the small N. simrun builds through MuJoCo's `MjSpec` "
+        "Python bindings, MuJoCo's MJCF parser in C++; in the bindings (MuJoCo "
+        f"{mujoco.__version__}) one `add_body` + `add_geom` on a bare spec costs {grows} (measured in the same "
+        f"run){verdict}. `World.compile()` at N = {big:,} (shared; it also makes the `MjData` and runs "
+        f"`mj_forward` with MuJoCo's default arena, which simrun does not size) {ready}.",
+        GROWTH_END,
+    ]
+    return "\n".join(lines)
+
+
 def main() -> int:
     args = arguments(__doc__, 5)
     src = args.corpus / FUZE
@@ -163,15 +381,22 @@ def main() -> int:
     write_section(args.out, table(results, args.repeat), BEGIN, END)
     for name, t in results.items():
         print(f"{name}: wall {t.wall_min:.4f}/{t.wall_median:.4f} s, cpu {t.cpu_min:.4f}/{t.cpu_median:.4f} s")
+    sizes = tuple(n for n in GROWTH if n <= args.max_entities)
+    with tempfile.TemporaryDirectory() as tmp:
+        curve = growth(args.corpus, Path(tmp), args.repeat, sizes)
+    if curve is not None:
+        write_section(args.out, growth_table(*curve, args.repeat, sizes), GROWTH_BEGIN, GROWTH_END)
     return 0
 
 
 def table(r: dict[str, Timing], repeat: int) -> str:
-    def row(label: str, key: str, base: str) -> str:
+    def row(label: str, key: str, base: str, goal: float | None = None) -> str:
         t, b = r[key], r[base]
+        speed = b.cpu_median / t.cpu_median
+        verdict = "" if goal is None else "met" if speed >= goal else f"short: {speed:.1f}x of {goal:g}x"
         return (
             f"| {label} | {t.wall_min:.4f} / {t.wall_median:.4f} | {t.cpu_min:.4f} / {t.cpu_median:.4f} | "
-            f"{b.wall_median / t.wall_median:.1f}x | {b.cpu_median / t.cpu_median:.1f}x |"
+            f"{b.wall_median / t.wall_median:.1f}x | {speed:.1f}x | {verdict} |"
         )
 
     return "\n".join(
@@ -186,16 +411,17 @@ def table(r: dict[str, Timing], repeat: int) -> str:
             f"{mujoco.__version__}, numpy {np.__version__}; {load_average()} at the end of the run.",
             "",
             "| world (50 fuze meshes, 1,000 triangles, 1024 x 1024 texture each) | wall min / median s | "
-            "CPU min / median s | speed-up (wall) | speed-up (CPU) |",
-            "|---|---|---|---|---|",
+            "CPU min / median s | speed-up (wall) | speed-up (CPU) | goal (CPU) |",
+            "|---|---|---|---|---|---|",
             row("MuJoCo: MJCF with 50 OBJ meshes + 50 PNG textures (the same image)", "mjcf", "mjcf"),
-            row("simrun cold: 50 MeshEntity from .mbin, no model cache", "cold", "mjcf"),
-            row("simrun second load: the same scene again, compiled-model cache", "second", "mjcf"),
+            row("simrun cold: 50 MeshEntity from .mbin, no model cache", "cold", "mjcf", 5.0),
+            row("simrun second load: the same scene again, compiled-model cache", "second", "mjcf", 50.0),
             row("MuJoCo: MJCF, 50 different textures", "mjcf distinct", "mjcf distinct"),
-            row("simrun cold, 50 different textures", "cold distinct", "mjcf distinct"),
-            row("simrun second load, 50 different textures", "second distinct", "mjcf distinct"),
+            row("simrun cold, 50 different textures", "cold distinct", "mjcf distinct", 5.0),
+            row("simrun second load, 50 different textures", "second distinct", "mjcf distinct", 50.0),
             "",
-            "Goals (issue 17): cold >= 5x MuJoCo, second load >= 50x. simrun hands MuJoCo each distinct image "
+            "Goals (issues 17 and 28): cold >= 5x MuJoCo for textured meshes, second load >= 50x; judged on "
+            "median CPU. simrun hands MuJoCo each distinct image "
             "once (the 50 copies of one texture are decoded once; MuJoCo's MJCF loader decodes every file); with "
             "50 different images both decode all of them, about 2.4 ms each, which bounds the cold ratio. The "
             "second load reads the model MuJoCo compiled the first time (MJB), after checking the XXH3 hash of "
