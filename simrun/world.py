@@ -65,6 +65,22 @@ class WorldOptions:
             raise EntityError("gravity needs 3 finite numbers")
 
 
+#: MuJoCo's arena when the model does not size it (``<size memory>`` automatic: 14 MiB for simrun's worlds).
+ARENA_DEFAULT = 14 * 1024 * 1024
+
+
+def arena_bytes(nbody: int) -> int | None:
+    """The arena (``<size memory>``, bytes) a world of ``nbody`` bodies (the world body included) needs.
+
+    MuJoCo's collision broadphase takes one int per pair of bodies from the arena (``mj_collision``: about
+    ``2 nbody^2`` bytes; 18 MB for 3,001 bodies, which the automatic 14 MiB arena refuses with
+    ``mj_stackAlloc: out of memory``), and the same again for its sorting. ``None`` (MuJoCo's automatic size)
+    while that fits in half the automatic arena; else the automatic arena plus ``4 nbody^2``.
+    """
+    pairs = 4 * nbody * nbody
+    return None if pairs <= ARENA_DEFAULT // 2 else ARENA_DEFAULT + pairs
+
+
 class World:
     """A simulation world of named entities.
 
@@ -193,6 +209,9 @@ class World:
         if len(spec.bodies) - 1 > MAX_BODIES:
             raise EntityError(f"the world has {len(spec.bodies) - 1} bodies, over the limit of {MAX_BODIES}")
         spec.assets = dict(assets.vfs)
+        arena = arena_bytes(len(spec.bodies))
+        if arena is not None:
+            spec.memory = arena
         main = [full for full, e in self._entities.items() if isinstance(e, Camera) and e.main]
         if len(main) > 1:
             raise EntityError(f"more than one main camera: {', '.join(main)}")

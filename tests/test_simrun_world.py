@@ -282,3 +282,27 @@ def test_height_field_camera_and_lights():
         bad = World()
         bad.insert(HeightField(name="t"))
         bad.compile()
+
+
+def test_a_world_of_thousands_of_bodies_gets_the_arena_mujoco_needs():
+    """3,000 static boxes: MuJoCo's automatic arena refuses the broadphase (mj_stackAlloc), simrun sizes it.
+
+    The bodies rest on nothing and touch nothing; after stepping, every box is where it was put.
+    """
+    from simrun.world import ARENA_DEFAULT, arena_bytes
+
+    n = 3000
+    world = World()
+    for k in range(n):
+        world.insert(Box(name=f"b{k}", dimensions=(0.1, 0.1, 0.1), pose=Pose((0.3 * (k % 100), 0.3 * (k // 100), 1.0))))
+    bare = world.build_spec()
+    bare.memory = -1  # MuJoCo's automatic size, as an MJCF without <size memory> gets
+    model = bare.compile()
+    with pytest.raises(mujoco.FatalError, match="mj_stackAlloc"):
+        mujoco.mj_forward(model, mujoco.MjData(model))
+    model, data = world.compile()
+    assert model.nbody == n + 1 and model.narena == arena_bytes(n + 1) > ARENA_DEFAULT
+    before = data.xpos.copy()
+    world.run(0.01)
+    assert np.array_equal(data.xpos, before)
+    assert arena_bytes(100) is None  # a small world keeps MuJoCo's automatic arena
