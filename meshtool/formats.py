@@ -208,9 +208,29 @@ OUTPUTS: list[OutputFormat] = [
 DESCRIPTION_SUFFIXES: tuple[str, ...] = (".urdf", ".sdf", ".xml", ".world")
 #: The URDF's own suffix among them (a ROS package's robot: :mod:`meshtool.modelroot`).
 URDF_SUFFIX = DESCRIPTION_SUFFIXES[0]
+#: An OBJ's material library (written beside the OBJ by ``normalize`` and ``unpack``).
+MTL_SUFFIX = ".mtl"
+#: Images a material may name or a glTF file embed, by MIME type (glTF 2.0, 3.9.1 "Images"; KHR_texture_basisu
+#: and EXT_texture_webp add the last two), with the suffix an embedded image is named by. PNG is the output row's.
+IMAGE_SUFFIXES: dict[str, str] = {
+    "image/png": next(row for row in OUTPUTS if row.name == "png").suffixes[0],
+    "image/jpeg": ".jpg",
+    "image/webp": ".webp",
+    "image/ktx2": ".ktx2",
+}
 #: Files a mesh may read besides itself (materials, textures, glTF buffers) or be read by (URDF, xacro):
 #: ``validate``'s reports list them as the inputs of an asset.
-COMPANION_SUFFIXES: tuple[str, ...] = (".mtl", ".bin", ".png", ".jpg", ".jpeg", ".tga", ".bmp", URDF_SUFFIX, ".xacro")
+COMPANION_SUFFIXES: tuple[str, ...] = (
+    MTL_SUFFIX,
+    ".bin",
+    IMAGE_SUFFIXES["image/png"],
+    IMAGE_SUFFIXES["image/jpeg"],
+    ".jpeg",
+    ".tga",
+    ".bmp",
+    URDF_SUFFIX,
+    ".xacro",
+)
 
 
 def _resolve(target: str) -> Any:

@@ -24,6 +24,7 @@ from meshtool import __version__
 from meshtool.changes import changes_data
 from meshtool.errors import MeshtoolError, ObjParseError, OptionsError, OutputError, StrictModeError
 from meshtool.findings import Finding, info, warning
+from meshtool.formats import MTL_SUFFIX, suffix
 from meshtool.mesh import DEFAULT_MATERIAL, TriMesh, build_mesh, unique_names
 from meshtool.modelroot import model_root_resolver
 from meshtool.obj.mtl import Material, TextureMap, format_mtl, opaque_if_invisible, parse_mtl
@@ -141,16 +142,16 @@ def normalise(src: Path, options: NormaliseOptions | None = None) -> NormalisedA
     """
     asset = prepare(src, options)
     name = asset.name
-    material_file = f"{name}.mtl" if asset.materials else None
+    material_file = f"{name}{MTL_SUFFIX}" if asset.materials else None
     header = f"meshtool {__version__} normalized OBJ: units=m up=z"
     obj_text = format_obj(asset.mesh, [m.name for m in asset.materials], material_file, header)
-    asset.files[f"{name}.obj"] = obj_text.encode("utf-8")
+    asset.files[f"{name}{suffix('obj')}"] = obj_text.encode("utf-8")
     if material_file:
-        mtl_text = format_mtl(asset.materials, f"meshtool {__version__} materials for {name}.obj")
+        mtl_text = format_mtl(asset.materials, f"meshtool {__version__} materials for {name}{suffix('obj')}")
         asset.files[material_file] = mtl_text.encode("utf-8")
     manifest = {
         **{k: v for k, v in asset.manifest.items() if k != "findings"},
-        "files": {"obj": f"{name}.obj", "mtl": material_file, "textures": sorted(asset.textures)},
+        "files": {"obj": f"{name}{suffix('obj')}", "mtl": material_file, "textures": sorted(asset.textures)},
         "findings": asset.manifest["findings"],
     }
     asset.files["asset.json"] = (json.dumps(manifest, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
@@ -510,9 +511,9 @@ def _convert_texture(
         return None
     findings.extend(png.findings)
     stem = safe_file_stem(found.stem) or "texture"
-    out_name, n = f"{stem}.png", 2
+    out_name, n = f"{stem}{suffix('png')}", 2
     while out_name in taken:
-        out_name, n = f"{stem}_{n}.png", n + 1
+        out_name, n = f"{stem}_{n}{suffix('png')}", n + 1
     taken.add(out_name)
     files[out_name] = png.data
     if png.converted:

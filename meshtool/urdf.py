@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from meshtool.findings import Finding, warning
+from meshtool.formats import suffix
 from meshtool.hulls import HullOptions
 from meshtool.mesh import safe_identifier
 from meshtool.model import (
@@ -279,7 +280,7 @@ class _Builder(LinkParts):
         self._assets(model)
         model.where = self._locations(links, robot.joints)
         model.generator = f"{GENERATOR} (meshtool urdf)"
-        mbins = {f"meshes/{m.prefix}.mbin": m.mbin for m in self.meshes.values()}
+        mbins = {f"meshes/{m.prefix}{suffix('mbin')}": m.mbin for m in self.meshes.values()}
         sources = sorted({Path(self.path), *self.sources}, key=str)
         return UrdfImport(name, model, mbins, self.findings, order, [j.name for j in moving], sources)
 

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from meshtool.findings import Finding
+from meshtool.formats import suffix
 from meshtool.hulls import Hull, HullOptions, compute_hulls, quality
 from meshtool.mesh import safe_identifier
 from meshtool.mjcf import MeshParts, mesh_parts
@@ -98,7 +99,7 @@ def load_mesh(mesh: FoundMesh, scale: Scale, prefix: str, hulls: HullOptions) ->
     findings += [*asset.findings, *hull_set.findings, *mujoco_findings(asset.materials, found.name)]
     meta = {"urdf_scale": [float(v) for v in s], "hulls": hulls.fingerprint()}
     data = pack(asset, False, meta, list(hull_set.hulls), report)
-    parts = mesh_parts(parse(data, f"{prefix}.mbin"), prefix, hulls.max_hull_vertices)
+    parts = mesh_parts(parse(data, f"{prefix}{suffix('mbin')}"), prefix, hulls.max_hull_vertices)
     return LoadedMesh(prefix, parts, data, own), findings
 
 

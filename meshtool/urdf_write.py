@@ -10,6 +10,7 @@ import os
 import stat
 from pathlib import Path
 
+from meshtool.formats import suffix
 from meshtool.model import stamped_files
 from meshtool.outdir import GENERATORS, check_output, write_file
 from meshtool.resolve import file_sha256
@@ -38,7 +39,7 @@ def write_import(result: UrdfImport, out_dir: Path, *, force: bool | None = None
         OutputError: A file would replace a source or a file meshtool did not write (nothing is written).
     """
     files = result.mjcf()
-    xml_name = f"{result.name}.xml"
+    xml_name = f"{result.name}{suffix('mjcf')}"
     previous = _previous_import(out_dir / xml_name)
     outputs = {**files, **result.mbins}
     for name, data in sorted(outputs.items()):

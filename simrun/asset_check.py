@@ -29,6 +29,7 @@ import numpy.typing as npt
 from PIL import Image, ImageDraw
 
 from meshtool.errors import MeshtoolError
+from meshtool.formats import suffix
 from meshtool.packfile import parse
 from meshtool.validate.plugins import PhysicsOutcome
 from meshtool.validate.rules import hit
@@ -86,7 +87,7 @@ def check_pack(mbin: bytes, name: str, limits: dict[str, float], thumbnail: bool
     )
     spec.worldbody.add_light(pos=[0, 0, 4 * size], dir=[0, 0, -1], diffuse=[0.6, 0.6, 0.6])
     library = AssetLibrary(spec)
-    key = Path(f"{Path(name).stem or 'asset'}.mbin")
+    key = Path(f"{Path(name).stem or 'asset'}{suffix('mbin')}")
     library.register(key, packed)
     asset = library.mesh(key, 1.0)
     body = spec.worldbody.add_body(name="asset", pos=[0.0, 0.0, drop_z], quat=list(tilt))

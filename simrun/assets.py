@@ -25,6 +25,7 @@ from PIL import Image
 
 import meshtool
 from meshtool import cachefile, surface
+from meshtool.formats import suffix
 from meshtool.packfile import PackedMesh, parse
 from meshtool.packfile.view import asset_view, unique_name
 from meshtool.pnginfo import png_end
@@ -208,7 +209,7 @@ class AssetLibrary:
         known = self.by_content.get(key) if two_d else None
         if known is not None and self.vfs[known[1]] == png:
             return known[0]
-        file = f"{len(self.vfs)}_{''.join(c if c.isalnum() else '_' for c in name)}.png"
+        file = f"{len(self.vfs)}_{''.join(c if c.isalnum() else '_' for c in name)}{suffix('png')}"
         self.vfs[file] = png
         self.spec.add_texture(name=name, type=kind if kind is not None else mujoco.mjtTexture.mjTEXTURE_2D, file=file)
         if two_d:

@@ -66,7 +66,7 @@ def spec_from_model(model: ModelDesc, texture_prefix: str = "") -> tuple[mujoco.
     collision.geom.group = 3
     files: dict[str, bytes] = {}
     for texture in model.textures:
-        file = f"{texture_prefix}{texture.name}.png"
+        file = f"{texture_prefix}{texture.name}{suffix('png')}"
         files[file] = texture.png
         spec.add_texture(name=texture.name, type=mujoco.mjtTexture.mjTEXTURE_2D, file=file)
     for material in model.materials:
@@ -380,7 +380,7 @@ def build_files(model: ModelDesc) -> dict[str, bytes]:
     """
     spec, files = spec_from_model(model)
     compile_spec(spec, model)
-    return folder_files(spec, f"{model.name}.xml", files, generator=model.generator)
+    return folder_files(spec, f"{model.name}{suffix('mjcf')}", files, generator=model.generator)
 
 
 def check_model(model: ModelDesc) -> None:

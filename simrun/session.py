@@ -172,7 +172,7 @@ def run_play(scene: Path, options: PlayOptions, progress: Any = None) -> PlayRes
         for k, frame in enumerate(frames):
             buffer = io.BytesIO()
             Image.fromarray(np.asarray(frame)).save(buffer, format="PNG")
-            write_bytes(options.frames_dir / f"frame_{k:05d}.png", buffer.getvalue())
+            write_bytes(options.frames_dir / f"frame_{k:05d}{suffix('png')}", buffer.getvalue())
     return result
 
 

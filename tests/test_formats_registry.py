@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import ast
 import importlib
 import inspect
 import io
@@ -282,3 +283,32 @@ def test_the_registry_imports_nothing_of_the_project() -> None:
     code = f"import sys, meshtool.formats; print(sorted(m for m in sys.modules if m.startswith({prefixes})))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "['meshtool.formats']"
+
+
+def _registered_suffixes() -> set[str]:
+    return {
+        *(s for row in MESH_FORMATS for s in row.suffixes),
+        *(s for row in OUTPUTS for s in row.suffixes),
+        *formats.DESCRIPTION_SUFFIXES,
+        *formats.COMPANION_SUFFIXES,
+        *formats.IMAGE_SUFFIXES.values(),
+    }
+
+
+def test_every_suffix_is_written_in_the_registry_only() -> None:
+    """No module of either package spells a registered suffix (``".glb"``...): it asks meshtool/formats.py.
+
+    Issue 26: a file suffix is found in one registry row (tests and docs aside), so adding or renaming a
+    format is one edit.
+    """
+    registered = _registered_suffixes()
+    assert {".obj", ".glb", ".usda", ".mcap", ".urdf", ".mtl", ".jpg"} <= registered
+    spelled = []
+    for package in ("meshtool", "simrun"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            if path.name == "formats.py" and path.parent.name == "meshtool":
+                continue
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value.lower() in registered:
+                    spelled.append(f"{path.relative_to(ROOT)}:{node.lineno}: {node.value!r}")
+    assert not spelled, "suffixes spelled outside meshtool/formats.py:\n" + "\n".join(spelled)

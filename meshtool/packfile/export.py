@@ -11,6 +11,7 @@ import numpy.typing as npt
 
 from meshtool import __version__
 from meshtool.errors import PackFormatError
+from meshtool.formats import MTL_SUFFIX, suffix
 from meshtool.gltf_write import GENERATOR, Z_UP_TO_Y_UP, GltfBuilder, column_major
 from meshtool.obj.mtl import Material, TextureMap, format_mtl
 from meshtool.packfile.read import PackedMesh
@@ -33,7 +34,7 @@ def unpack_files(packed: PackedMesh, name: str) -> dict[str, bytes]:
     for k, data in enumerate(packed.textures):
         files[textures[k]] = bytes(data)
     materials = [_material(m) for m in packed.materials]
-    mtl_file = f"{name}.mtl" if materials else None
+    mtl_file = f"{name}{MTL_SUFFIX}" if materials else None
     lines = [f"# meshtool {__version__} normalized OBJ: units=m up=z"]
     if mtl_file:
         lines.append(f"mtllib {mtl_file}")
@@ -72,9 +73,10 @@ def unpack_files(packed: PackedMesh, name: str) -> dict[str, bytes]:
             current_part = part
         for a, b, c in idx[first : first + count].tolist():
             lines.append(f"f {corner.format(a)} {corner.format(b)} {corner.format(c)}")
-    files[f"{name}.obj"] = ("\n".join(lines) + "\n").encode("utf-8")
+    obj_file = f"{name}{suffix('obj')}"
+    files[obj_file] = ("\n".join(lines) + "\n").encode("utf-8")
     if mtl_file:
-        files[mtl_file] = format_mtl(materials, f"meshtool {__version__} materials for {name}.obj").encode("utf-8")
+        files[mtl_file] = format_mtl(materials, f"meshtool {__version__} materials for {obj_file}").encode("utf-8")
     return files
 
 

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from meshtool.formats import suffix
 from meshtool.packfile.read import PackedMesh
 
 FloatArray = npt.NDArray[np.float64]
@@ -152,7 +153,7 @@ def asset_view(packed: PackedMesh) -> AssetView:
 
     recorded = list(packed.meta.get("textures", []))
     textures = [
-        Texture(str(recorded[k]) if k < len(recorded) else f"tex{k}.png", bytes(data))
+        Texture(str(recorded[k]) if k < len(recorded) else f"tex{k}{suffix('png')}", bytes(data))
         for k, data in enumerate(packed.textures)
     ]
     mappable = packed.uvs is not None

@@ -43,6 +43,7 @@ import numpy.typing as npt
 
 from meshtool.errors import FormatError, MeshtoolError
 from meshtool.findings import Finding, info, warning
+from meshtool.formats import IMAGE_SUFFIXES
 from meshtool.obj.mtl import Material, TextureMap
 from meshtool.readers.budget import INSTANCES_ENV, ExpansionBudget
 from meshtool.readers.gltf_checks import (
@@ -74,7 +75,6 @@ _ABSOLUTE = re.compile(r"^(?:[A-Za-z][A-Za-z0-9+.-]*://|/|\\|[A-Za-z]:[\\/])")
 FRAME = SourceFrame(1.0, "glTF 2.0 (metres by the specification)", "y", "glTF 2.0 (+Y up by the specification)")
 COMPRESSION = {"KHR_draco_mesh_compression": "Draco", "EXT_meshopt_compression": "meshopt"}
 _NORMALISE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
-_MIME_SUFFIX = {"image/png": ".png", "image/jpeg": ".jpg", "image/webp": ".webp", "image/ktx2": ".ktx2"}
 
 
 def read_gltf(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMesh:
@@ -454,7 +454,7 @@ class _Reader:
                 )
                 self.images[source] = None
                 return None
-            ref = self.resolver.embed(self.src, f"{label}{_MIME_SUFFIX.get(mime, '')}", blob)
+            ref = self.resolver.embed(self.src, f"{label}{IMAGE_SUFFIXES.get(mime, '')}", blob)
         self.images[source] = ref
         return ref
 
