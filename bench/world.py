@@ -347,7 +347,7 @@ def growth_table(before: str, r: dict[str, Timing], ready: str, repeat: int, siz
         "Python bindings, MuJoCo's MJCF parser in C++; in the bindings (MuJoCo "
         f"{mujoco.__version__}) one `add_body` + `add_geom` on a bare spec costs {grows} (measured in the same "
         f"run){verdict}. `World.compile()` at N = {big:,} (shared; it also makes the `MjData` and runs "
-        f"`mj_forward` with MuJoCo's default arena, which simrun does not size) {ready}.",
+        f"`mj_forward`, with the arena simrun sizes for the broadphase: `simrun.world.arena_bytes`) {ready}.",
         GROWTH_END,
     ]
     return "\n".join(lines)
