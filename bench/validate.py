@@ -195,6 +195,9 @@ def growth_table(before: str, r: dict[str, Timing], repeat: int, sizes: tuple[in
 
 def main() -> None:
     args = arguments(__doc__, 5)
+    if not args.corpus.is_dir():  # as every bench script does without the shared data
+        print(f"skip: {args.corpus} not found", file=sys.stderr)
+        return
     sizes = tuple(n for n in GROWTH if n <= args.max_assets)
     with tempfile.TemporaryDirectory() as tmp:
         curve = growth(args.corpus, Path(tmp), args.repeat, sizes)
