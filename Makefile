@@ -64,6 +64,8 @@ test: $(TEST_STAMP) lint
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadfile
 
 bench: $(TEST_STAMP) $(PEERS)/.installed
+	bash scripts/install_gl.sh
+	sh scripts/install_test_tools.sh
 	$(BIN)/python bench/startup.py . --obj2mjcf=$(PEERS)/bin/obj2mjcf
 	$(BIN)/python bench/parse.py ../shared/corpus --peer-python=$(PEERS)/bin/python
 	$(BIN)/python bench/load.py ../shared/corpus
