@@ -134,19 +134,14 @@ class CompileError(SimrunError, RuntimeError):
 class Origin:
     """Where an item of a world came from: its file, line, key path (``entities[3]``) and name.
 
-    ``str(origin)`` is the ``FILE:LINE: KEY 'NAME'`` prefix of the errors it locates; :meth:`error` gives an
-    error with those fields.
+    :meth:`error` gives an error with those fields, whose one line starts ``FILE:LINE: KEY 'NAME'``
+    (:meth:`SimrunError.one_line`, the one place that text is made).
     """
 
     path: str | None
     line: int | None
     key: str
     label: str | None = None
-
-    def __str__(self) -> str:
-        head = f"{self.path}:{self.line}" if self.path and self.line else (self.path or "")
-        what = f"{self.key} {self.label!r}" if self.label else self.key
-        return f"{head}: {what}" if head else what
 
     def error(self, message: str, hint: str | None = None) -> EntityError:
         """An :class:`EntityError` located here (path, line, key and entity as fields)."""
