@@ -281,3 +281,41 @@ def test_arm_rides_the_base_as_a_child_entity() -> None:
     world.run(0.5)
     offset = data.body("base/arm/base").xpos - data.body("base").xpos
     np.testing.assert_allclose(offset, [0.1, 0.0, 0.237], atol=2e-3)
+
+
+def test_textures_from_the_compilers_texturedir_and_cube_faces_are_mujocos_own(tmp_path: Path) -> None:
+    """A 2D texture under ``<compiler texturedir>`` and a cube texture of six face files: the world's texture
+    pixels equal what MuJoCo reads from the same folder (``MjModel.from_xml_path``), face for face."""
+    from PIL import Image
+
+    tex = tmp_path / "tex"
+    tex.mkdir()
+    colours = [(255, 0, 0), (0, 255, 0), (0, 0, 255), (255, 255, 0), (0, 255, 255), (255, 0, 255), (40, 80, 120)]
+    names = ["right", "left", "up", "down", "front", "back", "plain"]
+    for name, colour in zip(names, colours, strict=True):
+        Image.new("RGB", (4, 4), colour).save(tex / f"{name} face.png")
+    faces = " ".join(
+        f'file{side}="{n} face.png"'
+        for side, n in zip(("right", "left", "up", "down", "front", "back"), names, strict=False)
+    )
+    model_xml = tmp_path / "robot.xml"
+    model_xml.write_text(
+        '<mujoco><compiler texturedir="tex"/><asset>'
+        '<texture name="plain" type="2d" file="plain face.png"/>'
+        f'<texture name="cube" type="cube" {faces}/>'
+        '<material name="m" texture="plain"/><material name="c" texture="cube"/></asset>'
+        '<worldbody><body name="b"><joint type="hinge"/><geom size="0.1" material="m"/>'
+        '<geom size="0.05" pos="0 0 0.2" material="c"/></body></worldbody></mujoco>'
+    )
+    reference = mujoco.MjModel.from_xml_path(str(model_xml))
+    world = World()
+    world.insert(MjcfRobot(name="r", file=str(model_xml)))
+    model, _ = world.compile()
+    for name in ("plain", "cube"):
+        ours, theirs = model.texture(f"r/{name}"), reference.texture(name)
+        assert (int(ours.width[0]), int(ours.height[0])) == (int(theirs.width[0]), int(theirs.height[0]))
+        size = int(theirs.width[0]) * int(theirs.height[0]) * int(theirs.nchannel[0])
+        ours_px = model.tex_data[int(ours.adr[0]) : int(ours.adr[0]) + size]
+        theirs_px = reference.tex_data[int(theirs.adr[0]) : int(theirs.adr[0]) + size]
+        assert np.array_equal(ours_px, theirs_px)
+    assert model.tex_data.size >= reference.tex_data.size and 40 in model.tex_data
