@@ -89,6 +89,13 @@ def normalise_options(func: Callable[..., Any]) -> Callable[..., Any]:
             type=click.Path(path_type=Path, file_okay=False),
             help="Extra folder where MTL and texture references may resolve (repeatable).",
         ),
+        click.option(
+            "--model-root",
+            type=click.Path(path_type=Path, file_okay=False, exists=True),
+            default=None,
+            help="Folder at or above the mesh holding its models: references resolve inside it, and its "
+            "URDF/SDF/MJCF files are searched for the mesh's consumers (default: found; docs/findings.md).",
+        ),
         click.option("--strict", is_flag=True, help="Fail (exit 1) instead of writing when there are warnings."),
         click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of text."),
     ]
@@ -163,7 +170,7 @@ def _normalise_options(kw: dict[str, Any], **overrides: Any) -> NormaliseOptions
     """Build :class:`NormaliseOptions` from the click keywords (removing them from ``kw``), then ``overrides``."""
     from meshtool.normalise import NormaliseOptions
 
-    values = {key: kw.pop(key) for key in ("units", "scale", "up", "search_paths", "strict")}
+    values = {key: kw.pop(key) for key in ("units", "scale", "up", "search_paths", "strict", "model_root")}
     values.update(overrides)
     return NormaliseOptions(**values)
 

@@ -54,6 +54,10 @@ class ConvertOptions:
         """The options as recorded in the file's metadata (paths as strings)."""
         n = asdict(self.normalise)
         n["search_paths"] = [str(p) for p in self.normalise.search_paths]
+        if n.get("model_root") is None:
+            n.pop("model_root", None)  # packs made without --model-root keep their metadata byte for byte
+        else:
+            n["model_root"] = str(n["model_root"])
         n.pop("name", None)
         return {"normalise": n, "quantize": self.quantize, "hulls": self.hulls.fingerprint()}
 

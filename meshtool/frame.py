@@ -3,7 +3,10 @@
 ``--units`` and ``--up`` given as a unit / ``y`` / ``z`` are obeyed. ``--up auto`` (the default) decides
 with :func:`meshtool.upaxis.decide_up`; ``--units auto`` applies what a consumer file (URDF, SDF, MJCF
 that uses the mesh) says, and otherwise reads metres. Whatever was decided, and on what evidence, becomes
-findings (``up-axis``, ``units-evidence``) that ``asset.json`` records.
+findings (``up-axis``, ``units-evidence``) that ``asset.json`` records. The consumers are looked up in the
+run's index of the mesh's index root (:func:`meshtool.consumers.find_index_root`); consumers using the mesh
+in different frames are a ``consumer-frames-differ`` warning (the nearest one's frame is applied), an index
+stopped by a limit a ``consumer-index-limit`` warning.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from meshtool.consumers import ConsumerRef, find_consumers
+from meshtool.consumers import ConsumerRef, consumers_and_limit, frame_conflict
 from meshtool.findings import Finding, Severity, info, warning
 from meshtool.modelroot import ModelRoot
 from meshtool.resolve import file_sha256
@@ -88,7 +91,7 @@ def decide_frame(
         units: ``--units``: a unit, ``auto`` or ``None`` (metres, or what meshtool's header says).
         scale: ``--scale``.
         up: ``--up``: ``y``, ``z``, ``auto`` or ``None`` (auto).
-        root: The OBJ's model root.
+        root: The OBJ's model root (an ``explicit`` one from ``--model-root`` also sets the index root).
         normalised_before: The file was written by meshtool.
         declared_up: The up axis the file declares (COLLADA ``<up_axis>``), used unless ``up`` forces one or
             a description file (URDF, SDFormat) uses the mesh as it is: a robot places its meshes in the
@@ -99,9 +102,14 @@ def decide_frame(
         The frame and its findings.
     """
     name = printable(src.name)  # non-UTF-8 file names print as \xNN
-    consumers = [] if normalised_before else find_consumers(src, root)
+    consumers, limit = ([], None) if normalised_before else consumers_and_limit(src, root)
     evidence = None if normalised_before else unit_evidence(consumers, header_comments)
     findings: list[Finding] = []
+    if limit is not None:  # consumers beyond the limit are not seen: the frame may be the wrong one
+        findings.append(warning("consumer-index-limit", f"consumer files not all read: {limit}", name))
+    conflict = frame_conflict(consumers, name)
+    if conflict is not None:
+        findings.append(conflict)
     chosen_unit, chosen_scale = units or "m", scale
     if units == "auto":
         chosen_unit = "m"

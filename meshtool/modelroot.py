@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from meshtool.errors import OptionsError
 from meshtool.findings import Finding, info
 from meshtool.formats import URDF_SUFFIX
 from meshtool.resolve import Resolver, list_names
@@ -41,7 +42,9 @@ class ModelRoot:
     Attributes:
         folder: The root folder (absolute, symlinks resolved).
         marker: The file that marks it (``model.config``, ``package.xml``, ``robot.urdf``...).
-        kind: ``gazebo`` (model.config / model.sdf), ``ros`` (package.xml) or ``urdf``.
+        kind: ``gazebo`` (model.config / model.sdf), ``ros`` (package.xml), ``urdf``, or ``explicit`` (given
+            with ``--model-root``: references resolve inside it and its description files are searched for
+            the mesh's consumers, but it is no evidence of the up axis).
     """
 
     folder: Path
@@ -114,8 +117,28 @@ class ModelRootResolver(Resolver):
         return super().display(path, resolved)
 
 
+def explicit_root(folder: Path, obj_dir: Path) -> ModelRoot:
+    """The ``--model-root`` folder as a model root of kind ``explicit``.
+
+    Raises:
+        OptionsError: ``folder`` does not hold ``obj_dir`` (at any depth).
+    """
+    real = Path(os.path.realpath(folder))
+    here = Path(os.path.realpath(obj_dir))
+    if real != here and real not in here.parents:
+        raise OptionsError(
+            f"--model-root {str(folder)!r} does not hold the mesh's folder {str(obj_dir)!r}",
+            hint="name a folder at or above the mesh",
+        )
+    return ModelRoot(real, "--model-root", "explicit")
+
+
 def model_root_resolver(
-    src: Path, search_paths: Sequence[Path] = (), *, confine: Path | None = None
+    src: Path,
+    search_paths: Sequence[Path] = (),
+    *,
+    confine: Path | None = None,
+    model_root: Path | None = None,
 ) -> tuple[ModelRootResolver, list[Finding]]:
     """A resolver for the OBJ ``src`` that may resolve inside its model root, and a finding naming the root.
 
@@ -123,11 +146,12 @@ def model_root_resolver(
         src: The OBJ file.
         search_paths: Folders the user allows with ``--search-path``.
         confine: See :class:`meshtool.resolve.Resolver`.
+        model_root: ``--model-root``: the model root, instead of the one found (:func:`explicit_root`).
 
     Returns:
         The resolver and zero or one ``model-root`` finding (info).
     """
-    root = find_model_root(src.parent)
+    root = explicit_root(model_root, src.parent) if model_root is not None else find_model_root(src.parent)
     resolver = ModelRootResolver(src.parent, search_paths, root, confine=confine)
     if root is None or root.folder == resolver.asset_dir:
         return resolver, []

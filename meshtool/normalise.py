@@ -64,6 +64,9 @@ class NormaliseOptions:
         strict: Fail instead of writing when there are warnings.
         confine: Read every file the source references from beneath this folder, without following links
             (see :class:`meshtool.resolve.Resolver`); ``None``: the asset folder and search paths are roots.
+        model_root: ``--model-root``: the folder at or above the source that is its model root (references
+            may resolve inside it; its description files are searched for the source's consumers); ``None``:
+            found (:func:`meshtool.modelroot.find_model_root`, :func:`meshtool.consumers.find_index_root`).
     """
 
     units: str | None = None
@@ -73,6 +76,7 @@ class NormaliseOptions:
     search_paths: tuple[Path, ...] = ()
     strict: bool = False
     confine: Path | None = None
+    model_root: Path | None = None
 
     def __post_init__(self) -> None:
         if self.units is not None and self.units not in UNIT_FACTORS and self.units != "auto":
@@ -180,7 +184,9 @@ def prepare(src: Path, options: NormaliseOptions | None = None, *, data: bytes |
             ``strict`` is set and there are warnings.
     """
     options = options or NormaliseOptions()
-    resolver, root_findings = model_root_resolver(src, options.search_paths, confine=options.confine)
+    resolver, root_findings = model_root_resolver(
+        src, options.search_paths, confine=options.confine, model_root=options.model_root
+    )
     source_name = printable(src.name)
     data = resolver.read_source(src) if data is None else data
     obj = read_mesh(src, data, source_name, resolver)  # OBJ, STL, PLY, glTF/GLB or COLLADA

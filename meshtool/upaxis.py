@@ -1,9 +1,9 @@
 """``--up auto``: which axis of an OBJ is up, decided from evidence, strongest first.
 
 1. A file meshtool wrote says so in its header (Z-up).
-2. A consumer file (URDF, SDFormat or MJCF beside the OBJ, in a folder up to its model root, or in one of
-   the root's subfolders such as a ROS package's sibling ``urdf/``) references the mesh: those formats are
-   Z-up and use mesh coordinates unrotated, so the mesh is Z-up.
+2. A consumer file (URDF, SDFormat or MJCF anywhere under the mesh's index root: its ROS package, Gazebo
+   model, repository or Python package, or ``--model-root``; see :mod:`meshtool.consumers`) references the
+   mesh: those formats are Z-up and use mesh coordinates unrotated, so the mesh is Z-up.
 3. The OBJ lies in a model root of a Z-up tool (Gazebo ``model.config``/``model.sdf``, a ROS
    ``package.xml`` found up to the repository root, or a URDF; :func:`meshtool.modelroot.find_model_root`)
    even though no file found references it.
@@ -91,7 +91,7 @@ def decide_up(
         return UpDecision(
             "z", "consumer", f"{first.describe()} uses the mesh as it is{more}; {first.format.upper()} is Z-up"
         )
-    if root is not None:
+    if root is not None and root.kind != "explicit":  # --model-root widens the search; it says nothing of axes
         return UpDecision("z", "model-root", f"it lies in a {root.kind} model ({root.marker}), which is Z-up")
     for part in reversed((*src.parent.parts[-3:], src.stem)):
         if _Z_NAME.search(part):

@@ -135,6 +135,12 @@ def main() -> None:
     put("S009_name_unsafe/my box.obj", obj_text(v, f))
     put("S010_encoding/box.obj", b"\xef\xbb\xbf" + obj_text(v, f).encode("utf-8"))
     put("S011_syntax/box.obj", obj_text(v, f, extra="frobnicate 1 2 3"))
+    # S014: two MJCF models use the box at different scales (each scale is a plausible size)
+    put("S014_consumer_frames_differ/box.obj", obj_text(v, f))
+    for model, scale in (("small", "1 1 1"), ("large", "2 2 2")):
+        mjcf = f'<mujoco model="{model}"><asset><mesh name="box" file="box.obj" scale="{scale}"/></asset>'
+        body = '<worldbody><geom type="mesh" mesh="box"/></worldbody></mujoco>\n'
+        put(f"S014_consumer_frames_differ/{model}.xml", mjcf + body)
 
     # geometry
     put("G001_non_finite/box.obj", obj_text(v, f, nan_vertex=7))

@@ -32,6 +32,7 @@ FIXTURE = {
     "S011": ("S011_syntax/box.obj", {}),
     "S012": ("../formats/validate/S012_facet_normals/flipped.stl", {}),
     "S013": ("../formats/validate/S013_buffer_missing/model.gltf", {}),
+    "S014": ("S014_consumer_frames_differ/box.obj", {}),
     "G001": ("G001_non_finite/box.obj", {}),
     "G002": ("G002_no_faces/points.obj", {}),
     "G003": ("G003_degenerate_faces/box.obj", {}),
@@ -61,6 +62,7 @@ NO_FIXTURE = {
     "P003": "MuJoCo warnings need a broken model; covered with an unstable model in test_validate_run",
     "X001": "a bug in a rule; covered by making a rule raise in test_validate_run",
     "X002": "a hanging check; covered by a deliberately slow physics plugin in test_validate_timeout",
+    "S015": "an index past its limits needs thousands of files; covered with lowered limits in test_consumer_index",
     "G012": "a padded part is open too (G007); covered by the one-triangle OBJ in test_geometry_findings.py",
 }
 CLEAN = ["clean/box.obj", "clean/box.mbin", "K003_pack_stale/box.obj", "_sources/box.obj", "_sources/ball.obj"]

@@ -64,6 +64,8 @@ _TABLE: list[tuple[str, str, Severity, str, str]] = [
     ("S011", "syntax", W, "malformed or partial statements were dropped", "fix the lines named, or export again"),
     ("S012", "facet-normals", W, "STL facet normals point against their facets' winding (tools disagree on the outside)", "recalculate normals outside in the modeller and export again"),
     ("S013", "buffer-missing", E, "a glTF buffer is missing, outside the asset folder or too short: no geometry", "put the .bin beside the .gltf, or export a single .glb"),
+    ("S014", "consumer-frames-differ", W, "description files (URDF, SDF, MJCF) use the mesh in different frames (scales)", "make every consumer use the mesh at one scale, or give each its own copy"),
+    ("S015", "consumer-index-limit", W, "the search for the mesh's consumer files stopped at a limit: its frame may be the wrong one", "pass --model-root with a smaller folder, or move the description files nearer the meshes"),
     ("G001", "non-finite", E, "vertices with NaN or infinite coordinates", "fix or delete those vertices"),
     ("G002", "no-faces", W, "the file has vertices but no faces: usable only as a convex collision hull", "export the faces, not only points or lines"),
     ("G003", "degenerate-faces", W, "triangles with a repeated vertex or zero area", "clean the mesh (merge by distance, delete degenerate)"),
@@ -107,16 +109,20 @@ def rule_id(key: str) -> str | None:
     return BY_NAME.get(key.strip().lower())
 
 
-def hit(rule: str, message: str, path: str | None = None, line: int | None = None) -> Finding:
-    """A finding of ``rule`` with its default severity.
+def hit(
+    rule: str, message: str, path: str | None = None, line: int | None = None, severity: Severity | None = None
+) -> Finding:
+    """A finding of ``rule`` with its default severity, or ``severity`` where the rule judges by context.
 
     Args:
         rule: A rule ID from :data:`RULES`.
         message: What was found, one sentence, with the numbers.
         path: The file it is in, relative to the asset's folder (or as the user named it).
         line: 1-based line in ``path``.
+        severity: Instead of the default: S002/S003 are warnings when every consumer of the OBJ reads no
+            MTL (:func:`meshtool.validate.source.from_normaliser`). Configured overrides still apply after.
 
     Raises:
         KeyError: ``rule`` is not a rule ID (a programming error).
     """
-    return Finding(rule, RULES[rule].severity, message, path, line)
+    return Finding(rule, severity or RULES[rule].severity, message, path, line)

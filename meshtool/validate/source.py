@@ -3,15 +3,22 @@
 The validator reads an OBJ exactly as ``meshtool normalize`` does (:func:`meshtool.normalise.prepare`, in
 memory) and turns what the normaliser noticed into rule findings: a missing texture is a repair for the
 normaliser but a defect of the source for the validator.
+
+Findings are judged by what the OBJ's consumer reads: when every description file that uses it is an MJCF
+(MuJoCo reads an OBJ's geometry only, never its MTL or the textures the MTL names), a missing MTL (S002) or
+texture (S003) loses nothing the consumer loads and is a warning that says so; with no consumer (the OBJ is
+the asset) or a consumer that reads materials (URDF and SDFormat: RViz, Gazebo and simrun's ``UrdfRobot``
+read the MTL), it stays an error.
 """
 
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import Any
 
-from meshtool.findings import Finding
+from meshtool.consumers import ConsumerRef
+from meshtool.findings import Finding, Severity
 from meshtool.safeopen import printable
 from meshtool.validate.rules import hit
 
@@ -26,6 +33,8 @@ FROM_NORMALISER: dict[str, str] = {
     "material-undefined": "S004",
     "texture-converted": "S005",
     "reference-outside-root": "S008",
+    "consumer-frames-differ": "S014",
+    "consumer-index-limit": "S015",
     "encoding-latin1": "S010",
     "unknown-statement": "S011",
     "usemtl-empty": "S011",
@@ -63,10 +72,21 @@ _RAW_BYTE = re.compile(r"\\x([89a-f][0-9a-f])")  # a byte that is not UTF-8, as 
 _REPAIRED = ("backslash", "case-insensitive", "basename", "search-path")
 
 
-def from_normaliser(findings: Iterable[Finding]) -> list[Finding]:
-    """Rule findings for the normaliser's findings (missing files reached by an escape are reported once)."""
+#: Rules about the MTL and its textures: judged by whether the OBJ's consumers read them.
+MATERIAL_RULES = ("S002", "S003")
+
+
+def from_normaliser(findings: Iterable[Finding], consumers: Sequence[ConsumerRef] = ()) -> list[Finding]:
+    """Rule findings for the normaliser's findings (missing files reached by an escape are reported once).
+
+    Args:
+        findings: The normaliser's findings.
+        consumers: The description files that use the OBJ (:func:`meshtool.consumers.find_consumers`): when
+            there are some and none reads materials, S002/S003 are warnings naming the nearest one.
+    """
     found = list(findings)
     escaped = {(f.path, f.line) for f in found if f.code == "reference-outside-root"}
+    unread = bool(consumers) and not any(c.reads_materials for c in consumers)
     out = []
     for f in found:
         rule = FROM_NORMALISER.get(f.code)
@@ -74,6 +94,15 @@ def from_normaliser(findings: Iterable[Finding]) -> list[Finding]:
             continue
         if f.code in ("mtl-missing", "texture-missing") and (f.path, f.line) in escaped:
             continue  # the escape (S008) is the cause; "not found" would repeat it
+        if unread and rule in MATERIAL_RULES:
+            first = consumers[0]
+            more = f" and {len(consumers) - 1} more" if len(consumers) > 1 else ""
+            said = (
+                f"{f.message}; not read by its consumer {first.file}{more} "
+                f"({first.format.upper()}: MuJoCo reads no MTL or texture of an OBJ)"
+            )
+            out.append(hit(rule, said, f.path, f.line, Severity.WARNING))
+            continue
         out.append(hit(rule, f.message, f.path, f.line))
     return out
 

@@ -19,11 +19,13 @@ from typing import Any
 
 import numpy as np
 
+from meshtool.consumers import find_consumers
 from meshtool.convert import ConvertOptions
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, Severity
 from meshtool.formats import mesh_format, mesh_format_named, output_named
 from meshtool.hulls import Hull, HullOptions, compute_hulls
+from meshtool.modelroot import find_model_root
 from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
 from meshtool.packfile import pack, parse
 from meshtool.resolve import Resolver, file_sha256, printable
@@ -36,7 +38,7 @@ from meshtool.validate.rules import RULES, hit
 from meshtool.validate.source import encoding_findings, from_normaliser, name_findings, reference_findings
 
 #: Bumped whenever a rule changes what it reports: cached results of older rules are not reused.
-RULESET_VERSION = 3
+RULESET_VERSION = 4
 
 
 @dataclass(frozen=True, slots=True)
@@ -214,7 +216,8 @@ def _read_obj(read: ReadAsset) -> None:
             continue  # an image embedded in the glTF/GLB: the file's own digest covers it
         real = asset.source_paths.get(source["path"]) or (src.parent / source["path"]).resolve()
         result.deps[str(real)] = source["sha256"]  # the real name: shown names spell stray bytes as \xNN
-    result.findings.extend(from_normaliser(asset.findings))
+    consumers = find_consumers(src, find_model_root(src.parent))  # the run's index: read once, reused
+    result.findings.extend(from_normaliser(asset.findings, consumers))
     result.findings.extend(reference_findings(manifest["resolutions"]))
     result.findings.extend(name_findings(s["path"] for s in manifest["sources"]))
     for source in manifest["sources"][1:]:
