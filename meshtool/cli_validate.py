@@ -30,6 +30,7 @@ from meshtool.cli_output import (
     wrote,
 )
 from meshtool.errors import MeshtoolError
+from meshtool.formats import REPORT_FORMATS, report_format_for
 from meshtool.outdir import write_file
 
 if TYPE_CHECKING:
@@ -43,9 +44,72 @@ def run_validate(*args: Any, **kwargs: Any) -> Any:
     return validate(*args, **kwargs)
 
 
-#: Report formats (meshtool.validate.reports.FORMATS; importing meshtool.validate loads the rules, trimesh
-#: among them: tests/test_perf_startup.py checks they agree). ``validate --help`` imports none of it.
-FORMATS = ("text", "json", "junit", "github", "html")
+#: Report formats: the formats registry's (:data:`meshtool.formats.REPORT_FORMATS`, standard library only), as
+#: meshtool.validate.reports.FORMATS (importing meshtool.validate loads the rules, trimesh among them:
+#: tests/test_perf_startup.py checks they agree). ``validate --help`` imports none of it.
+FORMATS = tuple(row.name for row in REPORT_FORMATS)
+
+
+class FormatList(click.Choice[str]):
+    """``--format``: one report format, or several separated by commas (``json,junit,html``), one ``-o`` each."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+        """``value`` with each name checked against the choices (a usage error names the one that is not)."""
+        names = []
+        for name in str(value).split(","):  # a loop: super() needs the method's own frame
+            names.append(super().convert(name.strip(), param, ctx))
+        repeated = sorted({name for name in names if names.count(name) > 1})
+        if repeated:
+            self.fail(f"{', '.join(repeated)} named twice", param, ctx)
+        return ",".join(names)
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        """``[text|json|junit|github|html][,...]``."""
+        return f"[{'|'.join(self.choices)}][,...]"
+
+
+#: The ``-o`` value that means stdout.
+STDOUT = "-"
+
+
+def report_plan(formats: str | None, outputs: tuple[Path, ...]) -> list[tuple[str, Path | None]]:
+    """Which report goes where: (format, file or ``None`` for stdout) in the order given.
+
+    ``--format`` alone: that report on stdout (text without it). With ``-o``: one format per ``-o`` in order
+    (``--format json,junit -o r.json -o r.xml``), or, without ``--format``, each file's format by its suffix
+    (:func:`meshtool.formats.report_format_for`; any other suffix: text, as a single ``-o`` always wrote).
+    ``-o -`` is stdout (``--format github,junit -o - -o r.xml``: annotations and a file from one run).
+
+    Raises:
+        ConfigError: Several formats for stdout, counts that do not pair up, or one file named twice.
+    """
+    from meshtool.validate import ConfigError
+
+    names = formats.split(",") if formats else None
+    if not outputs:
+        if names is not None and len(names) > 1:
+            raise ConfigError(
+                f"--format {formats} writes {len(names)} reports, stdout takes one",
+                hint="name a file for each with -o (one -o per format, in order)",
+            )
+        return [(names[0] if names else "text", None)]
+    seen: set[str] = set()
+    for out in outputs:
+        key = str(out) if str(out) == STDOUT else os.path.abspath(out)
+        if key in seen:
+            raise ConfigError("named twice with -o", path=str(out), hint="give each report its own file")
+        seen.add(key)
+    places = [None if str(out) == STDOUT else out for out in outputs]
+    if names is None:
+        return [(getattr(report_format_for(out), "name", "text") if out else "text", out) for out in places]
+    if len(names) != len(outputs):
+        raise ConfigError(
+            f"--format names {len(names)} format{'s' if len(names) != 1 else ''} for {len(outputs)} -o files",
+            hint="give one format per -o, in order (--format json,junit -o r.json -o r.xml), "
+            "or drop --format to take each from its file's suffix",
+        )
+    return list(zip(names, places, strict=True))
+
 
 #: A check failed: the findings fail the run (docs/cli.md: exit 1).
 EXIT_FINDINGS = EXIT_INPUT
@@ -65,12 +129,22 @@ def default_jobs() -> int:
     default=None,
     help="pyproject.toml or meshtool.toml (default: the first found from the working folder upwards).",
 )
-@click.option("--format", "fmt", type=click.Choice(FORMATS), default="text", show_default=True, help="Report format.")
+@click.option(
+    "--format",
+    "fmt",
+    type=FormatList(FORMATS),
+    default=None,
+    help="Report format, or several with one -o each (json,junit,html) [default: text, or each -o's suffix].",
+)
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path, dir_okay=False),
-    help="Write the report here (replaces an earlier report; anything else only with --force).",
+    "outputs",
+    multiple=True,
+    type=click.Path(path_type=Path, dir_okay=False, allow_dash=True),
+    help="Write a report here (-: stdout); repeat for several reports of one run, the format from --format (in "
+    "order) or the suffix (.json, .xml JUnit, .html, else text). Replaces an earlier report; anything else only "
+    "with --force.",
 )
 @click.option("--force", is_flag=True, help="Let -o replace a file that is not an earlier report (never an input).")
 @executor_options
@@ -97,8 +171,8 @@ def default_jobs() -> int:
 def validate_command(
     paths: tuple[Path, ...],
     config_file: Path | None,
-    fmt: str,
-    output: Path | None,
+    fmt: str | None,
+    outputs: tuple[Path, ...],
     jobs: int | None,
     executor: str,
     scheduler: str | None,
@@ -121,11 +195,18 @@ def validate_command(
         _usage(ConfigError("--scheduler needs --executor dask"))
     if changed_only and no_cache:
         _usage(ConfigError("--changed-only needs the cache (drop --no-cache)"))
-    want_thumbnails = fmt == "html" if thumbnails is None else thumbnails
-    # The OpenGL backend of thumbnails is chosen by the physics plugin (simrun): EGL, then OSMesa, headless.
     try:
-        if output is not None:  # before the run: a refused -o costs nothing
-            check_report_output(output, list(paths), force)
+        plan = report_plan(fmt, outputs)
+    except ConfigError as exc:
+        _usage(exc)
+    wanted = {name for name, _ in plan}
+    want_thumbnails = "html" in wanted if thumbnails is None else thumbnails
+    # The OpenGL backend of thumbnails is chosen by the physics plugin (simrun): EGL, then OSMesa, headless.
+    texts: list[tuple[str, Path | None, str]] = []
+    try:
+        for _, out in plan:  # before the run: a refused -o costs nothing
+            if out is not None:
+                check_report_output(out, list(paths), force)
         config = load_config(config_file or find_config(Path.cwd()))
         options = ValidateOptions(
             config=config,
@@ -141,13 +222,16 @@ def validate_command(
         result = run_validate(list(paths), options, _progress_bar())
         for line in result.cache_notes:  # a damaged or foreign cache entry: checked again, said once
             note(line)
-        text = (
-            to_text(result, strict, colour=_colour(output), verbose=verbose)
-            if fmt == "text"
-            else render(result, fmt, strict)
-        )
-        if output is not None:
-            write_file(output, text.encode("utf-8"))
+        for name, out in plan:  # every report from the one run's results
+            text = (
+                to_text(result, strict, colour=_colour(out), verbose=verbose)
+                if name == "text"
+                else render(result, name, strict)
+            )
+            texts.append((name, out, text))
+        for _, out, text in texts:
+            if out is not None:
+                write_file(out, text.encode("utf-8"))
     except ConfigError as exc:
         _usage(exc)
     except ValidateError as exc:
@@ -158,10 +242,13 @@ def validate_command(
         fail(exc)
     except Exception as exc:  # a bug in meshtool: say so, keep the traceback for MESHTOOL_DEBUG
         exit_on_bug(exc)
-    if output is None:
-        report(text) if fmt == "json" else say(text, nl=False)
-    else:
-        wrote(output, kind=f"validate report ({fmt})", err=True)
+    for name, out, text in texts:
+        if out is None:  # the one report on stdout
+            report(text) if name == "json" else say(text, nl=False)
+    if any(out is not None for _, out, _ in texts):
+        for name, out, _ in texts:
+            if out is not None:
+                wrote(out, kind=f"validate report ({name})", err=True)
         first, *rest = summary_lines(result, strict, colour=sys.stderr.isatty())  # the verdict, then the run
         (verdict if result.failed(strict) else tell)(first)
         for line in rest:

@@ -233,6 +233,39 @@ COMPANION_SUFFIXES: tuple[str, ...] = (
 )
 
 
+@dataclass(frozen=True, slots=True)
+class ReportFormat:
+    """One report format of ``meshtool validate`` (``--format``; ``-o FILE`` without it is told by suffix).
+
+    Attributes:
+        name: The ``--format`` value (``json``, ``junit``...).
+        suffixes: Lower-case suffixes a report file of this format is named with, the first the usual one;
+            empty for a format read from stdout (GitHub annotations).
+        what: What the report is, for help texts and docs.
+    """
+
+    name: str
+    suffixes: tuple[str, ...]
+    what: str
+
+
+#: The reports of ``meshtool validate``, in ``--format`` order. A report's suffix may be an output's too (a
+#: JUnit ``.xml`` is no MJCF): :func:`report_format_for` reads only this table.
+REPORT_FORMATS: list[ReportFormat] = [
+    ReportFormat("text", (".txt",), "the human report: findings grouped worst first, then the verdict"),
+    ReportFormat("json", (".json",), "one JSON document (docs/validate-report.schema.json)"),
+    ReportFormat("junit", (".xml",), "JUnit XML: one testcase per asset"),
+    ReportFormat("github", (), "GitHub Actions workflow commands: an annotation per finding"),
+    ReportFormat("html", (".html", ".htm"), "one self-contained page, a card (and thumbnail) per asset"),
+]
+
+
+def report_format_for(path: Path | str) -> ReportFormat | None:
+    """The report format a ``-o`` file's suffix names (case-insensitive), ``None`` for another suffix."""
+    suffix = Path(path).suffix.lower()
+    return next((row for row in REPORT_FORMATS if suffix in row.suffixes), None)
+
+
 def _resolve(target: str) -> Any:
     module, _, name = target.partition(":")
     value: Any = importlib.import_module(module)

@@ -1,8 +1,10 @@
 """The result cache of ``meshtool validate``: unchanged assets are not checked again.
 
 An entry is keyed by the asset's path and content hash (SHA-256), the rule-set version, the meshtool version,
-the options that change raw findings (the limits, the source roots) and the environment (the physics
-plugin and the versions of the libraries the rules compute with). It holds the raw result, the SHA-256 of
+the options that change raw findings (the source roots; the asset's own limits, units and up axis, which
+per-path settings may give it: :meth:`AssetTask.settings`) and the environment (the physics plugin and the
+versions of the libraries the rules compute with). Nothing a report format asks for is part of the key: one
+entry serves every format. It holds the raw result (its thumbnail when one was drawn), the SHA-256 of
 every file the check read or looked for (MTLs, textures, a pack's sources; ``None`` for absent), and the
 digest of everything under the asset's folder (:mod:`meshtool.validate.snapshot`: every name with its
 case, kind, permissions and link target), since any of it can change how a reference resolves. The entry
@@ -40,6 +42,8 @@ class ResultCache:
 
     Attributes:
         problems: One line per entry found but not used (damaged, answering another key, not a result).
+        hits: Lookups answered from the cache.
+        misses: Lookups that found no usable entry (the asset is checked).
     """
 
     #: Entry kind in the :mod:`meshtool.cachefile` envelope.
@@ -48,6 +52,8 @@ class ResultCache:
     def __init__(self, folder: Path | None, fingerprint: dict[str, Any]) -> None:
         self.folder = folder
         self.problems: list[str] = []
+        self.hits = 0
+        self.misses = 0
         self.exclude = Path(os.path.realpath(folder)) if folder is not None else None
         self.salt = json.dumps(
             {"meshtool": __version__, "rules": RULESET_VERSION, "options": fingerprint, "environment": environment()},
@@ -56,11 +62,24 @@ class ResultCache:
 
     def key(self, task: AssetTask, content_sha256: str) -> str:
         """The entry key of an asset with the given content hash."""
-        text = f"{self.salt}\n{task.path.resolve()}\n{content_sha256}"
+        settings = json.dumps(task.settings(), sort_keys=True)
+        text = f"{self.salt}\n{settings}\n{task.path.resolve()}\n{content_sha256}"
         return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()  # non-UTF-8 names: raw bytes
 
     def lookup(self, task: AssetTask) -> AssetResult | None:
-        """The cached result, if every file it depends on is unchanged (and it has a thumbnail if asked)."""
+        """The cached result, if every file it depends on is unchanged; counted in :attr:`hits` / :attr:`misses`.
+
+        A result without a thumbnail serves a run that asks for thumbnails too: the runner has the picture
+        drawn alone (:attr:`AssetTask.thumbnail_only`) and :meth:`store` keeps it.
+        """
+        result = self._lookup(task)
+        if result is None:
+            self.misses += 1
+        else:
+            self.hits += 1
+        return result
+
+    def _lookup(self, task: AssetTask) -> AssetResult | None:
         if self.folder is None:
             return None
         digest = file_sha256(task.path)
@@ -74,8 +93,6 @@ class ResultCache:
             return None
         try:
             entry = json.loads(found.payload)
-            if task.thumbnails and not entry["thumbnails"]:
-                return None
             own = str(task.path.resolve())  # its hash is part of the key: already checked
             for path, sha in entry["deps"].items():
                 if path != own and file_sha256(Path(path)) != sha:
@@ -107,7 +124,6 @@ class ResultCache:
         if digest is None:
             return
         entry = {
-            "thumbnails": task.thumbnails,
             "deps": result.deps,
             "listings": result.listings,
             "result": _to_json(result),
@@ -128,6 +144,7 @@ def _to_json(result: AssetResult) -> dict[str, Any]:
         "listings": result.listings,
         "stats": result.stats,
         "thumbnail": base64.b64encode(result.thumbnail).decode("ascii") if result.thumbnail else None,
+        "drawable": result.drawable,
         "notes": result.notes,
     }
 
@@ -143,11 +160,13 @@ def _from_json(data: dict[str, Any]) -> AssetResult:
             raise TypeError("a finding's line is not a number")
         findings.append(Finding(code, Severity(f["severity"]), message, path, line))
     thumbnail = base64.b64decode(data["thumbnail"], validate=True) if data["thumbnail"] else None
-    kind, stats, notes = data["kind"], dict(data["stats"]), list(data["notes"])
+    kind, stats, notes, drawable = data["kind"], dict(data["stats"]), list(data["notes"]), data["drawable"]
     if not (
         isinstance(kind, str) and all(isinstance(n, str) for n in notes) and all(isinstance(k, str) for k in stats)
     ):
         raise TypeError("the kind, the notes or the stats are not text")
+    if not isinstance(drawable, bool):
+        raise TypeError("drawable is not true or false")
     return AssetResult(
         "",
         kind,
@@ -157,4 +176,5 @@ def _from_json(data: dict[str, Any]) -> AssetResult:
         stats,
         thumbnail,
         notes,
+        drawable=drawable,
     )

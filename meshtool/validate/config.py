@@ -14,6 +14,14 @@ Read from ``[tool.meshtool.validate]`` in a ``pyproject.toml`` or ``[validate]``
 
     [tool.meshtool.validate.limits]
     max-vertices = 200000
+
+    [[tool.meshtool.validate.paths]]                   # settings for the assets a glob matches, in file order
+    glob = "props/cm/**"                               # relative to the config file's folder
+    units = "cm"                                       # the sources' unit (mm, cm, m, in, ft, auto)
+    up = "z"                                           # their up axis (y, z, auto)
+    severity = { U001 = "error" }                      # as above; a severity turns on a rule ignored above
+    ignore = ["P002"]                                  # rules not reported there ("*": all but X001)
+    limits = { max-vertices = 500000 }                 # limits there
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from meshtool.errors import MeshtoolError
 from meshtool.findings import Finding, Severity
 from meshtool.nesting import DocumentLimitError, bounded
 from meshtool.resolve import is_file, read_cache
+from meshtool.units import UNIT_FACTORS
 from meshtool.validate.rules import rule_id
 
 #: Seconds one asset's check may take before it is stopped with an X002 finding (``timeout``, ``--timeout``).
@@ -79,6 +88,48 @@ class Limits:
         return {f.name: float(getattr(self, f.name)) for f in fields(self)}
 
 
+#: Keys of a ``[[validate.paths]]`` entry.
+PATH_KEYS = ("glob", "units", "up", "severity", "ignore", "limits")
+#: Up axes a ``[[validate.paths]]`` entry may give (:class:`meshtool.normalise.NormaliseOptions`).
+UP_AXES = ("y", "z", "auto")
+
+
+@dataclass(frozen=True, slots=True)
+class PathSettings:
+    """One ``[[validate.paths]]`` entry: settings for the assets its glob matches.
+
+    Attributes:
+        glob: Asset paths it applies to, relative to the configuration file's folder (``**`` spans folders).
+        units: The sources' unit (``mm``, ``cm``, ``m``, ``in``, ``ft``, ``auto``), or ``None`` to leave it.
+        up: The sources' up axis (``y``, ``z``, ``auto``), or ``None`` to leave it.
+        severity: Rule ID -> severity name or ``off`` there (a severity turns on a rule ignored before).
+        ignore: Rule IDs (or ``*``: all but X001) not reported there.
+        limits: (limit field name, value) pairs that replace the limits there.
+    """
+
+    glob: str
+    units: str | None = None
+    up: str | None = None
+    severity: tuple[tuple[str, str], ...] = ()
+    ignore: tuple[str, ...] = ()
+    limits: tuple[tuple[str, float], ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class AssetSettings:
+    """What the configuration gives one asset before its check: unit, up axis, limits.
+
+    Attributes:
+        units: The source's unit for the reader, or ``None`` (decided as ``normalize`` decides it).
+        up: The source's up axis, or ``None``.
+        limits: The limits its rules compare against.
+    """
+
+    units: str | None
+    up: str | None
+    limits: Limits
+
+
 @dataclass(frozen=True, slots=True)
 class ValidateConfig:
     """Parsed configuration.
@@ -92,6 +143,7 @@ class ValidateConfig:
         root: Folder the globs and source roots are relative to (the config file's folder).
         file: The configuration file, or ``None`` for the defaults.
         timeout: Seconds one asset's check may take (X002 past it); 0 for no limit.
+        paths: ``[[validate.paths]]`` entries in file order (a later match wins where two set one thing).
     """
 
     severity: tuple[tuple[str, str], ...] = ()
@@ -102,31 +154,58 @@ class ValidateConfig:
     root: Path = Path(".")
     file: str | None = None
     timeout: float = DEFAULT_TIMEOUT
+    paths: tuple[PathSettings, ...] = ()
 
     def fingerprint(self) -> dict[str, Any]:
         """What changes the raw findings (the cache key part); severities and ignores apply afterwards."""
         return {"limits": self.limits.as_dict(), "source_roots": [str(p) for p in self.source_roots]}
 
+    def settings_for(self, asset_path: Path) -> AssetSettings:
+        """The unit, up axis and limits of one asset: the defaults, then each matching ``paths`` entry."""
+        units = up = None
+        limits = self.limits
+        for entry in self._matching(asset_path):
+            units = entry.units or units
+            up = entry.up or up
+            overrides: dict[str, Any] = dict(entry.limits)
+            limits = replace(limits, **overrides)
+        return AssetSettings(units, up, limits)
+
     def apply(self, findings: list[Finding], asset_path: Path) -> list[Finding]:
-        """Severity overrides and ignores applied to one asset's findings."""
-        severity = dict(self.severity)
-        try:
-            rel = asset_path.resolve().relative_to(self.root.resolve()).as_posix()
-        except ValueError:
-            rel = asset_path.as_posix()
+        """Severity overrides and ignores applied to one asset's findings.
+
+        The top-level ``ignore`` and ``per-path-ignores`` win over the top-level ``severity``; then each
+        matching ``paths`` entry in order sets severities (turning an ignored rule on) and ignores rules.
+        ``*`` hides every rule but X001, whatever comes after it.
+        """
+        levels = dict(self.severity)
         ignored = set(self.ignore)
+        rel = self._relative(asset_path)
         for pattern, rules in self.per_path_ignores:
             if _glob_match(pattern, rel):
                 ignored.update(rules)
+        levels.update((rule, "off") for rule in ignored)
+        for entry in self._matching(asset_path):
+            levels.update(entry.severity)
+            levels.update((rule, "off") for rule in entry.ignore)
         out = []
         for f in findings:
-            if ("*" in ignored and f.code != "X001") or f.code in ignored:
+            if ("*" in levels and f.code != "X001") or levels.get(f.code) == "off":
                 continue
-            level = severity.get(f.code)
-            if level == "off":
-                continue
+            level = levels.get(f.code)
             out.append(replace(f, severity=Severity(level)) if level else f)
         return out
+
+    def _relative(self, asset_path: Path) -> str:
+        """``asset_path`` relative to :attr:`root` (``/``-separated), as the globs see it."""
+        try:
+            return asset_path.resolve().relative_to(self.root.resolve()).as_posix()
+        except ValueError:
+            return asset_path.as_posix()
+
+    def _matching(self, asset_path: Path) -> list[PathSettings]:
+        rel = self._relative(asset_path) if self.paths else ""
+        return [entry for entry in self.paths if _glob_match(entry.glob, rel)]
 
 
 def find_config(start: Path) -> Path | None:
@@ -165,14 +244,26 @@ def load_config(path: Path | None) -> ValidateConfig:
         table, where = document.get("tool", {}).get("meshtool", {}).get("validate", {}), "[tool.meshtool.validate]"
     else:
         table, where = document.get("validate", {}), "[validate]"
-    return parse_config(table, str(path), where, path.parent)
+    return parse_config(table, str(path), where, path.parent, data.decode("utf-8"))
 
 
-def parse_config(table: dict[str, Any], file: str, where: str, root: Path) -> ValidateConfig:
-    """Build a :class:`ValidateConfig` from the validate table of a TOML document."""
+def parse_config(table: dict[str, Any], file: str, where: str, root: Path, source: str | None = None) -> ValidateConfig:
+    """Build a :class:`ValidateConfig` from the validate table of a TOML document.
 
-    def fail(message: str, hint: str | None = None) -> ConfigError:
-        return ConfigError(f"{where}: {message}", path=file, hint=hint)
+    Args:
+        table: The validate table.
+        file: The configuration file, as errors name it.
+        where: The table's header (``[validate]``, ``[tool.meshtool.validate]``), as errors name it.
+        root: The folder globs and source roots are relative to.
+        source: The document's text: an unknown key's error names its line (``None``: no lines).
+
+    Raises:
+        ConfigError: An unknown key, rule, severity, limit, unit or up axis, or a value of the wrong type.
+    """
+    lines = _KeyLines(source, where)
+
+    def fail(message: str, hint: str | None = None, line: int | None = None) -> ConfigError:
+        return ConfigError(f"{where}: {message}", path=file, hint=hint, line=line)
 
     def rules_of(values: Any, key: str, star: bool) -> tuple[str, ...]:
         if not isinstance(values, list) or not all(isinstance(v, str) for v in values):
@@ -188,33 +279,74 @@ def parse_config(table: dict[str, Any], file: str, where: str, root: Path) -> Va
             out.append(rid)
         return tuple(out)
 
-    known = {"severity", "ignore", "per-path-ignores", "limits", "source-roots", "timeout"}
+    def severities(value: Any, key: str) -> tuple[tuple[str, str], ...]:
+        if not isinstance(value, dict):
+            raise fail(f"{key} must be a table of rule = severity")
+        out = []
+        for name, level in value.items():
+            rid = rule_id(name)
+            if rid is None:
+                raise fail(f"{key}: unknown rule {name!r}", "see docs/validate-rules.md")
+            if level not in ("error", "warning", "info", "off"):
+                raise fail(f"{key} of {name}: {level!r}", "use error, warning, info or off")
+            out.append((rid, str(level)))
+        return tuple(sorted(out))
+
+    def limits_of(value: Any, key: str, after: int | None) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise fail(f"{key} must be a table of limit = number")
+        values: dict[str, Any] = {}
+        defaults = Limits()
+        for name, number in value.items():
+            field_name = name.replace("-", "_")
+            if not hasattr(defaults, field_name):
+                names = ", ".join(f.name.replace("_", "-") for f in fields(Limits))
+                raise fail(f"{key}: unknown limit {name!r}", f"use one of {names}", lines.find(name, after))
+            kind = type(getattr(defaults, field_name))
+            if isinstance(number, bool) or not isinstance(number, int | float) or number <= 0:
+                raise fail(f"{key}.{name} must be a positive number, got {number!r}")
+            values[field_name] = kind(number)
+        return values
+
+    known = {"severity", "ignore", "per-path-ignores", "limits", "source-roots", "timeout", "paths"}
     for key in table:
         if key not in known:
-            raise fail(f"unknown key {key!r}", f"use one of {', '.join(sorted(known))}")
-    severity = []
-    for key, level in dict(table.get("severity", {})).items():
-        rid = rule_id(key)
-        if rid is None:
-            raise fail(f"severity: unknown rule {key!r}", "see docs/validate-rules.md")
-        if level not in ("error", "warning", "info", "off"):
-            raise fail(f"severity of {key}: {level!r}", "use error, warning, info or off")
-        severity.append((rid, str(level)))
+            raise fail(f"unknown key {key!r}", f"use one of {', '.join(sorted(known))}", lines.find(key))
+    severity = severities(dict(table.get("severity", {})), "severity")
     per_path = []
     for pattern, rules in dict(table.get("per-path-ignores", {})).items():
         per_path.append((str(pattern), rules_of(rules, f"per-path-ignores {pattern!r}", True)))
-    limits_table = dict(table.get("limits", {}))
-    values: dict[str, Any] = {}
-    defaults = Limits()
-    for key, value in limits_table.items():
-        name = key.replace("-", "_")
-        if not hasattr(defaults, name):
-            names = ", ".join(f.name.replace("_", "-") for f in fields(Limits))
-            raise fail(f"limits: unknown limit {key!r}", f"use one of {names}")
-        kind = type(getattr(defaults, name))
-        if isinstance(value, bool) or not isinstance(value, int | float) or value <= 0:
-            raise fail(f"limits.{key} must be a positive number, got {value!r}")
-        values[name] = kind(value)
+    values = limits_of(dict(table.get("limits", {})), "limits", None)
+    entries = table.get("paths", [])
+    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+        raise fail("paths must be an array of tables ([[...paths]] entries)", line=lines.find("paths"))
+    paths = []
+    for number, entry in enumerate(entries, 1):
+        label = f"paths entry {number}"
+        start = lines.entry(number)
+        for key in entry:
+            if key not in PATH_KEYS:
+                known_keys = ", ".join(sorted(PATH_KEYS))
+                raise fail(f"{label}: unknown key {key!r}", f"use one of {known_keys}", lines.find(key, start))
+        glob = entry.get("glob")
+        if not isinstance(glob, str) or not glob.strip():
+            raise fail(f'{label}: glob must be a path pattern such as "props/cm/**"', line=start)
+        units, up = entry.get("units"), entry.get("up")
+        if units is not None and (not isinstance(units, str) or (units not in UNIT_FACTORS and units != "auto")):
+            choices = ", ".join((*UNIT_FACTORS, "auto"))
+            raise fail(f"{label}: unknown units {units!r}", f"use one of {choices}", lines.find("units", start))
+        if up is not None and up not in UP_AXES:
+            raise fail(f"{label}: unknown up axis {up!r}", f"use one of {', '.join(UP_AXES)}", lines.find("up", start))
+        paths.append(
+            PathSettings(
+                glob=glob,
+                units=units,
+                up=up,
+                severity=severities(entry.get("severity", {}), f"{label}: severity"),
+                ignore=rules_of(entry.get("ignore", []), f"{label}: ignore", True),
+                limits=tuple(sorted(limits_of(entry.get("limits", {}), f"{label}: limits", start).items())),
+            )
+        )
     timeout = table.get("timeout", DEFAULT_TIMEOUT)
     if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not 0 <= timeout < float("inf"):
         raise fail(f"timeout must be a number of seconds (0: no limit), got {timeout!r}")
@@ -222,7 +354,7 @@ def parse_config(table: dict[str, Any], file: str, where: str, root: Path) -> Va
     if not isinstance(roots, list) or not all(isinstance(r, str) for r in roots):
         raise fail("source-roots must be a list of folders")
     return ValidateConfig(
-        severity=tuple(sorted(severity)),
+        severity=severity,
         ignore=rules_of(table.get("ignore", []), "ignore", False),
         per_path_ignores=tuple(per_path),
         limits=Limits(**values),
@@ -230,7 +362,40 @@ def parse_config(table: dict[str, Any], file: str, where: str, root: Path) -> Va
         root=root,
         file=file,
         timeout=float(timeout),
+        paths=tuple(paths),
     )
+
+
+class _KeyLines:
+    """Where keys are in a configuration's text, so that an error can name the line (TOML parsers give none).
+
+    Args:
+        source: The document's text, or ``None`` (every lookup answers ``None``).
+        where: The validate table's header: ``[validate]`` or ``[tool.meshtool.validate]``.
+    """
+
+    def __init__(self, source: str | None, where: str) -> None:
+        self.lines = source.splitlines() if source is not None else []
+        name = re.escape(where.strip("[]"))
+        self.table = re.compile(rf"^\s*\[\s*{name}\s*\]")
+        self.entries = re.compile(rf"^\s*\[\[\s*{name}\.paths\s*\]\]")
+
+    def entry(self, number: int) -> int | None:
+        """The line of the ``number``-th (1-based) ``[[...paths]]`` header, ``None`` when there is none."""
+        found = [k for k, line in enumerate(self.lines, 1) if self.entries.match(line)]
+        return found[number - 1] if number <= len(found) else None
+
+    def find(self, key: str, after: int | None = None) -> int | None:
+        """The first line setting ``key`` (``key =``, ``"key" =``), from line ``after`` or the table's header."""
+        if after is None:
+            after = next((k for k, line in enumerate(self.lines, 1) if self.table.match(line)), 1)
+        pattern = re.compile(rf"""(^|[\s{{,.])(["']?){re.escape(key)}\2\s*=""")
+        order: list[int] = [*range(after, len(self.lines) + 1), *range(1, after)]
+        for number in order:
+            line = self.lines[number - 1]
+            if not line.lstrip().startswith("#") and pattern.search(line):
+                return number
+        return None
 
 
 def _glob_match(pattern: str, path: str) -> bool:

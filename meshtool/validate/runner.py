@@ -99,8 +99,11 @@ class ValidationReport:
 
     Attributes:
         assets: One result per reported asset, sorted by path, configuration applied.
-        checked: Assets checked in this run.
-        cache_hits: Assets whose result came from the cache.
+        checked: Assets checked in this run (the cache's misses).
+        cache_hits: Assets whose result came from the cache (its hits: not checked again, whatever report
+            format the run that stored them wrote).
+        thumbnails_drawn: Cached results whose missing thumbnail this run drew alone (a run asking for
+            thumbnails after one that did not); no rule was judged again for them.
         unchanged_skipped: Unchanged assets left out of ``assets`` (``changed_only``).
         seconds: Wall time of the run.
         executor: ``local`` or ``dask``.
@@ -115,6 +118,7 @@ class ValidationReport:
     assets: list[AssetResult]
     checked: int = 0
     cache_hits: int = 0
+    thumbnails_drawn: int = 0
     unchanged_skipped: int = 0
     seconds: float = 0.0
     executor: str = "local"
@@ -206,33 +210,44 @@ def validate(
     options = options or ValidateOptions()
     start = time.perf_counter()
     config = options.config
-    tasks = [
-        AssetTask(
-            file,
-            display_path(file),
-            config.limits,
-            config.source_roots,
-            root,
-            options.thumbnails,
+    tasks = []
+    for file, root in discover(paths):
+        settings = config.settings_for(file)
+        tasks.append(
+            AssetTask(
+                file,
+                display_path(file),
+                settings.limits,
+                config.source_roots,
+                root,
+                options.thumbnails,
+                units=settings.units,
+                up=settings.up,
+            )
         )
-        for file, root in discover(paths)
-    ]
     cache = ResultCache(options.cache_dir, config.fingerprint())
     results: dict[str, AssetResult] = {}
     todo: list[AssetTask] = []
+    pictures: list[AssetTask] = []  # cached results without the thumbnail this run wants: drawn alone
     for task in tasks:
         cached = cache.lookup(task)
         if cached is None:
             todo.append(task)
             continue
         results[task.display] = cached
+        if task.thumbnails and cached.thumbnail is None and cached.drawable and not options.changed_only:
+            pictures.append(replace(task, thumbnail_only=True))
         if progress:
             progress(cached, len(results), len(tasks))
     by_display = {t.display: t for t in todo}
     listings = {t.display: cache.listings(t) for t in todo}  # before the checks read: a later change is news
     runner = _run_dask if options.executor == "dask" else _run_local
     where: dict[str, int] = {}
-    for result, place in runner(todo, options):
+    drawn = {t.display: t for t in pictures}
+    for result, place in runner(todo + pictures, options):
+        if result.path in drawn:
+            _add_thumbnail(results[result.path], result, drawn[result.path], cache)
+            continue
         where[place] = where.get(place, 0) + 1
         result.listings = listings[result.path]
         cache.store(by_display[result.path], result)
@@ -241,8 +256,9 @@ def validate(
             progress(result, len(results), len(tasks))
     report = ValidationReport(
         [],
-        checked=len(todo),
-        cache_hits=len(tasks) - len(todo),
+        checked=cache.misses,
+        cache_hits=cache.hits,
+        thumbnails_drawn=len(pictures),
         executor=options.executor,
         jobs=options.jobs,
         config_file=config.file,
@@ -251,6 +267,7 @@ def validate(
     )
     for task in tasks:
         result = results[task.display]
+        result.format = task.format  # by the formats registry, whatever the cache holds
         if options.changed_only and result.cached:
             report.unchanged_skipped += 1
             continue
@@ -262,6 +279,17 @@ def validate(
         report.assets.append(result)
     report.seconds = time.perf_counter() - start
     return report
+
+
+def _add_thumbnail(cached: AssetResult, drawn: AssetResult, task: AssetTask, cache: ResultCache) -> None:
+    """A thumbnail drawn alone (``drawn``) joins the cached result it was drawn for, and the cache entry."""
+    failed = next((f.message for f in drawn.findings if f.code in ("X001", "X002")), None)
+    if failed is not None:  # the findings stand; the picture is missing, and why
+        cached.thumbnail_note = f"no thumbnail: {failed}"
+        return
+    cached.thumbnail, cached.thumbnail_note = drawn.thumbnail, drawn.thumbnail_note
+    if cached.thumbnail is not None:
+        cache.store(task, cached)
 
 
 def _run_local(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[tuple[AssetResult, str]]:

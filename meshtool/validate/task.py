@@ -53,6 +53,11 @@ class AssetTask:
             each is tried as is and with the pack's folder relative to ``scan_root`` appended.
         scan_root: The folder the asset was found under.
         thumbnails: Render a thumbnail.
+        units: Unit of a source mesh's coordinates (:class:`meshtool.normalise.NormaliseOptions` ``units``:
+            ``mm``, ``cm``, ``m``..., ``auto``); ``None``: decided as ``normalize`` decides it. Packs are metres.
+        up: Up axis of a source mesh (``y``, ``z``, ``auto``); ``None``: decided as ``normalize`` decides it.
+        thumbnail_only: Only draw the thumbnail of an asset whose findings are cached (no rule is judged:
+            :func:`judge_asset` packs the asset and asks the physics plugin for the picture alone).
     """
 
     path: Path
@@ -61,11 +66,25 @@ class AssetTask:
     source_roots: tuple[Path, ...] = ()
     scan_root: Path | None = None
     thumbnails: bool = False
+    units: str | None = None
+    up: str | None = None
+    thumbnail_only: bool = False
 
     @property
     def kind(self) -> str:
-        """``obj`` or ``mbin``."""
+        """``obj`` (a source mesh of any reader's format) or ``mbin``."""
         return "mbin" if self.path.suffix.lower() in output_named("mbin").suffixes else "obj"
+
+    @property
+    def format(self) -> str:
+        """The file's format by the formats registry: a mesh format's name (``obj``, ``stl``...) or ``mbin``."""
+        if self.kind == "mbin":
+            return output_named("mbin").name
+        return (mesh_format(self.path) or mesh_format_named("obj")).name
+
+    def settings(self) -> dict[str, Any]:
+        """What besides the files changes this asset's raw findings: units, up axis and limits (cache key part)."""
+        return {"units": self.units, "up": self.up, "limits": self.limits.as_dict()}
 
 
 @dataclass(slots=True)
@@ -74,7 +93,7 @@ class AssetResult:
 
     Attributes:
         path: The asset as reports name it.
-        kind: ``obj`` or ``mbin``.
+        kind: ``obj`` (a source mesh of any reader's format) or ``mbin``.
         findings: Raw findings (default severities), sorted by rule, file and line; their paths are relative
             to the asset's folder until :func:`meshtool.validate.runner.validate` makes them display paths.
         deps: Absolute path -> SHA-256 of every file read (``None``: looked for and absent).
@@ -83,8 +102,13 @@ class AssetResult:
             (``None``: too many entries, the result is not cached).
         stats: Numbers for reports (triangles, volume, hull fit, mass, ...).
         thumbnail: PNG bytes, or ``None``.
-        notes: Checks not done and why, one line each.
+        notes: Checks not done and why, one line each (what the thumbnail could not be is ``thumbnail_note``).
         cached: Whether this result came from the cache (set by the runner).
+        format: The file's format (:attr:`AssetTask.format`: ``obj``, ``stl``, ``ply``, ``gltf``, ``glb``,
+            ``collada``, ``mbin``), set by the runner; every report labels the asset with it.
+        drawable: The check handed the asset to the physics plugin, so a thumbnail can be drawn.
+        thumbnail_note: Why there is no thumbnail when one was asked for (no GL context...), or ``None``.
+            Kept apart from ``notes`` so that a report's text does not depend on whether pictures were drawn.
     """
 
     path: str
@@ -96,6 +120,14 @@ class AssetResult:
     thumbnail: bytes | None = None
     notes: list[str] = field(default_factory=list)
     cached: bool = False
+    format: str = ""
+    drawable: bool = False
+    thumbnail_note: str | None = None
+
+
+#: How the physics plugin's notes about the picture begin (:mod:`simrun.asset_check`): they go to
+#: :attr:`AssetResult.thumbnail_note`, not to the notes every report prints.
+THUMBNAIL_NOTE = "no thumbnail"
 
 
 @dataclass(slots=True)
@@ -200,7 +232,7 @@ def _read_obj(read: ReadAsset) -> None:
     if (mesh_format(src) or mesh_format_named("obj")).text:  # binary formats (STL, PLY, GLB) are no text
         result.findings.extend(encoding_findings(shown, data))
     try:
-        asset = prepare(src, NormaliseOptions())
+        asset = prepare(src, NormaliseOptions(units=task.units, up=task.up))
     except MeshtoolError as exc:
         rule = {"non-finite": "G001", "gltf-buffer-missing": "S013"}.get(str(exc.code), "S001")
         # a binary file's location is a byte offset, which findings have no field for: it leads the message
@@ -235,6 +267,13 @@ def _judge_obj(read: ReadAsset) -> None:
     assert asset is not None
     name = task.path.name
     mesh = asset.mesh
+    if task.thumbnail_only:
+        if mesh.faces.shape[0] > 0:
+            hull_options = HullOptions(mode="convex", max_hull_vertices=task.limits.max_hull_vertices)
+            hull_set = compute_hulls(mesh, hull_options, name)
+            options = ConvertOptions(hulls=hull_options)
+            _thumbnail(task, result, pack(asset, False, options.fingerprint(), hull_set.hulls, None))
+        return
     result.stats.update(asset.stats)
     result.findings.extend(geometry_findings(mesh.positions, mesh.faces, name, task.limits))
     if mesh.faces.shape[0] == 0:
@@ -276,6 +315,9 @@ def _read_mbin(read: ReadAsset) -> None:
 def _judge_mbin(read: ReadAsset) -> None:
     task, result, data = read.task, read.result, read.mbin
     assert data is not None
+    if task.thumbnail_only:
+        _thumbnail(task, result, data)
+        return
     name = task.path.name
     packed = parse(data, name, verify=False)  # verified when read
     meta = packed.meta
@@ -347,6 +389,27 @@ def _physics(task: AssetTask, result: AssetResult, mbin: bytes) -> None:
     scale_wrong = any(f.code == "U001" for f in result.findings)
     # a mass far off, or a fall from far up, because the size is far off: one cause, reported once (U001)
     result.findings.extend(f for f in outcome.findings if not (scale_wrong and f.code in ("P002", "P004")))
-    result.thumbnail = outcome.thumbnail
-    result.notes.extend(outcome.notes)
+    result.drawable = True
+    _keep_picture(result, outcome.thumbnail, outcome.notes)
     result.stats["physics"] = outcome.stats
+
+
+def _keep_picture(result: AssetResult, thumbnail: bytes | None, notes: list[str]) -> None:
+    """The plugin's thumbnail, its notes about the picture as ``thumbnail_note`` and the others as notes."""
+    result.thumbnail = thumbnail
+    result.notes.extend(n for n in notes if not n.startswith(THUMBNAIL_NOTE))
+    result.thumbnail_note = next((n for n in notes if n.startswith(THUMBNAIL_NOTE)), None)
+
+
+def _thumbnail(task: AssetTask, result: AssetResult, mbin: bytes) -> None:
+    """Only the picture (:attr:`AssetTask.thumbnail_only`): the plugin compiles the pack and draws it.
+
+    The drop is cut to one step (``settle-time`` 0): the picture shows the asset upright whatever the drop
+    did, and the plugin's findings are not kept (the cached ones stand).
+    """
+    plugin = physics_plugin()
+    if plugin is None:
+        result.thumbnail_note = f"{THUMBNAIL_NOTE}: no physics plugin installed (pip install meshtool-simrun)"
+        return
+    outcome = plugin(mbin, task.path.name, {**task.limits.as_dict(), "settle_time": 0.0}, True)
+    _keep_picture(result, outcome.thumbnail, [n for n in outcome.notes if n.startswith(THUMBNAIL_NOTE)])

@@ -7,14 +7,15 @@ import re
 import stat
 from pathlib import Path
 
-from meshtool.formats import COMPANION_SUFFIXES, mesh_suffixes, output_named
+from meshtool.formats import COMPANION_SUFFIXES, REPORT_FORMATS, mesh_suffixes, output_named
 from meshtool.outdir import check_output, is_within
 from meshtool.validate.reports.html import to_html
 from meshtool.validate.reports.machine import to_github, to_json, to_junit
 from meshtool.validate.reports.text import to_text
 from meshtool.validate.runner import ValidationReport
 
-FORMATS = ("text", "json", "junit", "github", "html")
+#: The report formats, in the formats registry's order (:data:`meshtool.formats.REPORT_FORMATS`).
+FORMATS = tuple(row.name for row in REPORT_FORMATS)
 
 
 def render(report: ValidationReport, fmt: str, strict: bool = False, colour: bool = False) -> str:

@@ -10,7 +10,7 @@ from html import escape
 
 from meshtool import __version__
 from meshtool.reportkit import REPORT_CSS, no_preview_image, png_data_uri
-from meshtool.validate.reports.machine import status
+from meshtool.validate.reports.machine import format_label, status
 from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
@@ -54,7 +54,7 @@ def _card(a: AssetResult, key: str) -> str:
         src = png_data_uri(a.thumbnail)
         alt = f"{a.path}: visual (left) and collision (right)"
     else:
-        reason = next((n for n in a.notes if "thumbnail" in n or "not checked" in n), "no preview")
+        reason = a.thumbnail_note or next((n for n in a.notes if "not checked" in n), "no preview")
         src = no_preview_image(reason)
         alt = f"{a.path}: {reason}"
     rows = []
@@ -68,9 +68,10 @@ def _card(a: AssetResult, key: str) -> str:
             f'<div class="hint">fix: {escape(rule.hint)}</div></td></tr>'
         )
     findings = f"<table>{''.join(rows)}</table>" if rows else '<div class="clean-note">no findings</div>'
-    notes = "".join(f'<div class="notes">{escape(n)}</div>' for n in a.notes)
+    notes = "".join(f'<div class="notes">{escape(n)}</div>' for n in [*a.notes, *filter(None, [a.thumbnail_note])])
+    card = f'<section class="card {key}" data-format="{escape(a.format or a.kind)}">'
     return (
-        f'<section class="card {key}"><img src="{src}" alt="{escape(alt)}" width="404" height="150">'
+        f'{card}<img src="{src}" alt="{escape(alt)}" width="404" height="150">'
         f'<div class="body"><div class="path">{escape(a.path)}</div>'
         f'<div class="stats">{escape(_stats_line(a))}</div>{findings}{notes}</div></section>'
     )
@@ -84,7 +85,7 @@ def _local(path: str, asset: str) -> str:
 
 def _stats_line(a: AssetResult) -> str:
     s = a.stats
-    bits = [a.kind]
+    bits = [format_label(a)]
     if "triangles" in s:
         bits.append(f"{s['triangles']} triangles")
     extent = s.get("bbox", {}).get("extent") if isinstance(s.get("bbox"), dict) else None

@@ -12,6 +12,7 @@ from xml.etree import ElementTree as ET
 
 from meshtool import __version__
 from meshtool.findings import Finding, Severity
+from meshtool.formats import MESH_FORMATS, OUTPUTS
 from meshtool.reportkit import annotation_data, annotation_property
 from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
@@ -29,6 +30,20 @@ def status(asset: AssetResult) -> str:
         if level in levels:
             return level.value
     return "clean"
+
+
+def format_label(asset: AssetResult) -> str:
+    """How reports name the asset's format, from the formats registry.
+
+    A mesh format's label (``OBJ``, ``STL``, ``PLY``, ``glTF``, ``GLB``, ``COLLADA``); ``MBIN`` for a pack (its
+    output row's name, as :func:`meshtool.formats.check_suffix` writes it).
+    """
+    name = asset.format or asset.kind
+    mesh = next((row for row in MESH_FORMATS if row.name == name), None)
+    if mesh is not None:
+        return mesh.label
+    output = next((row for row in OUTPUTS if row.name == name), None)
+    return output.name.upper() if output is not None else name
 
 
 def finding_dict(f: Finding) -> dict[str, Any]:
@@ -69,6 +84,7 @@ def to_json(report: ValidationReport, strict: bool = False) -> str:
             {
                 "path": a.path,
                 "kind": a.kind,
+                "format": a.format or a.kind,
                 "status": status(a),
                 "findings": [finding_dict(f) for f in a.findings],
                 "notes": a.notes,
@@ -89,6 +105,8 @@ def to_junit(report: ValidationReport, strict: bool = False) -> str:
     for a in report.assets:
         folder = a.path.rpartition("/")[0].replace("/", ".") or "."
         case = ET.SubElement(suite, "testcase", classname=f"meshtool.validate.{folder}", name=a.path, file=a.path)
+        properties = ET.SubElement(case, "properties")  # first in a testcase, as JUnit readers expect it
+        ET.SubElement(properties, "property", name="format", value=format_label(a))
         internal = [f for f in a.findings if f.code == "X001"]
         failing = [f for f in a.findings if f.severity in fails and f.code != "X001"]
         rest = [f for f in a.findings if f not in failing and f not in internal]

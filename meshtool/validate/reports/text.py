@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from meshtool.validate.reports.machine import status
+from meshtool.validate.reports.machine import format_label, status
 from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
@@ -33,7 +33,7 @@ def to_text(report: ValidationReport, strict: bool = False, colour: bool = False
             continue
         count = {s: sum(f.severity.value == s for f in a.findings) for s in ("error", "warning", "info")}
         tally = ", ".join(f"{n} {s}{'s' if n != 1 else ''}" for s, n in count.items() if n)
-        lines.append(f"{paint(a.path, 'bold')}  {paint(tally or 'clean', state)}")
+        lines.append(f"{paint(a.path, 'bold')} ({format_label(a)})  {paint(tally or 'clean', state)}")
         for f in a.findings:
             rule = RULES[f.code]
             where = f"{f.path}:{f.line}" if f.line is not None else (f.path or a.path)
@@ -62,9 +62,11 @@ def summary_lines(report: ValidationReport, strict: bool = False, colour: bool =
     )
     places = ", ".join(f"{n} in {where}" if " " in where else f"{n} on {where}" for where, n in report.where.items())
     run = f"checked {report.checked}{f' ({places})' if places else ''}, {report.cache_hits} from cache"
+    if report.thumbnails_drawn:
+        run += f" ({report.thumbnails_drawn} thumbnail{'s' if report.thumbnails_drawn != 1 else ''} drawn for them)"
     if report.unchanged_skipped:
         run += f", {report.unchanged_skipped} unchanged not shown (--changed-only)"
-    if report.checked == 0 and report.cache_hits:  # the executor was never started nor contacted
+    if report.checked == 0 and report.cache_hits and not report.thumbnails_drawn:  # no executor started nor contacted
         unused = "not contacted" if report.executor == "dask" else "not used"
         run += f"; {report.executor} executor {unused}: everything cached, {report.seconds:.2f} s"
     else:
