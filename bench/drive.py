@@ -25,9 +25,10 @@ import mujoco
 from _report import Timing, arguments, interleave, load_average, write_section
 
 from simrun import Box, Ground, Pose, World
-from simrun.drive import BoeBot
-from simrun.drive_service import DriveService
-from simrun.sensors import GPS, Bumper, Encoders, LaserRangeFinder
+from simrun.robots.catalogue import BoeBot
+from simrun.sensors.laser import LaserRangeFinder
+from simrun.sensors.robot_state import GPS, Bumper, Encoders
+from simrun.services.drive_service import DriveService
 
 BEGIN, END = "<!-- drive:begin -->", "<!-- drive:end -->"
 SECONDS = 5.0

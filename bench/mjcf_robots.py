@@ -30,7 +30,7 @@ Every ``.xml`` under the packages' folders (``dm_control/``, ``gymnasium/envs/mu
 2. 2 s of simulated time with its ``JointService`` (500 Hz) commanding the target pose below; pass: no
    MuJoCo warning (``World.warnings()``), every ``qpos``, ``qvel``, ``qacc`` finite;
 3. the target pose, reached: every joint the service commands (hinge or slide with an actuator of its
-   own, see simrun/joint_service.py) gets the target ``q0 + d`` from its initial position ``q0``, ``d`` =
+   own, see simrun/services/joint_service.py) gets the target ``q0 + d`` from its initial position ``q0``, ``d`` =
    0.1 rad (hinge) or 0.01 m (slide) towards the middle of its range (a quarter of the range at most, 10 %
    of it clear of the limits, and no more than the actuator can move the joint's inertia at full force in
    half the reach time, bang-bang: ``a_max REACH^2 / 16``). A *reachable* target is one the actuators can
@@ -69,8 +69,8 @@ sys.path.insert(0, str(ROOT))
 
 from bench._report import write_section  # noqa: E402
 from simrun import Box, Ground, Pose, World, WorldOptions  # noqa: E402
-from simrun.joint_service import JointService  # noqa: E402
-from simrun.mjcf_robot import MjcfRobot  # noqa: E402
+from simrun.robots.mjcf_robot import MjcfRobot  # noqa: E402
+from simrun.services.joint_service import JointService  # noqa: E402
 
 VENV = ROOT / ".bench-mjcf"
 PACKAGES = {"dm-control": "1.0.50", "gymnasium": "1.4.0"}
@@ -349,10 +349,10 @@ def section(
         BEGIN,
         "## MJCF robots",
         "",
-        'Any MJCF model is an entity: `MjcfRobot` (`file = "robot.xml"`, `simrun/mjcf_robot.py`) attaches it',
+        'Any MJCF model is an entity: `MjcfRobot` (`file = "robot.xml"`, `simrun/robots/mjcf_robot.py`) attaches it',
         "through `MjSpec` under `NAME/`, its keyframes, actuators, sensors, excludes, equalities and defaults",
-        "kept, meshes and textures read from beside it. `JointService` (`simrun/joint_service.py`) commands the",
-        "joints of any entity through their own actuators by name: targets, velocities, trajectories, state",
+        "kept, meshes and textures read from beside it. `JointService` (`simrun/services/joint_service.py`) commands",
+        "the joints of any entity through their own actuators by name: targets, velocities, trajectories, state",
         "(`UrdfRobot` with `actuators = true` too). `wheels = [LEFT, RIGHT]` gives two wheel joints simrun's DC",
         'motors for the `DriveService`; sensors mount on a link with `body = "NAME/link"`. The fixture',
         "`fixtures/scenes/mjcf_arm_on_base.toml` (an MJCF arm on a Pioneer 3-DX, a laser on its wrist) runs",

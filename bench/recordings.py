@@ -6,7 +6,7 @@ Records the ``make demo`` run (fixtures/scenes/boebot.toml with square.commands.
 seconds, frames every 20 ms: 2,000 frames) once, then times each ``simrun replay`` command end to end as a
 user runs it (a new process: start-up, scene load and compile, replay of every frame, export, atomic
 write), best of --repeat, and reports the bytes written. The export-only column is the time spent writing
-that format once the recording is replayed (``simrun.replay_export.Written.seconds``).
+that format once the recording is replayed (``simrun.record.replay_export.Written.seconds``).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 import mujoco
 from _report import write_section
 
-from simrun.replay_export import export_recording
+from simrun.record.replay_export import export_recording
 
 BEGIN, END = "<!-- recordings:begin -->", "<!-- recordings:end -->"
 ROOT = Path(__file__).resolve().parent.parent

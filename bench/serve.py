@@ -40,8 +40,8 @@ BEGIN, END = "<!-- serve:begin -->", "<!-- serve:end -->"
 ROOM, BOEBOT = SCENES / "pioneer_room.toml", SCENES / "boebot.toml"
 BARE = """
 import sys, time
-from simrun.scene import load_scene
-from simrun.session import prepare
+from simrun.scene.scene_file import load_scene
+from simrun.run.session import prepare
 world = load_scene(sys.argv[1]); prepare(world)
 world.step(5)
 start = time.perf_counter(); t0 = world.time

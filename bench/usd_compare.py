@@ -1,8 +1,8 @@
 """Our USD export against mujoco-usd-converter 0.8.0 on every fixture scene: prim counts per type.
 
 For each scene in ``fixtures/scenes`` (``*.commands.toml`` are command files, not scenes) the world is
-written twice: by ``simrun.usd_export`` (``.usda``) and by ``mujoco-usd-converter`` from the world's MJCF
-export (``simrun.mjcf_builder``: the XML with its OBJ meshes and PNG textures). Both stages are then opened
+written twice: by ``simrun.export.usd`` (``.usda``) and by ``mujoco-usd-converter`` from the world's MJCF
+export (``simrun.export.mjcf_builder``: the XML with its OBJ meshes and PNG textures). Both stages are then opened
 with every payload loaded and counted by the same code, run in the converter's environment (its usd-core
 knows the MjcPhysics schemas the converter writes): one count per prim type name and per applied API
 schema (multiple-apply schemas with their instance, ``PhysicsDriveAPI:angular``), plus the targets of
@@ -76,8 +76,8 @@ def scenes() -> list[Path]:
 def export_both(scene: Path, tmp: Path, converter: Path) -> tuple[Path, Path | None, str]:
     """(our USD, the converter's USD or None, the converter's failure line) for ``scene``."""
     from simrun import load_scene
-    from simrun.mjcf_builder import export_world_mjcf
-    from simrun.usd_export import export_world_usd
+    from simrun.export.mjcf_builder import export_world_mjcf
+    from simrun.export.usd import export_world_usd
 
     world = load_scene(scene)
     ours = tmp / f"{scene.stem}.usda"

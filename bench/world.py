@@ -10,7 +10,7 @@ fresh file copies so that no cold contender profits from a cache (MuJoCo caches 
 * simrun cold: ``World`` with 50 ``MeshEntity`` (arrays and PNG bytes into the spec from memory; identical
   images are decoded once) built and compiled, no model cache;
 * simrun second load: the same world built again from the same files with the compiled-model cache
-  (simrun/model_cache.py) filled by the first load: the model comes from its MJB entry.
+  (simrun/world/model_cache.py) filled by the first load: the model comes from its MJB entry.
 
 A second pair uses 50 *different* textures (one pixel changed per copy), where every image must be decoded
 on a cold load by both. Wall-clock and process CPU time (all threads) are reported as min / median.
@@ -49,7 +49,7 @@ from meshtool.obj.write import format_obj
 from meshtool.packfile import pack
 from meshtool.packfile.read import forget_checks
 from simrun import MeshEntity, Pose, World
-from simrun.model_cache import ModelCache
+from simrun.world.model_cache import ModelCache
 
 COUNT = 50
 BEGIN, END = "<!-- world:begin -->", "<!-- world:end -->"
@@ -347,7 +347,7 @@ def growth_table(before: str, r: dict[str, Timing], ready: str, repeat: int, siz
         "Python bindings, MuJoCo's MJCF parser in C++; in the bindings (MuJoCo "
         f"{mujoco.__version__}) one `add_body` + `add_geom` on a bare spec costs {grows} (measured in the same "
         f"run){verdict}. `World.compile()` at N = {big:,} (shared; it also makes the `MjData` and runs "
-        f"`mj_forward`, with the arena simrun sizes for the broadphase: `simrun.world.arena_bytes`) {ready}.",
+        f"`mj_forward`, with the arena simrun sizes for the broadphase: `simrun.world.world.arena_bytes`) {ready}.",
         GROWTH_END,
     ]
     return "\n".join(lines)

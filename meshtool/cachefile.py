@@ -1,7 +1,7 @@
 r"""One envelope for every cache entry meshtool and simrun write: an entry says which key it answers.
 
 The hull cache (:mod:`meshtool.decompose`), the validate cache (:mod:`meshtool.validate.cache`) and simrun's
-compiled-model cache (:mod:`simrun.model_cache`) store each entry as (little-endian)::
+compiled-model cache (:mod:`simrun.world.model_cache`) store each entry as (little-endian)::
 
     offset  size  field
     0       8     magic b"\x89MTCACHE"

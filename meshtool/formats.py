@@ -1,6 +1,6 @@
 """The one registry of file formats: every mesh format meshtool reads and every file meshtool or simrun writes.
 
-Two tables, read by everything that needs to know about a format (as :mod:`simrun.registry` is for scene
+Two tables, read by everything that needs to know about a format (as :mod:`simrun.world.registry` is for scene
 types):
 
 * :data:`MESH_FORMATS`: a :class:`MeshFormat` row per input format: its name, suffixes, label, its reader
@@ -153,7 +153,7 @@ OUTPUTS: list[OutputFormat] = [
     ),
     OutputFormat(
         "gltf", (".gltf",), "glTF JSON with embedded buffers: an animated recording", "simrun", _W + "is_gltf",
-        "`asset.generator` simrun, near the start", "simrun.replay_export:export_recording",
+        "`asset.generator` simrun, near the start", "simrun.record.replay_export:export_recording",
     ),
     OutputFormat(
         "usd", (".usda", ".usdc", ".usd"), "USD stage: a pack, a scene or an animated recording", "meshtool",
@@ -165,39 +165,39 @@ OUTPUTS: list[OutputFormat] = [
     ),
     OutputFormat(
         "obj", (".obj",), "Wavefront OBJ: a mesh beside an MJCF, or a normalised asset's mesh", "meshtool",
-        _W + "is_obj", "a first comment line naming meshtool or simrun", "simrun.mjcf_builder:folder_files",
+        _W + "is_obj", "a first comment line naming meshtool or simrun", "simrun.export.mjcf_builder:folder_files",
     ),
     OutputFormat(
         "mjcf", (".xml",), "MJCF model", "simrun", _W + "is_mjcf",
-        "no room: root element `<mujoco>`", "simrun.mjcf_builder:build_files", False,
+        "no room: root element `<mujoco>`", "simrun.export.mjcf_builder:build_files", False,
     ),
     OutputFormat(
         "mjz", (".mjz",), "zip of an MJCF folder", "simrun", "",
-        "no room: zip magic number", "simrun.archive:save_mjz", False, (b"PK\x03\x04",),
+        "no room: zip magic number", "simrun.world.archive:save_mjz", False, (b"PK\x03\x04",),
     ),
     OutputFormat(
         "html", (".html", ".htm"), "recording player page", "simrun", _W + "is_html",
-        '`<meta name="generator">` simrun, near the start', "simrun.replay_export:export_recording",
+        '`<meta name="generator">` simrun, near the start', "simrun.record.replay_export:export_recording",
     ),
     OutputFormat(
         "png", (".png",), "rendered image", "simrun", "",
-        "no room: PNG magic number", "simrun.session:run_play", False, (b"\x89PNG\r\n\x1a\n",),
+        "no room: PNG magic number", "simrun.run.session:run_play", False, (b"\x89PNG\r\n\x1a\n",),
     ),
     OutputFormat(
         "gif", (".gif",), "rendered animation", "simrun", "",
-        "no room: GIF magic number", "simrun.play:encode_gif", False, (b"GIF87a", b"GIF89a"),
+        "no room: GIF magic number", "simrun.run.play:encode_gif", False, (b"GIF87a", b"GIF89a"),
     ),
     OutputFormat(
         "mp4", (".mp4",), "rendered video", "simrun", _W + "is_mp4",
-        "no room: `ftyp` box", "simrun.play:encode_mp4", False,
+        "no room: `ftyp` box", "simrun.run.play:encode_mp4", False,
     ),
     OutputFormat(
         "simlog", (".simlog",), "recording (docs/recordings.md)", "simrun", "",
-        "no room: .simlog magic line", "simrun.simlog:Recorder", False, (b"\x89SIMLOG\n",),
+        "no room: .simlog magic line", "simrun.record.simlog:Recorder", False, (b"\x89SIMLOG\n",),
     ),
     OutputFormat(
         "mcap", (".mcap",), "a recording as MCAP messages (poses, odometry, sensors) for Foxglove", "simrun", "",
-        "no room: MCAP magic number", "simrun.mcap_export:export_mcap", False, (b"\x89MCAP0\r\n",),
+        "no room: MCAP magic number", "simrun.record.mcap_export:export_mcap", False, (b"\x89MCAP0\r\n",),
     ),
 ]  # fmt: skip
 

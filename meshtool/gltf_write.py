@@ -2,7 +2,7 @@
 
 Every GLB and ``.gltf`` meshtool and simrun write is built here (the formats registry's ``glb`` and
 ``gltf`` rows): a packed asset (:func:`meshtool.packfile.export.to_glb`), a world
-(:func:`simrun.glb_export.world_to_glb`) and an animated recording (:func:`simrun.replay_glb.recording_gltf`)
+(:func:`simrun.export.glb.world_to_glb`) and an animated recording (:func:`simrun.record.replay_glb.recording_gltf`)
 decorate one :class:`GltfBuilder`. The output is deterministic (same calls, same bytes), every buffer view
 is 4-byte aligned and carries the ``target`` a mesh primitive reads it as, every accessor used as a position
 or animation input carries its ``min``/``max`` (the Khronos validator requires them), and a ``.gltf`` holds

@@ -3,11 +3,11 @@
 meshtool never imports MuJoCo: ``meshtool mjcf`` and ``meshtool urdf`` describe the model they want
 (:class:`ModelDesc`: bodies, joints, inertials, geoms, meshes as arrays, PNG textures, materials,
 equalities, motors) and hand it to the *MJCF builder*, a callable registered under the entry-point group
-``meshtool.mjcf`` with the name ``builder``. simrun registers :func:`simrun.mjcf_builder.build_files`,
+``meshtool.mjcf`` with the name ``builder``. simrun registers :func:`simrun.export.mjcf_builder.build_files`,
 which builds a ``mujoco.MjSpec``, writes the XML with its OBJ meshes and PNG textures, and compiles
 the written folder before returning it. Without simrun installed, :func:`meshtool.plugins.mjcf_files`
 raises :class:`ModelError` with the hint to install it. The same group's ``check`` plugin
-(:func:`simrun.mjcf_builder.check_model`) only compiles a model in memory:
+(:func:`simrun.export.mjcf_builder.check_model`) only compiles a model in memory:
 :func:`meshtool.plugins.check_model` is how ``obj2bin`` asks whether MuJoCo accepts what it packed. The
 plugins are found and called in :mod:`meshtool.plugins` only; this module holds the types they share.
 

@@ -5,7 +5,7 @@ here only (:func:`installed`, :func:`load_plugin`), each group loaded by one mod
 
 - group ``meshtool.mjcf``: ``builder`` builds, writes and compiles an MJCF folder from a
   :class:`meshtool.model.ModelDesc` (``meshtool mjcf``, ``meshtool urdf``); ``check`` compiles one in memory
-  (``obj2bin``'s check), loaded here. simrun registers :mod:`simrun.mjcf_builder`.
+  (``obj2bin``'s check), loaded here. simrun registers :mod:`simrun.export.mjcf_builder`.
 - group ``meshtool.validate``: ``physics`` runs the P rules of ``meshtool validate`` on one packed asset,
   loaded by :mod:`meshtool.validate.physics`. simrun registers :mod:`simrun.asset_check`.
 

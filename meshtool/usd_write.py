@@ -1,9 +1,9 @@
 """The project's one USD writer: stage set-up, prim names, meshes, materials, textures, colliders, the stamp.
 
 Every USD stage meshtool and simrun write is built here (the formats registry's ``usd`` row): a packed asset
-(:func:`meshtool.packfile.usd.export_usd`), a world (:func:`simrun.usd_export.export_world_usd`, which adds
+(:func:`meshtool.packfile.usd.export_usd`), a world (:func:`simrun.export.usd.export_world_usd`, which adds
 the rigid bodies, joints and drives it reads from MuJoCo) and an animated recording
-(:func:`simrun.replay_usd.export_recording_usd`, time samples on the world's stage) decorate one
+(:func:`simrun.record.replay_usd.export_recording_usd`, time samples on the world's stage) decorate one
 :class:`UsdBuilder`. usd-core (``pxr``) writes the layer; the builder holds what every writer shares:
 
 - the stage: Z-up (``upAxis = "Z"``), metres (``metersPerUnit = 1``), the frame meshtool and MuJoCo use, so

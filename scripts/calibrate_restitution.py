@@ -1,4 +1,4 @@
-"""Measure MuJoCo's coefficient of restitution for contact damping ratios (simrun.entity.RESTITUTION_TABLE).
+"""Measure MuJoCo's coefficient of restitution for contact damping ratios (simrun.world.entity.RESTITUTION_TABLE).
 
 Usage: python scripts/calibrate_restitution.py
 """
@@ -8,7 +8,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from simrun.entity import CONTACT_TIMECONST
+from simrun.world.entity import CONTACT_TIMECONST
 
 
 def bounce(zeta: float, timestep: float = 0.002, height: float = 1.0) -> float:

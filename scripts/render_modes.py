@@ -14,7 +14,7 @@ import numpy as np
 from PIL import Image
 
 from simrun import Camera, Light, Pose, load_scene
-from simrun.render import MODES, FrameRenderer
+from simrun.run.render import MODES, FrameRenderer
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Tile size, pixels.

@@ -17,52 +17,52 @@ or load one from a TOML scene file with :func:`load_scene`.
 
 __version__ = "0.1.0"
 
-from simrun.headless import arm as _arm_gl_choice
+from simrun.run.headless import arm as _arm_gl_choice
 
 # Headless OpenGL by default: MUJOCO_GL is decided the moment anything first imports mujoco (a
-# sys.meta_path hook, simrun/headless.py), so ``import simrun`` and ``simrun --help`` never load MuJoCo.
+# sys.meta_path hook, simrun/run/headless.py), so ``import simrun`` and ``simrun --help`` never load MuJoCo.
 _arm_gl_choice()
 
 import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from simrun.entity import Entity, Material
-    from simrun.environment import Camera, Ground, HeightField, Light, Sky
+    from simrun.entities.environment import Camera, Ground, HeightField, Light, Sky
+    from simrun.entities.mesh_entity import MeshEntity
+    from simrun.entities.shapes import Box, Capsule, Cylinder, Sphere
     from simrun.errors import CompileError, EntityError, SceneError, SimrunError
-    from simrun.mesh_entity import MeshEntity
-    from simrun.pose import Pose
-    from simrun.scene import load_scene, save_scene, scene_text
-    from simrun.shapes import Box, Capsule, Cylinder, Sphere
-    from simrun.urdf_robot import UrdfRobot
-    from simrun.world import World, WorldOptions
+    from simrun.robots.urdf_robot import UrdfRobot
+    from simrun.scene.scene_file import load_scene, save_scene, scene_text
+    from simrun.world.entity import Entity, Material
+    from simrun.world.pose import Pose
+    from simrun.world.world import World, WorldOptions
 
 #: Public name -> the module that defines it, imported on first use (PEP 562): a tool that needs one part
-#: of simrun (meshtool's MuJoCo load check imports ``simrun.mjcf_builder``) does not import all of it.
+#: of simrun (meshtool's MuJoCo load check imports ``simrun.export.mjcf_builder``) does not import all of it.
 _LAZY = {
-    "Entity": "simrun.entity",
-    "Material": "simrun.entity",
-    "Camera": "simrun.environment",
-    "Ground": "simrun.environment",
-    "HeightField": "simrun.environment",
-    "Light": "simrun.environment",
-    "Sky": "simrun.environment",
+    "Entity": "simrun.world.entity",
+    "Material": "simrun.world.entity",
+    "Camera": "simrun.entities.environment",
+    "Ground": "simrun.entities.environment",
+    "HeightField": "simrun.entities.environment",
+    "Light": "simrun.entities.environment",
+    "Sky": "simrun.entities.environment",
     "CompileError": "simrun.errors",
     "EntityError": "simrun.errors",
     "SceneError": "simrun.errors",
     "SimrunError": "simrun.errors",
-    "MeshEntity": "simrun.mesh_entity",
-    "Pose": "simrun.pose",
-    "load_scene": "simrun.scene",
-    "save_scene": "simrun.scene",
-    "scene_text": "simrun.scene",
-    "Box": "simrun.shapes",
-    "Capsule": "simrun.shapes",
-    "Cylinder": "simrun.shapes",
-    "Sphere": "simrun.shapes",
-    "UrdfRobot": "simrun.urdf_robot",
-    "World": "simrun.world",
-    "WorldOptions": "simrun.world",
+    "MeshEntity": "simrun.entities.mesh_entity",
+    "Pose": "simrun.world.pose",
+    "load_scene": "simrun.scene.scene_file",
+    "save_scene": "simrun.scene.scene_file",
+    "scene_text": "simrun.scene.scene_file",
+    "Box": "simrun.entities.shapes",
+    "Capsule": "simrun.entities.shapes",
+    "Cylinder": "simrun.entities.shapes",
+    "Sphere": "simrun.entities.shapes",
+    "UrdfRobot": "simrun.robots.urdf_robot",
+    "World": "simrun.world.world",
+    "WorldOptions": "simrun.world.world",
 }
 
 

@@ -33,9 +33,9 @@ from meshtool.formats import suffix
 from meshtool.packfile import parse
 from meshtool.validate.plugins import PhysicsOutcome
 from meshtool.validate.rules import hit
-from simrun.assets import AssetLibrary
 from simrun.errors import SimrunError
-from simrun.render import open_renderer, scene_option
+from simrun.run.render import open_renderer, scene_option
+from simrun.world.assets import AssetLibrary
 
 TIMESTEP = 0.002
 #: Speed limits of a body at rest, m/s and rad/s, over the last REST_WINDOW seconds.
@@ -206,7 +206,7 @@ def _thumbnail(
     model.vis.headlight.ambient[:] = [0.35, 0.35, 0.35]
     try:
         renderer = open_renderer(model, THUMB_W, THUMB_H)
-    except SimrunError as exc:  # one line naming the fix (simrun.headless)
+    except SimrunError as exc:  # one line naming the fix (simrun.run.headless)
         _gl_failure.append(str(exc).removeprefix("cannot render: "))
         outcome.notes.append(f"no thumbnail: {_gl_failure[0]}")
         return

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import mujoco
 
-from simrun.headless import HEADLESS, PACKAGES, GLChoice, available, gl_choice
+from simrun.run.headless import HEADLESS, PACKAGES, GLChoice, available, gl_choice
 
 _PROBE = """
 import mujoco
@@ -30,7 +30,7 @@ class DoctorReport:
         physics_ok: Whether a model compiled and stepped.
         physics_error: The error when it did not.
         gl: Backend name (``egl``, ``osmesa``) to ``None`` when it rendered, else the error's last line.
-        choice: The backend this process uses and how it was chosen (:mod:`simrun.headless`).
+        choice: The backend this process uses and how it was chosen (:mod:`simrun.run.headless`).
     """
 
     mujoco_version: str

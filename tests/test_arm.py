@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from simrun import Box, EntityError, Ground, Pose, World, WorldOptions
-from simrun.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment, SixDof
-from simrun.drive import Pioneer3DX
-from simrun.drive_service import DriveService
+from simrun.robots.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment, SixDof
+from simrun.robots.catalogue import Pioneer3DX
+from simrun.services.drive_service import DriveService
 
 
 def test_kuka_moves_to_a_joint_target():

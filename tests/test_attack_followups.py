@@ -103,7 +103,7 @@ SCENES = Path(__file__).resolve().parents[1] / "fixtures" / "scenes"
 
 
 def test_replay_of_a_recording_with_a_non_utf8_name(tmp_path):
-    from simrun.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
+    from simrun.record.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
 
     log = os.fsdecode(b"r\xff.simlog")
     clean_exit(run("simrun", "play", SCENES / "boebot.toml", "--duration", "0.2", "--record", log, cwd=tmp_path), 0)
@@ -180,7 +180,7 @@ DEEP_TOML = ("x = " + "[" * 600 + "]" * 600 + "\n").encode()  # about 1 KB
 def simlog_with_header(header: bytes) -> bytes:
     import struct
 
-    from simrun.simlog import MAGIC, MAJOR, MINOR
+    from simrun.record.simlog import MAGIC, MAJOR, MINOR
 
     return MAGIC + struct.pack("<HHI", MAJOR, MINOR, len(header)) + header
 
@@ -377,7 +377,7 @@ def test_urdf_robot_keeps_the_xml_parser_quiet(tmp_path, caplog):
     import logging
 
     from simrun.errors import SimrunError
-    from simrun.scene import load_scene
+    from simrun.scene.scene_file import load_scene
 
     xxe_urdf_simrun(tmp_path)
     with caplog.at_level(logging.DEBUG), contextlib.suppress(SimrunError):

@@ -34,8 +34,8 @@ from meshtool.normalise import NormaliseOptions, prepare
 from meshtool.validate import ValidateOptions, render, validate
 from meshtool.validate.cache import ResultCache
 from simrun import Box, MeshEntity, Pose, World
-from simrun.model_cache import KIND as MODEL_KIND
-from simrun.model_cache import ModelCache, model_bytes
+from simrun.world.model_cache import KIND as MODEL_KIND
+from simrun.world.model_cache import ModelCache, model_bytes
 
 SCENES = FIXTURES / "scenes"
 BOX_DIR = FIXTURES / "validate" / "clean"
@@ -75,7 +75,7 @@ def only(folder: Path, pattern: str) -> Path:
 
 # -- running a command line in a child ------------------------------------------------------------------------
 
-_ENTRY = {"meshtool": "meshtool.cli:main", "obj2bin": "meshtool.cli:obj2bin", "simrun": "simrun.cli:main"}
+_ENTRY = {"meshtool": "meshtool.cli:main", "obj2bin": "meshtool.cli:obj2bin", "simrun": "simrun.cli.main:main"}
 
 
 def run(

@@ -5,9 +5,10 @@ import pytest
 from conftest import needs_gl
 
 from simrun import Box, Camera, Ground, Pose, World
-from simrun.cameras import IRDistance, RangeCone, Sonar, StereoCamera, StereoRig, Webcam
-from simrun.drive import BoeBot
 from simrun.errors import EntityError, SimrunError
+from simrun.robots.catalogue import BoeBot
+from simrun.sensors.cameras import StereoCamera, StereoRig, Webcam
+from simrun.sensors.range_cone import IRDistance, RangeCone, Sonar
 
 
 def robot_facing_wall(distance):

@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 
 from simrun import Box, EntityError, Ground, Pose, World, load_scene
-from simrun.drive import BoeBot, DifferentialDrive, IRobotCreate, LegoNxtTribot, Pioneer3DX
-from simrun.drive_service import DriveLimits, DriveService, Odometry
-from simrun.sensors import GPS, IMU, Bumper, Encoders, LaserRangeFinder
+from simrun.robots.catalogue import BoeBot, IRobotCreate, LegoNxtTribot, Pioneer3DX
+from simrun.robots.diff_drive import DifferentialDrive
+from simrun.sensors.laser import LaserRangeFinder
+from simrun.sensors.robot_state import GPS, IMU, Bumper, Encoders
+from simrun.services.drive_service import DriveLimits, DriveService, Odometry
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 
@@ -379,7 +381,7 @@ def test_laser_sees_the_walls_at_the_right_distances():
 
 
 def test_a_low_laser_does_not_see_its_own_wheels_or_mounted_arm():
-    from simrun.arm import LynxL6
+    from simrun.robots.arm import LynxL6
 
     world = World()
     world.insert(Ground(name="ground"))
@@ -437,7 +439,7 @@ def test_a_ray_leaving_the_chassis_where_a_wheel_begins_is_continued_through_the
 
 def test_a_ray_still_inside_the_robot_after_the_continuation_cap_sees_nothing(monkeypatch):
     """With no continuation allowed, every ray that meets its own robot first reports nothing (max range)."""
-    import simrun.sensors
+    import simrun.sensors.base
 
     world = World()
     world.insert(Ground(name="ground"))
@@ -448,7 +450,7 @@ def test_a_ray_still_inside_the_robot_after_the_continuation_cap_sees_nothing(mo
     world.step(1)
     assert (wheels.reading.ranges < 0.1).sum() >= 4  # at this height the wheels are in the way of some rays
     assert laser.reading.ranges.min() > 0.1  # continued past the robot: the box at 0.5 m at the nearest
-    monkeypatch.setattr(simrun.sensors, "MAX_CONTINUATIONS", 0)
+    monkeypatch.setattr(simrun.sensors.base, "MAX_CONTINUATIONS", 0)
     world.run(0.1)  # the next scan (10 Hz)
     assert laser.samples == 2
     assert laser.reading.ranges.min() > 0.1  # no continuation: those rays see nothing, never the robot itself
@@ -498,7 +500,7 @@ def test_robot_scenes_check_and_round_trip(scene, tmp_path):
     from click.testing import CliRunner
 
     from simrun import save_scene, scene_text
-    from simrun.cli import main
+    from simrun.cli.main import main
 
     result = CliRunner().invoke(main, ["check", str(SCENES / scene)])
     assert result.exit_code == 0, result.output
@@ -1055,7 +1057,7 @@ def test_service_follows_its_robot_when_the_world_is_rebuilt():
 
 
 def test_bumper_ignores_its_own_mounted_arm():
-    from simrun.arm import ArmService, LynxL6
+    from simrun.robots.arm import ArmService, LynxL6
 
     world = World()
     world.insert(Ground(name="ground"))
@@ -1167,7 +1169,7 @@ def test_checkpoint_in_an_arc_continues_bit_for_bit():
 
 
 def test_sensor_defaults_and_downward_ranges_see_the_floor():
-    from simrun.cameras import IRDistance, Sonar
+    from simrun.sensors.range_cone import IRDistance, Sonar
 
     world, drive, _ = make(Pioneer3DX)
     bumper, imu = Bumper(world, "r"), IMU(world, "r", rate=0)

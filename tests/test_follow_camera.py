@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from conftest import FIXTURES, needs_gl
 
-from simrun.commands import load_commands
 from simrun.errors import SimrunError
-from simrun.play import play
-from simrun.render import FrameRenderer
-from simrun.scene import load_scene
-from simrun.session import prepare
+from simrun.run.commands import load_commands
+from simrun.run.play import play
+from simrun.run.render import FrameRenderer
+from simrun.run.session import prepare
+from simrun.scene.scene_file import load_scene
 
 SCENE = FIXTURES / "scenes" / "boebot.toml"
 SQUARE = FIXTURES / "scenes" / "square.commands.toml"

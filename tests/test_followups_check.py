@@ -188,7 +188,7 @@ def test_the_remembered_check_names_the_plugin_files_and_mujoco_version() -> Non
 
     identity = plugin_identity()
     assert identity is not None
-    builder = ROOT / "simrun" / "mjcf_builder.py"
+    builder = ROOT / "simrun" / "export" / "mjcf_builder.py"
     # the content, not the size and modification time (issue 27: a cache keyed by what its result depends on)
-    assert f"mjcf_builder.py {hashlib.sha256(builder.read_bytes()).hexdigest()}" in identity.splitlines()
+    assert f"export/mjcf_builder.py {hashlib.sha256(builder.read_bytes()).hexdigest()}" in identity.splitlines()
     assert any(line.endswith(f" {mujoco.__version__}") and "mujoco" in line for line in identity.splitlines())

@@ -113,12 +113,12 @@ def _written(kind: str, tmp: Path) -> Path:
 
 
 def _simrun_written(kind: str, tmp: Path) -> Path:
-    from simrun.archive import save_mjz
-    from simrun.mjcf_builder import export_world_mjcf
-    from simrun.play import encode_gif, encode_mp4
-    from simrun.replay_export import export_recording
-    from simrun.scene import load_scene
-    from simrun.session import PlayOptions, run_play
+    from simrun.export.mjcf_builder import export_world_mjcf
+    from simrun.record.replay_export import export_recording
+    from simrun.run.play import encode_gif, encode_mp4
+    from simrun.run.session import PlayOptions, run_play
+    from simrun.scene.scene_file import load_scene
+    from simrun.world.archive import save_mjz
 
     frames = [np.full((16, 16, 3), 40 * k, np.uint8) for k in range(3)]
     target = tmp / f"out{formats.suffix(kind)}"
@@ -145,7 +145,7 @@ def _simrun_written(kind: str, tmp: Path) -> Path:
         if kind == "simlog":
             return log
         if kind == "mcap":
-            from simrun.mcap_export import export_mcap
+            from simrun.record.mcap_export import export_mcap
 
             export_mcap(log, target)
             return target
@@ -156,7 +156,7 @@ def _simrun_written(kind: str, tmp: Path) -> Path:
 @pytest.mark.parametrize("row", OUTPUTS, ids=lambda r: r.name)
 def test_every_recogniser_knows_our_files_and_only_ours(row: OutputFormat, tmp_path: Path) -> None:
     if row.name == "html":
-        from simrun.replay_html import viewer_bundle
+        from simrun.record.replay_html import viewer_bundle
 
         try:
             viewer_bundle()

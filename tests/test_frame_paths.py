@@ -187,7 +187,7 @@ def test_validate_mjcf_and_simrun_see_the_vertices_every_other_path_sees(
     from meshtool.cli import obj2bin
     from meshtool.validate.task import AssetTask, read_asset
     from simrun import UrdfRobot, World
-    from simrun.scene import load_scene
+    from simrun.scene.scene_file import load_scene
 
     mesh, urdf = _package(tmp_path, fmt, consumer)
     runner = CliRunner()

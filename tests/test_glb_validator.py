@@ -18,8 +18,8 @@ from PIL import Image
 
 from meshtool.packfile import load
 from meshtool.packfile.export import to_glb
-from simrun.glb_export import world_to_glb
-from simrun.scene import load_scene
+from simrun.export.glb import world_to_glb
+from simrun.scene.scene_file import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = sorted(p for p in (ROOT / "fixtures" / "scenes").glob("*.toml") if not p.name.endswith(".commands.toml"))

@@ -13,10 +13,10 @@ import pytest
 import trimesh
 from click.testing import CliRunner
 
-from simrun.cli import main
+from simrun.cli.main import main
 from simrun.errors import SimrunError
-from simrun.glb_export import Z_UP_TO_Y_UP, export_world_glb, world_to_glb
-from simrun.scene import load_scene
+from simrun.export.glb import Z_UP_TO_Y_UP, export_world_glb, world_to_glb
+from simrun.scene.scene_file import load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from simrun import EntityError, Ground, Pose, UrdfRobot, World, load_scene
-from simrun.commands import load_commands
-from simrun.joint_service import JointService
-from simrun.mjcf_robot import MjcfRobot
+from simrun.robots.mjcf_robot import MjcfRobot
+from simrun.run.commands import load_commands
+from simrun.services.joint_service import JointService
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from simrun import World, WorldOptions
-from simrun.joint_service import BANDWIDTH, JointService
-from simrun.mjcf_robot import MjcfRobot
+from simrun.robots.mjcf_robot import MjcfRobot
+from simrun.services.joint_service import BANDWIDTH, JointService
 
 #: A light free base (0.2 kg) with a 1 kg, 0.5 m arm on a motor-driven hinge: with the base held the hinge
 #: sees the arm's inertia about its end, m L^2 / 3; free, the arm turns nearly about its own centre.

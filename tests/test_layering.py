@@ -51,7 +51,7 @@ CLI_MODULES = sorted(
     p
     for package in ("meshtool", "simrun")
     for p in (ROOT / package).rglob("*.py")
-    if p.name.startswith("cli") or p.name == "cli.py"
+    if p.name.startswith("cli") or "cli" in p.relative_to(ROOT).parts[1:-1]
 )
 
 
@@ -79,7 +79,12 @@ def test_commands_say_what_they_did_through_the_one_reporting_layer(path):
 
 def test_the_reporting_check_sees_every_cli_module():
     names = {p.relative_to(ROOT).as_posix() for p in CLI_MODULES}
-    assert {"meshtool/cli_commands.py", "simrun/cli.py", "simrun/scenetest/cli.py", "meshtool/cli_output.py"} <= names
+    assert {
+        "meshtool/cli_commands.py",
+        "simrun/cli/main.py",
+        "simrun/cli/scenetest.py",
+        "meshtool/cli_output.py",
+    } <= names
 
 
 def test_only_the_resolver_reads_references():
@@ -228,7 +233,7 @@ def import_graph(packages: tuple[str, ...] = PACKAGES) -> dict[str, dict[str, st
     """Module -> {imported module: where the first such import is} among the modules of ``packages``.
 
     The registry's lazy targets (``module:Class``, imported on first use) count as imports of
-    ``simrun.registry``.
+    ``simrun.world.registry``.
     """
     inside = {m for m in MODULES if m.split(".")[0] in packages}
     graph: dict[str, dict[str, str]] = {m: {} for m in inside}
@@ -242,12 +247,12 @@ def import_graph(packages: tuple[str, ...] = PACKAGES) -> dict[str, dict[str, st
             target = targets.get((group, name))
             if target in inside:
                 graph[module].setdefault(target, f"{_rel(MODULES[module])}:{line}: loads entry point {group}:{name}")
-    if "simrun.registry" in graph:
-        from simrun.registry import REGISTRY
+    if "simrun.world.registry" in graph:
+        from simrun.world.registry import REGISTRY
 
         for t in REGISTRY.values():
             target = t.target.split(":")[0]
-            graph["simrun.registry"].setdefault(target, f"simrun/registry.py: REGISTRY target {t.target}")
+            graph["simrun.world.registry"].setdefault(target, f"simrun/world/registry.py: REGISTRY target {t.target}")
     return graph
 
 
@@ -313,7 +318,12 @@ def describe_cycles(graph: dict[str, dict[str, str]], cycles: list[list[str]]) -
 def test_simrun_has_no_import_cycle():
     """No cycle among simrun's modules, counting imports inside functions and the registry's lazy targets."""
     graph = import_graph(("simrun",))
-    assert {"simrun.sensors", "simrun.arm", "simrun.cameras", "simrun.drive_service"} <= set(graph["simrun.registry"])
+    assert {
+        "simrun.sensors.laser",
+        "simrun.robots.arm",
+        "simrun.sensors.range_cone",
+        "simrun.services.drive_service",
+    } <= set(graph["simrun.world.registry"])
     assert {"simrun.scenetest.reports", "simrun.scenetest.report_html"} <= set(graph)  # subpackages too
     cycles = import_cycles(graph)
     assert not cycles, describe_cycles(graph, cycles)
@@ -339,7 +349,7 @@ def test_entry_points_count_as_imports_by_the_module_that_loads_them():
     :func:`test_packages_have_no_import_cycle` counts them.
     """
     targets = entry_point_targets()
-    assert set(targets.values()) >= {"simrun.mjcf_builder", "simrun.asset_check"}
+    assert set(targets.values()) >= {"simrun.export.mjcf_builder", "simrun.asset_check"}
     graph = import_graph()
     loaded = {}
     for module in MODULES:
@@ -358,7 +368,9 @@ def test_entry_points_count_as_imports_by_the_module_that_loads_them():
     ]
     assert lookups and all(where.startswith("meshtool/plugins.py:") for where in lookups), lookups
     loader = loaded[("meshtool.mjcf", "builder")]  # the edge would close a cycle if the plugin imported its loader
-    assert import_cycles({**graph, "simrun.mjcf_builder": {**graph["simrun.mjcf_builder"], loader: "probe"}})
+    assert import_cycles(
+        {**graph, "simrun.export.mjcf_builder": {**graph["simrun.export.mjcf_builder"], loader: "probe"}}
+    )
 
 
 def test_the_cycle_check_sees_function_level_and_relative_imports():
@@ -436,9 +448,9 @@ def test_the_private_name_check_catches_aliases():
         "import meshtool._hidden\n",
     ):
         assert private_uses(source, "simrun.probe"), source
-    assert private_uses("from simrun.world import World\nWorld._x\n", "meshtool.probe")
-    assert not private_uses("from meshtool import __version__\nfrom simrun.world import _y\n", "simrun.probe")
-    assert not private_uses("import simrun.world as w\nw._z\n", "simrun.probe")  # own package: fine
+    assert private_uses("from simrun.world.world import World\nWorld._x\n", "meshtool.probe")
+    assert not private_uses("from meshtool import __version__\nfrom simrun.world.world import _y\n", "simrun.probe")
+    assert not private_uses("import simrun.world.world as w\nw._z\n", "simrun.probe")  # own package: fine
 
 
 @pytest.mark.parametrize("package", PACKAGES)
@@ -466,3 +478,33 @@ def test_each_module_imports_alone(package):
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == ""
+
+
+#: simrun's concept folders (issue 37): each holds one idea; the package's top keeps only what every part shares.
+SIMRUN_FOLDERS = {
+    "world",
+    "entities",
+    "robots",
+    "services",
+    "sensors",
+    "scene",
+    "run",
+    "record",
+    "export",
+    "scenetest",
+    "serve",
+    "cli",
+}
+
+
+def test_simrun_top_level_is_its_concept_folders_and_a_few_shared_modules():
+    top = sorted(p.name for p in (ROOT / "simrun").glob("*.py"))
+    folders = {p.name for p in (ROOT / "simrun").iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    assert len(top) <= 12, top
+    assert folders == SIMRUN_FOLDERS
+
+
+@pytest.mark.parametrize("folder", sorted(SIMRUN_FOLDERS))
+def test_every_simrun_folder_says_what_it_holds(folder):
+    init = ROOT / "simrun" / folder / "__init__.py"
+    assert ast.get_docstring(ast.parse(init.read_text())), init

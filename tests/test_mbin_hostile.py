@@ -331,7 +331,7 @@ def test_every_command_exits_1_with_one_error_line(bases, tmp_path, case, base, 
 @pytest.mark.parametrize(("case", "base", "attack", "words"), ATTACKS, ids=[a[0] for a in ATTACKS])
 def test_simrun_refuses_a_hostile_asset(bases, tmp_path, case, base, attack, words):
     """simrun loads .mbin assets through meshtool.load (verify=True): `simrun check` exits 1, one line."""
-    from simrun.cli import main as simrun_main
+    from simrun.cli.main import main as simrun_main
 
     (tmp_path / "bad.mbin").write_bytes(hostile(bases, base, attack))
     (tmp_path / "scene.toml").write_text(

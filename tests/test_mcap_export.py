@@ -14,8 +14,8 @@ import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
-from simrun.scene import load_scene
-from simrun.simlog import CHECKPOINT, Simlog, replay_states
+from simrun.record.simlog import CHECKPOINT, Simlog, replay_states
+from simrun.scene.scene_file import load_scene
 
 CHECKOUT = Path(__file__).resolve().parent.parent
 SCENES = CHECKOUT / "fixtures" / "scenes"

@@ -20,8 +20,8 @@ import trimesh
 
 from meshtool.cli import main as meshtool_main
 from meshtool.cli_commands import obj2bin
-from simrun.assets import pack_cache
-from simrun.scene import load_scene
+from simrun.scene.scene_file import load_scene
+from simrun.world.assets import pack_cache
 
 OBJ2BIN = [sys.executable, "-c", "from meshtool.cli import obj2bin; obj2bin()"]
 # An L-shaped prism (12 vertices, concave), modelled in millimetres, Z up: 40 x 30 x 10 mm.

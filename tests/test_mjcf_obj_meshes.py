@@ -12,7 +12,7 @@ import pytest
 import trimesh
 
 from simrun import load_scene
-from simrun.mjcf_builder import export_world_mjcf
+from simrun.export.mjcf_builder import export_world_mjcf
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 

@@ -13,11 +13,12 @@ import pytest
 from click.testing import CliRunner
 
 from simrun import EntityError, Ground, Pose, UrdfRobot, World, load_scene, scene_text
-from simrun.cli import main
-from simrun.drive import Pioneer3DX
-from simrun.drive_service import DriveService
-from simrun.mjcf_robot import MjcfRobot
-from simrun.sensors import GPS, LaserRangeFinder
+from simrun.cli.main import main
+from simrun.robots.catalogue import Pioneer3DX
+from simrun.robots.mjcf_robot import MjcfRobot
+from simrun.sensors.laser import LaserRangeFinder
+from simrun.sensors.robot_state import GPS
+from simrun.services.drive_service import DriveService
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 ARM = FIXTURES / "mjcf" / "arm" / "arm.xml"

@@ -16,11 +16,11 @@ import pytest
 from click.testing import CliRunner
 
 from simrun import EntityError, Ground, Pose, World, load_scene, scene_text
-from simrun.cli import main
-from simrun.joint_service import JointService
-from simrun.mjcf_builder import export_world_mjcf
-from simrun.mjcf_robot import MjcfRobot
-from simrun.session import PlayOptions, run_play, run_resim
+from simrun.cli.main import main
+from simrun.export.mjcf_builder import export_world_mjcf
+from simrun.robots.mjcf_robot import MjcfRobot
+from simrun.run.session import PlayOptions, run_play, run_resim
+from simrun.services.joint_service import JointService
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 WALKERS = FIXTURES / "mjcf" / "walker"

@@ -1,4 +1,4 @@
-"""Compiled-model cache (simrun/model_cache.py): a hit is the same model as compiling, any change is a miss."""
+"""Compiled-model cache (simrun/world/model_cache.py): a hit is the same model as compiling, any change is a miss."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from meshtool.packfile import load
 from simrun import Box, HeightField, MeshEntity, Pose, World
-from simrun.model_cache import ModelCache, model_bytes
+from simrun.world.model_cache import ModelCache, model_bytes
 
 GOLDEN = Path(__file__).resolve().parent.parent / "fixtures" / "golden"
 

@@ -47,8 +47,8 @@ SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 def test_exported_scene_folder_loads_alone_after_being_moved(scene, tmp_path):
     from click.testing import CliRunner
 
-    from simrun.cli import main as simrun_main
-    from simrun.scene import load_scene
+    from simrun.cli.main import main as simrun_main
+    from simrun.scene.scene_file import load_scene
 
     result = CliRunner().invoke(simrun_main, ["export", str(scene), "--mjcf", str(tmp_path / "out" / "scene.xml")])
     assert result.exit_code == 0, result.output

@@ -245,7 +245,7 @@ def test_simrun_writer_applies_the_same_rules(tmp_path):
 
 
 def test_simrun_export_and_play_refuse_foreign_files_and_inputs(fixtures, tmp_path):
-    from simrun.cli import main as simrun
+    from simrun.cli.main import main as simrun
 
     for name in ("basic.toml", "globe.png"):
         shutil.copy(fixtures / "scenes" / name, tmp_path / name)

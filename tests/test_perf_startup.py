@@ -13,14 +13,14 @@ import sys
 
 import pytest
 
-HEAVY = ("numpy", "PIL", "trimesh", "scipy", "mujoco", "coacd", "pxr", "dask", "simrun.glb_export")
+HEAVY = ("numpy", "PIL", "trimesh", "scipy", "mujoco", "coacd", "pxr", "dask", "simrun.export.glb")
 MESHTOOL = ("export", "hulls", "info", "mjcf", "normalize", "unpack", "urdf", "validate")
 SIMRUN = ("check", "doctor", "export", "play", "replay", "resim", "snapshot", "test", "view")
 CASES = (
     [("meshtool.cli", "main", ["meshtool", "--help"]), ("meshtool.cli", "obj2bin", ["obj2bin", "--help"])]
     + [("meshtool.cli", "main", ["meshtool", name, "--help"]) for name in MESHTOOL]
-    + [("simrun.cli", "main", ["simrun", "--help"])]
-    + [("simrun.cli", "main", ["simrun", name, "--help"]) for name in SIMRUN]
+    + [("simrun.cli.main", "main", ["simrun", "--help"])]
+    + [("simrun.cli.main", "main", ["simrun", name, "--help"]) for name in SIMRUN]
 )
 
 
@@ -52,7 +52,7 @@ def test_import_simrun_does_not_load_mujoco_but_the_first_import_of_it_is_headle
     """``import simrun`` arms the GL choice; the first ``import mujoco`` (anyone's) still sees it decided."""
     code = (
         "import os, sys\nimport simrun\nbefore = 'mujoco' in sys.modules\nimport mujoco\n"
-        "from simrun.headless import gl_choice\n"
+        "from simrun.run.headless import gl_choice\n"
         "print(before, os.environ.get('MUJOCO_GL'), gl_choice().backend)"
     )
     env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
@@ -67,9 +67,9 @@ def test_the_light_copies_of_option_choices_agree_with_the_library() -> None:
     from meshtool import cli_commands, cli_validate
     from meshtool.units import UNIT_FACTORS
     from meshtool.validate.reports import FORMATS
-    from simrun import cli
-    from simrun.render import MODES
-    from simrun.session import DEFAULT_SIZE
+    from simrun.cli import main as cli
+    from simrun.run.render import MODES
+    from simrun.run.session import DEFAULT_SIZE
 
     assert tuple(UNIT_FACTORS) == cli_commands.UNITS
     assert cli_validate.FORMATS == FORMATS
@@ -77,7 +77,7 @@ def test_the_light_copies_of_option_choices_agree_with_the_library() -> None:
     assert cli.DEFAULT_SIZE == DEFAULT_SIZE
 
 
-@pytest.mark.parametrize("module", ["meshtool.cli", "simrun.cli"])
+@pytest.mark.parametrize("module", ["meshtool.cli", "simrun.cli.main"])
 def test_the_command_lines_run_numpy_without_spinning_blas_threads(module: str) -> None:
     """OpenBLAS starts a spinning thread per CPU when numpy loads; the command lines ask for none (counted)."""
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}

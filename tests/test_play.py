@@ -11,9 +11,9 @@ from conftest import needs_gl
 from PIL import Image
 
 from simrun import load_scene
-from simrun.cli import main
-from simrun.play import load_commands, play
-from simrun.render import MODES, FrameRenderer
+from simrun.cli.main import main
+from simrun.run.play import load_commands, play
+from simrun.run.render import MODES, FrameRenderer
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 
@@ -132,8 +132,8 @@ def test_view_without_a_display_says_so_in_one_line(monkeypatch):
 
 
 def test_teleop_keys_drive_the_robot():
-    from simrun.drive_service import DriveService
-    from simrun.teleop import KEY_LEFT, KEY_SPACE, KEY_UP, Teleop
+    from simrun.run.viewer import KEY_LEFT, KEY_SPACE, KEY_UP, Teleop
+    from simrun.services.drive_service import DriveService
 
     world = load_scene(SCENES / "boebot.toml")
     teleop = Teleop(DriveService(world, "boebot"))

@@ -15,7 +15,7 @@ import pytest
 
 import meshtool.plugins as plugins
 import simrun.asset_check
-import simrun.mjcf_builder
+import simrun.export.mjcf_builder
 from meshtool.model import BodyDesc, GeomDesc, MeshDesc, ModelDesc, ModelError
 
 DECLARED = {(p.group, p.name): p.value for p in distribution("meshtool-simrun").entry_points}
@@ -31,12 +31,12 @@ def test_installed_reads_the_declared_entry_points_without_loading_them() -> Non
 
 
 def test_load_plugin_gives_what_the_entry_point_names() -> None:
-    assert plugins.load_plugin("meshtool.mjcf", "builder") is simrun.mjcf_builder.build_files
-    assert plugins.load_plugin("meshtool.mjcf", "check") is simrun.mjcf_builder.check_model
+    assert plugins.load_plugin("meshtool.mjcf", "builder") is simrun.export.mjcf_builder.build_files
+    assert plugins.load_plugin("meshtool.mjcf", "check") is simrun.export.mjcf_builder.check_model
     assert plugins.load_plugin("meshtool.validate", "physics") is simrun.asset_check.check_pack
     assert plugins.load_plugin("meshtool.validate", "nothing") is None
-    assert plugins.mjcf_builder() is simrun.mjcf_builder.build_files
-    assert plugins.mjcf_checker() is simrun.mjcf_builder.check_model
+    assert plugins.mjcf_builder() is simrun.export.mjcf_builder.build_files
+    assert plugins.mjcf_checker() is simrun.export.mjcf_builder.check_model
 
 
 def _box_model(half: float) -> ModelDesc:

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from simrun import Box, EntityError, Pose, World, load_scene
-from simrun.cameras import IRDistance, RangeCone, Sonar
-from simrun.mjcf_robot import MjcfRobot
+from simrun.robots.mjcf_robot import MjcfRobot
+from simrun.sensors.range_cone import IRDistance, RangeCone, Sonar
 
 ARM = Path(__file__).resolve().parent.parent / "fixtures" / "mjcf" / "arm" / "arm.xml"
 TURN = Pose((0.5, -0.2, 0.3), (math.cos(0.4), 0.0, 0.0, math.sin(0.4)))  # 0.8 rad about z

@@ -23,10 +23,10 @@ from click.testing import CliRunner
 from PIL import Image
 
 from meshtool.packfile.export import Z_UP_TO_Y_UP
-from simrun.cli import main
-from simrun.play import load_commands, play
-from simrun.replay_export import export_recording
-from simrun.scene import load_scene
+from simrun.cli.main import main
+from simrun.record.replay_export import export_recording
+from simrun.run.play import load_commands, play
+from simrun.scene.scene_file import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "fixtures" / "scenes"
@@ -323,8 +323,8 @@ def test_bad_inputs_are_one_error_line_and_write_nothing(demo: Path, tmp_path: P
 
 
 def test_key_times_stay_strictly_increasing_in_float32_on_long_runs(tmp_path: Path) -> None:
-    from simrun.replay_glb import recording_gltf
-    from simrun.replay_tracks import Tracks, animation_keys
+    from simrun.record.replay_glb import recording_gltf
+    from simrun.record.replay_tracks import Tracks, animation_keys
 
     world = load_scene(DEMO)
     world.compile()

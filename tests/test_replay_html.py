@@ -24,10 +24,10 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from simrun.cli import main
-from simrun.play import load_commands, play
-from simrun.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
-from simrun.scene import load_scene
+from simrun.cli.main import main
+from simrun.record.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
+from simrun.run.play import load_commands, play
+from simrun.scene.scene_file import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "fixtures" / "scenes"

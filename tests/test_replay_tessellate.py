@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simrun.tessellate import box, capsule, cylinder, plane, sphere
+from simrun.export.tessellate import box, capsule, cylinder, plane, sphere
 
 HALF = 1.0
 

@@ -12,11 +12,14 @@ import numpy as np
 import pytest
 
 from simrun import Box, EntityError, Ground, Pose, World, WorldOptions
-from simrun.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment
-from simrun.cameras import IRDistance, RangeCone, Sonar, StereoRig, Webcam
-from simrun.drive import BoeBot, IRobotCreate, LegoNxtTribot, Pioneer3DX
-from simrun.drive_service import DriveLimits, DriveService
-from simrun.sensors import GPS, IMU, Encoders, LaserRangeFinder, RayCaster
+from simrun.robots.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment
+from simrun.robots.catalogue import BoeBot, IRobotCreate, LegoNxtTribot, Pioneer3DX
+from simrun.sensors.base import RayCaster
+from simrun.sensors.cameras import StereoRig, Webcam
+from simrun.sensors.laser import LaserRangeFinder
+from simrun.sensors.range_cone import IRDistance, RangeCone, Sonar
+from simrun.sensors.robot_state import GPS, IMU, Encoders
+from simrun.services.drive_service import DriveLimits, DriveService
 
 ROBOTS = [BoeBot, Pioneer3DX, IRobotCreate, LegoNxtTribot]
 

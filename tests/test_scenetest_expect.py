@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from simrun.errors import SceneError
-from simrun.expect import Outcome
 from simrun.scenetest import TestOptions, run_tests
+from simrun.scenetest.expect import Outcome
 
 G = 9.81
 DROP = """

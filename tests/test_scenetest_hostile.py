@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from simrun.cli import main
+from simrun.cli.main import main
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simrun.scene import load_scene
+from simrun.scene.scene_file import load_scene
 from simrun.scenetest.runner import entity_class
 from simrun.scenetest.vary import VaryError, apply, check_key, draw, jitter, parse_seeds, parse_vary, variations
 

@@ -89,7 +89,7 @@ def test_pause_step_rate_reset_and_the_stream():
 def test_sigterm_stops_cleanly_and_writes_the_recording_and_its_mcap(tmp_path):
     from mcap.reader import make_reader
 
-    from simrun.simlog import Simlog
+    from simrun.record.simlog import Simlog
 
     record = tmp_path / "run.simlog"
     args = ["--rate", "100", "--record", str(record), "--record-as", "mcap"]

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from serve_helpers import SCENES, serve
 
-from simrun.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
+from simrun.record.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
 
 SENSORS = SCENES / "boebot_sensors.toml"
 ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--hide-scrollbars", "--mute-audio"]

@@ -12,9 +12,9 @@ import numpy as np
 from serve_helpers import SCENES, SIMRUN, serve
 
 from simrun.client import Client
-from simrun.scene import load_scene
-from simrun.session import prepare
-from simrun.simlog import Simlog
+from simrun.record.simlog import Simlog
+from simrun.run.session import prepare
+from simrun.scene.scene_file import load_scene
 
 BOEBOT = SCENES / "boebot.toml"
 #: (steps before, service call, arguments): the external controller's script.

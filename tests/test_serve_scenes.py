@@ -17,7 +17,7 @@ SCENE_FILES = sorted(
 @pytest.mark.parametrize("scene", SCENE_FILES, ids=[p.stem for p in SCENE_FILES])
 def test_every_service_and_sensor_of_the_scene_is_reachable(scene):
     from simrun.errors import SimrunError
-    from simrun.scene import load_scene
+    from simrun.scene.scene_file import load_scene
 
     try:
         world = load_scene(scene)

@@ -6,8 +6,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from simrun.cli import main
-from simrun.simlog import Simlog, SimlogError
+from simrun.cli.main import main
+from simrun.record.simlog import Simlog, SimlogError
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 SCENE = str(SCENES / "boebot.toml")

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from conftest import needs_gl
 
-from simrun.play import load_commands
-from simrun.render import FrameRenderer
-from simrun.scene import load_scene
-from simrun.session import DEFAULT_SIZE
+from simrun.run.play import load_commands
+from simrun.run.render import FrameRenderer
+from simrun.run.session import DEFAULT_SIZE
+from simrun.scene.scene_file import load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 #: The demo's length (Makefile: simrun play ... --duration 40).

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from simrun.headless import HEADLESS, available, choose
+from simrun.run.headless import HEADLESS, available, choose
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "fixtures" / "scenes" / "basic.toml"
@@ -70,7 +70,7 @@ def _env(value: str | None) -> dict[str, str]:
 
 def _run(args: list[str], value: str | None, prelude: str = "") -> subprocess.CompletedProcess[str]:
     """A console script in a fresh process (``prelude`` runs before anything is imported)."""
-    module, func = {"simrun": ("simrun.cli", "main"), "meshtool": ("meshtool.cli", "main")}[args[0]]
+    module, func = {"simrun": ("simrun.cli.main", "main"), "meshtool": ("meshtool.cli", "main")}[args[0]]
     code = f"{prelude}\nimport sys\nsys.argv = {args!r}\nfrom {module} import {func}\n{func}()"
     return subprocess.run(
         [sys.executable, "-c", code], env=_env(value), capture_output=True, text=True, timeout=300, check=False
@@ -164,7 +164,7 @@ def test_mujoco_imported_before_simrun_is_judged_by_what_it_read():
     code = (
         "import mujoco, simrun\n"
         "from simrun.errors import SimrunError\n"
-        "from simrun.render import open_renderer\n"
+        "from simrun.run.render import open_renderer\n"
         "try:\n"
         "    open_renderer(mujoco.MjModel.from_xml_string('<mujoco/>'), 8, 8).close()\n"
         "    print('rendered')\n"

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from simrun.cli import main
-from simrun.simlog import Simlog
+from simrun.cli.main import main
+from simrun.record.simlog import Simlog
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 BOX = '[[entities]]\ntype = "Box"\nname = "box"\n'
@@ -343,12 +343,12 @@ def test_resim_works_from_any_folder(recording, tmp_path, monkeypatch):
 
 
 def test_internal_error_is_one_line_exit_3_and_traceback_only_on_request(monkeypatch, tmp_path):
-    import simrun.scene
+    import simrun.scene.scene_file
 
     def broken(path):
         raise RuntimeError("simulated bug")
 
-    monkeypatch.setattr(simrun.scene, "load_scene", broken)  # simrun check imports it when it runs
+    monkeypatch.setattr(simrun.scene.scene_file, "load_scene", broken)  # simrun check imports it when it runs
     monkeypatch.delenv("SIMRUN_DEBUG", raising=False)
     result = CliRunner().invoke(main, ["check", str(SCENES / "basic.toml")])
     assert result.exit_code == 3 and "Traceback" not in result.output

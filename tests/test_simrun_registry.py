@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from simrun import load_scene, save_scene
-from simrun.registry import GROUPS, REGISTRY, Controller, names
-from simrun.sensors import Sensor
+from simrun.sensors.base import Sensor
+from simrun.world.registry import GROUPS, REGISTRY, Controller, names
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = (ROOT / "docs" / "scene-format.md").read_text()

@@ -12,9 +12,9 @@ import pytest
 from click.testing import CliRunner
 from conftest import needs_gl
 
-from simrun.cli import main
-from simrun.play import load_commands, play
-from simrun.scene import load_scene
+from simrun.cli.main import main
+from simrun.run.play import load_commands, play
+from simrun.scene.scene_file import load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 #: Long enough for a turn, a straight leg and the start of a second turn of the square.

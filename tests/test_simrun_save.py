@@ -10,9 +10,9 @@ import pytest
 import tomli_w
 
 from simrun import World, load_scene, save_scene, scene_text
-from simrun.drive_service import DriveService
 from simrun.errors import SceneError, SimrunError
-from simrun.sensors import GPS
+from simrun.sensors.robot_state import GPS
+from simrun.services.drive_service import DriveService
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from simrun.cli import main
+from simrun.cli.main import main
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 BASE = """[world]
@@ -180,7 +180,7 @@ def test_a_misspelt_key_is_named_at_its_own_line_with_the_closest_known_key(
 ) -> None:
     """``tpye = "MeshEntity"`` said ``type: unknown entity type None`` at the table header (issue 26)."""
     from simrun.errors import SceneError
-    from simrun.scene import load_scene
+    from simrun.scene.scene_file import load_scene
 
     scene = tmp_path / "s.toml"
     scene.write_text("[[entities]]\n" + table)

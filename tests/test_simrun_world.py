@@ -26,8 +26,8 @@ from simrun import (
     save_scene,
     scene_text,
 )
-from simrun.archive import load_mjz, mjz_bytes
-from simrun.cli import main
+from simrun.cli.main import main
+from simrun.world.archive import load_mjz, mjz_bytes
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
 
@@ -289,7 +289,7 @@ def test_a_world_of_thousands_of_bodies_gets_the_arena_mujoco_needs():
 
     The bodies rest on nothing and touch nothing; after stepping, every box is where it was put.
     """
-    from simrun.world import ARENA_DEFAULT, arena_bytes
+    from simrun.world.world import ARENA_DEFAULT, arena_bytes
 
     n = 3000
     world = World()

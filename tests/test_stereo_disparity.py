@@ -13,7 +13,7 @@ import pytest
 from conftest import needs_gl
 
 from simrun import Box, EntityError, Pose, World
-from simrun.cameras import StereoCamera, StereoRig
+from simrun.sensors.cameras import StereoCamera, StereoRig
 
 SEED_WIDTH, SEED_HEIGHT, SEED_FOV, SEED_BASELINE = 320, 240, 30.0, 0.10
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from simrun import Ground, Pose, World
-from simrun.arm import ArmService, KukaLBR3, LynxL6
-from simrun.drive import READY_ROBOTS
-from simrun.drive_service import DriveService
+from simrun.robots.arm import ArmService, KukaLBR3, LynxL6
+from simrun.robots.catalogue import READY_ROBOTS
+from simrun.services.drive_service import DriveService
 
 ARMS = [KukaLBR3, LynxL6]
 

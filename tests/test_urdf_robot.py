@@ -10,7 +10,7 @@ import pytest
 import yourdfpy
 
 from simrun import EntityError, Ground, Pose, UrdfRobot, World, load_scene, scene_text
-from simrun.usd_export import export_world_usd
+from simrun.export.usd import export_world_usd
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 URDF = "tiny_arm_description/urdf/tiny_arm.urdf"

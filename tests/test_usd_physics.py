@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from simrun import UrdfRobot, World
-from simrun.scene import load_scene
-from simrun.usd_export import export_world_usd
+from simrun.export.usd import export_world_usd
+from simrun.scene.scene_file import load_scene
 
 pytest.importorskip("pxr")
 from pxr import Usd, UsdPhysics, UsdValidation

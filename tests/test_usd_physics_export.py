@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from simrun import load_scene
-from simrun.usd_export import export_world_usd
+from simrun.export.usd import export_world_usd
 
 pxr = pytest.importorskip("pxr")
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from simrun.cli import main
+from simrun.cli.main import main
 from simrun.errors import SimrunError
-from simrun.scene import load_scene
-from simrun.usd_export import export_world_usd
+from simrun.export.usd import export_world_usd
+from simrun.scene.scene_file import load_scene
 
 pxr = pytest.importorskip("pxr")
 from pxr import Usd, UsdGeom, UsdPhysics  # noqa: E402

@@ -268,7 +268,7 @@ SERVO_REFERENCE = {
 
 
 def _tree_arm() -> Any:
-    from simrun.arm import ArmJoint, ArticulatedArm, Segment, SixDof
+    from simrun.robots.arm import ArmJoint, ArticulatedArm, Segment, SixDof
 
     return ArticulatedArm(
         name="a",
@@ -291,7 +291,7 @@ def _tree_arm() -> Any:
 
 @pytest.mark.parametrize("which", sorted(SERVO_REFERENCE))
 def test_servo_design_keeps_its_numbers(which: str) -> None:
-    from simrun.arm import KukaLBR3, LynxL6, servo_design
+    from simrun.robots.arm import KukaLBR3, LynxL6, servo_design
 
     arm = {"KukaLBR3": lambda: KukaLBR3(name="a"), "LynxL6": lambda: LynxL6(name="a"), "tree": _tree_arm}[which]()
     design = servo_design(arm, "a")
@@ -301,7 +301,7 @@ def test_servo_design_keeps_its_numbers(which: str) -> None:
 def test_servo_design_walks_the_tree_a_quadratic_number_of_steps() -> None:
     """A chain of 300 segments: at most n^2 parent look-ups (the walk from every segment to every other was
     n^3 / 6, 4.5 million; 1 600 segments took 80 s)."""
-    from simrun.arm import ArticulatedArm, Segment, servo_design
+    from simrun.robots.arm import ArticulatedArm, Segment, servo_design
 
     class Counted(dict[str, str | None]):
         steps = 0
@@ -325,7 +325,7 @@ def test_servo_design_walks_the_tree_a_quadratic_number_of_steps() -> None:
 
 def test_an_arm_over_the_segment_limit_is_refused_naming_the_entity(tmp_path: Path) -> None:
     """5 000 segments hung the servo design; 1 000 (the limit) compile and simulate."""
-    from simrun.arm import MAX_ARM_SEGMENTS
+    from simrun.robots.arm import MAX_ARM_SEGMENTS
 
     def scene(count: int) -> Path:
         lines = ["[world]", "", "[[entities]]", 'type = "ArticulatedArm"', 'name = "snake"', ""]
@@ -342,7 +342,7 @@ def test_an_arm_over_the_segment_limit_is_refused_naming_the_entity(tmp_path: Pa
         "(an arm's servo design grows with the square of its segments; split it into several arms)"
     ]
     out = _child(
-        "from simrun.arm import ArticulatedArm, Segment, servo_design\n"
+        "from simrun.robots.arm import ArticulatedArm, Segment, servo_design\n"
         "arm = ArticulatedArm(name='c', segments=tuple(Segment(f's{k}', 0.01) for k in range(1000)))\n"
         "print(len(servo_design(arm, 'c')))\n"
     )

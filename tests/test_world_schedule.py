@@ -14,8 +14,9 @@ import pytest
 from test_drive import IDS, ROBOTS
 
 from simrun import Box, Ground, Pose, World
-from simrun.drive_service import DriveService
-from simrun.sensors import GPS, Bumper, Encoders, LaserRangeFinder
+from simrun.sensors.laser import LaserRangeFinder
+from simrun.sensors.robot_state import GPS, Bumper, Encoders
+from simrun.services.drive_service import DriveService
 
 SECONDS = 1.0
 

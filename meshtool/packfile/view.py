@@ -4,7 +4,7 @@ An ``.mbin`` stores its materials as the MTL-shaped records the normaliser produ
 ``maps``) and its triangles as one index buffer split into submeshes. Every consumer wants the same thing
 from that: one part per submesh with its own vertices, and a material reduced to what renderers and
 simulators draw. :func:`asset_view` is that conversion, done once, for the MJCF builder
-(:mod:`meshtool.mjcf`), simrun's asset loading (:mod:`simrun.assets`), and the GLB and USD exports
+(:mod:`meshtool.mjcf`), simrun's asset loading (:mod:`simrun.world.assets`), and the GLB and USD exports
 (:mod:`meshtool.packfile.export`, :mod:`meshtool.packfile.usd`).
 
 Frame: positions, normals and hull vertices are metres in the pack's Z-up frame (``.mbin`` is always

@@ -36,7 +36,7 @@ class _Runner:
         self.bundles: dict[str, Bundle] = {}
 
     def prepare(self) -> None:
-        import simrun.play  # noqa: F401  (imported before the first run: loading MuJoCo is not a run's time)
+        import simrun.run.play  # noqa: F401  (imported before the first run: loading MuJoCo is not a run's time)
 
     def __call__(self, message: tuple[RunTask, Bundle | None]) -> RunResult:
         task, bundle = message

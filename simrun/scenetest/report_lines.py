@@ -6,7 +6,7 @@ A module of its own so that :mod:`.reports` (which renders HTML through :mod:`.r
 
 from __future__ import annotations
 
-from simrun.expect import Outcome
+from simrun.scenetest.expect import Outcome
 from simrun.scenetest.runner import TestReport
 
 

@@ -16,7 +16,7 @@ from xml.etree import ElementTree as ET
 from meshtool.reportkit import annotation_data, annotation_property
 from simrun import __version__
 from simrun.errors import UsageError
-from simrun.expect import Outcome
+from simrun.scenetest.expect import Outcome
 from simrun.scenetest.report_html import to_html
 from simrun.scenetest.report_lines import failure_line, verdict_line
 from simrun.scenetest.runner import Run, TestReport

@@ -190,9 +190,9 @@ def plan(
 def entity_class(name: str) -> Any:
     """The class of an entity type name of a scene file, or ``None``."""
     try:
-        from simrun import registry
+        from simrun.world import registry
     except ImportError:  # before the scene-type registry
-        from simrun import scene
+        from simrun.scene import scene_file as scene
 
         return getattr(scene, "ENTITY_TYPES", {}).get(name)
     try:

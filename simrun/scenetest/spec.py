@@ -22,12 +22,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from simrun.commands import Command, check_commands, load_commands
 from simrun.errors import SceneError, UsageError
-from simrun.expect import Expectation, check_against, parse_expectations
+from simrun.run.commands import Command, check_commands, load_commands
+from simrun.run.session import prepare
+from simrun.scene.tomlpos import KeyPath, line_of, read_toml
 from simrun.scenetest.bundle import Bundle, collect
-from simrun.session import prepare
-from simrun.tomlpos import KeyPath, line_of, read_toml
+from simrun.scenetest.expect import Expectation, check_against, parse_expectations
 
 #: Simulated seconds of a scene whose ``[test]`` table gives no duration.
 DEFAULT_DURATION = 5.0
@@ -130,7 +130,7 @@ def load_case(path: Path) -> Case:
         SceneError: The scene, its ``[test]`` table, commands file or expectations are invalid (FILE:LINE).
         SimrunError: Anything else that stops the scene from running (a binding, a missing file).
     """
-    from simrun.scene import load_scene
+    from simrun.scene.scene_file import load_scene
 
     display = path.as_posix()
     doc, lines = read_toml(path)

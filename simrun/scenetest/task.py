@@ -4,8 +4,8 @@ A :class:`RunTask` holds the scene text as run (variations and jitter written in
 commands and the expectations; the scene's other files travel once per worker as a
 :class:`~simrun.scenetest.bundle.Bundle`. :func:`run_task` unpacks the bundle into a private folder (once
 per bundle and process), writes the scene text next to the original scene's place in it, loads and runs
-it through the library (:func:`simrun.session.prepare`, :func:`simrun.play.play`) with an
-:class:`~simrun.expect.Observer`, and returns a :class:`RunResult`: plain data, the same whichever process
+it through the library (:func:`simrun.run.session.prepare`, :func:`simrun.run.play.play`) with an
+:class:`~simrun.scenetest.expect.Observer`, and returns a :class:`RunResult`: plain data, the same whichever process
 or machine ran it. With ``record``, the run is recorded as a ``.simlog`` whose bytes come back when it
 failed (re-simulated by ``simrun resim`` next to the scene text).
 """
@@ -21,13 +21,13 @@ from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
 
 from meshtool.formats import suffix
-from simrun.commands import Command
 from simrun.errors import SimrunError
-from simrun.expect import Expectation, Observer, Outcome
+from simrun.run.commands import Command
 from simrun.scenetest.bundle import Bundle, materialise
+from simrun.scenetest.expect import Expectation, Observer, Outcome
 
 if TYPE_CHECKING:
-    from simrun.world import World
+    from simrun.world.world import World
 
 _folders: dict[str, Path] = {}  # bundle digest -> unpacked folder (per process)
 
@@ -128,10 +128,10 @@ def _clean(message: str, task: RunTask, bundle: Bundle) -> str:
 
 
 def _run(task: RunTask, bundle: Bundle) -> RunResult:
-    from simrun.play import play
-    from simrun.scene import load_scene
-    from simrun.session import prepare
-    from simrun.simlog import Recorder
+    from simrun.record.simlog import Recorder
+    from simrun.run.play import play
+    from simrun.run.session import prepare
+    from simrun.scene.scene_file import load_scene
 
     scene = _scene_path(task, bundle)
     scene.write_bytes(task.scene_text)
@@ -173,7 +173,7 @@ def _thumbnail(world: World, size: tuple[int, int], result: RunResult) -> None:
     """A PNG of the world's current state (the main camera, else a free camera framing the bodies)."""
     from PIL import Image
 
-    from simrun.render import FrameRenderer
+    from simrun.run.render import FrameRenderer
 
     try:
         renderer = FrameRenderer(world.model, size[0], size[1], "visual", None, world.data)

@@ -2,7 +2,7 @@
 
 The catalogue is built once from a prepared world (its ``[[services]]`` bindings and ``[[sensors]]``) and is
 plain JSON. A service call from a client goes through :func:`command_from_request`, which builds the table
-a ``[[commands]]`` entry would hold and hands it to :func:`simrun.commands.parse_command`: one validation
+a ``[[commands]]`` entry would hold and hands it to :func:`simrun.run.commands.parse_command`: one validation
 path for commands files, recordings and the server. Errors are :class:`RequestError`, which name the
 request field (``service``, ``entity``, ``call``, ``args``, ``args.metres``) for the 4xx JSON answer.
 
@@ -21,10 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from simrun.commands import LIFECYCLE, Command, parse_command
 from simrun.errors import SimrunError
-from simrun.registry import REGISTRY, names
-from simrun.world import World
+from simrun.run.commands import LIFECYCLE, Command, parse_command
+from simrun.world.registry import REGISTRY, names
+from simrun.world.world import World
 
 
 class RequestError(SimrunError, ValueError):

@@ -7,7 +7,7 @@ Foxglove (the app, or any client of its protocol) connects to ``ws://127.0.0.1:N
 * ``/sensors/NAME``: ``foxglove.LaserScan`` for each laser, at its own rate (its robot's body frame, the scan
   origin ``height`` above it).
 
-Log times are nanoseconds of simulated time, as in the MCAP export (:mod:`simrun.mcap_export`). The SDK's
+Log times are nanoseconds of simulated time, as in the MCAP export (:mod:`simrun.record.mcap_export`). The SDK's
 server keeps at most :data:`BACKLOG` messages per client and drops the oldest, so a slow client never
 slows the simulation. The protocol has no authentication: the server listens on the loopback address
 only (use an SSH tunnel from another machine).

@@ -1,7 +1,7 @@
 """The served world's simulation loop: one thread owns the world; everything else talks to it through queues.
 
 The loop thread loads the scene itself (a camera's GL context belongs to the thread that made it), binds
-the services (:func:`simrun.session.prepare`) and then steps. Between chunks of steps it runs the calls that
+the services (:func:`simrun.run.session.prepare`) and then steps. Between chunks of steps it runs the calls that
 HTTP handlers queued (:meth:`SimLoop.call`: a service command, a query, pause, step, reset), so a request
 never races the physics and the physics never waits for a request. Modes:
 
@@ -41,10 +41,10 @@ from typing import Any
 
 import numpy as np
 
-from simrun.commands import Command
 from simrun.errors import SimrunError
+from simrun.run.commands import Command
 from simrun.serve.catalogue import RequestError, build_catalogue, plain
-from simrun.world import World
+from simrun.world.world import World
 
 #: Longest stretch of simulated time stepped between two looks at the call queue, seconds.
 CHUNK_SECONDS = 0.01
@@ -226,8 +226,8 @@ class SimLoop:
         return self._thread.is_alive()
 
     def _main(self) -> None:
-        from simrun.scene import load_scene
-        from simrun.session import prepare
+        from simrun.run.session import prepare
+        from simrun.scene.scene_file import load_scene
 
         try:
             world = load_scene(self.options.scene)

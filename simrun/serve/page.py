@@ -1,7 +1,7 @@
 """The dashboard of ``simrun serve`` (``GET /``): one page, offline, the replay page's three.js viewer.
 
 The page (``simrun/serve/page.html`` and ``page.js``) inlines the viewer bundle that ``simrun replay
---html`` uses (:func:`simrun.replay_html.viewer_bundle`) and loads the world's meshes from
+--html`` uses (:func:`simrun.record.replay_html.viewer_bundle`) and loads the world's meshes from
 ``/api/scene.glb`` (:func:`world_glb`: the replay page's glTF, one node per body, without animation);
 the WebSocket stream moves the body nodes, draws the laser scans in the scene and fills the camera
 panels. Nothing is fetched from another host.
@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 
 from simrun.errors import SimrunError
-from simrun.replay_glb import recording_gltf
-from simrun.replay_html import _script_safe, viewer_bundle
-from simrun.replay_tracks import Tracks
+from simrun.record.replay_glb import recording_gltf
+from simrun.record.replay_html import _script_safe, viewer_bundle
+from simrun.record.replay_tracks import Tracks
 from simrun.serve.openapi import API_VERSION
-from simrun.world import World
+from simrun.world.world import World
 
 _HERE = Path(__file__).resolve().parent
 

@@ -2,12 +2,12 @@
 
 A ``.simlog`` header lists the run's timed commands, but a served world's commands arrive while it runs.
 :class:`LiveRecording` therefore streams the frames and checkpoints through the ordinary
-:class:`~simrun.simlog.Recorder` into a spool file beside the target (``.NAME.spool``, header without
+:class:`~simrun.record.simlog.Recorder` into a spool file beside the target (``.NAME.spool``, header without
 commands); when the recording ends (``POST /api/recording/stop``, or the server shuts down) it writes the
 target: the same header with the commands applied since the recording started (each at the simulated
 time it was applied, :meth:`simrun.serve.loop.SimLoop.apply`), then the spooled records, and removes the
 spool. ``simrun resim`` applies those commands at the same steps: a served run re-simulates bit for bit.
-With ``mcap``, the finished recording is also converted (:func:`simrun.mcap_export.export_mcap`).
+With ``mcap``, the finished recording is also converted (:func:`simrun.record.mcap_export.export_mcap`).
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from meshtool.errors import OutputError
 from meshtool.outdir import AtomicFile
 from simrun.errors import SimrunError
 from simrun.outfile import check_output
-from simrun.simlog import MAGIC, MAJOR, MINOR, Recorder
-from simrun.world import World
+from simrun.record.simlog import MAGIC, MAJOR, MINOR, Recorder
+from simrun.world.world import World
 
 if TYPE_CHECKING:
     from simrun.serve.loop import SimLoop
@@ -89,7 +89,7 @@ class LiveRecording:
             self.spool.unlink(missing_ok=True)
         self.written = [self.path]
         if self.mcap is not None:
-            from simrun.mcap_export import export_mcap
+            from simrun.record.mcap_export import export_mcap
 
             export_mcap(self.path, self.mcap)
             self.written.append(self.mcap)

@@ -19,7 +19,7 @@ from typing import Any
 
 from simrun.errors import SimrunError, UsageError
 from simrun.serve.loop import ServeOptions, SimLoop
-from simrun.world import World
+from simrun.world.world import World
 
 #: Shortest token accepted, characters.
 MIN_TOKEN = 16

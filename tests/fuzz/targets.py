@@ -9,9 +9,9 @@ Targets:
     obj: ``meshtool.normalise.prepare`` on a mutated OBJ beside its fixture MTLs and textures.
     mtl: the same with the OBJ kept and one of its MTLs mutated.
     mbin: ``packfile.parse(verify=True)`` then what ``info``, ``unpack`` and ``export`` do with the pack.
-    scene: ``simrun.scene.load_scene`` then ``World.compile`` (what ``simrun check`` does), beside copies of
+    scene: ``simrun.scene.scene_file.load_scene`` then ``World.compile`` (what ``simrun check`` does), beside copies of
         the fixture scenes' assets.
-    simlog: ``simrun.simlog.Simlog`` and every reading method, on recordings made from the fixture scenes.
+    simlog: ``simrun.record.simlog.Simlog`` and every reading method, on recordings made from the fixture scenes.
     stl, ply, gltf, glb, collada: ``meshtool.normalise.prepare`` (as ``meshtool normalize`` reaches it) on a
         mutated mesh file beside the buffers and textures it names; seeds: every fixture of the format (PLY
         also re-encoded as ASCII and both binary byte orders; glTF also with every file as a ``data:`` URI;
@@ -19,7 +19,7 @@ Targets:
     urdf: ``meshtool.urdf.import_urdf`` then the model's MJCF build and compile (what ``meshtool urdf`` does,
         without writing), on a mutated fixture URDF inside its package (meshes, ``package.xml``) with the
         files beside the package.
-    commands: ``simrun.commands.load_commands`` then, against the fixture scene it names
+    commands: ``simrun.run.commands.load_commands`` then, against the fixture scene it names
         (``SCENE.commands.toml``), the service bindings, ``check_commands`` and each command applied in
         time order (what ``simrun play SCENE --commands FILE`` does).
 """
@@ -203,7 +203,7 @@ def _scene_strategy(seeds: list[Files]) -> Any:
 
 
 def _run_scene(files: Files, folder: Path) -> None:
-    from simrun.scene import load_scene
+    from simrun.scene.scene_file import load_scene
 
     assets = folder.parent / "scene-assets"  # the files the fixture scenes name, at the same relative places
     if not assets.is_dir():
@@ -228,7 +228,7 @@ def _simlog_seeds(scratch: Path) -> list[Files]:
     ]
     for scene, extra in plays:
         out = scratch / f"{Path(scene).stem}.simlog"
-        command = [sys.executable, "-c", "from simrun.cli import main; main()", "play"]
+        command = [sys.executable, "-c", "from simrun.cli.main import main; main()", "play"]
         command += [str(FIXTURES / "scenes" / scene), "--record", str(out), *extra]
         env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
         subprocess.run(command, capture_output=True, check=False, timeout=300, env=env)
@@ -256,7 +256,7 @@ def _simlog_strategy(seeds: list[Files]) -> Any:
 
 
 def _run_simlog(files: Files, folder: Path) -> None:
-    from simrun.simlog import Simlog
+    from simrun.record.simlog import Simlog
 
     log = Simlog(write_input(files, folder))
     try:
@@ -510,9 +510,9 @@ def _commands_strategy(seeds: list[Files]) -> Any:
 
 
 def _run_commands(files: Files, folder: Path) -> None:
-    from simrun.commands import check_commands, load_commands
-    from simrun.scene import load_scene
-    from simrun.session import prepare
+    from simrun.run.commands import check_commands, load_commands
+    from simrun.run.session import prepare
+    from simrun.scene.scene_file import load_scene
 
     path = write_input(files, folder)
     commands = load_commands(path)  # what `simrun play SCENE --commands FILE` reads, then

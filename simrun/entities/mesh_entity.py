@@ -1,0 +1,73 @@
+"""MeshEntity: a packed ``.mbin`` asset in the world, visual and collision geometry from memory."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import mujoco
+
+from simrun.errors import EntityError
+from simrun.world.entity import BuildContext, Entity, Material, check_positive
+
+COLLISION = ("hulls", "convex", "none")
+#: Largest uniform scale accepted (and smallest: its inverse).
+MAX_SCALE = 1e6
+
+
+@dataclass(kw_only=True)
+class MeshEntity(Entity):
+    """A mesh asset.
+
+    Attributes:
+        asset: A name from the world's ``assets`` table, or a path of an ``.mbin`` (relative to the world folder).
+        scale: Uniform scale.
+        collision: ``hulls`` (the stored collision hulls; the default), ``convex`` (MuJoCo's hull of the whole
+            mesh) or ``none`` (visual only).
+        mass: Total mass in kg, split over the collision geoms by volume; else ``density``.
+        density: kg/m^3.
+        material: Contact material of the collision geoms.
+    """
+
+    TYPE: ClassVar[str] = "MeshEntity"
+
+    asset: str
+    scale: float = 1.0
+    collision: str = "hulls"
+    mass: float | None = None
+    density: float = 1000.0
+    material: Material | None = None
+
+    def build(self, body: Any, ctx: BuildContext) -> None:
+        """Visual geoms per submesh (group 2, massless) and collision geoms (group 3)."""
+        check_positive(self, scale=self.scale, mass=self.mass, density=self.density)
+        if not 1 / MAX_SCALE <= self.scale <= MAX_SCALE:
+            raise EntityError(f"MeshEntity {self.name!r}: scale must be in [{1 / MAX_SCALE:g}, {MAX_SCALE:g}]")
+        if self.collision not in COLLISION:
+            raise EntityError(f"MeshEntity {self.name!r}: collision must be one of {', '.join(COLLISION)}")
+        asset = ctx.assets.mesh(ctx.base_dir / Path(ctx.asset_paths.get(self.asset, self.asset)), self.scale)
+        for k, (mesh, material) in enumerate(asset.visual):
+            geom = body.add_geom(name=ctx.name(f"visual{k}"), type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh)
+            geom.group, geom.contype, geom.conaffinity, geom.density = 2, 0, 0, 0.0
+            if material:
+                geom.material = material
+        if self.collision == "none":
+            return
+        if self.collision == "hulls" and not asset.hulls:
+            raise EntityError(
+                f"MeshEntity {self.name!r}: {self.asset} has no collision hulls "
+                "(convert it with obj2bin --hulls convex|decompose, or use collision='convex')"
+            )
+        path = ctx.base_dir / Path(ctx.asset_paths.get(self.asset, self.asset))
+        meshes = asset.hulls if self.collision == "hulls" else [ctx.assets.whole(path, self.scale)]
+        volumes = asset.hull_volumes if self.collision == "hulls" else [1.0]
+        for k, mesh in enumerate(meshes):
+            geom = body.add_geom(name=ctx.name(f"collision{k}"), type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh)
+            geom.group = 3
+            if self.mass is not None:
+                geom.mass = self.mass * volumes[k] / sum(volumes)
+            else:
+                geom.density = self.density
+            if self.material is not None:
+                self.material.apply(geom)

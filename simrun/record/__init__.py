@@ -1,0 +1,1 @@
+"""Recordings: ``.simlog`` files and what they export to (GLB, USD, HTML player, MCAP)."""

@@ -1,0 +1,600 @@
+r"""``.simlog`` recordings: versioned, streamed to disk in records, replayable and re-simulatable bit-exactly.
+
+Layout (little-endian): 8-byte magic ``\x89SIMLOG\n``, u16 major, u16 minor, u32 header length, the header
+as UTF-8 JSON (MuJoCo version, platform, scene path and SHA-256, seed, timestep, state size, frame period,
+the timed commands, the controller module's name and SHA-256), then records: u8 kind, u32 length, payload.
+Kind 1, a frame: f64 time and the full integration state (``mj_getState(mjSTATE_INTEGRATION)``, f64
+array). Kind 2, a checkpoint: a frame followed by the JSON snapshots of every world controller (drive and
+arm services, sensors). Kind 3: f64 time and the recorded sensor readings as JSON. Records are written as
+the run goes, so memory stays bounded; the reader streams them back. They go to a temporary file beside
+the target, renamed over it when the run ends (also when it ends with an error: the records up to then);
+a recording that cannot be written whole (a full disk) leaves no ``.simlog`` and no temporary file.
+
+A recording is data: the reader checks every header key's presence, type and range, every record's
+length, time and finiteness, and never runs code it names. Paths in the header (scene, controller) are
+relative to the recording's folder, so a recording moves with its scene.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import platform
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from meshtool.errors import OutputError
+from meshtool.formats import output_named
+from meshtool.nesting import DocumentLimitError, bounded
+from meshtool.outdir import AtomicFile
+from simrun.errors import SimrunError
+from simrun.run.commands import Command, parse_command
+from simrun.safeio import FileReadError, open_regular, read_regular
+from simrun.world.world import MAX_TIMESTEP, MIN_TIMESTEP, World
+
+MAGIC = output_named("simlog").magic[0]  # the formats registry's row
+MAJOR, MINOR = 1, 1
+FRAME, CHECKPOINT, SENSORS = 1, 2, 3
+STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+#: Largest header accepted, bytes.
+MAX_HEADER_BYTES = 16 * 1024 * 1024
+#: Frame periods accepted, seconds.
+MIN_FRAME_PERIOD, MAX_FRAME_PERIOD = 1e-5, 60.0
+#: Largest state size accepted (numbers per frame).
+MAX_STATE_SIZE = 10_000_000
+_HEADER: dict[str, tuple[type, ...]] = {
+    "mujoco": (str,),
+    "platform": (str,),
+    "scene": (str,),
+    "scene_sha256": (str,),
+    "seed": (int,),
+    "timestep": (int, float),
+    "state_size": (int,),
+    "frame_period": (int, float),
+    "commands": (list,),
+    "sensors": (list,),
+    "controller": (str, type(None)),
+}
+
+
+class SimlogError(SimrunError, ValueError):
+    """A ``.simlog`` is truncated, corrupt, or of an unknown major version."""
+
+
+def state_of(model: mujoco.MjModel, data: mujoco.MjData) -> npt.NDArray[np.float64]:
+    """The full integration state of ``data``."""
+    state = np.empty(mujoco.mj_stateSize(model, STATE))
+    mujoco.mj_getState(model, data, state, STATE)
+    return state
+
+
+@dataclass(frozen=True, slots=True)
+class Record:
+    """One frame (and, for checkpoints, the controllers' snapshots)."""
+
+    kind: int
+    time: float
+    state: npt.NDArray[np.float64]
+    controllers: list[dict[str, Any]] | None
+
+
+class Recorder:
+    """A world controller that streams frames (every ``period`` s) and checkpoints (every ``checkpoint`` s).
+
+    Args:
+        world: The world being recorded (its controllers must be added before the recorder).
+        path: Output file.
+        scene: The scene file the world came from (recorded with its SHA-256).
+        commands: The timed commands of the run.
+        period: Seconds between frames.
+        checkpoint: Seconds between checkpoints.
+        seed: The run's seed, recorded.
+        sensors: Names of ``world.sensors`` whose latest readings are recorded with every frame.
+        controller: The Python controller module the run used: its path (relative to the recording) and
+            SHA-256 are recorded; ``resim`` runs it only when given on the command line with that SHA-256.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        path: Path,
+        scene: Path,
+        commands: list[Command],
+        period: float = 0.02,
+        checkpoint: float = 1.0,
+        seed: int = 0,
+        sensors: tuple[str, ...] = (),
+        controller: Path | None = None,
+    ) -> None:
+        model = world.model
+        self.world, self.period, self.checkpoint_every = world, period, checkpoint
+        unknown = [n for n in sensors if n not in world.sensors]
+        if unknown:
+            known = ", ".join(world.sensors) or "none"
+            raise SimrunError(f"no sensor named {', '.join(unknown)} (known: {known})")
+        self.sensors = sensors
+        self.next_time = world.time
+        self._next_checkpoint = world.time
+        if not (math.isfinite(period) and MIN_FRAME_PERIOD <= period <= MAX_FRAME_PERIOD):
+            raise SimrunError(f"frame period must be in [{MIN_FRAME_PERIOD:g}, {MAX_FRAME_PERIOD:g}] s, got {period}")
+        if not (math.isfinite(checkpoint) and checkpoint >= period):
+            raise SimrunError(f"checkpoint interval must be at least the frame period, got {checkpoint}")
+        try:
+            scene_sha = hashlib.sha256(read_regular(scene, "scene")).hexdigest()
+            controller_sha = hashlib.sha256(read_regular(controller, "controller")).hexdigest() if controller else None
+        except FileReadError as exc:
+            raise SimrunError(str(exc)) from None
+        header = {
+            "mujoco": mujoco.__version__,
+            "platform": f"{platform.system()} {platform.machine()} Python {platform.python_version()}",
+            "scene": _relative(scene, path),
+            "scene_sha256": scene_sha,
+            "seed": seed,
+            "timestep": model.opt.timestep,
+            "state_size": int(mujoco.mj_stateSize(model, STATE)),
+            "frame_period": period,
+            "commands": [[c.t, c.service, c.entity, c.call, list(c.args)] for c in commands],
+            "sensors": list(sensors),
+            "controller": _relative(controller, path) if controller else None,
+            "controller_sha256": controller_sha,
+        }
+        raw = json.dumps(header, sort_keys=True).encode("utf-8")
+        self.path = path
+        try:  # streamed to a temporary file beside the target, renamed over it by close(): never a torn .simlog
+            self._file = AtomicFile(path)
+        except OutputError as exc:
+            raise SimrunError(f"{path}: {exc.message}") from None
+        self._write(MAGIC + struct.pack("<HHI", MAJOR, MINOR, len(raw)) + raw)
+        self.frames = 0
+        world.controllers.append(self)
+
+    def _write(self, data: bytes) -> None:
+        """Append to the temporary file; a failed write (a full disk) drops the recording and says so."""
+        try:
+            self._file.write(data)
+        except OutputError as exc:
+            self.abort()
+            raise SimrunError(f"{self.path}: {exc.message}; nothing recorded") from None
+
+    def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Write a frame, or a checkpoint when one is due."""
+        state = state_of(model, data)
+        body = struct.pack("<d", float(data.time)) + state.tobytes()
+        kind = FRAME
+        if data.time + 0.5 * model.opt.timestep >= self._next_checkpoint:
+            snaps = [c.snapshot() for c in self.world.controllers if c is not self]
+            extra = json.dumps(snaps).encode("utf-8")
+            body += struct.pack("<I", len(extra)) + extra
+            kind = CHECKPOINT
+            self._next_checkpoint += self.checkpoint_every
+        self._write(struct.pack("<BI", kind, len(body)) + body)
+        self.frames += 1
+        if self.sensors:
+            readings = {n: _plain(self.world.sensors[n].reading) for n in self.sensors}
+            extra = struct.pack("<d", float(data.time)) + json.dumps(readings).encode("utf-8")
+            self._write(struct.pack("<BI", SENSORS, len(extra)) + extra)
+
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Recording continues across resets."""
+
+    def snapshot(self) -> dict[str, Any]:
+        """The recorder holds no simulation state."""
+        return {}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Nothing to restore (see :meth:`snapshot`)."""
+
+    def close(self, keep: bool = True) -> None:
+        """Finish the recording: flush it to disk and rename it over the target (or drop it).
+
+        A run that stopped with an error still gets its recording up to that point (every record whole:
+        ``simrun test --record-failures`` keeps those); only a recording that could not be written whole
+        is dropped.
+
+        Args:
+            keep: Rename the recording into place; ``False`` removes it (see :meth:`abort`).
+
+        Raises:
+            SimrunError: The recording cannot be finished (a full disk); nothing is left behind.
+        """
+        if self in self.world.controllers:
+            self.world.controllers.remove(self)
+        if not keep:
+            self.abort()
+            return
+        try:
+            self._file.commit()  # a second close does nothing
+        except OutputError as exc:
+            raise SimrunError(f"{self.path}: {exc.message}; nothing recorded") from None
+
+    def abort(self) -> None:
+        """Drop the recording: the temporary file is removed (the target is left as it was)."""
+        self._file.abort()
+        if self in self.world.controllers:
+            self.world.controllers.remove(self)
+
+
+def _relative(target: Path, recording: Path) -> str:
+    """``target`` relative to the recording's folder, with ``/`` separators (absolute when on another drive)."""
+    try:
+        text = os.path.relpath(target.resolve(), recording.resolve().parent)
+    except ValueError:  # Windows: another drive
+        return target.resolve().as_posix()
+    return Path(text).as_posix()
+
+
+def _plain(value: Any) -> Any:
+    """A sensor reading as JSON-ready data (dataclasses to dicts, arrays to lists, NaN to None)."""
+    if value is None:
+        return None
+    if hasattr(value, "__dataclass_fields__"):
+        return {k: _plain(getattr(value, k)) for k in value.__dataclass_fields__}
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+class Simlog:
+    """A recording opened for reading (records are streamed, not loaded at once).
+
+    The header is checked when the file is opened (every key present, of its type and in range, the
+    commands as strictly as a commands file); records are checked as they are read (length, kind, a
+    finite state of the header's size, times that start at or after 0 and advance by at most one frame
+    period, snapshots without NaN). Every error names the file and the byte offset or header key.
+
+    Raises:
+        SimlogError: Unreadable, not a ``.simlog``, a newer major version, or a bad header.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        try:
+            self._file: BinaryIO = open_regular(path, "recording")
+        except FileReadError as exc:
+            raise SimlogError(str(exc)) from None
+        self._size = os.fstat(self._file.fileno()).st_size
+        complete = False
+        try:
+            self._read_header()
+            complete = True
+        finally:
+            if not complete:  # a refused header: do not leave the file open
+                self._file.close()
+
+    def _read_header(self) -> None:
+        path = self.path
+        head = self._file.read(16)
+        if len(head) < 16 or head[:8] != MAGIC:
+            raise SimlogError(f"{path}: not a .simlog (bad magic number at byte 0)")
+        major, minor, length = struct.unpack("<HHI", head[8:16])
+        if major != MAJOR:
+            raise SimlogError(f"{path}: .simlog version {major}.{minor} is newer than this reader ({MAJOR}.x)")
+        if length > min(MAX_HEADER_BYTES, self._size - 16):
+            raise SimlogError(f"{path}: byte 12: header length {length} runs past the end of the file")
+        raw = self._file.read(length)
+        try:
+            header = bounded(lambda: json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant))
+        except DocumentLimitError as exc:
+            raise SimlogError(f"{path}: byte 16: header {exc}") from None
+        except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as exc:
+            raise SimlogError(f"{path}: byte 16: corrupt header ({exc})") from None
+        if not isinstance(header, dict):
+            raise SimlogError(f"{path}: byte 16: the header is not a JSON object")
+        self.header: dict[str, Any] = header
+        self.minor = minor
+        self._start = 16 + length
+        self._check_header()
+        self.state_size = int(header["state_size"])
+        self.timestep = float(header["timestep"])
+        self.frame_period = float(header["frame_period"])
+
+    def _bad(self, key: str, message: str) -> SimlogError:
+        return SimlogError(f"{self.path}: header: {key}: {message}")
+
+    def _check_header(self) -> None:
+        header = self.header
+        for key, kinds in _HEADER.items():
+            if key not in header:
+                raise self._bad(key, "missing; the file is not a complete recording")
+            value = header[key]
+            if isinstance(value, bool) or not isinstance(value, kinds):
+                names = " or ".join("null" if k is type(None) else k.__name__ for k in kinds)
+                raise self._bad(key, f"expected {names}, got {type(value).__name__}")
+        if len(header["scene_sha256"]) != 64 or any(c not in "0123456789abcdef" for c in header["scene_sha256"]):
+            raise self._bad("scene_sha256", "expected 64 hex digits")
+        if not header["scene"]:
+            raise self._bad("scene", "empty path")
+        timestep = float(header["timestep"])
+        if not MIN_TIMESTEP <= timestep <= MAX_TIMESTEP:
+            raise self._bad("timestep", f"must be in [{MIN_TIMESTEP:g}, {MAX_TIMESTEP:g}] s, got {timestep!r}")
+        period = float(header["frame_period"])
+        if not MIN_FRAME_PERIOD <= period <= MAX_FRAME_PERIOD:
+            raise self._bad(
+                "frame_period", f"must be in [{MIN_FRAME_PERIOD:g}, {MAX_FRAME_PERIOD:g}] s, got {period!r}"
+            )
+        if not 1 <= header["state_size"] <= MAX_STATE_SIZE:
+            raise self._bad("state_size", f"must be in [1, {MAX_STATE_SIZE}], got {header['state_size']}")
+        if not all(isinstance(n, str) for n in header["sensors"]):
+            raise self._bad("sensors", "expected an array of sensor names")
+        controller = header["controller"]
+        digest = header.get("controller_sha256")
+        if controller is not None and self.minor >= 1 and not (isinstance(digest, str) and len(digest) == 64):
+            raise self._bad("controller_sha256", "missing or not 64 hex digits (a controller is recorded)")
+        self._commands = []
+        for k, entry in enumerate(header["commands"]):
+
+            def fail(message: str, key: str | None = None, k: int = k) -> SimlogError:
+                return self._bad(f"commands[{k}]" + (f".{key}" if key else ""), message)
+
+            if not isinstance(entry, list) or len(entry) != 5:
+                raise fail("expected [t, service, entity, call, args]")
+            table = dict(zip(("t", "service", "entity", "call", "args"), entry, strict=True))
+            self._commands.append(parse_command(table, fail, f"{self.path}: header: commands[{k}]"))
+        times = [c.t for c in self._commands]
+        if times != sorted(times):
+            raise self._bad("commands", "not in time order")
+
+    def scene_path(self) -> Path:
+        """The recorded scene file, resolved against the recording's folder (so it works from anywhere)."""
+        return self.path.parent / Path(self.header["scene"])
+
+    def controller_sha256(self) -> str | None:
+        """The recorded controller module's SHA-256 (hex), or ``None`` when the run had none."""
+        if self.header["controller"] is None:
+            return None
+        digest = self.header.get("controller_sha256")
+        return digest if isinstance(digest, str) else None
+
+    def commands(self) -> list[Command]:
+        """The recorded timed commands (checked when the file was opened)."""
+        return list(self._commands)
+
+    def sensor_readings(self) -> Iterator[tuple[float, dict[str, Any]]]:
+        """The recorded sensor readings: (time, {sensor name: reading as plain data})."""
+        for record in self.records(sensors=True):
+            yield record.time, (record.controllers or [{}])[0]
+
+    def records(self, sensors: bool = False) -> Iterator[Record]:
+        """Every frame and checkpoint record in order (or, with ``sensors``, the sensor records).
+
+        Raises:
+            SimlogError: A truncated or malformed record, a non-finite state or time, or times that do not
+                advance frame by frame (naming the byte offset).
+        """
+        self._file.seek(self._start)
+        offset = self._start
+        frame_bytes = 8 + 8 * self.state_size
+        previous: float | None = None
+        step = self.frame_period + 1.5 * self.timestep + 1e-9
+        while True:
+            head = self._file.read(5)
+            if not head:
+                return
+            if len(head) < 5:
+                raise SimlogError(f"{self.path}: byte {offset}: truncated record")
+            kind, length = struct.unpack("<BI", head)
+            if length > self._size - offset - 5:
+                raise SimlogError(f"{self.path}: byte {offset}: record of {length} bytes runs past the end of the file")
+            body = self._file.read(length)
+            if len(body) != length:
+                raise SimlogError(f"{self.path}: byte {offset}: truncated record")
+            if kind == SENSORS:
+                if length < 8:
+                    raise SimlogError(f"{self.path}: byte {offset}: sensor record too short")
+                if sensors:
+                    time = struct.unpack("<d", body[:8])[0]
+                    if not math.isfinite(time):
+                        raise SimlogError(f"{self.path}: byte {offset}: non-finite sensor record time")
+                    readings = self._json(body[8:], offset, "sensor record")
+                    yield Record(kind, time, np.zeros(0), [readings])
+                offset += 5 + length
+                continue
+            if kind not in (FRAME, CHECKPOINT) or length < frame_bytes:
+                raise SimlogError(f"{self.path}: byte {offset}: corrupt record (kind {kind}, {length} bytes)")
+            if kind == FRAME and length != frame_bytes:
+                raise SimlogError(f"{self.path}: byte {offset}: frame of {length} bytes, expected {frame_bytes}")
+            time = struct.unpack("<d", body[:8])[0]
+            state = np.frombuffer(body[8:frame_bytes], dtype=np.float64)
+            if not math.isfinite(time) or time < 0:
+                raise SimlogError(f"{self.path}: byte {offset}: record time {time!r} is not a finite time >= 0")
+            if previous is not None and not previous < time <= previous + step:
+                raise SimlogError(
+                    f"{self.path}: byte {offset}: record time {time!r} s does not follow {previous!r} s "
+                    f"by at most one frame period ({self.frame_period:g} s)"
+                )
+            if not np.isfinite(state).all():
+                raise SimlogError(f"{self.path}: byte {offset}: the state at t = {time!r} s holds NaN or infinity")
+            previous = time
+            controllers = None
+            if kind == CHECKPOINT:
+                if length < frame_bytes + 4:
+                    raise SimlogError(f"{self.path}: byte {offset}: checkpoint too short")
+                (n,) = struct.unpack("<I", body[frame_bytes : frame_bytes + 4])
+                if frame_bytes + 4 + n != length:
+                    raise SimlogError(f"{self.path}: byte {offset}: checkpoint snapshot length {n} does not fit")
+                controllers = self._json(body[frame_bytes + 4 :], offset, "checkpoint")
+                if not isinstance(controllers, list) or not all(isinstance(c, dict) for c in controllers):
+                    raise SimlogError(f"{self.path}: byte {offset}: checkpoint snapshots are not a list of objects")
+            if not sensors:
+                yield Record(kind, time, state, controllers)
+            offset += 5 + length
+
+    def _json(self, raw: bytes, offset: int, what: str) -> Any:
+        try:
+            return bounded(lambda: json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant))
+        except DocumentLimitError as exc:
+            raise SimlogError(f"{self.path}: byte {offset}: {what} {exc}") from None
+        except (UnicodeDecodeError, ValueError) as exc:
+            raise SimlogError(f"{self.path}: byte {offset}: corrupt {what} ({exc})") from None
+
+    def close(self) -> None:
+        """Close the file."""
+        self._file.close()
+
+
+def _refuse_constant(name: str) -> float:
+    """JSON's ``NaN`` is refused in recordings; ``Infinity`` is kept (a drive's never-commanded clock is -inf)."""
+    if name == "NaN":
+        raise ValueError("NaN in the data")
+    return float(name.replace("Infinity", "inf"))
+
+
+def check_scene(log: Simlog, scene: Path) -> None:
+    """Refuse to replay against a scene file that changed since the recording."""
+    try:
+        digest = hashlib.sha256(read_regular(scene, "scene")).hexdigest()
+    except FileReadError as exc:
+        raise SimlogError(f"{log.path}: recorded scene: {exc}") from None
+    if digest != log.header["scene_sha256"]:
+        raise SimlogError(f"{scene} changed since {log.path} was recorded (SHA-256 differs)")
+
+
+def check_model(log: Simlog, world: World) -> None:
+    """Refuse a world whose state size or timestep differs from the recording's."""
+    size = int(mujoco.mj_stateSize(world.model, STATE))
+    if size != log.state_size:
+        raise SimlogError(f"{log.path}: header: state_size is {log.state_size}, the scene's model has {size}")
+    if world.model.opt.timestep != log.timestep:
+        raise SimlogError(f"{log.path}: header: timestep is {log.timestep!r}, the scene's {world.model.opt.timestep!r}")
+
+
+def replay_states(world: World, log: Simlog) -> Iterator[float]:
+    """Set the world to each recorded frame in turn (kinematic replay); yields the frame time."""
+    check_model(log, world)
+    model, data = world.model, world.data
+    for record in log.records():
+        mujoco.mj_setState(model, data, record.state, STATE)
+        mujoco.mj_forward(model, data)
+        yield record.time
+
+
+class _Comparator:
+    """Checks, at each recorded frame time, that the re-simulated state equals the recorded one."""
+
+    def __init__(self, frames: list[Record], period: float, start: float) -> None:
+        self.frames, self.period, self.next_time = frames, period, start + period
+        self.compared = 0
+        self.mismatch: float | None = None
+
+    def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        while self.frames and self.frames[0].time < data.time - 0.5 * model.opt.timestep:
+            self.frames.pop(0)
+        if self.frames and abs(self.frames[0].time - data.time) <= 0.5 * model.opt.timestep:
+            record = self.frames.pop(0)
+            self.compared += 1
+            if self.mismatch is None and state_of(model, data).tobytes() != record.state.tobytes():
+                self.mismatch = record.time
+
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Nothing to reset."""
+
+    def snapshot(self) -> dict[str, Any]:
+        """Not part of checkpoints (it is added after them)."""
+        return {}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Nothing to restore."""
+
+
+def resimulate(world: World, log: Simlog, start: float) -> tuple[int, float | None]:
+    """Re-simulate from the last checkpoint at or before ``start`` with the recorded commands.
+
+    The world's controllers must be those of the recording, in the same order (the scene's bindings and
+    sensors). Each recorded frame after the checkpoint is compared with the re-simulated state at the same
+    point of the step (after the controllers' ticks).
+
+    Returns:
+        The number of frames compared and the time of the first frame that differs (``None``: bit-identical).
+    """
+    if not math.isfinite(start):
+        raise SimlogError(f"--from must be a finite time, got {start}")
+    model, data = world.model, world.data
+    checkpoint: Record | None = None
+    later: list[Record] = []
+    last_time = 0.0
+    for record in log.records():
+        last_time = record.time
+        if record.kind == CHECKPOINT and record.time <= start + 1e-12:
+            checkpoint, later = record, []
+        elif checkpoint is not None:
+            later.append(record)
+    if checkpoint is None:
+        raise SimlogError(f"{log.path}: no checkpoint at or before {start} s")
+    controllers = list(world.controllers)
+    snaps = checkpoint.controllers or []
+    if len(controllers) != len(snaps):
+        raise SimlogError(f"{log.path}: the world has {len(controllers)} controllers, the recording {len(snaps)}")
+    check_model(log, world)
+    mujoco.mj_setState(model, data, checkpoint.state, STATE)
+    mujoco.mj_forward(model, data)
+    for k, (controller, snap) in enumerate(zip(controllers, snaps, strict=True)):
+        problem = _misfit(controller.snapshot(), snap, "")
+        if problem:
+            raise SimlogError(
+                f"{log.path}: checkpoint at t = {checkpoint.time:g} s: snapshot {k} ({type(controller).__name__}) "
+                f"does not fit: {problem}"
+            )
+        try:
+            controller.restore(snap)
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise SimlogError(
+                f"{log.path}: checkpoint at t = {checkpoint.time:g} s: snapshot {k} does not fit "
+                f"{type(controller).__name__} ({type(exc).__name__}: {exc})"
+            ) from None
+    world.reschedule()
+    comparator = _Comparator(later, log.frame_period, checkpoint.time)
+    world.controllers.append(comparator)
+    commands = [c for c in log.commands() if c.t > checkpoint.time + 1e-12]
+    dt = model.opt.timestep
+    try:
+        while data.time < last_time + 0.5 * dt and comparator.frames:
+            while commands and commands[0].t <= data.time + 0.5 * dt:
+                commands.pop(0).apply(world)
+            world.step(1)
+    except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:
+        raise SimlogError(
+            f"{log.path}: re-simulation from the checkpoint at t = {checkpoint.time:g} s failed: the recorded "
+            f"controller snapshots are not usable ({type(exc).__name__}: {exc})"
+        ) from None
+    finally:
+        world.controllers.remove(comparator)
+    return comparator.compared, comparator.mismatch
+
+
+def _misfit(template: Any, value: Any, where: str) -> str | None:
+    """Why a recorded snapshot does not have the shape of a fresh one (``template``), or ``None``.
+
+    Keys and JSON types must match (numbers may be ints or floats; ``None`` and empty containers in the
+    template accept any value of plain JSON data).
+    """
+    here = where or "snapshot"
+    if template is None or (isinstance(template, dict | list) and not template):
+        return None
+    if isinstance(template, bool) or isinstance(value, bool):
+        return None if isinstance(template, bool) and isinstance(value, bool) else f"{here}: expected a boolean"
+    if isinstance(template, int | float):
+        return None if isinstance(value, int | float) else f"{here}: expected a number, got {type(value).__name__}"
+    if isinstance(template, str):
+        return None if isinstance(value, str) else f"{here}: expected a string"
+    if isinstance(template, list):
+        if not isinstance(value, list) or len(value) != len(template):
+            return f"{here}: expected an array of {len(template)}"
+        return next((p for k, t in enumerate(template) if (p := _misfit(t, value[k], f"{where}[{k}]"))), None)
+    if isinstance(template, dict):
+        if not isinstance(value, dict) or set(value) != set(template):
+            return f"{here}: expected the keys {sorted(template)}"
+        return next((p for k, t in template.items() if (p := _misfit(t, value[k], f"{where}.{k}".lstrip(".")))), None)
+    return None

@@ -1,0 +1,529 @@
+"""MjcfRobot: any MuJoCo MJCF model in a world, attached through ``MjSpec`` under the entity's name.
+
+The model is read by MuJoCo itself (:meth:`mujoco.MjSpec.from_file`: its ``<include>`` files, defaults
+and compiler settings, angles in degrees or radians as the file says) and attached with
+:meth:`mujoco.MjSpec.attach` under the prefix ``NAME/``: the joint ``elbow`` of the entity ``arm`` is
+``arm/elbow``, its keyframe ``home`` is ``arm/home``, its default class ``main`` is ``arm/main``. Bodies,
+joints, geoms, sites, cameras, lights, actuators, sensors, tendons, contact pairs and excludes,
+equalities and keyframes all come along (MuJoCo's attach carries them); keyframes are widened to the whole
+world, other entities' joints at their initial values.
+
+Files: meshes, textures, height fields and skins are read from beside the model as MuJoCo would find them
+(``compiler meshdir``, ``texturedir``, ``assetdir``, absolute paths) and put into the world's in-memory file
+system under names unique to the entity (MuJoCo caches meshes by file name), so ``simrun export --mjcf``
+writes them into its folder.
+
+Where the model goes: a model whose top-level bodies are welded to its world (an arm) is attached under
+the entity's body at the entity's pose, so ``free``, ``kinematic`` and ``parent`` work as for any entity
+(an arm on a mobile base). A model with free joints on top-level bodies (a walker, a loose object) or top-level mocap
+bodies keeps them; MuJoCo allows those only on bodies of the world itself, so such a model is attached in the
+world at the entity's pose (the entity must then be top level, neither ``free`` nor ``kinematic``), and
+the entity's own body stays an empty marker there.
+
+A model with no free joint of its own (dm_control's locomotion walkers: their Python adds the root joints
+when it puts a walker into an arena) is welded where it is put unless given one of two roots:
+
+- ``free = true`` (every entity's key): the entity's body gets a free joint ``NAME/free`` and the model
+  hangs from it, as dm_control's ``Walker.create_root_joints`` adds a ``freejoint`` to the walker's
+  attachment frame (``dm_control/locomotion/walkers/base.py``): the model falls, lands and can walk. The
+  entity's body has no mass and MuJoCo refuses a moving body without mass, so one of the model's top-level
+  bodies must have no joint of its own (the CMU humanoid's ``root``); the entity must be top level.
+- ``root_slides = true``: three slide joints ``NAME/root_x``, ``NAME/root_y``, ``NAME/root_z`` along the
+  axes of the entity's frame on the model's one top-level body, before its own joints, without limits,
+  springs, damping or armature: the body translates but keeps its orientation (its own hinges still turn
+  it). dm_control's ball walkers get exactly these (``create_root_joints`` of ``BoxHead``,
+  ``dm_control/locomotion/soccer/boxhead.py``, and ``JumpingBall``, ``.../walkers/jumping_ball.py``:
+  slides ``root_x``, ``root_y``, ``root_z`` of class ``root`` on the attachment frame); here they sit on the
+  top-level body itself, which has the mass MuJoCo wants (same motion: a massless frame adds nothing).
+  The model's keyframes get the slides at 0.
+
+The world's options (timestep, integrator, gravity, fluid density and viscosity, solver) govern: the
+model's ``<option>`` is replaced by them before the attach (MuJoCo's attach keeps the parent's anyway, with
+a printed warning per difference), and its ``<size>`` is not carried over. Unnamed keyframes are named
+``keyK`` (K: their index), so the attached ones are ``NAME/keyK``.
+
+Wheels: naming two wheel joints (``wheels = ["left", "right"]``) gives them simrun's DC motors
+``NAME/left_motor`` and ``NAME/right_motor`` (the model of :mod:`simrun.robots.diff_drive`, ``stall_torque`` and
+``no_load_speed``), replacing the model's own actuators on those joints, so :class:`~simrun.services.drive_service
+.DriveService` drives the model as it drives the built-in robots; the wheel radius and track are measured
+from the model unless given.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from simrun.errors import EntityError
+from simrun.robots.diff_drive import DifferentialDrive
+from simrun.world.entity import BuildContext, Entity
+
+#: Largest MJCF file read, bytes (its includes and assets are MuJoCo's to bound).
+MAX_MJCF_BYTES = 64 * 1024 * 1024
+_LINE = re.compile(r"[Ll]ine(?: number)?[ =](\d+)")
+_ELEMENT = re.compile(r"Element '([^']*)'|XMLElement name=(\w+)")
+#: Geom types whose first size is a radius (a wheel's).
+_ROUND = tuple(
+    int(t) for t in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_ELLIPSOID)
+)
+#: Size settings copied from the world into the model before attaching (the world's govern).
+_SIZES = (
+    "memory",
+    "nconmax",
+    "nemax",
+    "njmax",
+    "nkey",
+    "nstack",
+    "nuserdata",
+    *(f"nuser_{k}" for k in ("actuator", "body", "cam", "geom", "jnt", "sensor", "site", "tendon")),
+)
+_NAMED = re.compile(r"Element name '([^']*)'")
+_PARSE = re.compile(r"Error=(XML_ERROR_\w+)")
+
+
+@dataclass(frozen=True, slots=True)
+class WheelGeometry:
+    """Wheels of an MJCF model as a drive sees them.
+
+    Attributes:
+        joints: Full names of the left and right wheel joints (``NAME/joint``).
+        radius: Wheel radius, metres.
+        track: Distance between the wheel centres along the wheel axis, metres.
+        base: Full name of the body that carries the robot's free joint (the entity's body otherwise).
+    """
+
+    joints: tuple[str, str]
+    radius: float
+    track: float
+    base: str
+
+
+@dataclass(kw_only=True)
+class MjcfRobot(Entity):
+    """A robot (or any model) from an MJCF file.
+
+    Attributes:
+        file: Path of the MJCF ``.xml`` (relative to the world folder).
+        wheels: Left and right wheel joints (names inside the model) for a drive; empty: none.
+        wheel_radius: Metres; ``None``: the largest radius of the geoms on the left wheel's body.
+        track: Metres; ``None``: the distance between the two wheel bodies at the initial pose.
+        stall_torque: Wheel torque at power 1 held still, N m (the DC motors ``wheels`` adds).
+        no_load_speed: Wheel speed at power 1 without load, rad/s.
+        root_slides: Three slide joints on the model's top-level body (see the module); not with ``free``
+            or ``kinematic``.
+    """
+
+    TYPE: ClassVar[str] = "MjcfRobot"
+    #: Sensors may mount on any of its bodies (``body = "NAME/link"``).
+    BODY_MOUNTS: ClassVar[bool] = True
+
+    file: str
+    wheels: tuple[str, ...] = ()
+    wheel_radius: float | None = None
+    track: float | None = None
+    stall_torque: float = 1.0
+    no_load_speed: float = 10.0
+    root_slides: bool = False
+
+    # -- building ------------------------------------------------------------------------------------------
+
+    def build(self, body: Any, ctx: BuildContext) -> None:
+        """Read the model, move its files into memory and attach it under ``body`` (or at the pose in the world)."""
+        path = ctx.base_dir / self.file
+        child = self._read(path)
+        tag = "".join(c if c.isalnum() else "_" for c in ctx.full_name)
+        files, sources = _load_files(child, path, f"mjcf_{tag}_", self._fail)
+        child.assets = dict(files)
+        if self.wheels:
+            self._add_motors(child)
+        if self.root_slides:  # before any compile of the model: a compile ties its keyframes to its joints
+            self._add_root_slides(child, path)
+        elif self.free:
+            self._check_free(child, path)
+        _scale_total_mass(child, lambda: self._compiled(child, path))
+        self._compiled(child, path)  # MuJoCo must take the model alone first: its message names the element
+        for k, key in enumerate(child.keys):
+            if not key.name:  # attach names an unnamed key after the prefix alone: two would clash
+                key.name = f"key{k}"
+        _keep_flags(child)
+        _take_settings(child, ctx.spec)
+        world_only = [b.name or "(unnamed)" for b in child.worldbody.bodies if _world_only(b)]
+        if world_only:
+            if ctx.full_name != self.name or self.free or self.kinematic:
+                raise EntityError(
+                    f"MjcfRobot {self.name!r}: top-level bodies {', '.join(world_only)} have free joints or are "
+                    "mocap bodies, which MuJoCo allows only on bodies of the world: make the entity top level, "
+                    "not free, not kinematic"
+                )
+            pose = self.body_pose()
+            frame = ctx.spec.worldbody.add_frame(pos=list(pose.position), quat=list(pose.orientation))
+        else:
+            frame = body.add_frame()
+        try:
+            ctx.spec.attach(child, prefix=f"{ctx.full_name}/", frame=frame)
+        except ValueError as exc:
+            raise self._fail(path, str(exc), "MuJoCo cannot attach it; rename the clashing element") from None
+        ctx.assets.vfs.update(files)
+        ctx.assets.sources.update(sources)
+
+    def _read(self, path: Path) -> mujoco.MjSpec:
+        try:
+            st = path.stat()
+        except OSError as exc:
+            raise EntityError(
+                f"MjcfRobot {self.name!r}: {path}: cannot read the MJCF file ({exc.strerror}); check 'file'"
+            ) from None
+        if not path.is_file():
+            raise EntityError(f"MjcfRobot {self.name!r}: {path}: not a regular file; 'file' names an MJCF .xml")
+        if st.st_size > MAX_MJCF_BYTES:
+            raise EntityError(f"MjcfRobot {self.name!r}: {path}: {st.st_size} bytes, over {MAX_MJCF_BYTES}")
+        root = _root_tag(path)
+        if root != "mujoco":
+            hint = "use UrdfRobot for a URDF" if root == "robot" else "an MJCF model starts with <mujoco>"
+            raise EntityError(f"MjcfRobot {self.name!r}: {path}:1: <{root}> is not an MJCF model; {hint}")
+        try:
+            return mujoco.MjSpec.from_file(str(path))
+        except ValueError as exc:
+            raise self._fail(path, str(exc), "fix that element (MuJoCo's XML reader refused it)") from None
+
+    def _compiled(self, child: mujoco.MjSpec, path: Path) -> mujoco.MjModel:
+        try:
+            return child.compile()
+        except ValueError as exc:
+            raise self._fail(path, str(exc), "fix that element (MuJoCo refuses the model)") from None
+
+    def _fail(self, path: Path, message: str, hint: str) -> EntityError:
+        """A one-line error from MuJoCo's message: file, line and element first, then MuJoCo's words, then the hint."""
+        lines = [part.strip() for part in message.strip().splitlines() if part.strip()]
+        text = " ".join(lines)
+        line = _LINE.search(text)
+        element, named, parse = _ELEMENT.search(text), _NAMED.search(text), _PARSE.search(text)
+        where = f"{path}:{line.group(1)}" if line else str(path)
+        first = parse.group(1) if parse else lines[0] if lines else "unreadable"
+        for prefix in ("XML Error: ", "Error: "):
+            first = first.removeprefix(prefix)
+        what = ""
+        if element:
+            what = f" <{element.group(1) or element.group(2)}>:"
+        elif named:
+            what = f" element named {named.group(1)!r}:"
+        return EntityError(f"MjcfRobot {self.name!r}: {where}:{what} {first}; {hint}")
+
+    def _add_root_slides(self, child: mujoco.MjSpec, path: Path) -> None:
+        """Slides ``root_x``, ``root_y``, ``root_z`` (the entity frame's axes) first on the one top-level body."""
+        who = f"MjcfRobot {self.name!r}"
+        if self.free or self.kinematic:
+            raise EntityError(f"{who}: root_slides moves the model's root; it cannot also be free or kinematic")
+        tops = list(child.worldbody.bodies)
+        if len(tops) != 1 or _world_only(tops[0]):
+            found = ", ".join(b.name or "(unnamed)" for b in tops) or "none"
+            raise EntityError(
+                f"{who}: root_slides needs one top-level body without a free joint, not mocap, in {path} "
+                f"(top-level bodies: {found}); drop root_slides"
+            )
+        top = tops[0]
+        rotation = np.zeros(9)
+        mujoco.mju_quat2Mat(rotation, self._compiled(child.copy(), path).body_quat[1])  # its frame in the entity's
+        names = {j.name for j in child.joints}
+        clash = sorted(n for n in ("root_x", "root_y", "root_z") if n in names)
+        if clash:
+            raise EntityError(f"{who}: root_slides adds {', '.join(clash)}, already a joint of {path}")
+        own = [(_joint_fields(j), j.frame) for j in top.joints]
+        for joint in list(top.joints):
+            child.delete(joint)
+        blank = _joint_fields(mujoco.MjSpec().worldbody.add_body().add_joint())  # MuJoCo's defaults, not the model's
+        for k, axis in enumerate(rotation.reshape(3, 3)):  # row k of R = R^T e_k: entity axis k in the body's
+            slide = top.add_joint()
+            for key, value in blank.items():
+                setattr(slide, key, value)
+            slide.name, slide.type, slide.axis = f"root_{'xyz'[k]}", mujoco.mjtJoint.mjJNT_SLIDE, list(axis)
+            slide.limited = slide.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        for fields, frame in own:
+            joint = top.add_joint()
+            for key, value in fields.items():
+                setattr(joint, key, value)
+            if frame is not None:
+                joint.set_frame(frame)
+        for key in child.keys:  # the top-level body's joints come first in qpos and qvel
+            if len(key.qpos):
+                key.qpos = [0.0, 0.0, 0.0, *key.qpos]
+            if len(key.qvel):
+                key.qvel = [0.0, 0.0, 0.0, *key.qvel]
+
+    def _check_free(self, child: mujoco.MjSpec, path: Path) -> None:
+        """Refuse ``free`` where every top-level body has joints of its own: nothing with mass under the free joint."""
+        tops = list(child.worldbody.bodies)
+        if not tops or any(_world_only(b) for b in tops) or any(not list(b.joints) for b in tops):
+            return
+        jointed = ", ".join(
+            f"{b.name or '(unnamed)'} ({', '.join(j.name or 'unnamed' for j in b.joints)})" for b in tops
+        )
+        raise EntityError(
+            f"MjcfRobot {self.name!r}: free = true hangs {path} from a free joint on the entity's body, which "
+            f"has no mass, and every top-level body has joints of its own: {jointed}; MuJoCo refuses a moving "
+            "body without mass: use root_slides = true (translation only, as dm_control's ball walkers)"
+        )
+
+    def _add_motors(self, child: mujoco.MjSpec) -> None:
+        who = f"MjcfRobot {self.name!r}"
+        add_wheel_motors(child, who, self.file, self.wheels, self.stall_torque, self.no_load_speed)
+
+    # -- wheels (DriveService) -----------------------------------------------------------------------------
+
+    def drive_description(self, base_dir: Path) -> DifferentialDrive:
+        """The drive the :class:`~simrun.services.drive_service.DriveService` controls: radius, track, motor, joints.
+
+        Raises:
+            EntityError: The entity names no wheels, or the model cannot be read.
+        """
+        return drive_description(self, base_dir)
+
+    def wheel_geometry(self, base_dir: Path) -> WheelGeometry:
+        """Wheel joints, radius and track (measured from the model compiled alone where not given).
+
+        Args:
+            base_dir: The world's folder (``file`` is relative to it).
+        """
+        path = Path(base_dir) / self.file
+        child = self._read(path)
+        files, _ = _load_files(child, path, "wheels_", self._fail)
+        child.assets = dict(files)
+        self._add_motors(child)
+        return wheel_geometry(self, self._compiled(child, path))
+
+
+def add_wheel_motors(
+    child: mujoco.MjSpec, who: str, file: str, wheels: tuple[str, ...], stall_torque: float, no_load_speed: float
+) -> None:
+    """Give two wheel joints simrun's DC motors ``left_motor``, ``right_motor`` (replacing the model's own there).
+
+    The motor of :mod:`simrun.robots.diff_drive`: torque =
+    ``stall_torque * power - (stall_torque / no_load_speed) * speed`` (power in [-1, 1]), limited to the stall torque.
+
+    Raises:
+        EntityError: Not two joints of the model, or a motor number that is not positive (``who``: the entity).
+    """
+    if len(wheels) != 2:
+        raise EntityError(f"{who}: wheels names 2 joints (left, right), got {len(wheels)}")
+    for key, value in (("stall_torque", stall_torque), ("no_load_speed", no_load_speed)):
+        if not (math.isfinite(value) and value > 0):
+            raise EntityError(f"{who}: {key} must be a positive number, got {value!r}")
+    joints = {j.name for j in child.joints}
+    for wheel in wheels:
+        if wheel not in joints:
+            known = ", ".join(sorted(n for n in joints if n)) or "none"
+            raise EntityError(f"{who}: wheels names {wheel!r}, not a joint of {file} (joints: {known})")
+    for actuator in list(child.actuators):
+        if int(actuator.trntype) == int(mujoco.mjtTrn.mjTRN_JOINT) and actuator.target in wheels:
+            child.delete(actuator)
+    for side, joint in zip(("left", "right"), wheels, strict=True):
+        motor = child.add_actuator(name=f"{side}_motor", target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        motor.gainprm[0] = stall_torque
+        motor.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        motor.biasprm[:3] = [0.0, 0.0, -stall_torque / no_load_speed]
+        motor.ctrlrange = [-1.0, 1.0]
+        motor.ctrllimited = 1
+        motor.forcerange = [-stall_torque, stall_torque]
+        motor.forcelimited = 1
+
+
+def drive_description(entity: Any, base_dir: Path) -> DifferentialDrive:
+    """The :class:`DifferentialDrive` numbers of an entity with ``wheels`` (an MJCF or URDF robot).
+
+    Raises:
+        EntityError: The entity names no wheels.
+    """
+    if not entity.wheels:
+        raise EntityError(f"{entity.TYPE} {entity.name!r} names no wheels; set wheels = [LEFT_JOINT, RIGHT_JOINT]")
+    geometry = entity.wheel_geometry(base_dir)
+    return DifferentialDrive(
+        name=entity.name,
+        wheel_radius=geometry.radius,
+        track=geometry.track,
+        stall_torque=entity.stall_torque,
+        no_load_speed=entity.no_load_speed,
+    )
+
+
+def wheel_geometry(entity: Any, model: mujoco.MjModel) -> WheelGeometry:
+    """The wheels of ``entity`` (its ``name``, ``wheels``, ``wheel_radius``, ``track``) in its model compiled alone."""
+    radius, track, base = _measure(model, entity.wheels)
+    return WheelGeometry(
+        (f"{entity.name}/{entity.wheels[0]}", f"{entity.name}/{entity.wheels[1]}"),
+        entity.wheel_radius if entity.wheel_radius is not None else radius,
+        entity.track if entity.track is not None else track,
+        f"{entity.name}/{base}" if base is not None else entity.name,
+    )
+
+
+def _measure(model: mujoco.MjModel, wheels: tuple[str, ...]) -> tuple[float, float, str | None]:
+    """(radius, track, free base body or None) of the wheels in a model compiled alone."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    bodies = [int(model.joint(w).bodyid[0]) for w in wheels]
+    radius = 0.0
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] == bodies[0] and int(model.geom_type[g]) in _ROUND:
+            radius = max(radius, float(model.geom_size[g][0]))
+    if radius <= 0:
+        radius = float(model.geom_rbound[model.geom_bodyid == bodies[0]].max(initial=0.0))
+    axis = data.xmat[bodies[0]].reshape(3, 3) @ model.jnt_axis[model.joint(wheels[0]).id]
+    track = abs(float(np.dot(data.xpos[bodies[1]] - data.xpos[bodies[0]], axis)))
+    root = int(model.body_rootid[bodies[0]])
+    jnt = int(model.body_jntadr[root])
+    free = jnt >= 0 and int(model.jnt_type[jnt]) == int(mujoco.mjtJoint.mjJNT_FREE)
+    return radius, track, (model.body(root).name if free else None)
+
+
+def _scale_total_mass(child: mujoco.MjSpec, compile_alone: Any) -> None:
+    """Apply ``<compiler settotalmass>`` by scaling the model's masses and densities.
+
+    MuJoCo's own advice: the attribute is deprecated and makes every compile print a warning. The masses come
+    out as MuJoCo's rule makes them (tests/test_mjcf_robot.py compares).
+    """
+    total = float(child.compiler.settotalmass)
+    if total <= 0:
+        return
+    child.compiler.settotalmass = -1.0
+    model = compile_alone()
+    scale = total / float(model.body_mass.sum())
+    for body in child.bodies:
+        if body.explicitinertial:
+            body.mass *= scale
+            body.inertia = [v * scale for v in body.inertia]
+            body.fullinertia = [v * scale for v in body.fullinertia]
+    for geom in child.geoms:
+        if math.isfinite(geom.mass):
+            geom.mass *= scale
+        geom.density *= scale
+
+
+def _keep_flags(child: mujoco.MjSpec) -> None:
+    """Keep what the model's contact and gravity switches meant, for its own bodies, in the world's options.
+
+    ``<flag contact="disable"/>``: its geoms collide with nothing (``contype = conaffinity = 0``, its contact
+    pairs dropped). ``<flag gravity="disable"/>`` or ``gravity="0 0 0"``: its bodies carry their own weight
+    (``gravcomp = 1``, MuJoCo's gravity compensation). Other switches are the world's.
+    """
+    flags = int(child.option.disableflags)
+    if flags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT):
+        for geom in child.geoms:
+            geom.contype = geom.conaffinity = 0
+        for pair in list(child.pairs):
+            child.delete(pair)
+    if flags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY) or not np.any(child.option.gravity):
+        for body in child.bodies:
+            if body.name != "world":
+                body.gravcomp = 1.0
+
+
+def _take_settings(child: mujoco.MjSpec, world: mujoco.MjSpec) -> None:
+    """The world's options, sizes, statistics and visual settings into the model.
+
+    MuJoCo's attach keeps the parent's anyway, and prints a warning of every difference on the console.
+    """
+    pairs = [(child.option, world.option), (child.stat, world.stat)]
+    pairs += [
+        (getattr(child.visual, g), getattr(world.visual, g))
+        for g in ("global_", "headlight", "map", "quality", "rgba", "scale")
+    ]
+    for mine, theirs in pairs:
+        for name in dir(theirs):
+            if not name.startswith("_") and not callable(getattr(theirs, name)):
+                setattr(mine, name, getattr(theirs, name))
+    for name in _SIZES:
+        setattr(child, name, getattr(world, name))
+
+
+def _world_only(body: Any) -> bool:
+    """Whether a top-level body must stay a child of the world: a free joint, or a mocap body."""
+    return bool(body.mocap) or any(int(j.type) == int(mujoco.mjtJoint.mjJNT_FREE) for j in body.joints)
+
+
+#: Joint settings that are not values (identity, place in the tree, the frame set through ``set_frame``).
+_NOT_COPIED = {"id", "parent", "frame", "signature", "compiler", "classname", "set_frame"}
+
+
+def _joint_fields(joint: Any) -> dict[str, Any]:
+    """Every setting of a spec joint, to add it again (MuJoCo's spec has no way to move a joint in its body)."""
+    return {
+        name: getattr(joint, name)
+        for name in dir(joint)
+        if not name.startswith("_") and name not in _NOT_COPIED and not callable(getattr(joint, name))
+    }
+
+
+def _root_tag(path: Path) -> str:
+    """The name of the file's first element (the XML is MuJoCo's to judge; this only tells MJCF from others)."""
+    try:
+        for _, element in ET.iterparse(str(path), events=("start",)):
+            return str(element.tag)
+    except (ET.ParseError, OSError):
+        return "mujoco"  # let MuJoCo's reader name the line
+    return "mujoco"
+
+
+def _resolve(model_dir: Path, folder: str, file: str) -> Path:
+    """Where MuJoCo reads ``file``: absolute as given, else under the compiler folder (relative to the model)."""
+    name = Path(file)
+    if name.is_absolute():
+        return name
+    base = Path(folder) if folder and Path(folder).is_absolute() else model_dir / folder
+    return base / name
+
+
+def _load_files(spec: mujoco.MjSpec, path: Path, prefix: str, fail: Any) -> tuple[dict[str, bytes], set[Path]]:
+    """Read every mesh, texture, height field and skin file the model names into memory, renaming them.
+
+    Returns:
+        In-memory files (name to bytes) and the real paths read.
+    """
+    model_dir = path.parent
+    compiler = spec.compiler
+    files: dict[str, bytes] = {}
+    sources = {Path(os.path.realpath(path))}
+    taken: dict[Path, str] = {}
+
+    def claim(element: str, name: str, file: str, folder: str) -> str:
+        where = _resolve(model_dir, folder, file)
+        real = Path(os.path.realpath(where))
+        if real in taken:
+            return taken[real]
+        try:
+            data = real.read_bytes()
+        except OSError as exc:
+            raise fail(
+                path, f"{element} {name!r}: cannot read {where} ({exc.strerror})", "put the file there"
+            ) from None
+        memory = f"{prefix}{len(taken)}_{''.join(c if c.isalnum() or c in '._-' else '_' for c in where.name)}"
+        taken[real] = memory
+        files[memory] = data
+        sources.add(real)
+        return memory
+
+    for mesh in spec.meshes:
+        if mesh.file:
+            mesh.file = claim("mesh", mesh.name, mesh.file, compiler.meshdir)
+    for texture in spec.textures:
+        if texture.file:
+            texture.file = claim("texture", texture.name, texture.file, compiler.texturedir)
+        if any(texture.cubefiles):
+            texture.cubefiles = [
+                claim("texture", texture.name, f, compiler.texturedir) if f else "" for f in texture.cubefiles
+            ]
+    for hfield in spec.hfields:
+        if hfield.file:
+            hfield.file = claim("hfield", hfield.name, hfield.file, compiler.meshdir)
+    for skin in spec.skins:
+        if skin.file:
+            skin.file = claim("skin", skin.name, skin.file, compiler.meshdir)
+    compiler.meshdir = compiler.texturedir = ""
+    return files, sources

@@ -1,0 +1,1 @@
+"""Running worlds: sessions, playback, timed commands, rendering, headless GL and the interactive viewer."""

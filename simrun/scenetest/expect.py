@@ -1,0 +1,590 @@
+"""Expectations (``[[expect]]`` in a scene or commands file): what must hold during or at the end of a run.
+
+``simrun test`` (:mod:`simrun.scenetest`) checks them; each has an ``id``, a ``message``, a ``kind`` and a
+time: ``at = T`` (the first observation at or after T simulated seconds), ``at = "end"``, ``always =
+[T0, T1]`` (every observation in the window) or ``sometime = [T0, T1]`` (at least one; ``T1`` may be
+``"end"``). Observations are taken at the start, every :data:`simrun.run.play.DISTANCE_PERIOD` seconds of
+simulated time (and at every command time), and at the end. Kinds (units: metres, degrees, seconds):
+
+- ``position``: ``body`` within ``within`` m of ``point`` (2 numbers: distance in the ground plane; 3: in space;
+  ``"start"``: where the body was when the run started, in space);
+- ``region``: ``body`` inside the axis-aligned box ``min``..``max`` (2 or 3 numbers each);
+- ``heading``: ``body``'s yaw (its X axis in the ground plane, degrees from +X towards +Y) within ``within``
+  degrees of ``yaw``;
+- ``sensor``: the reading of ``sensor`` (its ``field``, element ``index``; every element of an array) in
+  [``min``, ``max``];
+- ``no_contact``: no contact between any geoms of the two entities named in ``between``;
+- ``joint``: ``joint``'s position (radians for hinges, metres for slides) in [``min``, ``max``];
+- ``finite``: positions, velocities and accelerations stay finite;
+- ``no_warnings``: MuJoCo raises no warning during the run;
+- ``realtime``: the run's real-time factor (simulated / wall seconds) is at least ``min`` (the one check
+  that depends on the machine, not only on the simulation).
+
+Every failure says what was measured, when, and by how much it missed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from simrun.errors import EntityError, SceneError
+from simrun.scene.tomlpos import KeyPath, line_of
+from simrun.world.world import World
+
+KINDS = ("position", "region", "heading", "sensor", "no_contact", "joint", "finite", "no_warnings", "realtime")
+_PARAMS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {  # kind: (required, optional)
+    "position": (("body", "point", "within"), ()),
+    "region": (("body", "min", "max"), ()),
+    "heading": (("body", "yaw", "within"), ()),
+    "sensor": (("sensor",), ("field", "index", "min", "max")),
+    "no_contact": (("between",), ()),
+    "joint": (("joint",), ("min", "max")),
+    "finite": ((), ()),
+    "no_warnings": ((), ()),
+    "realtime": (("min",), ()),
+}
+_COMMON = ("id", "message", "kind", "at", "always", "sometime")
+_WHOLE_RUN = ("no_warnings", "realtime")  # no time keys: they judge the whole run
+#: Default time of each kind when none is given: the whole run for the first group, else the end.
+_ALWAYS_BY_DEFAULT = ("no_contact", "finite")
+#: Largest magnitude of a number in an expectation.
+MAX_MAGNITUDE = 1e6
+#: Most expectations in one file.
+MAX_EXPECTATIONS = 1000
+
+
+@dataclass(frozen=True, slots=True)
+class Expectation:
+    """One ``[[expect]]`` table, checked.
+
+    Attributes:
+        id: Unique in its run (scene and commands file together).
+        kind: One of :data:`KINDS`.
+        message: What it means, for people.
+        mode: ``at``, ``end``, ``always`` or ``sometime``.
+        start: Start of the window (``at``: the time), seconds.
+        stop: End of the window, seconds (``None``: the end of the run).
+        params: The kind's parameters (numbers as floats, points as tuples).
+        file: The file it came from (as given).
+        line: Its table's line in that file.
+    """
+
+    id: str
+    kind: str
+    message: str
+    mode: str
+    start: float
+    stop: float | None
+    params: dict[str, Any] = field(hash=False)
+    file: str
+    line: int | None
+
+    def where(self) -> str:
+        """``FILE:LINE: expect 'ID'`` for messages."""
+        return f"{self.file}:{self.line}: expect {self.id!r}" if self.line else f"{self.file}: expect {self.id!r}"
+
+
+@dataclass(frozen=True, slots=True)
+class Outcome:
+    """How one expectation fared in one run.
+
+    Attributes:
+        id: The expectation's id.
+        kind: Its kind.
+        message: Its message.
+        file: Its file.
+        line: Its line.
+        passed: Whether it held.
+        detail: What was measured, when, and by how much it missed (or the margin it held with).
+        time: Simulated time of the observation the detail is about, seconds (``None``: the whole run).
+        miss: How far beyond the tolerance, in the kind's unit (``None`` when it passed).
+    """
+
+    id: str
+    kind: str
+    message: str
+    file: str
+    line: int | None
+    passed: bool
+    detail: str
+    time: float | None
+    miss: float | None
+
+
+def parse_expectations(doc: dict[str, Any], lines: dict[KeyPath, int], path: str) -> list[Expectation]:
+    """The ``[[expect]]`` tables of a parsed TOML document (a scene or commands file).
+
+    Args:
+        doc: The document (``tomllib``).
+        lines: Its key lines (:func:`simrun.scene.tomlpos.key_lines`).
+        path: The file, for messages.
+
+    Raises:
+        SceneError: A bad table, naming the file, line and key (``scene.toml:40: expect[2] 'home': within: ...``).
+    """
+    tables = doc.get("expect", [])
+    if not isinstance(tables, list):
+        raise SceneError("expected an array of tables ([[expect]])", path, "expect", line_of(lines, ("expect",)))
+    if len(tables) > MAX_EXPECTATIONS:
+        raise SceneError(f"{len(tables)} expectations, over the limit of {MAX_EXPECTATIONS}", path, "expect")
+    out: list[Expectation] = []
+    for k, table in enumerate(tables):
+        out.append(_parse_one(table, k, lines, path))
+    seen: dict[str, int] = {}
+    for k, e in enumerate(out):
+        if e.id in seen:
+            raise SceneError(f"duplicate id (also expect[{seen[e.id]}])", path, f"expect[{k}]", e.line, e.id)
+        seen[e.id] = k
+    return out
+
+
+def _parse_one(table: Any, k: int, lines: dict[KeyPath, int], path: str) -> Expectation:
+    label = table.get("id") if isinstance(table, dict) and isinstance(table.get("id"), str) else None
+
+    def fail(message: str, key: str | None = None) -> SceneError:
+        where: KeyPath = ("expect", k, key) if key else ("expect", k)
+        text = f"{key}: {message}" if key else message
+        return SceneError(text, path, f"expect[{k}]", line_of(lines, where), label)
+
+    if not isinstance(table, dict):
+        raise fail("expected a table with id, kind (and message, time, parameters)")
+    kind = table.get("kind")
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise fail(f"expected one of {', '.join(KINDS)}, got {kind!r}", "kind")
+    required, optional = _PARAMS[kind]
+    known = (*_COMMON, *required, *optional)
+    for key in table:
+        if key not in known:
+            raise fail(f"unknown key for kind {kind!r} (known: {', '.join(known)})", key)
+    for key in ("id", *required):
+        if key not in table:
+            raise fail(f"missing {key!r}; a {kind!r} expectation needs {', '.join(('id', 'kind', *required))}")
+    ident = table["id"]
+    if not isinstance(ident, str) or not ident or not all(c.isalnum() or c in "_-." for c in ident):
+        raise fail(f"expected a non-empty string of letters, digits, '_', '-', '.', got {ident!r}", "id")
+    message = table.get("message", "")
+    if not isinstance(message, str):
+        raise fail(f"expected a string, got {message!r}", "message")
+    mode, start, stop = _timing(table, kind, fail)
+    params = _params(table, kind, fail)
+    line = line_of(lines, ("expect", k))
+    return Expectation(ident, kind, message or _describe(kind, params), mode, start, stop, params, path, line)
+
+
+def _timing(table: dict[str, Any], kind: str, fail: Any) -> tuple[str, float, float | None]:
+    given = [key for key in ("at", "always", "sometime") if key in table]
+    if kind in _WHOLE_RUN:
+        if given:
+            raise fail(f"a {kind!r} expectation judges the whole run; remove it", given[0])
+        return "always", 0.0, None
+    if len(given) > 1:
+        raise fail(f"give one of at, always, sometime, not {' and '.join(given)}", given[1])
+    if not given:
+        return ("always", 0.0, None) if kind in _ALWAYS_BY_DEFAULT else ("end", 0.0, None)
+    key = given[0]
+    value = table[key]
+    if key == "at":
+        if value == "end":
+            return "end", 0.0, None
+        return "at", _time(value, fail, key), None
+    if not isinstance(value, list) or len(value) != 2:
+        raise fail('expected [start, stop] seconds (stop may be "end")', key)
+    start = _time(value[0], fail, key)
+    stop = None if value[1] == "end" else _time(value[1], fail, key)
+    if stop is not None and stop < start:
+        raise fail(f"the window ends ({stop:g} s) before it starts ({start:g} s)", key)
+    return key, start, stop
+
+
+def _time(value: Any, fail: Any, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise fail(f'expected a finite number of seconds (or "end"), got {value!r}', key)
+    if not 0 <= value <= MAX_MAGNITUDE:
+        raise fail(f"must be in [0, {MAX_MAGNITUDE:g}] seconds, got {value!r}", key)
+    return float(value)
+
+
+def _number(value: Any, fail: Any, key: str, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise fail(f"expected a finite number, got {value!r}", key)
+    if abs(value) > MAX_MAGNITUDE:
+        raise fail(f"magnitude over {MAX_MAGNITUDE:g}, got {value!r}", key)
+    if positive and value <= 0:
+        raise fail(f"expected a positive number, got {value!r}", key)
+    return float(value)
+
+
+def _vector(value: Any, fail: Any, key: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) not in (2, 3):
+        raise fail(f"expected 2 numbers (x, y) or 3 (x, y, z), got {value!r}", key)
+    return tuple(_number(v, fail, key) for v in value)
+
+
+def _name(value: Any, fail: Any, key: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise fail(f"expected a non-empty name, got {value!r}", key)
+    return value
+
+
+def _params(table: dict[str, Any], kind: str, fail: Any) -> dict[str, Any]:
+    p: dict[str, Any] = {}
+    if "body" in table:
+        p["body"] = _name(table["body"], fail, "body")
+    if kind == "position":
+        point = table["point"]
+        p["point"] = point if point == "start" else _vector(point, fail, "point")
+        p["within"] = _number(table["within"], fail, "within", True)
+    elif kind == "region":
+        low, high = _vector(table["min"], fail, "min"), _vector(table["max"], fail, "max")
+        if len(low) != len(high) or any(a > b for a, b in zip(low, high, strict=False)):
+            raise fail("min and max need the same number of values, each min <= its max", "max")
+        p["min"], p["max"] = low, high
+    elif kind == "heading":
+        p["yaw"], p["within"] = _number(table["yaw"], fail, "yaw"), _number(table["within"], fail, "within", True)
+        if p["within"] >= 180:
+            raise fail("a tolerance of 180 degrees or more accepts every heading", "within")
+    elif kind in ("sensor", "joint"):
+        p[kind] = _name(table[kind], fail, kind)
+        if "min" not in table and "max" not in table:
+            raise fail(f"a {kind!r} expectation needs min, max or both")
+        p["min"] = _number(table["min"], fail, "min") if "min" in table else -math.inf
+        p["max"] = _number(table["max"], fail, "max") if "max" in table else math.inf
+        if p["min"] > p["max"]:
+            raise fail(f"min {p['min']:g} is above max {p['max']:g}", "min")
+        if kind == "sensor":
+            p["field"] = _name(table["field"], fail, "field") if "field" in table else None
+            index = table.get("index")
+            if index is not None and (isinstance(index, bool) or not isinstance(index, int) or index < 0):
+                raise fail(f"expected an array index >= 0, got {index!r}", "index")
+            p["index"] = index
+    elif kind == "no_contact":
+        pair = table["between"]
+        if not isinstance(pair, list) or len(pair) != 2 or not all(isinstance(n, str) and n for n in pair):
+            raise fail(f"expected two entity names, got {pair!r}", "between")
+        if pair[0] == pair[1]:
+            raise fail("name two different entities", "between")
+        p["between"] = tuple(pair)
+    elif kind == "realtime":
+        p["min"] = _number(table["min"], fail, "min", True)
+    return p
+
+
+def _describe(kind: str, p: dict[str, Any]) -> str:
+    """A default message."""
+    texts: dict[str, Callable[[], str]] = {
+        "position": lambda: (
+            f"{p.get('body')} within {p.get('within'):g} m of "
+            + ("its start" if p.get("point") == "start" else _fmt_vec(p.get("point", ())))
+        ),
+        "region": lambda: f"{p.get('body')} inside {_fmt_vec(p.get('min', ()))}..{_fmt_vec(p.get('max', ()))}",
+        "heading": lambda: f"{p.get('body')} heading {p.get('yaw'):g} +- {p.get('within'):g} degrees",
+        "sensor": lambda: f"sensor {p.get('sensor')} in [{p.get('min'):g}, {p.get('max'):g}]",
+        "no_contact": lambda: f"no contact between {' and '.join(p.get('between', ()))}",
+        "joint": lambda: f"joint {p.get('joint')} in [{p.get('min'):g}, {p.get('max'):g}]",
+        "finite": lambda: "the simulation stays finite",
+        "no_warnings": lambda: "MuJoCo raises no warning",
+        "realtime": lambda: f"real-time factor at least {p.get('min'):g}",
+    }
+    return texts[kind]()
+
+
+def _fmt_vec(values: Any) -> str:
+    return "(" + ", ".join(f"{v:g}" for v in values) + ")"
+
+
+def check_against(expectations: list[Expectation], world: World, duration: float) -> None:
+    """Refuse expectations that name what ``world`` lacks, or times after ``duration`` seconds.
+
+    Raises:
+        SceneError: With the expectation's file and line.
+    """
+    ids: dict[str, Expectation] = {}
+    for e in expectations:
+        if e.id in ids:
+            other = ids[e.id]
+            raise SceneError(f"duplicate id (also {other.file}:{other.line})", e.file, "expect", e.line, e.id)
+        ids[e.id] = e
+        _Probe(e, world)  # resolves names
+        if e.start > duration + 1e-9 or (e.stop is not None and e.stop > duration + 1e-9):
+            late = e.stop if e.stop is not None and e.stop > duration else e.start
+            raise SceneError(
+                f"time {late:g} s is after the end of the run ({duration:g} s); lower it or raise [test] duration",
+                e.file,
+                "expect",
+                e.line,
+                e.id,
+            )
+
+
+class _Probe:
+    """Measures one expectation on a world: ``measure() -> (ok, measured text, miss)``."""
+
+    def __init__(self, e: Expectation, world: World) -> None:
+        self.e, self.world = e, world
+        p = e.params
+        try:
+            if "body" in p:
+                self.body = world.body(p["body"])
+            self.point = np.array(self.body.xpos) if p.get("point") == "start" else np.array(p.get("point", ()))
+            if e.kind == "joint":
+                self.joint = world.joint(p["joint"])
+                if int(world.model.jnt_type[self.joint.id]) not in (2, 3):  # slide, hinge
+                    raise EntityError(f"joint {p['joint']!r} is not a hinge or slide joint")
+            if e.kind == "sensor" and p["sensor"] not in world.sensors:
+                known = ", ".join(world.sensors) or "none"
+                raise EntityError(f"no sensor named {p['sensor']!r} (known: {known})")
+            if e.kind == "no_contact":
+                model = world.model
+                self.groups = []
+                for name in p["between"]:
+                    world.entity(name)
+                    bodies = {b for b in range(model.nbody) if _owned(model.body(b).name, name)}
+                    self.groups.append(np.array([model.geom_bodyid[g] in bodies for g in range(model.ngeom)]))
+        except (EntityError, KeyError) as exc:
+            reason = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+            raise SceneError(str(reason), e.file, "expect", e.line, e.id) from None
+
+    def measure(self) -> tuple[bool, str, float]:
+        e, p, data = self.e, self.e.params, self.world.data
+        kind = e.kind
+        if kind == "position":
+            here = np.array(self.body.xpos)[: len(self.point)]
+            distance = float(np.linalg.norm(here - self.point))
+            text = f"{p['body']} at {_fmt_vec(here)}, {distance:.4f} m from {_fmt_vec(self.point)}"
+            return distance <= p["within"], text, distance - p["within"]
+        if kind == "region":
+            here = np.array(self.body.xpos)[: len(p["min"])]
+            outside = np.maximum(np.array(p["min"]) - here, 0) + np.maximum(here - np.array(p["max"]), 0)
+            miss = float(np.linalg.norm(outside))
+            return miss == 0, f"{p['body']} at {_fmt_vec(here)}", miss
+        if kind == "heading":
+            xmat = np.array(self.body.xmat).reshape(3, 3)
+            yaw = math.degrees(math.atan2(xmat[1, 0], xmat[0, 0]))
+            error = abs((yaw - p["yaw"] + 180.0) % 360.0 - 180.0)
+            return error <= p["within"], f"{p['body']} heading {yaw:.2f} degrees, {error:.2f} off", error - p["within"]
+        if kind in ("sensor", "joint"):
+            if kind == "joint":
+                values = [float(self.joint.qpos[0])]
+                what = f"joint {p['joint']} at"
+            else:
+                values, what = self._reading()
+            if not values:
+                return False, f"{what} no reading yet", math.inf
+            miss = max(max(p["min"] - v, v - p["max"], 0.0) if math.isfinite(v) else math.inf for v in values)
+            shown = _fmt_vec(values) if len(values) > 1 else f"{values[0]:.6g}"
+            return miss == 0, f"{what} {shown}", miss
+        if kind == "no_contact":
+            first, depth = None, 0.0
+            for c in data.contact[: data.ncon]:
+                g1, g2 = int(c.geom1), int(c.geom2)
+                a, b = self.groups
+                if (a[g1] and b[g2]) or (a[g2] and b[g1]):
+                    depth = max(depth, -float(c.dist))
+                    first = first or (_geom(self.world, g1), _geom(self.world, g2))
+            if first is None:
+                return True, "no contact", 0.0
+            return False, f"contact {first[0]} - {first[1]}, {depth * 1000:.2f} mm deep", depth
+        if kind == "finite":
+            for name in ("qpos", "qvel", "qacc"):
+                values = getattr(data, name)
+                bad = np.flatnonzero(~np.isfinite(values))
+                if bad.size:
+                    return False, f"{name}[{int(bad[0])}] = {values[bad[0]]!r}", math.inf
+            return True, "finite", 0.0
+        if kind == "no_warnings":
+            raised = self.world.warnings()
+            if raised:
+                text = ", ".join(f"{k} x{n}" for k, n in sorted(raised.items()))
+                return False, f"MuJoCo warning(s) {text}", float(sum(raised.values()))
+            return True, "no warnings", 0.0
+        raise AssertionError(kind)  # realtime is judged from the run's summary
+
+    def _reading(self) -> tuple[list[float], str]:
+        p = self.e.params
+        value = self.world.sensors[p["sensor"]].reading
+        what = (
+            f"sensor {p['sensor']}"
+            + (f".{p['field']}" if p["field"] else "")
+            + (f"[{p['index']}]" if p["index"] is not None else "")
+        )
+        if value is None:
+            return [], what
+        if p["field"] is not None:
+            if not hasattr(value, p["field"]):
+                fields = ", ".join(getattr(value, "__dataclass_fields__", {})) or "none"
+                raise SceneError(
+                    f"the reading has no field {p['field']!r} (fields: {fields})",
+                    self.e.file,
+                    "expect",
+                    self.e.line,
+                    self.e.id,
+                )
+            value = getattr(value, p["field"])
+        try:
+            flat = np.asarray(value, dtype=float).ravel()
+        except (TypeError, ValueError):
+            shown = f"field {p['field']!r}" if p["field"] else "reading"
+            raise SceneError(
+                f"the sensor's {shown} is not numbers ({value!r:.60}); name a numeric field",
+                self.e.file,
+                "expect",
+                self.e.line,
+                self.e.id,
+            ) from None
+        if p["index"] is not None:
+            if p["index"] >= flat.size:
+                raise SceneError(
+                    f"index {p['index']} is past the reading's {flat.size} value(s)",
+                    self.e.file,
+                    "expect",
+                    self.e.line,
+                    self.e.id,
+                )
+            flat = flat[p["index"] : p["index"] + 1]
+        return [float(v) for v in flat], f"{what} ="
+
+
+def _owned(body: str, entity: str) -> bool:
+    return body == entity or body.startswith(entity + "/")
+
+
+def _geom(world: World, g: int) -> str:
+    name = mujoco.mj_id2name(world.model, mujoco.mjtObj.mjOBJ_GEOM, g)
+    return name or f"geom {g}"
+
+
+@dataclass
+class _State:
+    """What one expectation has seen so far."""
+
+    decided: bool = False
+    passed: bool = True
+    text: str = ""
+    time: float | None = None
+    miss: float = -math.inf  # the kept observation's miss (positive: beyond the tolerance)
+    count: int = 0
+    first: float | None = None
+    last: float | None = None
+
+    def keep(self, passed: bool, text: str, time: float | None, miss: float) -> None:
+        self.passed, self.text, self.time, self.miss = passed, text, time, miss
+
+
+#: Kinds whose closest call is worth reporting when they hold (the others hold with nothing to measure).
+_MEASURED = ("position", "region", "heading", "sensor", "joint")
+
+
+class Observer:
+    """Evaluates expectations on a running world: :meth:`observe` at each observation, :meth:`finish` at the end.
+
+    Args:
+        expectations: Checked with :func:`check_against` beforehand.
+        world: The world being run.
+    """
+
+    def __init__(self, expectations: list[Expectation], world: World) -> None:
+        self.world = world
+        self.probes = [_Probe(e, world) for e in expectations if e.kind != "realtime"]
+        self.realtime = [e for e in expectations if e.kind == "realtime"]
+        self.dt = float(world.model.opt.timestep)
+        self.state = [_State() for _ in self.probes]
+
+    def observe(self) -> None:
+        """Look at the world now (simulated time ``world.time``)."""
+        now, half = self.world.time, 0.5 * self.dt
+        for probe, state in zip(self.probes, self.state, strict=True):
+            e = probe.e
+            if state.decided or e.mode == "end" or now < e.start - half:
+                continue
+            if e.stop is not None and now > e.stop + half:
+                self._close(probe, state)
+                continue
+            ok, text, miss = probe.measure()
+            state.count += 1
+            state.first = now if state.first is None else state.first
+            state.last = now
+            if e.mode == "at":
+                state.keep(ok, text, now, miss)
+                state.decided = True
+            elif e.mode == "always":
+                if not ok:
+                    state.keep(False, text, now, miss)
+                    state.decided = True
+                elif state.time is None or miss > state.miss:  # keep the closest call
+                    state.keep(True, text, now, miss)
+            elif ok:  # sometime
+                state.keep(True, text, now, miss)
+                state.decided = True
+            elif state.time is None or miss < state.miss:  # keep the best attempt
+                state.keep(False, text, now, miss)
+
+    def _close(self, probe: _Probe, state: _State) -> None:
+        state.decided = True
+        if state.count == 0:  # no observation fell in the window
+            state.keep(False, "no observation in the window (they come every 20 ms)", None, math.inf)
+        elif probe.e.mode == "sometime":
+            state.passed = False
+
+    def finish(self, simulated_s: float, wall_s: float) -> list[Outcome]:
+        """Close every window at the end of the run and give the outcomes, in the expectations' order.
+
+        Args:
+            simulated_s: Simulated seconds of the run (for ``realtime``).
+            wall_s: Wall-clock seconds the run took.
+        """
+        now = self.world.time
+        outcomes: dict[str, Outcome] = {}
+        for probe, state in zip(self.probes, self.state, strict=True):
+            e = probe.e
+            if e.mode == "end" or (e.mode == "at" and not state.decided):  # "at": due at the very end
+                ok, text, miss = probe.measure()
+                state.keep(ok, text, now, miss)
+                state.count, state.decided = 1, True
+            elif not state.decided:
+                self._close(probe, state)
+            outcomes[e.id] = _outcome(e, state)
+        for e in self.realtime:
+            factor = simulated_s / wall_s if wall_s > 0 else math.inf
+            ok = factor >= e.params["min"]
+            # the measured factor varies from run to run: it is shown only when it fails (reports stay identical)
+            text = (
+                f"real-time factor at least {e.params['min']:g}"
+                if ok
+                else f"real-time factor {factor:.2f} ({simulated_s:g} s simulated in {wall_s:.3f} s wall-clock)"
+            )
+            outcomes[e.id] = _outcome(e, _State(True, ok, text, None, e.params["min"] - factor))
+        order = [e.id for e in (*(p.e for p in self.probes), *self.realtime)]
+        return [outcomes[i] for i in order]
+
+
+def _outcome(e: Expectation, state: _State) -> Outcome:
+    at = f" at t = {state.time:.3f} s" if state.time is not None else ""
+    if state.passed:
+        if e.mode == "always" and e.kind != "realtime":
+            held = f"held at all {state.count} observations, t = {state.first:.3f}-{state.last:.3f} s"
+            detail = f"{held}; closest: {state.text}{at}" if e.kind in _MEASURED else held
+        else:
+            detail = f"{state.text}{at}"
+        return Outcome(e.id, e.kind, e.message, e.file, e.line, True, detail, state.time, None)
+    miss = state.miss
+    by = f"; missed by {miss:.4g}{_UNITS[e.kind]}" if math.isfinite(miss) else ""
+    return Outcome(e.id, e.kind, e.message, e.file, e.line, False, f"{state.text}{at}{by}", state.time, miss)
+
+
+_UNITS = {
+    "position": " m",
+    "region": " m",
+    "heading": " degrees",
+    "sensor": "",
+    "joint": "",
+    "no_contact": " m (penetration)",
+    "finite": "",
+    "no_warnings": " warning(s)",
+    "realtime": "",
+}

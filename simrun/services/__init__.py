@@ -1,0 +1,1 @@
+"""Services bound to robots: the drive service and the joint service."""

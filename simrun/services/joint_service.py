@@ -1,0 +1,493 @@
+"""JointService: position and velocity targets, trajectories and state by joint name, over a model's actuators.
+
+Bound to an entity (an :class:`~simrun.robots.mjcf_robot.MjcfRobot`, a :class:`~simrun.robots.urdf_robot.UrdfRobot` with
+``actuators = true``, any entity whose model has actuators), it commands the entity's own actuators that
+drive one hinge or slide joint each (``NAME/joint``); joints are named without the entity prefix. It runs
+as a world controller at ``rate`` Hz (controls hold between ticks). How a target becomes a control depends on
+the actuator (read from the compiled model, never from names):
+
+* **position servo** (``biastype affine`` with ``biasprm[1] < 0``: a spring towards a point the control
+  sets; ``<position>`` is ``gain = kp``, ``biasprm = [0, -kp, -kv]``): ``ctrl = -(b0 + b1 gear q*) / gain``,
+  which is ``gear q*`` for ``<position>`` (the servo's own loop; a velocity target moves the position target
+  at that speed).
+* **velocity servo** (``biasprm[1] = 0``, ``biasprm[2] = -kv``): ``ctrl = gear * (v* + w (q* - q))``, a
+  position loop of bandwidth ``w`` (rad/s) around the servo (``v*``: the velocity target, 0 when holding),
+  damped by the servo itself: joint torque ``K (ctrl / gear - v)``, ``K = gear^2 kv``, so the loop is
+  ``m s^2 + (K + b) s + K w`` (``m`` the joint's diagonal of the mass matrix, ``b`` its damping), at least
+  critically damped where ``(K + b)^2 >= 4 m K w``. A servo too weak for that rings: dm_control's jumping
+  ball's camera slide (``kv`` 1 on 1 kg, damping ratio 0.14) still swung 40 % of its step 5 s after the
+  walker's kick. Such a servo is used as a torque source: ``ctrl = gear (v + m (w^2 e + 2 w (v* - v)) / K)``
+  puts both poles at ``-w``; the ``v`` in it cancels the servo's damping explicitly, stable because
+  ``K h / m < 4 w h`` there (``h`` how long a control holds, the control period or the timestep; ``K h / m``
+  is required below 1).
+* **integrated velocity servo** (``intvelocity``: integrator dynamics, position bias): the activation is
+  the servo's position target; ``ctrl = gear v* + w (gear q* - act)`` steers it to ``gear q*``.
+* **force** (a motor, or any other fixed-gain actuator with affine or no bias, with or without a filter):
+  a PID loop in joint space with
+  feed-forward of MuJoCo's bias, spring and gravity-compensation forces, ``tau = qfrc_bias - qfrc_spring -
+  qfrc_gravcomp + S a + B a / (3 w)``, ``a = 3 w^2 e + 3 w (v* - v) + w^3 integral(e)`` per joint,
+  ``e = q* - q``, ``w`` the bandwidth: the three closed-loop poles sit at ``-w`` (critically damped,
+  ``(s + w)^3``). ``S`` is the inertia the commanded force joints see together, every other degree of
+  freedom free: the Schur complement of MuJoCo's mass matrix (armature included) at the model's initial
+  pose over the rest (a free root, passive joints, servo-driven joints). Each joint's own diagonal of the
+  mass matrix (its inertia with everything else held), as before issue 29's walker roots, made the force
+  loops of a floating body fight each other through it: on the CMU humanoids of dm_control with their free
+  root the spine joints chattered at half the control rate between the actuators' full forces (the
+  smallest inertia a spine joint sees, everything else free, is 1/66 of its diagonal); with ``S`` they
+  settle (``bench/mjcf_robots.py``: 58 of 62 models reach their targets, against 56 with the diagonal and
+  no regression). ``S`` is computed once per set of commanded joints. The joints' damping ``B`` (diagonal)
+  is not cancelled: MuJoCo integrates it implicitly, a cancellation held over a control period is explicit
+  and diverges where ``b * period / m > 2`` (light wrists and fingers); ``B / (3 w)`` is added to the
+  inertia instead, so a joint whose damping dwarfs its inertia still closes its loop in about ``1 / w``
+  (poles ``w (-1 +- 1.29 i) / 4`` in that limit). The integral removes what the feed-forward misses
+  (friction loss, contacts) and stops growing while the control is clipped in the error's direction (no
+  wind-up). The actuator's own bias is subtracted: ``ctrl = (tau / gear - b0 - b1 gear q - b2 gear v) / gain``.
+
+Muscles, user-defined gains or biases, integrator dynamics without a position bias and actuators on
+tendons, sites or bodies are not commanded (:meth:`JointService.joints` leaves their joints out).
+
+Controls are clipped to the actuator's ``ctrlrange``: a weak motor may not hold a pose.
+
+Trajectories are time-stamped waypoints (seconds from the call), followed by linear interpolation in joint
+space with the segment's slope as velocity feed-forward; the joints not named hold their targets.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+
+from simrun.errors import EntityError
+
+if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
+    from simrun.world.world import World
+
+#: Default bandwidth of the position loops, rad/s (2 Hz).
+BANDWIDTH = 4 * math.pi
+_ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+@dataclass(frozen=True, slots=True)
+class JointState:
+    """Joint positions and velocities of an entity.
+
+    Attributes:
+        time: Simulation time, s.
+        names: Joint names without the entity prefix, in model order (hinge and slide joints).
+        positions: rad (hinge) or m (slide), one per name.
+        velocities: rad/s or m/s, one per name.
+        targets: Current position target per name (``nan`` for joints with no actuator).
+    """
+
+    time: float
+    names: tuple[str, ...]
+    positions: tuple[float, ...]
+    velocities: tuple[float, ...]
+    targets: tuple[float, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class _Drive:
+    """One commandable joint: its ids and how its actuator turns a target into a control."""
+
+    kind: str  # position | velocity | intvelocity | force
+    actuator: int
+    qpos: int
+    dof: int
+    gear: float
+    gain: float
+    mass: float
+    damping: float
+    low: float
+    high: float
+
+
+class JointService:
+    """Joint targets and trajectories of one entity, by joint name.
+
+    Args:
+        world: The world.
+        entity: Full name of the entity.
+        rate: Control rate, Hz.
+        bandwidth: Position-loop bandwidth ``w`` of velocity and force actuators, rad/s.
+
+    Raises:
+        EntityError: No such entity, or a rate or bandwidth that is not a positive number.
+    """
+
+    def __init__(self, world: World, entity: str, rate: float = 500.0, bandwidth: float = BANDWIDTH) -> None:
+        world.entity(entity)
+        for key, value in (("rate", rate), ("bandwidth", bandwidth)):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float)
+                or not (math.isfinite(value) and value > 0)
+            ):
+                raise EntityError(f"JointService of {entity!r}: {key} must be a positive number, got {value!r}")
+        self.world, self.name, self.bandwidth = world, entity, float(bandwidth)
+        self.period = 1.0 / rate
+        self.next_time = world.time
+        self._bound: mujoco.MjModel | None = None
+        self._drives: dict[str, _Drive] = {}
+        self._joints: list[tuple[str, int, int]] = []  # (name, qpos, dof) of every hinge/slide joint
+        self._targets: dict[str, list[float]] = {}  # joint -> [position target, velocity target]
+        self._plan: dict[str, Any] | None = None  # a trajectory: start time, times, joints, positions
+        self._integral: dict[str, float] = {}  # joint -> integral of the position error (force joints), rad s
+        self._scratch: _Scratch | None = None  # feed-forward forces are computed here, from the state alone
+        self._mass = np.zeros((0, 0))  # MuJoCo's mass matrix at the model's initial pose (nv x nv)
+        self._inertia: dict[tuple[str, ...], np.ndarray[Any, np.dtype[np.float64]]] = {}  # force joints -> S
+        world.controllers.append(self)
+
+    # -- commands ------------------------------------------------------------------------------------------
+
+    def set_positions(self, joints: list[str] | tuple[str, ...], positions: list[float] | tuple[float, ...]) -> None:
+        """Hold ``joints`` at ``positions`` (rad or m); cancels a trajectory on those joints."""
+        values = self._values(joints, positions, "positions")
+        self._cancel(joints)
+        for joint, value in zip(joints, values, strict=True):
+            self._targets[joint] = [value, 0.0]
+
+    def set_velocities(self, joints: list[str] | tuple[str, ...], velocities: list[float] | tuple[float, ...]) -> None:
+        """Run ``joints`` at ``velocities`` (rad/s or m/s): their position targets move at that speed."""
+        values = self._values(joints, velocities, "velocities")
+        self._cancel(joints)
+        for joint, value in zip(joints, values, strict=True):
+            self._targets[joint] = [self._target_now(joint), value]
+
+    def hold(self) -> None:
+        """Stop every motion: each commanded joint holds where it is now."""
+        self._plan = None
+        data = self.world.data
+        for joint in self._targets:
+            self._targets[joint] = [float(data.qpos[self._drives[joint].qpos]), 0.0]
+
+    def trajectory(
+        self,
+        joints: list[str] | tuple[str, ...],
+        times: list[float] | tuple[float, ...],
+        positions: list[float] | tuple[float, ...] | list[list[float]],
+    ) -> None:
+        """Follow waypoints: at ``times[k]`` seconds from now, ``joints`` at row ``k`` of ``positions``.
+
+        ``positions`` is ``len(times)`` rows of ``len(joints)`` values, nested or flat (row after row; a
+        commands file takes flat arrays). From now to the first time the joints move from their current
+        targets; times must increase.
+        """
+        self._lookup(self.world.model)
+        self._check_joints(joints)
+        stamps = [float(t) for t in times]
+        if not stamps or any(not math.isfinite(t) or t <= 0 for t in stamps):
+            raise EntityError("trajectory: times must be positive finite seconds, at least one")
+        if any(b <= a for a, b in itertools.pairwise(stamps)):
+            raise EntityError("trajectory: times must increase")
+        flat = np.asarray(positions, dtype=float).ravel()
+        if flat.size != len(stamps) * len(joints) or not np.all(np.isfinite(flat)):
+            raise EntityError(
+                f"trajectory: positions needs {len(stamps)} x {len(joints)} finite values, got {flat.size}"
+            )
+        self._cancel(joints)
+        start = [self._target_now(j) for j in joints]
+        rows = [start, *flat.reshape(len(stamps), len(joints)).tolist()]
+        self._plan = {"t0": float(self.world.data.time), "times": [0.0, *stamps], "joints": list(joints), "rows": rows}
+        for joint, value in zip(joints, start, strict=True):
+            self._targets[joint] = [value, 0.0]
+
+    def move_to(
+        self, joints: list[str] | tuple[str, ...], positions: list[float] | tuple[float, ...], duration: float
+    ) -> None:
+        """Move ``joints`` to ``positions`` in a straight line over ``duration`` seconds (a one-waypoint trajectory)."""
+        self.trajectory(joints, [duration], positions)
+
+    # -- state ---------------------------------------------------------------------------------------------
+
+    @property
+    def busy(self) -> bool:
+        """Whether a trajectory is still running."""
+        return self._plan is not None
+
+    def joints(self) -> tuple[str, ...]:
+        """The commandable joints (those with an actuator of their own), in model order."""
+        self._lookup(self.world.model)
+        return tuple(self._drives)
+
+    def kinds(self) -> dict[str, str]:
+        """How each commandable joint is driven: ``position``, ``velocity`` or ``force`` (see the module)."""
+        self._lookup(self.world.model)
+        return {name: drive.kind for name, drive in self._drives.items()}
+
+    def state(self) -> JointState:
+        """Positions, velocities and targets of every hinge and slide joint of the entity."""
+        model, data = self.world.model, self.world.data
+        self._lookup(model)
+        names = tuple(n for n, _, _ in self._joints)
+        return JointState(
+            float(data.time),
+            names,
+            tuple(float(data.qpos[q]) for _, q, _ in self._joints),
+            tuple(float(data.qvel[d]) for _, _, d in self._joints),
+            tuple(self._targets[n][0] if n in self._targets else math.nan for n in names),
+        )
+
+    # -- controller hooks ----------------------------------------------------------------------------------
+
+    def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Advance the trajectory and the velocity targets, then set every commanded actuator's control."""
+        self._lookup(model)
+        if self._plan is not None:
+            self._follow(float(data.time))
+        w, h = self.bandwidth, self.period
+        force = [j for j in self._targets if self._drives[j].kind == "force"]
+        wanted = self._computed_torque(model, data, force) if force else {}
+        for joint, target in self._targets.items():
+            drive = self._drives[joint]
+            position, velocity = target
+            if velocity and (self._plan is None or joint not in self._plan["joints"]):
+                position = target[0] = position + velocity * h
+            q, v = float(data.qpos[drive.qpos]), float(data.qvel[drive.dof])
+            if (
+                drive.kind == "position"
+            ):  # force = g u + b0 + b1 gear q (+ b2 speed): at rest where g u = -b0 - b1 gear q
+                bias = model.actuator_biasprm[drive.actuator]
+                ctrl = -(bias[0] + bias[1] * drive.gear * position) / drive.gain
+            elif drive.kind == "velocity":
+                servo = drive.gear * drive.gear * drive.gain  # joint torque per rad/s of speed error
+                hold = max(h, float(model.opt.timestep))  # how long a control stays
+                weak = (servo + drive.damping) ** 2 < 4.0 * drive.mass * servo * w and servo * hold < drive.mass
+                if weak:  # its own damping cannot damp the loop: command the torque (see the module)
+                    torque = drive.mass * (w * w * (position - q) + 2.0 * w * (velocity - v))
+                    ctrl = drive.gear * (v + torque / servo)
+                else:
+                    ctrl = drive.gear * (velocity + w * (position - q))
+            elif drive.kind == "intvelocity":  # the servo's target is the activation: steer it to gear * q*
+                act = float(data.act[model.actuator_actadr[drive.actuator]])
+                ctrl = drive.gear * velocity + w * (drive.gear * position - act)
+            else:
+                tau, error, integral = wanted[joint]
+                bias = model.actuator_biasprm[drive.actuator]  # force = gain ctrl + b0 + b1 length + b2 speed
+                offset = float(bias[0] + bias[1] * drive.gear * q + bias[2] * drive.gear * v)
+                ctrl = (tau / drive.gear - offset) / drive.gain
+                if not ((ctrl > drive.high and error > 0) or (ctrl < drive.low and error < 0)):
+                    self._integral[joint] = integral
+            data.ctrl[drive.actuator] = min(drive.high, max(drive.low, ctrl))
+
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """After ``World.reset``: no targets, no trajectory (the actuators' controls are MuJoCo's reset ones)."""
+        self._targets, self._plan, self._integral = {}, None, {}
+
+    def snapshot(self) -> dict[str, Any]:
+        """Targets, trajectory and clock, JSON-ready (for checkpoints)."""
+        plan = None if self._plan is None else dict(self._plan)
+        return {
+            "targets": {k: list(v) for k, v in self._targets.items()},
+            "plan": plan,
+            "integral": dict(self._integral),
+            "next_time": self.next_time,
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Inverse of :meth:`snapshot`."""
+        self._targets = {str(k): [float(v[0]), float(v[1])] for k, v in state["targets"].items()}
+        self._plan = None if state["plan"] is None else dict(state["plan"])
+        self._integral = {str(k): float(v) for k, v in state.get("integral", {}).items()}
+        self.next_time = float(state["next_time"])
+        self.world.reschedule()
+
+    # -- internals -----------------------------------------------------------------------------------------
+
+    def _computed_torque(
+        self, model: mujoco.MjModel, data: mujoco.MjData, joints: list[str]
+    ) -> dict[str, tuple[float, float, float]]:
+        """Joint torque, position error and the error's new integral of each force-driven joint (see the module)."""
+        w, h = self.bandwidth, self.period
+        dofs = [self._drives[j].dof for j in joints]
+        feed = self._feed_forward(model, data)[dofs]
+        rates, damped, errors, integrals = [], [], [], []
+        for joint in joints:
+            drive, (position, velocity) = self._drives[joint], self._targets[joint]
+            error = position - float(data.qpos[drive.qpos])
+            integral = self._integral.get(joint, 0.0) + error * h
+            rate = 3.0 * w * w * error + 3.0 * w * (velocity - float(data.qvel[drive.dof])) + w * w * w * integral
+            rates.append(rate)
+            damped.append(drive.damping / (3.0 * w) * rate)
+            errors.append(error)
+            integrals.append(integral)
+        torque = self._joint_inertia(tuple(joints), dofs) @ np.asarray(rates) + np.asarray(damped) + feed
+        return {j: (float(torque[k]), errors[k], integrals[k]) for k, j in enumerate(joints)}
+
+    def _joint_inertia(self, joints: tuple[str, ...], dofs: list[int]) -> np.ndarray[Any, np.dtype[np.float64]]:
+        """The inertia matrix the force joints ``joints`` (dofs ``dofs``) see with every other dof free."""
+        found = self._inertia.get(joints)
+        if found is None:
+            mass, mine = self._mass, np.asarray(dofs, dtype=np.intp)
+            rest = np.setdiff1d(np.arange(mass.shape[0]), mine)
+            found = mass[np.ix_(mine, mine)]
+            if rest.size:
+                found = found - mass[np.ix_(mine, rest)] @ np.linalg.solve(
+                    mass[np.ix_(rest, rest)], mass[np.ix_(rest, mine)]
+                )
+            self._inertia[joints] = found
+        return found
+
+    def _follow(self, now: float) -> None:
+        plan = self._plan
+        assert plan is not None
+        t0, times, rows = plan["t0"], plan["times"], plan["rows"]
+        if now < t0:  # the world was rebuilt (time 0 again): the trajectory starts over on the new clock
+            plan["t0"] = t0 = now
+        s = now - t0
+        if s >= times[-1]:
+            for joint, value in zip(plan["joints"], rows[-1], strict=True):
+                self._targets[joint] = [float(value), 0.0]
+            self._plan = None
+            return
+        k = max(i for i, t in enumerate(times) if t <= s)
+        span = times[k + 1] - times[k]
+        u = (s - times[k]) / span
+        for j, joint in enumerate(plan["joints"]):
+            a, b = rows[k][j], rows[k + 1][j]
+            self._targets[joint] = [a + (b - a) * u, (b - a) / span]
+
+    def _feed_forward(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray[Any, np.dtype[np.float64]]:
+        """``qfrc_bias - qfrc_spring - qfrc_gravcomp`` (per dof) at the current ``qpos``, ``qvel``.
+
+        Computed in a scratch ``MjData`` from the state alone: the derived fields of ``data`` between steps
+        belong to the state before the last step, and a run resumed from a checkpoint has other ones, so a
+        control that read them would not replay bit for bit.
+        """
+        scratch = self._scratch
+        if scratch is None or scratch.model is not model:
+            scratch = self._scratch = _Scratch(model)
+        work = scratch.data
+        work.qpos[:] = data.qpos
+        work.qvel[:] = data.qvel
+        mujoco.mj_kinematics(model, work)
+        mujoco.mj_comPos(model, work)
+        mujoco.mj_tendon(model, work)
+        mujoco.mj_comVel(model, work)
+        mujoco.mj_passive(model, work)
+        mujoco.mj_rne(model, work, 0, scratch.bias)
+        feed: np.ndarray[Any, np.dtype[np.float64]] = scratch.bias - work.qfrc_spring - work.qfrc_gravcomp
+        return feed
+
+    def _target_now(self, joint: str) -> float:
+        """The joint's current position target, or where it is when it has none."""
+        if joint in self._targets:
+            return self._targets[joint][0]
+        return float(self.world.data.qpos[self._drives[joint].qpos])
+
+    def _cancel(self, joints: list[str] | tuple[str, ...]) -> None:
+        """End a trajectory that moves any of ``joints`` (its other joints hold their current targets)."""
+        if self._plan is not None and set(joints) & set(self._plan["joints"]):
+            self._plan = None
+            for joint in self._targets:
+                self._targets[joint][1] = 0.0
+
+    def _values(self, joints: list[str] | tuple[str, ...], values: Any, what: str) -> list[float]:
+        self._lookup(self.world.model)
+        self._check_joints(joints)
+        if isinstance(values, str) or not hasattr(values, "__len__") or len(values) != len(joints):
+            raise EntityError(f"{what}: give one value per joint ({len(joints)}), got {values!r}")
+        out = []
+        for value in values:
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise EntityError(f"{what}: {value!r} is not a finite number")
+            out.append(float(value))
+        return out
+
+    def _check_joints(self, joints: Any) -> None:
+        if isinstance(joints, str) or not isinstance(joints, list | tuple) or not joints:
+            raise EntityError(f"give a list of joint names, got {joints!r}")
+        for joint in joints:
+            if joint not in self._drives:
+                known = ", ".join(self._drives) or "none"
+                raise EntityError(f"{self.name!r} has no actuated joint {joint!r} (actuated joints: {known})")
+        if len(set(joints)) != len(joints):
+            raise EntityError(f"a joint is named twice in {list(joints)!r}")
+
+    def _lookup(self, model: mujoco.MjModel) -> None:
+        """Find the entity's joints and actuators in ``model`` (again after a rebuild)."""
+        if self._bound is model:
+            return
+        prefix = f"{self.name}/"
+        data = mujoco.MjData(model)  # the mass matrix at the initial pose: gains independent of when asked
+        mujoco.mj_forward(model, data)
+        full = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, full)
+        joints: list[tuple[str, int, int]] = []
+        for j in range(model.njnt):
+            name = model.joint(j).name
+            if name.startswith(prefix) and int(model.jnt_type[j]) in _ONE_DOF:
+                joints.append((name[len(prefix) :], int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])))
+        by_id = {int(model.joint(prefix + n).id): (n, q, d) for n, q, d in joints}
+        drives: dict[str, _Drive] = {}
+        for a in range(model.nu):
+            joint = int(model.actuator_trnid[a, 0])
+            if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT) or joint not in by_id:
+                continue
+            name, qpos, dof = by_id[joint]
+            if name in drives:
+                continue  # the first actuator of a joint commands it
+            gear, gain = float(model.actuator_gear[a, 0]), float(model.actuator_gainprm[a, 0])
+            kind = _kind(model, a)
+            if gear == 0 or kind is None:
+                continue
+            drives[name] = _Drive(
+                kind,
+                a,
+                qpos,
+                dof,
+                gear,
+                gain,
+                float(full[dof, dof]),
+                float(model.dof_damping[dof]),
+                *_ctrl_range(model, a),
+            )
+        self._joints, self._drives, self._bound = joints, drives, model
+        self._mass, self._inertia = full, {}
+        self._targets = {k: v for k, v in self._targets.items() if k in drives}
+
+
+class _Scratch:
+    """A private ``MjData`` of one model and the bias-force buffer."""
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.bias = np.zeros(model.nv)
+
+
+def _kind(model: mujoco.MjModel, a: int) -> str | None:
+    """What the actuator's gain, bias and dynamics make it (see the module), or ``None``: not commandable."""
+    gain, bias = model.actuator_gainprm[a], model.actuator_biasprm[a]
+    biastype, dyntype = int(model.actuator_biastype[a]), int(model.actuator_dyntype[a])
+    if int(model.actuator_gaintype[a]) != int(mujoco.mjtGain.mjGAIN_FIXED) or gain[0] == 0:
+        return None  # muscles, user gains: the control is not a force, a position or a speed
+    if biastype not in (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE)):
+        return None
+    affine = biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
+    servo = affine and bias[1] < 0 and gain[0] > 0  # a spring towards a point the control sets
+    if dyntype == int(mujoco.mjtDyn.mjDYN_INTEGRATOR):
+        return "intvelocity" if servo and model.actuator_actadr[a] >= 0 else None
+    if dyntype not in (
+        int(mujoco.mjtDyn.mjDYN_NONE),
+        int(mujoco.mjtDyn.mjDYN_FILTER),
+        int(mujoco.mjtDyn.mjDYN_FILTEREXACT),
+    ):
+        return None
+    if servo:
+        return "position"
+    if affine and bias[0] == 0 and bias[1] == 0 and bias[2] == -gain[0] and gain[0] > 0:
+        return "velocity"
+    return "force"
+
+
+def _ctrl_range(model: mujoco.MjModel, a: int) -> tuple[float, float]:
+    if model.actuator_ctrllimited[a]:
+        low, high = model.actuator_ctrlrange[a]
+        return float(low), float(high)
+    return -math.inf, math.inf
