@@ -403,9 +403,9 @@ def main() -> int:
     parser.add_argument("--only", default=None, help="only assets whose id contains this text")
     args = parser.parse_args()
     rows, consumer_rows, total = check(args.corpus, args.keep, args.only)
-    old = args.out.read_text() if args.out.exists() else ""  # keep bench/formats_check.py's section
-    kept = re.search(r"<!-- formats:begin -->.*?<!-- formats:end -->", old, re.S)
-    args.out.write_text(render(rows, consumer_rows, total, args.corpus) + (f"\n{kept.group(0)}\n" if kept else ""))
+    old = args.out.read_text() if args.out.exists() else ""  # keep bench/formats_check.py's, consumers_check.py's
+    kept = [m.group(0) for m in re.finditer(r"<!-- (\w+):begin -->.*?<!-- \1:end -->", old, re.S)]
+    args.out.write_text(render(rows, consumer_rows, total, args.corpus) + "".join(f"\n{k}\n" for k in kept))
     print(" ".join(f"{k}={v}" for k, v in total.items()))
     return 1 if total["crash"] or total["count-mismatch"] or total["idempotent"] != total["converted"] else 0
 

@@ -10,9 +10,10 @@ walks up from the mesh's folder to its *index root* (:func:`find_index_root`): a
 else the nearest folder at most :data:`MAX_ROOT_LEVELS` levels up that holds ``package.xml`` (ROS),
 ``model.config`` / ``model.sdf`` (Gazebo) or ``.git`` / ``.hg`` / ``.svn`` (a repository), or that is a
 Python package's top folder (its parent is ``site-packages``: pip-installed models such as dm_control's);
-never the temporary folder, the home folder or ``/``. Without one it is the old neighbourhood: the folder
-above the mesh's folder, its files and its subfolders' (``robot/urdf/`` beside ``robot/meshes/``); a urdf
-model root (:func:`meshtool.modelroot.find_model_root`) is indexed whole.
+never the temporary folder, the home folder or ``/``. Without one, a urdf model root
+(:func:`meshtool.modelroot.find_model_root`) is indexed whole; else the *nearby* search: the folder above the
+mesh's folder with its subfolders (``robot/urdf/`` beside ``robot/meshes/``) and, while that holds no
+description file, up to :data:`MAX_NEARBY_LEVELS` levels up (level L read L folders deep).
 
 Every description file under the root is read once (:class:`ConsumerIndex`, keyed by root, built on the
 first mesh that needs it and reused by every later mesh under the same root): each reference is resolved
@@ -22,10 +23,10 @@ within :data:`RACY_SECONDS` of being listed is listed again). Bounded by :data:`
 :data:`MAX_TOTAL_BYTES`, :data:`MAX_DEPTH` and :data:`MAX_ENTRIES` (``docs/limits.md``).
 
 References resolve as their consumer resolves them: URDF and SDFormat relative to the file, ``package://NAME``
-/ ``model://NAME`` in the ancestor folder named ``NAME`` (or whose ``package.xml`` names it), else by the
-path's tail; MJCF as MuJoCo does, ``<include file>`` relative to the main file's folder and spliced in, mesh
-``file`` relative to ``<compiler meshdir>`` (else ``assetdir``, else the main file's folder), with
-``<default>`` classes' mesh ``scale``.
+/ ``model://NAME`` in the ancestor folder named ``NAME`` (or whose ``package.xml`` names it, or beside one),
+else by the path's tail from inside the folder that package would be; MJCF as MuJoCo does, ``<include
+file>`` relative to the main file's folder and spliced in, mesh ``file`` relative to ``<compiler meshdir>``
+(else ``assetdir``, else the main file's folder), with ``<default>`` classes' mesh ``scale``.
 
 Description files are read with :func:`meshtool.safeopen.read_file` (regular files only, never blocks,
 bounded by :data:`MAX_BYTES`) and parsed with the standard XML parser after refusing DTDs and entities (no
@@ -34,6 +35,7 @@ entity expansion); a file that does not parse is skipped.
 
 from __future__ import annotations
 
+import copy
 import os
 import re
 import stat
@@ -64,6 +66,10 @@ MAX_DEPTH = 12
 MAX_ENTRIES = 200_000
 #: How many folders above the mesh's folder are searched for its index root.
 MAX_ROOT_LEVELS = 8
+#: Without an index root: how many folders the nearby search climbs (level L indexes L folders deep), and the
+#: folder entries it may list at one level (more: it stops climbing, quietly, with what it has).
+MAX_NEARBY_LEVELS = 3
+MAX_NEARBY_ENTRIES = 20_000
 #: Most ``<include>`` files spliced into one MJCF (nested ones count).
 MAX_INCLUDES = 256
 #: A folder whose modification time is this close to (or after) the moment it was listed is listed again
@@ -122,7 +128,7 @@ class IndexRoot:
     Attributes:
         folder: Absolute, symbolic links resolved.
         kind: ``explicit`` (``--model-root``), ``ros``, ``gazebo``, ``repository``, ``python``, ``urdf`` or
-            ``nearby`` (no root found: the folder above the mesh's).
+            ``nearby`` (no root found: a folder 1 to :data:`MAX_NEARBY_LEVELS` above the mesh's).
         marker: What marks it (``package.xml``, ``.git``, ``site-packages``, ``--model-root``...; ``""``).
         depth: Deepest folder indexed below it (``nearby``: 1, its subfolders; 0 for the temporary or home
             folder, whose own files only are read).
@@ -155,6 +161,7 @@ class _RootIndex:
     files: dict[Path, tuple[int, int, int, int]] = field(default_factory=dict)  # (dev, ino, size, mtime_ns)
     uses: dict[Path, list[_Use]] = field(default_factory=dict)  # mesh (real path) -> uses
     tails: list[_Use] = field(default_factory=list)
+    trees: dict[Path, ET.Element | None] = field(default_factory=dict)  # parsed once, copied for each use
     racy: bool = False
     limit: str | None = None  # the limit that stopped the walk, as a sentence
     read_bytes: int = 0
@@ -172,7 +179,12 @@ class ConsumerIndex:
         self.parsed = 0
 
     def lookup(self, obj: Path, root: IndexRoot) -> tuple[list[_Use], _RootIndex]:
-        """The uses of ``obj`` (any path; compared after resolving links) under ``root``."""
+        """The uses of ``obj`` (any path; compared after resolving links) under ``root``.
+
+        A reference to an unknown package (matched by its path's tail) counts only from a description file
+        inside the folder that package would be (the mesh's path less the reference's): a package holds the
+        files that name it, so another project's ``package://x/meshes/m.obj`` is not this ``meshes/m.obj``.
+        """
         key = (root.folder, root.depth)
         index = self._roots.get(key)
         if index is None or not _current(index):
@@ -180,7 +192,11 @@ class ConsumerIndex:
             self._roots[key] = index
         target = Path(os.path.realpath(obj))
         found = list(index.uses.get(target, []))
-        found.extend(u for u in index.tails if _tail_matches(u.tail, target))
+        found.extend(
+            u
+            for u in index.tails
+            if _tail_matches(u.tail, target) and Path(*target.parts[: -len(u.tail)]) in u.file.parents
+        )
         return found, index
 
     def clear(self) -> None:
@@ -205,8 +221,9 @@ class ConsumerIndex:
             if mtime >= started - int(RACY_SECONDS * 1e9):
                 index.racy = True
             entries += len(items)
-            if entries > MAX_ENTRIES:
-                index.limit = f"more than {MAX_ENTRIES:,} folder entries (MAX_ENTRIES)"
+            budget = MAX_NEARBY_ENTRIES if root.kind == "nearby" else MAX_ENTRIES
+            if entries > budget:
+                index.limit = f"more than {budget:,} folder entries (MAX_ENTRIES)"
                 break
             for item in reversed(items):
                 try:
@@ -230,7 +247,14 @@ class ConsumerIndex:
         return index
 
     def read_description(self, path: Path, index: _RootIndex) -> ET.Element | None:
-        """Parse one description file (recorded for :func:`_current`), within the root's limits."""
+        """Parse one description file (recorded for :func:`_current`), within the root's limits.
+
+        A file already read for this root (an ``<include>`` fragment many models share) is not read again:
+        a copy of its tree is returned (the caller splices it).
+        """
+        if path in index.trees:
+            kept = index.trees[path]
+            return None if kept is None else copy.deepcopy(kept)
         if len(index.files) >= MAX_FILES:
             index.limit = f"more than {MAX_FILES:,} description files (MAX_FILES)"
             return None
@@ -249,7 +273,8 @@ class ConsumerIndex:
         tree = _parse(path)
         self.parsed += 1
         index.read_bytes += min(info.st_size, MAX_BYTES)
-        return tree
+        index.trees[path] = tree
+        return None if tree is None else copy.deepcopy(tree)
 
 
 #: The run's index (one per process: obj2bin DIR, validate and their workers each reuse it across meshes).
@@ -314,6 +339,24 @@ def consumers_and_limit(
     iroot = find_index_root(obj.parent, root)
     uses, built = (index or INDEX).lookup(obj, iroot)
     here = Path(os.path.realpath(obj.parent))
+    if iroot.kind == "nearby":  # no root: climb while no description file is in sight (robot/urdf/ above)
+        shared = _shared_folders()
+        level = iroot.depth
+        while not built.files and built.limit is None and 0 < level < MAX_NEARBY_LEVELS:
+            level += 1
+            up = [here, *here.parents][level] if level < len(here.parts) else None
+            if up is None or up in shared:
+                break
+            iroot = IndexRoot(up, "nearby", "", level)
+            uses, built = (index or INDEX).lookup(obj, iroot)
+        if built.limit is not None and iroot.kind == "nearby":
+            return _ranked(uses, here), None  # a heuristic reach, not a root: no warning
+    limit = None if built.limit is None else f"{printable_root(iroot)}: {built.limit}"
+    return _ranked(uses, here), limit
+
+
+def _ranked(uses: Sequence[_Use], here: Path) -> list[ConsumerRef]:
+    """The uses as references shown relative to ``here``, nearest first, without repeats."""
     seen: set[tuple[str, str, Scale | None]] = set()
     ranked: list[tuple[int, str, ConsumerRef]] = []
     for use in uses:
@@ -324,8 +367,7 @@ def consumers_and_limit(
         distance = len(Path(shown).parts) - 1  # folders up plus folders down
         ranked.append((distance, shown, ConsumerRef(shown, use.format, use.scale, use.ref)))
     ranked.sort(key=lambda r: (r[0], r[1]))
-    limit = None if built.limit is None else f"{printable_root(iroot)}: {built.limit}"
-    return [r[2] for r in ranked], limit
+    return [r[2] for r in ranked]
 
 
 def printable_root(root: IndexRoot) -> str:
@@ -484,23 +526,32 @@ def _resolved(path: Path, fmt: str, scale: Scale | None, ref: str, base: Path, i
         normal = text.replace("\\", "/")
         return _Use(path, fmt, scale, ref, _real(Path(normal) if normal.startswith("/") else base / normal))
     scheme = uri.group(1).lower()
-    rest = unquote(text[uri.end() :])
-    parts = [p for p in rest.replace("\\", "/").split("/") if p]
+    rest = unquote(text[uri.end() :]).replace("\\", "/")
+    parts = [p for p in rest.split("/") if p]
     if scheme == "file":
         return _Use(path, fmt, scale, ref, _real(Path("/" + "/".join(parts))))
-    if scheme in ("package", "model") and parts:
-        folder = _named_ancestor(path.parent, parts[0], index.root.folder)
+    if scheme in ("package", "model"):
+        name, _, inner = rest.partition("/")
+        parts = [p for p in inner.split("/") if p]  # package:///x: the robot's own package, by the tail
+        folder = _named_ancestor(path.parent, name, index.root.folder) if name else None
         if folder is not None:
-            return _Use(path, fmt, scale, ref, _real(folder.joinpath(*parts[1:])))
-        parts = parts[1:]  # an unknown package or model: matched by the rest of the path
+            return _Use(path, fmt, scale, ref, _real(folder.joinpath(*parts)))
     return _Use(path, fmt, scale, ref, None, tuple(parts))
 
 
 def _named_ancestor(start: Path, name: str, top: Path) -> Path | None:
-    """The folder at or above ``start``, up to ``top``, named ``name`` or whose ``package.xml`` names it."""
+    """The package or model folder ``name`` as ROS and Gazebo find it from ``start``, up to ``top``.
+
+    A folder at or above ``start`` named ``name`` or whose ``package.xml`` names it, or a folder ``name``
+    beside one of them (``src/pkg`` beside ``src/robot_description``, as :func:`meshtool.resolve.find_package_dir`).
+    """
+    if name in (".", "..") or "\x00" in name:
+        return None
     for folder in [start, *start.parents]:
         if folder.name == name:
             return folder
+        if folder != start and (folder / name).is_dir():
+            return Path(os.path.realpath(folder / name))
         marker = folder / "package.xml"
         if marker.is_file():
             try:

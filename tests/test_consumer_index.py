@@ -71,7 +71,7 @@ def _pack_vertices(mbin: Path) -> np.ndarray:
 
 
 def _vendor(tmp_path: Path, layout: str) -> tuple[Path, list[str]]:
-    """The vendor folder, as a repository clone (``.git``), bare (``--model-root``) or in place."""
+    """The vendor folder: a repository clone (``.git``), named by ``--model-root``, a bare copy, or in place."""
     if layout == "in-place":
         return VENDOR, []
     folder = tmp_path / "vendor"
@@ -79,10 +79,12 @@ def _vendor(tmp_path: Path, layout: str) -> tuple[Path, list[str]]:
     if layout == "repository":
         (folder / ".git").mkdir()
         return folder, []
+    if layout == "bare":  # no root: the nearby search climbs to the first folder holding description files
+        return folder, []
     return folder, ["--model-root", str(folder)]
 
 
-@pytest.mark.parametrize("layout", ["repository", "model-root", "in-place"])
+@pytest.mark.parametrize("layout", ["repository", "model-root", "bare", "in-place"])
 def test_obj2bin_and_validate_keep_the_frame_mujoco_gives_each_mesh(tmp_path: Path, layout: str) -> None:
     vendor, extra = _vendor(tmp_path, layout)
     truth = _mujoco_vertices(vendor / MODEL)
@@ -153,13 +155,15 @@ def _age(folder: Path) -> None:
 
 def test_every_description_file_is_read_once_for_every_mesh_of_a_run(tmp_path: Path) -> None:
     vendor, _ = _vendor(tmp_path, "repository")
-    (vendor / "robots" / "other.xml").write_text("<mujoco><asset/></mujoco>\n")
+    for other in ("other.xml", "other2.xml"):  # two models sharing one <include> fragment
+        (vendor / "robots" / other).write_text('<mujoco><include file="common.xml"/></mujoco>\n')
+    (vendor / "robots" / "common.xml").write_text("<mujocoinclude><asset/></mujocoinclude>\n")
     _age(vendor)
     index = ConsumerIndex()
     for rel in MESHES:
         (ref,) = find_consumers(vendor / rel, None, index)
         assert ref.format == "mjcf" and ref.file.endswith("robots/gripper/robot.xml")
-    assert index.parsed == 2  # robot.xml and other.xml, once each, for four meshes
+    assert index.parsed == 4  # robot.xml, other.xml, other2.xml, common.xml: once each, for four meshes
     (vendor / "robots" / "gripper" / "robot.xml").write_text(
         (VENDOR / MODEL).read_text().replace('file="base/base.obj"', 'file="base/base.obj" scale="0.001 0.001 0.001"')
     )
@@ -179,8 +183,17 @@ def test_the_index_root_is_where_projects_keep_their_models(tmp_path: Path) -> N
     assert find_index_root(site / "meshes" / "base").kind == "ros"
     bare = tmp_path / "bare"
     shutil.copytree(VENDOR, bare)
-    root = find_index_root(bare / "meshes" / "base")  # no root: the folder above the mesh's, as before
+    root = find_index_root(bare / "meshes" / "base")  # no root: the folder above the mesh's first, as before
     assert (root.folder, root.kind, root.depth) == ((bare / "meshes").resolve(), "nearby", 1)
+    (ref,) = find_consumers(bare / MESHES[2], None, ConsumerIndex())  # then up to 3 levels, 3 folders deep
+    assert ref.file == "../../../robots/gripper/robot.xml"
+    deeper = tmp_path / "far" / "a" / "b" / "c" / "d"
+    deeper.mkdir(parents=True)
+    shutil.copy(VENDOR / MESHES[0], deeper / "base.obj")
+    (tmp_path / "far" / "robot.xml").write_text('<mujoco><asset><mesh file="a/b/c/d/base.obj"/></asset></mujoco>\n')
+    assert find_consumers(deeper / "base.obj", None, ConsumerIndex()) == []  # 4 folders up: out of reach
+    (tmp_path / "far" / "a" / "robot.xml").write_text('<mujoco><asset><mesh file="b/c/d/base.obj"/></asset></mujoco>\n')
+    assert [r.file for r in find_consumers(deeper / "base.obj", None, ConsumerIndex())] == ["../../../robot.xml"]
 
 
 def test_mjcf_includes_assetdir_and_default_scales_as_mujoco_reads_them(tmp_path: Path) -> None:
@@ -225,6 +238,18 @@ def test_a_package_reference_names_its_own_package_only(tmp_path: Path) -> None:
     for name, factor in (("left", 0.001), ("right", 0.01)):
         (ref,) = find_consumers(repo / name / "meshes" / "link.obj", None, ConsumerIndex())
         assert (ref.file, ref.scale) == ("../urdf/r.urdf", (factor, factor, factor))
+    (repo / "other" / "urdf").mkdir(parents=True)  # an unknown package: its tail matches, but not its folder
+    (repo / "other" / "urdf" / "o.urdf").write_text(
+        '<robot name="o"><link name="l"><visual><geometry><mesh filename="package://gone/meshes/link.obj"/>'
+        "</geometry></visual></link></robot>\n"
+    )
+    assert len(find_consumers(repo / "left" / "meshes" / "link.obj", None, ConsumerIndex())) == 1
+    (repo / "left" / "urdf" / "own.urdf").write_text(  # a renamed package's own file: matched by its tail
+        '<robot name="own"><link name="l"><visual><geometry><mesh filename="package://renamed/meshes/link.obj"/>'
+        "</geometry></visual></link></robot>\n"
+    )
+    refs = find_consumers(repo / "left" / "meshes" / "link.obj", None, ConsumerIndex())
+    assert sorted(r.file for r in refs) == ["../urdf/own.urdf", "../urdf/r.urdf"]
 
 
 def test_an_index_stopped_by_a_limit_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -283,3 +283,69 @@ def test_a_urdf_outside_a_ros_package_is_seen_by_every_path(tmp_path: Path, fmt:
     result = CliRunner().invoke(obj2bin, [str(mesh), "-o", str(tmp_path / "w.mbin"), "--no-check"])
     assert result.exit_code == 0, result.output
     _assert_same_points(_vertices(tmp_path / "w.mbin"), truth, f"{fmt}: obj2bin FILE")
+
+
+# -- a vendor's MJCF two and three folders above its meshes (issue 38) -------------------------------------
+
+
+@pytest.mark.parametrize("part", ["meshes/finger/finger.obj", "meshes/convex/base/base.obj"])
+def test_every_path_keeps_a_vendor_mesh_where_mujoco_puts_it(tmp_path: Path, part: str) -> None:
+    """fixtures/vendor/ cloned (``.git``): a Blender OBJ its MJCF uses Z-up from two or three folders above.
+
+    Each path (obj2bin FILE and DIR, normalize, ``meshtool mjcf``, validate, simrun's ``MeshEntity``) must give
+    the vertices MuJoCo's own compile of the vendor's MJCF gives that mesh (the part's geom sits at the
+    world origin, so its world vertices are the mesh's as MuJoCo reads it).
+    """
+    import shutil
+
+    from click.testing import CliRunner
+    from conftest import FIXTURES
+
+    from meshtool.cli import main as meshtool_main
+    from meshtool.cli import obj2bin
+    from meshtool.validate.task import AssetTask, read_asset
+    from simrun import load_scene
+
+    vendor = tmp_path / "vendor"
+    shutil.copytree(FIXTURES / "vendor", vendor)
+    (vendor / ".git").mkdir()
+    mesh = vendor / part
+    model = mujoco.MjModel.from_xml_path(str(vendor / "robots" / "gripper" / "robot.xml"))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    name = {"meshes/finger/finger.obj": "finger", "meshes/convex/base/base.obj": "base_convex"}[part]
+    (geom,) = [g for g in range(model.ngeom) if model.mesh(int(model.geom_dataid[g])).name == name]
+    dataid = int(model.geom_dataid[geom])
+    first, count = int(model.mesh_vertadr[dataid]), int(model.mesh_vertnum[dataid])
+    local = np.asarray(model.mesh_vert[first : first + count], dtype=float)
+    truth = local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
+
+    runner = CliRunner()
+    single = tmp_path / "single.mbin"
+    assert runner.invoke(obj2bin, [str(mesh), "-o", str(single), "--no-check"]).exit_code == 0
+    _assert_same_points(_vertices(single), truth, f"{part}: obj2bin FILE")
+    result = runner.invoke(obj2bin, [str(mesh.parent), "-o", str(tmp_path / "folder"), "--no-check"])
+    assert result.exit_code == 0, result.output
+    _assert_same_points(_vertices(next((tmp_path / "folder").rglob("*.mbin"))), truth, f"{part}: obj2bin DIR")
+    result = runner.invoke(meshtool_main, ["normalize", str(mesh), "-o", str(tmp_path / "norm")])
+    assert result.exit_code == 0, result.output
+    normalised = trimesh.load(next((tmp_path / "norm").rglob("*.obj")), force="mesh").vertices
+    _assert_same_points(normalised, truth, f"{part}: meshtool normalize")
+    result = runner.invoke(meshtool_main, ["mjcf", str(mesh), "-o", str(tmp_path / "mjcf")])
+    assert result.exit_code == 0, result.output
+    written = mujoco.MjModel.from_xml_path(str(next((tmp_path / "mjcf").rglob("*.xml"))))
+    written_data = mujoco.MjData(written)
+    mujoco.mj_forward(written, written_data)
+    _assert_same_points(_mesh_geoms_in_world(written, written_data, 2), truth, f"{part}: meshtool mjcf")
+    read = read_asset(AssetTask(mesh, mesh.name))
+    assert read.asset is not None, [f.one_line() for f in read.result.findings]
+    _assert_same_points(read.asset.mesh.positions, truth, f"{part}: meshtool validate")
+    scene = tmp_path / "scene.toml"
+    scene.write_text(
+        f'[assets]\npart = "{mesh.relative_to(tmp_path).as_posix()}"\n\n'
+        '[[entities]]\ntype = "MeshEntity"\nname = "part"\nasset = "part"\n'
+    )
+    loaded, _ = load_scene(scene).compile()
+    loaded_data = mujoco.MjData(loaded)
+    mujoco.mj_forward(loaded, loaded_data)
+    _assert_same_points(_mesh_geoms_in_world(loaded, loaded_data, 2), truth, f"{part}: simrun MeshEntity")
