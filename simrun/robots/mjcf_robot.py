@@ -6,7 +6,9 @@ and compiler settings, angles in degrees or radians as the file says) and attach
 ``arm/elbow``, its keyframe ``home`` is ``arm/home``, its default class ``main`` is ``arm/main``. Bodies,
 joints, geoms, sites, cameras, lights, actuators, sensors, tendons, contact pairs and excludes,
 equalities and keyframes all come along (MuJoCo's attach carries them); keyframes are widened to the whole
-world, other entities' joints at their initial values.
+world, other entities' joints at their initial values, and follow the entity's pose: a keyframe's free-joint
+and mocap poses are composed with it (:func:`place_keys`), so two robots of one model reset to its ``home``
+(``World.reset("a/home")``) each land where their entity stands; a welded root is at the entity's pose anyway.
 
 Files: meshes, textures, height fields and skins are read from beside the model as MuJoCo would find them
 (``compiler meshdir``, ``texturedir``, ``assetdir``, absolute paths) and put into the world's in-memory file
@@ -149,7 +151,7 @@ class MjcfRobot(Entity):
         elif self.free:
             self._check_free(child, path)
         _scale_total_mass(child, lambda: self._compiled(child, path))
-        self._compiled(child, path)  # MuJoCo must take the model alone first: its message names the element
+        alone = self._compiled(child, path)  # MuJoCo must take the model alone first: its message names the element
         for k, key in enumerate(child.keys):
             if not key.name:  # attach names an unnamed key after the prefix alone: two would clash
                 key.name = f"key{k}"
@@ -164,6 +166,7 @@ class MjcfRobot(Entity):
                     "not free, not kinematic"
                 )
             pose = self.body_pose()
+            place_keys(child, alone, pose.position, pose.orientation)
             frame = ctx.spec.worldbody.add_frame(pos=list(pose.position), quat=list(pose.orientation))
         else:
             frame = body.add_frame()
@@ -381,6 +384,41 @@ def _measure(model: mujoco.MjModel, wheels: tuple[str, ...]) -> tuple[float, flo
     jnt = int(model.body_jntadr[root])
     free = jnt >= 0 and int(model.jnt_type[jnt]) == int(mujoco.mjtJoint.mjJNT_FREE)
     return radius, track, (model.body(root).name if free else None)
+
+
+def place_keys(child: mujoco.MjSpec, alone: mujoco.MjModel, position: Any, orientation: Any) -> None:
+    """Put the keyframes of a model attached in the world at a pose where the entity is (issue 37).
+
+    A keyframe's free-joint positions and quaternions (``qpos``) and mocap poses (``mpos``, ``mquat``) are
+    in the model's own world frame; attached at the entity's pose they are composed with it: position
+    ``p + R(q) k_p``, orientation ``q * k_q`` (``position``: ``p``, m, in the world; ``orientation``: ``q``,
+    ``w x y z``). Hinges and slides are relative to their bodies and stay; a key without ``qpos`` takes the
+    attached model's ``qpos0``, already at the pose. ``alone``: the model compiled alone (its ``qpos`` layout).
+    """
+    p, q = np.asarray(position, dtype=float), np.asarray(orientation, dtype=float)
+    flat = np.zeros(9)
+    mujoco.mju_quat2Mat(flat, q)
+    rotation = flat.reshape(3, 3)
+    free = int(mujoco.mjtJoint.mjJNT_FREE)
+    starts = [int(alone.jnt_qposadr[j]) for j in range(alone.njnt) if int(alone.jnt_type[j]) == free]
+
+    def placed(at: np.ndarray[Any, np.dtype[np.float64]], turn: np.ndarray[Any, np.dtype[np.float64]]) -> list[float]:
+        out = np.zeros(4)
+        mujoco.mju_mulQuat(out, q, turn)
+        return [*(p + rotation @ at), *out]
+
+    for key in child.keys:
+        qpos = np.array(key.qpos, dtype=float)
+        if qpos.size >= alone.nq:
+            for a in starts:
+                qpos[a : a + 7] = placed(qpos[a : a + 3], qpos[a + 3 : a + 7])
+            key.qpos = qpos.tolist()
+        mpos, mquat = np.array(key.mpos, dtype=float), np.array(key.mquat, dtype=float)
+        if mpos.size and mpos.size == 3 * (mquat.size // 4):
+            for m in range(mpos.size // 3):
+                pose = placed(mpos[3 * m : 3 * m + 3], mquat[4 * m : 4 * m + 4])
+                mpos[3 * m : 3 * m + 3], mquat[4 * m : 4 * m + 4] = pose[:3], pose[3:]
+            key.mpos, key.mquat = mpos.tolist(), mquat.tolist()
 
 
 def _scale_total_mass(child: mujoco.MjSpec, compile_alone: Any) -> None:

@@ -470,9 +470,27 @@ class World:
             self.step()
         return bool(done())
 
-    def reset(self) -> None:
-        """Back to the initial state (time 0, initial poses); controllers are reset too."""
-        mujoco.mj_resetData(self.model, self.data)
+    def reset(self, keyframe: str | None = None) -> None:
+        """Back to the initial state (time 0, initial poses), or to a keyframe; controllers are reset too.
+
+        Args:
+            keyframe: Full name of a keyframe (an MJCF model's ``home`` of the entity ``arm`` is ``arm/home``);
+                ``None``: the initial state. An entity's keyframe places its model at the entity's pose (see
+                :mod:`simrun.robots.mjcf_robot`); every other entity is at its initial state in it.
+
+        Raises:
+            EntityError: No keyframe of that name (the message lists them).
+        """
+        model = self.model
+        if keyframe is None:
+            mujoco.mj_resetData(model, self.data)
+        else:
+            names = [model.key(k).name for k in range(model.nkey)]
+            if keyframe not in names:
+                raise EntityError(
+                    f"no keyframe named {keyframe!r}; keyframes: {', '.join(names) or 'none'}", key="keyframe"
+                )
+            mujoco.mj_resetDataKeyframe(model, self.data, names.index(keyframe))
         mujoco.mj_forward(self.model, self.data)
         for controller in self.controllers:
             controller.reset(self.model, self.data)
