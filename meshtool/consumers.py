@@ -462,7 +462,7 @@ def _uses(tree: ET.Element, path: Path, index: _RootIndex, owner: ConsumerIndex)
 
 def _mjcf_uses(tree: ET.Element, path: Path, index: _RootIndex, owner: ConsumerIndex) -> list[_Use]:
     """MuJoCo's reading: includes spliced in, ``meshdir`` (else ``assetdir``) of the last ``<compiler>``."""
-    _splice_includes(tree, path.parent, index, owner, {Path(os.path.realpath(path))}, [0])
+    _splice_includes(tree, path.parent, index, owner, [Path(os.path.realpath(path))], [0])
     meshdir: str | None = None
     assetdir: str | None = None
     for compiler in tree.iter("compiler"):  # several <compiler> elements: later attributes win, as in MuJoCo
@@ -493,12 +493,14 @@ def _mjcf_uses(tree: ET.Element, path: Path, index: _RootIndex, owner: ConsumerI
 
 
 def _splice_includes(
-    node: ET.Element, base: Path, index: _RootIndex, owner: ConsumerIndex, chain: set[Path], count: list[int]
+    node: ET.Element, base: Path, index: _RootIndex, owner: ConsumerIndex, chain: list[Path], count: list[int]
 ) -> None:
     """Replace every ``<include file>`` below ``node`` by the children of the file's root, recursively.
 
-    ``file`` is relative to the main model's folder ``base`` (MuJoCo's rule for nested includes too); a file
-    already being spliced (a cycle), missing or unparsable is dropped, as are includes past :data:`MAX_INCLUDES`.
+    ``file`` is relative to the main model's folder ``base`` or, when no such file exists there, to the folder
+    of the file that names it (``chain[-1]``), as MuJoCo 4.0.1 reads nested includes (checked by compiling
+    both layouts); a file already being spliced (a cycle), missing or unparsable is dropped, as are includes
+    past :data:`MAX_INCLUDES`.
     """
     for parent in list(node.iter()):
         for position, child in reversed(list(enumerate(list(parent)))):
@@ -507,13 +509,15 @@ def _splice_includes(
             parent.remove(child)
             file = child.get("file", "").strip()
             real = _real(base / file) if file else None
+            if real is not None and not real.is_file():
+                real = _real(chain[-1].parent / file)
             if real is None or real in chain or count[0] >= MAX_INCLUDES:
                 continue
             count[0] += 1
             included = owner.read_description(real, index)
             if included is None:
                 continue
-            _splice_includes(included, base, index, owner, chain | {real}, count)
+            _splice_includes(included, base, index, owner, [*chain, real], count)
             for offset, grandchild in enumerate(list(included)):
                 parent.insert(position + offset, grandchild)
 

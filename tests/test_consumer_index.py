@@ -281,3 +281,30 @@ def test_a_model_root_that_does_not_hold_the_mesh_is_refused(tmp_path: Path) -> 
     )
     assert result.exit_code != 0
     assert "does not hold the mesh's folder" in result.output
+
+
+@pytest.mark.parametrize("beside_main", [True, False], ids=["main-folder", "including-folder"])
+def test_nested_includes_resolve_where_mujoco_finds_them(tmp_path: Path, beside_main: bool) -> None:
+    """``sub/a.xml`` includes ``b.xml``: MuJoCo takes the main file's folder first, else the including file's."""
+    (tmp_path / ".git").mkdir()
+    (tmp_path / "sub").mkdir()
+    for folder in (tmp_path, tmp_path / "sub"):
+        shutil.copy(VENDOR / MESHES[1], folder / "m.obj")
+    (tmp_path / "main.xml").write_text(
+        '<mujoco><include file="sub/a.xml"/><worldbody><geom type="mesh" mesh="m"/></worldbody></mujoco>\n'
+    )
+    (tmp_path / "sub" / "a.xml").write_text('<mujocoinclude><include file="b.xml"/></mujocoinclude>\n')
+    (tmp_path / "sub" / "b.xml").write_text(
+        '<mujocoinclude><asset><mesh name="m" file="m.obj"/></asset></mujocoinclude>\n'
+    )
+    if beside_main:
+        (tmp_path / "b.xml").write_text(
+            '<mujocoinclude><asset><mesh name="m" file="sub/m.obj"/></asset></mujocoinclude>\n'
+        )
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "main.xml"))
+    paths = bytes(model.paths)
+    loaded = (tmp_path / paths[: paths.index(b"\0")].decode()).resolve()
+    assert loaded == (tmp_path / ("sub/m.obj" if beside_main else "m.obj")).resolve()
+    for mesh in (tmp_path / "m.obj", tmp_path / "sub" / "m.obj"):
+        users = [r.file for r in find_consumers(mesh, None, ConsumerIndex()) if r.file.endswith("main.xml")]
+        assert bool(users) == (mesh.resolve() == loaded), (mesh, users)
