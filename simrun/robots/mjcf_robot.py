@@ -11,8 +11,9 @@ and mocap poses are composed with it (:func:`place_keys`), so two robots of one 
 (``World.reset("a/home")``) each land where their entity stands; a welded root is at the entity's pose anyway.
 
 Files: meshes, textures, height fields and skins are read from beside the model as MuJoCo would find them
-(``compiler meshdir``, ``texturedir``, ``assetdir``, absolute paths) and put into the world's in-memory file
-system under names unique to the entity (MuJoCo caches meshes by file name), so ``simrun export --mjcf``
+(:func:`simrun.robots.mjcf_files.model_files`: ``compiler meshdir``, ``texturedir``, ``assetdir``, absolute
+paths; the include files are recorded as read too, so ``simrun test`` bundles them) and put into the world's
+in-memory file system under names unique to the entity (MuJoCo caches meshes by file name), so ``simrun export --mjcf``
 writes them into its folder.
 
 Where the model goes: a model whose top-level bodies are welded to its world (an arm) is attached under
@@ -66,6 +67,7 @@ import numpy as np
 
 from simrun.errors import EntityError
 from simrun.robots.diff_drive import DifferentialDrive
+from simrun.robots.mjcf_files import model_files
 from simrun.world.entity import BuildContext, Entity
 
 #: Largest MJCF file read, bytes (its includes and assets are MuJoCo's to bound).
@@ -509,59 +511,32 @@ def _root_tag(path: Path) -> str:
     return "mujoco"
 
 
-def _resolve(model_dir: Path, folder: str, file: str) -> Path:
-    """Where MuJoCo reads ``file``: absolute as given, else under the compiler folder (relative to the model)."""
-    name = Path(file)
-    if name.is_absolute():
-        return name
-    base = Path(folder) if folder and Path(folder).is_absolute() else model_dir / folder
-    return base / name
-
-
 def _load_files(spec: mujoco.MjSpec, path: Path, prefix: str, fail: Any) -> tuple[dict[str, bytes], set[Path]]:
     """Read every mesh, texture, height field and skin file the model names into memory, renaming them.
 
+    The files are those :func:`simrun.robots.mjcf_files.model_files` lists (includes among the real paths read).
+
     Returns:
-        In-memory files (name to bytes) and the real paths read.
+        In-memory files (name to bytes) and the real paths read (the model and its includes too).
     """
-    model_dir = path.parent
-    compiler = spec.compiler
     files: dict[str, bytes] = {}
-    sources = {Path(os.path.realpath(path))}
+    sources: set[Path] = set()
     taken: dict[Path, str] = {}
-
-    def claim(element: str, name: str, file: str, folder: str) -> str:
-        where = _resolve(model_dir, folder, file)
-        real = Path(os.path.realpath(where))
-        if real in taken:
-            return taken[real]
-        try:
-            data = real.read_bytes()
-        except OSError as exc:
-            raise fail(
-                path, f"{element} {name!r}: cannot read {where} ({exc.strerror})", "put the file there"
-            ) from None
-        memory = f"{prefix}{len(taken)}_{''.join(c if c.isalnum() or c in '._-' else '_' for c in where.name)}"
-        taken[real] = memory
-        files[memory] = data
+    for item in model_files(path, spec):
+        real = Path(os.path.realpath(item.path))
         sources.add(real)
-        return memory
-
-    for mesh in spec.meshes:
-        if mesh.file:
-            mesh.file = claim("mesh", mesh.name, mesh.file, compiler.meshdir)
-    for texture in spec.textures:
-        if texture.file:
-            texture.file = claim("texture", texture.name, texture.file, compiler.texturedir)
-        if any(texture.cubefiles):
-            texture.cubefiles = [
-                claim("texture", texture.name, f, compiler.texturedir) if f else "" for f in texture.cubefiles
-            ]
-    for hfield in spec.hfields:
-        if hfield.file:
-            hfield.file = claim("hfield", hfield.name, hfield.file, compiler.meshdir)
-    for skin in spec.skins:
-        if skin.file:
-            skin.file = claim("skin", skin.name, skin.file, compiler.meshdir)
-    compiler.meshdir = compiler.texturedir = ""
+        if item.element is None:  # the model and its includes: MuJoCo has read them already
+            continue
+        if real not in taken:
+            try:
+                data = real.read_bytes()
+            except OSError as exc:
+                raise fail(
+                    path, f"{item.kind} {item.name!r}: cannot read {item.path} ({exc.strerror})", "put the file there"
+                ) from None
+            safe = "".join(c if c.isalnum() or c in "._-" else "_" for c in item.path.name)
+            taken[real] = f"{prefix}{len(taken)}_{safe}"
+            files[taken[real]] = data
+        item.point_to(taken[real])
+    spec.compiler.meshdir = spec.compiler.texturedir = ""
     return files, sources
