@@ -68,6 +68,8 @@ class FormatList(click.Choice[str]):
         return f"[{'|'.join(self.choices)}][,...]"
 
 
+#: How ``-o`` files are told apart without ``--format``, for the help text: ``.json json, .xml junit, ...``.
+_BY_SUFFIX = ", ".join(f"{row.suffixes[0]} {row.name}" for row in REPORT_FORMATS if row.suffixes and row.name != "text")
 #: The ``-o`` value that means stdout.
 STDOUT = "-"
 
@@ -143,8 +145,7 @@ def default_jobs() -> int:
     multiple=True,
     type=click.Path(path_type=Path, dir_okay=False, allow_dash=True),
     help="Write a report here (-: stdout); repeat for several reports of one run, the format from --format (in "
-    "order) or the suffix (.json, .xml JUnit, .html, else text). Replaces an earlier report; anything else only "
-    "with --force.",
+    f"order) or the suffix ({_BY_SUFFIX}, else text). Replaces an earlier report; anything else only with --force.",
 )
 @click.option("--force", is_flag=True, help="Let -o replace a file that is not an earlier report (never an input).")
 @executor_options

@@ -12,6 +12,9 @@ types):
   stamped, and which function writes it. :func:`meshtool.outdir.check_output` and
   :func:`simrun.outfile.check_output` decide overwrites through it; ``simrun replay``'s formats are its rows.
 
+Beside them, :data:`REPORT_FORMATS` lists ``meshtool validate``'s report formats with their suffixes (a ``-o``
+file without ``--format`` is told by its suffix, :func:`report_format_for`).
+
 ``docs/formats.md`` ("Formats registry") is kept in step with both tables by ``tests/test_formats_registry.py``.
 Adding a mesh format is one reader module with a ``read`` function plus one row here (or a call of
 :func:`register_mesh_format`); adding an output is one row. This module imports nothing but the standard

@@ -309,3 +309,13 @@ def test_annotations_on_stdout_and_reports_in_files_from_one_run(one_run: dict[s
     assert annotation.startswith("::warning file=") and "bracket.stl" in annotation and "U001" in annotation
     assert (tmp_path / "r.xml").read_bytes() == (out / "r.xml").read_bytes()
     assert "wrote" in result.stderr and _run_line(result.stderr).startswith(f"checked 0, {len(EXPECTED)} from cache")
+
+
+def test_an_asset_mujoco_cannot_compile_has_no_picture_to_draw(tmp_path: Path) -> None:
+    """P001: the plugin draws nothing for it, so an HTML run after a JSON run has nothing to draw."""
+    asset = FIXTURES / "validate" / "P001_mujoco_compile"
+    cache = tmp_path / "cache"
+    first = validate([asset], ValidateOptions(cache_dir=cache))
+    assert [f.code for a in first.assets for f in a.findings if f.code == "P001"] == ["P001"]
+    second = validate([asset], ValidateOptions(cache_dir=cache, thumbnails=True))
+    assert (second.checked, second.thumbnails_drawn) == (0, 0) and second.assets[0].thumbnail is None

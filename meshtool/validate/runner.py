@@ -22,7 +22,7 @@ from meshtool.safeopen import printable
 from meshtool.validate.cache import ResultCache
 from meshtool.validate.config import ValidateConfig
 from meshtool.validate.pool import run_here, run_workers
-from meshtool.validate.remote import SchedulerError, run_dask
+from meshtool.validate.remote import run_dask
 from meshtool.validate.task import AssetResult, AssetTask
 
 EXECUTORS = ("local", "dask")
@@ -288,7 +288,9 @@ def _add_thumbnail(cached: AssetResult, drawn: AssetResult, task: AssetTask, cac
         cached.thumbnail_note = f"no thumbnail: {failed}"
         return
     cached.thumbnail, cached.thumbnail_note = drawn.thumbnail, drawn.thumbnail_note
-    if cached.thumbnail is not None:
+    if cached.thumbnail is None and cached.thumbnail_note is None:  # the plugin draws none for it: remembered
+        cached.drawable = False
+    if cached.thumbnail is not None or not cached.drawable:  # not a missing GL context: that may change
         cache.store(task, cached)
 
 

@@ -106,7 +106,7 @@ class AssetResult:
         cached: Whether this result came from the cache (set by the runner).
         format: The file's format (:attr:`AssetTask.format`: ``obj``, ``stl``, ``ply``, ``gltf``, ``glb``,
             ``collada``, ``mbin``), set by the runner; every report labels the asset with it.
-        drawable: The check handed the asset to the physics plugin, so a thumbnail can be drawn.
+        drawable: The physics plugin compiled the asset (no P001), so a thumbnail can be drawn.
         thumbnail_note: Why there is no thumbnail when one was asked for (no GL context...), or ``None``.
             Kept apart from ``notes`` so that a report's text does not depend on whether pictures were drawn.
     """
@@ -389,7 +389,7 @@ def _physics(task: AssetTask, result: AssetResult, mbin: bytes) -> None:
     scale_wrong = any(f.code == "U001" for f in result.findings)
     # a mass far off, or a fall from far up, because the size is far off: one cause, reported once (U001)
     result.findings.extend(f for f in outcome.findings if not (scale_wrong and f.code in ("P002", "P004")))
-    result.drawable = True
+    result.drawable = not any(f.code == "P001" for f in outcome.findings)  # MuJoCo compiled it: it can be drawn
     _keep_picture(result, outcome.thumbnail, outcome.notes)
     result.stats["physics"] = outcome.stats
 
