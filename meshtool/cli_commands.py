@@ -43,6 +43,7 @@ from meshtool.resolve import find_files
 UNITS = ("m", "cm", "mm", "in", "ft")
 
 if TYPE_CHECKING:
+    from meshtool.batch import Executor
     from meshtool.convert import ConvertOptions, ConvertResult
     from meshtool.normalise import NormaliseOptions
 
@@ -253,6 +254,31 @@ def normalize(
     "-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes for a folder."
 )
 @click.option(
+    "--executor",
+    type=click.Choice(["local", "dask"]),
+    default="local",
+    show_default=True,
+    help="Where a folder's files are converted: worker processes here, or a Dask cluster (needs dask).",
+)
+@click.option(
+    "--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786); default: a local cluster."
+)
+@click.option(
+    "--scheduler-timeout",
+    type=click.FloatRange(0, min_open=True),
+    default=30.0,
+    show_default=True,
+    metavar="SECONDS",
+    help="How long to try reaching --scheduler.",
+)
+@click.option(
+    "--timeout",
+    type=click.FloatRange(0, min_open=True),
+    default=None,
+    metavar="SECONDS",
+    help="Per-file limit for a folder: a file past it fails with the reason (its worker is stopped).",
+)
+@click.option(
     "--no-check",
     is_flag=True,
     help="Do not compile the packed asset in MuJoCo before writing it (the check needs simrun installed).",
@@ -273,6 +299,10 @@ def obj2bin(
     out: Path | None,
     quantize: bool,
     jobs: int,
+    executor: str,
+    scheduler: str | None,
+    scheduler_timeout: float,
+    timeout: float | None,
     no_check: bool,
     mjcf_dir: Path | None,
     force: bool,
@@ -280,6 +310,7 @@ def obj2bin(
     **kw: Any,
 ) -> None:
     """Convert SRC (OBJ, STL, PLY, glTF/GLB, COLLADA; or a folder of them) to .mbin: normalised, hulls, packed."""
+    from meshtool.batch import Executor
     from meshtool.convert import ConvertOptions, convert
     from meshtool.normalise import safe_file_stem
 
@@ -287,6 +318,8 @@ def obj2bin(
         raise click.UsageError("a folder needs -o OUTDIR")
     if mjcf_dir is not None and _is_folder(src):
         raise click.UsageError("--mjcf takes one mesh file; for a folder: obj2bin DIR -o OUT, then meshtool mjcf OUT")
+    if scheduler and executor != "dask":
+        raise click.UsageError("--scheduler needs --executor dask")
     with _guard(as_json):
         hulls = _hull_options(kw)
         options = ConvertOptions(
@@ -296,7 +329,8 @@ def obj2bin(
             _obj2bin_mjcf(src, out, mjcf_dir, options, force, as_json)
             return
         if _is_folder(src) and out is not None:
-            _convert_folder(src, out, options, jobs, as_json, force)
+            where = Executor(executor, jobs, timeout, scheduler, scheduler_timeout)
+            _convert_folder(src, out, options, where, as_json, force)
             return
         default_name = f"{safe_file_stem(src.stem) or 'asset'}{suffix('mbin')}"
         target = out / default_name if out is not None and _is_folder(out) else out or Path(default_name)
@@ -333,12 +367,14 @@ def _is_folder(path: Path) -> bool:
         return False
 
 
-def _convert_folder(src: Path, out: Path, options: ConvertOptions, jobs: int, as_json: bool, force: bool) -> None:
+def _convert_folder(
+    src: Path, out: Path, options: ConvertOptions, executor: Executor, as_json: bool, force: bool
+) -> None:
     from meshtool.convert import convert_tree, tree_jobs
 
     results: list[ConvertResult] = []
     total = len(tree_jobs(src, out))
-    stream = convert_tree(src, out, options, jobs, force=force)
+    stream = convert_tree(src, out, options, force=force, executor=executor)
     if progress_enabled() and not as_json:  # the progress line on stderr names each file and stage
         results.extend(stream)
     else:

@@ -1,24 +1,23 @@
-"""OBJ to ``.mbin`` conversion: one file, or a folder tree in parallel, skipping unchanged assets.
+"""Mesh to ``.mbin`` conversion: one file, or a folder tree on the batch layer, skipping unchanged assets.
 
-Worker processes die with their parent: on Linux the kernel sends them SIGKILL when the parent dies
-(``prctl(PR_SET_PDEATHSIG)``), and everywhere a watchdog thread in each worker exits it when its parent
-process changes, so a killed ``obj2bin -j N`` leaves no worker behind.
+A folder's files run where :mod:`meshtool.batch` puts them: this process, local worker processes (they die
+with their parent: on Linux the kernel sends them SIGKILL when the parent dies, ``prctl(PR_SET_PDEATHSIG)``,
+and everywhere a watchdog thread exits a worker when its parent changes, so a killed ``obj2bin -j N`` leaves
+no worker behind; a file past ``--timeout`` has its worker killed), or a Dask cluster (``--executor dask``).
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from meshtool.batch import Executor, run_batch
 from meshtool.errors import MeshtoolError, OutputError, PackFormatError, StrictModeError
 from meshtool.findings import Finding
 from meshtool.formats import mesh_suffixes, suffix
 from meshtool.hulls import HullOptions, compute_hulls, quality
-from meshtool.lifeline import die_with_parent
 from meshtool.normalise import NormaliseOptions, prepare, safe_file_stem
 from meshtool.normalmaps import mujoco_findings
 from meshtool.outdir import check_output, refuse_inputs, write_file
@@ -253,44 +252,71 @@ def _run(src: Path, out: Path, options: ConvertOptions, force: bool = False) -> 
         return ConvertResult(src, out, "failed", error=f"{src}: {exc.one_line()}")
 
 
+@dataclass(frozen=True, slots=True)
+class _ConvertWork:
+    """One file of ``obj2bin DIR``, for the batch layer (:mod:`meshtool.batch`): a task is ``(src, out)``."""
+
+    options: ConvertOptions
+    force: bool
+    total: int
+
+    def prepare(self) -> None:
+        """Nothing to import ahead: the converter is this module."""
+
+    def __call__(self, task: tuple[int, Path, Path], /) -> ConvertResult:
+        k, src, out = task
+        with progress_subject(f"[{k}/{self.total}] {printable(src.name)}"):
+            return _run(src, out, self.options, self.force)
+
+    def lost(self, task: tuple[int, Path, Path], why: str, /) -> ConvertResult:
+        _, src, out = task
+        return ConvertResult(src, out, "failed", error=f"{src}: not converted: {why}")
+
+
 def convert_tree(
-    src_dir: Path, out_dir: Path, options: ConvertOptions | None = None, jobs: int = 1, *, force: bool = False
+    src_dir: Path,
+    out_dir: Path,
+    options: ConvertOptions | None = None,
+    jobs: int = 1,
+    *,
+    force: bool = False,
+    executor: Executor | None = None,
 ) -> Iterator[ConvertResult]:
-    """Convert every OBJ under ``src_dir``; yields results as they finish.
+    """Convert every mesh file under ``src_dir``; yields results as they finish.
 
     Args:
-        src_dir: Folder searched recursively for ``*.obj``.
+        src_dir: Folder searched recursively for every mesh format meshtool reads.
         out_dir: Output root; the folder layout is kept (names made safe).
         options: Conversion options (``normalise.name`` is ignored).
-        jobs: Worker processes (1 converts in this process); they die with this process.
+        jobs: Worker processes (1 converts in this process); they die with this process. Ignored when
+            ``executor`` is given.
         force: Replace existing outputs that are not meshtool ``.mbin`` files (never an input).
+        executor: Where the files are converted (:mod:`meshtool.batch`: this process, local worker processes
+            with an optional per-file timeout, or a Dask cluster). Each pack's bytes are the same whichever.
 
     Yields:
-        One result per OBJ, unchanged ones included.
+        One result per file, unchanged ones included; a file whose worker died or ran past the timeout is
+        ``failed`` with the reason.
     """
     options = options or ConvertOptions()
+    executor = executor or Executor(jobs=max(1, jobs))
     work = tree_jobs(src_dir, out_dir)
     outputs = [o for _, o in work]
     if len(set(outputs)) != len(outputs):
         clash = next(o for o in outputs if outputs.count(o) > 1)
         raise OutputError("two sources map to the same output", path=str(clash), hint="rename one of them")
-    if jobs <= 1:
-        for k, (src, out) in enumerate(work, start=1):
-            with progress_subject(f"[{k}/{len(work)}] {printable(src.name)}"):
-                result = _run(src, out, options, force)
-            yield result
-        return
-    with ProcessPoolExecutor(max_workers=jobs, initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
-        futures = {pool.submit(_run, src, out, options, force): src for src, out in work}
-        pending = dict(futures)
-        report_progress(_waiting(pending, jobs), 0, len(work))
-        for future in as_completed(futures):
-            del pending[future]
-            report_progress(_waiting(pending, jobs), len(work) - len(pending), len(work))
-            yield future.result()
+    tasks = [(k, src, out) for k, (src, out) in enumerate(work, start=1)]
+    pending = {k - 1: src for k, src, _ in tasks}
+    if not executor.in_process:
+        report_progress(_waiting(pending, executor.jobs), 0, len(work))
+    for index, result, _where in run_batch(tasks, _ConvertWork(options, force, len(work)), executor):
+        del pending[index]
+        if not executor.in_process:
+            report_progress(_waiting(pending, executor.jobs), len(work) - len(pending), len(work))
+        yield result
 
 
-def _waiting(pending: dict[Any, Path], jobs: int) -> str:
+def _waiting(pending: dict[int, Path], jobs: int) -> str:
     """``converting``, and the files still running once no more wait for a worker (the last, slow ones)."""
     if not pending or len(pending) > jobs:
         return "converting"

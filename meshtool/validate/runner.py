@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from meshtool.batch import SchedulerError
 from meshtool.errors import MeshtoolError
 from meshtool.findings import Severity
 from meshtool.formats import mesh_suffixes, output_named

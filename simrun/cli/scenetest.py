@@ -100,8 +100,8 @@ def test_command(
     verbose: bool,
 ) -> None:
     """Run every scene under PATHS x seed x variation and check its [[expect]] tables (docs/scene-format.md)."""
+    from meshtool.batch import SchedulerError
     from meshtool.outdir import write_file
-    from meshtool.validate.remote import SchedulerError
     from simrun.outfile import output_policy
     from simrun.scenetest.reports import render, session_line, to_text, verdict_line
     from simrun.scenetest.runner import TestOptions, run_tests

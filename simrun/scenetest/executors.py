@@ -89,9 +89,9 @@ def run_dask(
 
     Raises:
         ImportError: dask.distributed is not installed.
-        meshtool.validate.remote.SchedulerError: The scheduler cannot be reached.
+        meshtool.batch.SchedulerError: The scheduler cannot be reached.
     """
-    from meshtool.validate.remote import connect
+    from meshtool.batch import connect
 
     if not tasks:
         return

@@ -48,6 +48,14 @@ tendons, sites or bodies are not commanded (:meth:`JointService.joints` leaves t
 
 Controls are clipped to the actuator's ``ctrlrange``: a weak motor may not hold a pose.
 
+**Holding.** With ``hold = "all"`` (the default) the service also holds every commandable joint it has not
+been given a target for at the position it has at the service's first tick (after a :meth:`World.reset
+<simrun.world.world.World.reset>` or a rebuild: at the new initial state), through the same loops, so a URDF
+arm or a walker does not fold under gravity while only some of its joints are commanded. ``hold =
+"commanded"`` leaves such joints to the model (their controls are whatever is in ``data.ctrl``, MuJoCo's 0 at
+reset: a motor limp, a position servo pulled to 0), for code that writes those controls itself. Wheel joints an
+entity names (``wheels``) are never held: they belong to the ``DriveService``.
+
 Trajectories are time-stamped waypoints (seconds from the call), followed by linear interpolation in joint
 space with the segment's slope as velocity feed-forward; the joints not named hold their targets.
 """
@@ -69,6 +77,8 @@ if TYPE_CHECKING:  # the world imports the registry, which names this module: no
 
 #: Default bandwidth of the position loops, rad/s (2 Hz).
 BANDWIDTH = 4 * math.pi
+#: What the service holds: every commandable joint (``all``) or only those given targets (``commanded``).
+HOLD_MODES = ("all", "commanded")
 _ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
@@ -81,7 +91,8 @@ class JointState:
         names: Joint names without the entity prefix, in model order (hinge and slide joints).
         positions: rad (hinge) or m (slide), one per name.
         velocities: rad/s or m/s, one per name.
-        targets: Current position target per name (``nan`` for joints with no actuator).
+        targets: Current position target per name (``nan`` for joints with no actuator and for those the
+            service holds without a command, ``hold = "all"``).
     """
 
     time: float
@@ -115,13 +126,19 @@ class JointService:
         entity: Full name of the entity.
         rate: Control rate, Hz.
         bandwidth: Position-loop bandwidth ``w`` of velocity and force actuators, rad/s.
+        hold: ``all``: joints without a target are held where they are (see the module); ``commanded``:
+            only joints given a target are driven.
 
     Raises:
-        EntityError: No such entity, or a rate or bandwidth that is not a positive number.
+        EntityError: No such entity, a rate or bandwidth that is not a positive number, an unknown ``hold``.
     """
 
-    def __init__(self, world: World, entity: str, rate: float = 500.0, bandwidth: float = BANDWIDTH) -> None:
+    def __init__(
+        self, world: World, entity: str, rate: float = 500.0, bandwidth: float = BANDWIDTH, hold: str = "all"
+    ) -> None:
         world.entity(entity)
+        if hold not in HOLD_MODES:
+            raise EntityError(f"JointService of {entity!r}: hold must be one of {', '.join(HOLD_MODES)}, got {hold!r}")
         for key, value in (("rate", rate), ("bandwidth", bandwidth)):
             if (
                 isinstance(value, bool)
@@ -136,11 +153,14 @@ class JointService:
         self._drives: dict[str, _Drive] = {}
         self._joints: list[tuple[str, int, int]] = []  # (name, qpos, dof) of every hinge/slide joint
         self._targets: dict[str, list[float]] = {}  # joint -> [position target, velocity target]
+        self.hold_mode = hold
+        self._held: dict[str, float] = {}  # joint -> where it is held without a command (hold = "all")
         self._plan: dict[str, Any] | None = None  # a trajectory: start time, times, joints, positions
         self._integral: dict[str, float] = {}  # joint -> integral of the position error (force joints), rad s
         self._scratch: _Scratch | None = None  # feed-forward forces are computed here, from the state alone
         self._mass = np.zeros((0, 0))  # MuJoCo's mass matrix at the model's initial pose (nv x nv)
         self._inertia: dict[tuple[str, ...], np.ndarray[Any, np.dtype[np.float64]]] = {}  # force joints -> S
+        self._wheels: set[str] = set()  # the entity's wheel joints (the DriveService's), never held
         world.controllers.append(self)
 
     # -- commands ------------------------------------------------------------------------------------------
@@ -151,6 +171,7 @@ class JointService:
         self._cancel(joints)
         for joint, value in zip(joints, values, strict=True):
             self._targets[joint] = [value, 0.0]
+            self._held.pop(joint, None)
 
     def set_velocities(self, joints: list[str] | tuple[str, ...], velocities: list[float] | tuple[float, ...]) -> None:
         """Run ``joints`` at ``velocities`` (rad/s or m/s): their position targets move at that speed."""
@@ -158,6 +179,7 @@ class JointService:
         self._cancel(joints)
         for joint, value in zip(joints, values, strict=True):
             self._targets[joint] = [self._target_now(joint), value]
+            self._held.pop(joint, None)
 
     def hold(self) -> None:
         """Stop every motion: each commanded joint holds where it is now."""
@@ -196,6 +218,7 @@ class JointService:
         self._plan = {"t0": float(self.world.data.time), "times": [0.0, *stamps], "joints": list(joints), "rows": rows}
         for joint, value in zip(joints, start, strict=True):
             self._targets[joint] = [value, 0.0]
+            self._held.pop(joint, None)
 
     def move_to(
         self, joints: list[str] | tuple[str, ...], positions: list[float] | tuple[float, ...], duration: float
@@ -240,20 +263,28 @@ class JointService:
         self._lookup(model)
         if self._plan is not None:
             self._follow(float(data.time))
+        if self.hold_mode == "all":
+            for joint, drive in self._drives.items():
+                if joint not in self._targets and joint not in self._held and joint not in self._wheels:
+                    self._held[joint] = float(data.qpos[drive.qpos])
+        goals = {**{j: [q, 0.0] for j, q in self._held.items()}, **self._targets}  # held ones: copies
         w, h = self.bandwidth, self.period
-        force = [j for j in self._targets if self._drives[j].kind == "force"]
-        wanted = self._computed_torque(model, data, force) if force else {}
-        for joint, target in self._targets.items():
+        force = [j for j in goals if self._drives[j].kind == "force"]
+        wanted = self._computed_torque(model, data, force, goals) if force else {}
+        for joint, target in goals.items():
             drive = self._drives[joint]
             position, velocity = target
             if velocity and (self._plan is None or joint not in self._plan["joints"]):
                 position = target[0] = position + velocity * h
             q, v = float(data.qpos[drive.qpos]), float(data.qvel[drive.dof])
+            error = position - q
+            integral = self._integral.get(joint, 0.0) + error * h  # rad s (m s): the servos' load correction
             if (
                 drive.kind == "position"
             ):  # force = g u + b0 + b1 gear q (+ b2 speed): at rest where g u = -b0 - b1 gear q
                 bias = model.actuator_biasprm[drive.actuator]
-                ctrl = -(bias[0] + bias[1] * drive.gear * position) / drive.gain
+                shift = _servo_integral_rate(model, drive, w) * integral
+                ctrl = -(bias[0] + bias[1] * drive.gear * (position + shift)) / drive.gain
             elif drive.kind == "velocity":
                 servo = drive.gear * drive.gear * drive.gain  # joint torque per rad/s of speed error
                 hold = max(h, float(model.opt.timestep))  # how long a control stays
@@ -262,22 +293,33 @@ class JointService:
                     torque = drive.mass * (w * w * (position - q) + 2.0 * w * (velocity - v))
                     ctrl = drive.gear * (v + torque / servo)
                 else:
-                    ctrl = drive.gear * (velocity + w * (position - q))
+                    rate = min(w * w / 3.0, 0.5 * (servo + drive.damping) * w / drive.mass)
+                    ctrl = drive.gear * (velocity + w * error + rate * integral)
+                    self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
             elif drive.kind == "intvelocity":  # the servo's target is the activation: steer it to gear * q*
                 act = float(data.act[model.actuator_actadr[drive.actuator]])
-                ctrl = drive.gear * velocity + w * (drive.gear * position - act)
+                shift = _servo_integral_rate(model, drive, w) * integral
+                ctrl = drive.gear * velocity + w * (drive.gear * (position + shift) - act)
             else:
                 tau, error, integral = wanted[joint]
                 bias = model.actuator_biasprm[drive.actuator]  # force = gain ctrl + b0 + b1 length + b2 speed
                 offset = float(bias[0] + bias[1] * drive.gear * q + bias[2] * drive.gear * v)
                 ctrl = (tau / drive.gear - offset) / drive.gain
-                if not ((ctrl > drive.high and error > 0) or (ctrl < drive.low and error < 0)):
-                    self._integral[joint] = integral
+            if drive.kind != "velocity":
+                self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
             data.ctrl[drive.actuator] = min(drive.high, max(drive.low, ctrl))
 
+    def _keep_integral(self, joint: str, drive: _Drive, ctrl: float, push: float, integral: float) -> None:
+        """Store the new error integral unless the control is clipped in the direction it pushes (no wind-up)."""
+        if not ((ctrl > drive.high and push > 0) or (ctrl < drive.low and push < 0)):
+            self._integral[joint] = integral
+
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """After ``World.reset``: no targets, no trajectory (the actuators' controls are MuJoCo's reset ones)."""
-        self._targets, self._plan, self._integral = {}, None, {}
+        """After ``World.reset``: no targets, no trajectory (the actuators' controls are MuJoCo's reset ones).
+
+        With ``hold = "all"`` the joints are held again from where the reset put them, at the next tick.
+        """
+        self._targets, self._plan, self._integral, self._held = {}, None, {}, {}
 
     def snapshot(self) -> dict[str, Any]:
         """Targets, trajectory and clock, JSON-ready (for checkpoints)."""
@@ -286,6 +328,7 @@ class JointService:
             "targets": {k: list(v) for k, v in self._targets.items()},
             "plan": plan,
             "integral": dict(self._integral),
+            "held": dict(self._held),
             "next_time": self.next_time,
         }
 
@@ -294,21 +337,25 @@ class JointService:
         self._targets = {str(k): [float(v[0]), float(v[1])] for k, v in state["targets"].items()}
         self._plan = None if state["plan"] is None else dict(state["plan"])
         self._integral = {str(k): float(v) for k, v in state.get("integral", {}).items()}
+        self._held = {str(k): float(v) for k, v in state.get("held", {}).items()}
         self.next_time = float(state["next_time"])
         self.world.reschedule()
 
     # -- internals -----------------------------------------------------------------------------------------
 
     def _computed_torque(
-        self, model: mujoco.MjModel, data: mujoco.MjData, joints: list[str]
+        self, model: mujoco.MjModel, data: mujoco.MjData, joints: list[str], goals: dict[str, list[float]]
     ) -> dict[str, tuple[float, float, float]]:
-        """Joint torque, position error and the error's new integral of each force-driven joint (see the module)."""
+        """Joint torque, position error and the error's new integral of each force-driven joint (see the module).
+
+        ``goals``: joint to [position target, velocity target], the commanded and the held joints.
+        """
         w, h = self.bandwidth, self.period
         dofs = [self._drives[j].dof for j in joints]
         feed = self._feed_forward(model, data)[dofs]
         rates, damped, errors, integrals = [], [], [], []
         for joint in joints:
-            drive, (position, velocity) = self._drives[joint], self._targets[joint]
+            drive, (position, velocity) = self._drives[joint], goals[joint]
             error = position - float(data.qpos[drive.qpos])
             integral = self._integral.get(joint, 0.0) + error * h
             rate = 3.0 * w * w * error + 3.0 * w * (velocity - float(data.qvel[drive.dof])) + w * w * w * integral
@@ -378,6 +425,8 @@ class JointService:
         """The joint's current position target, or where it is when it has none."""
         if joint in self._targets:
             return self._targets[joint][0]
+        if joint in self._held:
+            return self._held[joint]
         return float(self.world.data.qpos[self._drives[joint].qpos])
 
     def _cancel(self, joints: list[str] | tuple[str, ...]) -> None:
@@ -450,6 +499,9 @@ class JointService:
         self._joints, self._drives, self._bound = joints, drives, model
         self._mass, self._inertia = full, {}
         self._targets = {k: v for k, v in self._targets.items() if k in drives}
+        self._held = {}  # a new model starts at its initial state: held again from there at the next tick
+        wheels = getattr(self.world.entity(self.name), "wheels", ())
+        self._wheels = {str(w) for w in wheels} if isinstance(wheels, tuple | list) else set()
 
 
 class _Scratch:
@@ -484,6 +536,21 @@ def _kind(model: mujoco.MjModel, a: int) -> str | None:
     if affine and bias[0] == 0 and bias[1] == 0 and bias[2] == -gain[0] and gain[0] > 0:
         return "velocity"
     return "force"
+
+
+def _servo_integral_rate(model: mujoco.MjModel, drive: _Drive, w: float) -> float:
+    """How fast (1/s) a position servo's target is shifted by the integral of its error (see the module).
+
+    The servo (joint stiffness ``kp = -b1 gear^2``, damping ``kv = -b2 gear^2``) with the joint's damping
+    ``b`` and inertia ``m`` closes ``m s^3 + (kv + b) s^2 + kp s + kp r`` around the integral's rate ``r``,
+    stable while ``r < (kv + b) / m`` (Routh): half that, and at most ``w / 3``. A servo with no damping at
+    all gets none (its own loop would ring).
+    """
+    bias = model.actuator_biasprm[drive.actuator]
+    damping = -float(bias[2]) * drive.gear * drive.gear + drive.damping
+    if damping <= 0 or drive.mass <= 0:
+        return 0.0
+    return min(w / 3.0, 0.5 * damping / drive.mass)
 
 
 def _ctrl_range(model: mujoco.MjModel, a: int) -> tuple[float, float]:
