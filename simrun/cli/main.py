@@ -104,13 +104,19 @@ def doctor(as_json: bool) -> None:
 @click.option("--seconds", "seconds", type=SECONDS, hidden=True, help="Deprecated spelling of --duration.")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
 def check(scene: Path, seconds: float, as_json: bool) -> None:
-    """Load SCENE, compile it, bind its services and sensors, and step it; fail on any warning or non-finite state."""
+    """Load SCENE, compile it, bind its services and sensors, and step it; fail on any warning or non-finite state.
+
+    Warnings about the scene (option overrides, initial penetrations, ground that holds a fixed robot) are
+    printed, not failed on.
+    """
     import numpy as np
 
     from simrun.scene.scene_file import load_scene
+    from simrun.world.checks import scene_warnings
 
     world = load_scene(scene)
     world.check_bindings()
+    found = scene_warnings(world)
     world.run(seconds)
     warnings = world.warnings()
     if warnings:
@@ -126,11 +132,14 @@ def check(scene: Path, seconds: float, as_json: bool) -> None:
         "textures": model.ntex,
         "duration_s": seconds,
     }
-    result |= {"services": len(world.services), "sensors": len(world.sensors)}
+    result |= {"services": len(world.services), "sensors": len(world.sensors), "warnings": found}
     out.report(result)
+    for line in found:
+        out.tell(f"warning: {scene}: {line}")
     out.say(
         f"{scene}: ok: {len(world)} entities, {model.nbody - 1} bodies, {model.ngeom} geoms, {model.nmesh} meshes, "
-        f"{model.ntex} textures; stepped {seconds:g} s with no warning"
+        f"{model.ntex} textures; stepped {seconds:g} s with no warning from MuJoCo"
+        + (f", {len(found)} scene warning{'s' if len(found) != 1 else ''} (above)" if found else "")
     )
 
 

@@ -40,9 +40,11 @@ when it puts a walker into an arena) is welded where it is put unless given one 
   top-level body itself, which has the mass MuJoCo wants (same motion: a massless frame adds nothing).
   The model's keyframes get the slides at 0.
 
-The world's options (timestep, integrator, gravity, fluid density and viscosity, solver) govern: the
-model's ``<option>`` is replaced by them before the attach (MuJoCo's attach keeps the parent's anyway, with
-a printed warning per difference), and its ``<size>`` is not carried over. Unnamed keyframes are named
+A world has one option set: the model's own ``<option>`` (timestep, integrator, solver, tolerances, fluid
+density and viscosity...) is the world's where the scene did not set that option explicitly and no earlier
+robot set it otherwise (the rule and its warnings: :mod:`simrun.world.options`); the model's ``<option>`` is
+then replaced by the world's before the attach (MuJoCo's attach keeps the parent's anyway, with a printed
+warning per difference), and its ``<size>`` is not carried over. Unnamed keyframes are named
 ``keyK`` (K: their index), so the attached ones are ``NAME/keyK``.
 
 Wheels: naming two wheel joints (``wheels = ["left", "right"]``) gives them simrun's DC motors
@@ -69,6 +71,7 @@ from simrun.errors import EntityError
 from simrun.robots.diff_drive import DifferentialDrive
 from simrun.robots.mjcf_files import model_files
 from simrun.world.entity import BuildContext, Entity
+from simrun.world.options import own_options
 
 #: Largest MJCF file read, bytes (its includes and assets are MuJoCo's to bound).
 MAX_MJCF_BYTES = 64 * 1024 * 1024
@@ -178,6 +181,14 @@ class MjcfRobot(Entity):
             raise self._fail(path, str(exc), "MuJoCo cannot attach it; rename the clashing element") from None
         ctx.assets.vfs.update(files)
         ctx.assets.sources.update(sources)
+
+    def own_options(self, base_dir: Path) -> dict[str, Any]:
+        """The options the model's ``<option>`` sets (those differing from MuJoCo's defaults), by ``MjSpec`` name.
+
+        Args:
+            base_dir: The world's folder (``file`` is relative to it).
+        """
+        return own_options(self._read(Path(base_dir) / self.file))
 
     def _read(self, path: Path) -> mujoco.MjSpec:
         try:

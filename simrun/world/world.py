@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +22,7 @@ import numpy as np
 from simrun.entities.environment import Camera
 from simrun.errors import CompileError, EntityError, Origin, SimrunError
 from simrun.world import model_cache
+from simrun.world import options as model_options
 from simrun.world.assets import AssetLibrary
 from simrun.world.entity import BuildContext, Entity
 from simrun.world.registry import Controller, scene_type, service_arguments
@@ -42,21 +43,41 @@ MAX_BODIES = 10_000
 _mj_step = mujoco.mj_step  # bound once: World.step's single-step path is timed against raw mj_step
 
 
+#: The world's defaults of the options :class:`WorldOptions` holds.
+DEFAULT_TIMESTEP, DEFAULT_GRAVITY, DEFAULT_INTEGRATOR = 0.002, (0.0, 0.0, -9.81), "implicitfast"
+
+
 @dataclass(frozen=True, slots=True)
 class WorldOptions:
     """Physics options.
+
+    A ``timestep`` or ``integrator`` given here (or in a scene's ``[world]``) is *explicit*: it governs over
+    a robot's own ``<option>``; one left out is simrun's default (2 ms, ``implicitfast``) unless a robot's
+    model sets it (:mod:`simrun.world.options`).
 
     Attributes:
         timestep: Seconds per step.
         gravity: m/s^2.
         integrator: ``euler``, ``rk4``, ``implicit`` or ``implicitfast``.
+        explicit: The names among ``timestep`` and ``integrator`` that were given (set from the arguments).
     """
 
-    timestep: float = 0.002
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
-    integrator: str = "implicitfast"
+    timestep: float = math.nan  # nan, "": not given (the defaults above)
+    gravity: tuple[float, float, float] = DEFAULT_GRAVITY
+    integrator: str = ""
+    explicit: frozenset[str] = field(default=frozenset(), init=False)
 
     def __post_init__(self) -> None:
+        given = frozenset(
+            n
+            for n, unset in (("timestep", math.isnan(self.timestep)), ("integrator", not self.integrator))
+            if not unset
+        )
+        object.__setattr__(self, "explicit", given)
+        if "timestep" not in given:
+            object.__setattr__(self, "timestep", DEFAULT_TIMESTEP)
+        if "integrator" not in given:
+            object.__setattr__(self, "integrator", DEFAULT_INTEGRATOR)
         if not MIN_TIMESTEP <= self.timestep <= MAX_TIMESTEP:
             raise EntityError(f"timestep must be in [{MIN_TIMESTEP:g}, {MAX_TIMESTEP:g}] seconds, got {self.timestep}")
         if self.integrator not in INTEGRATORS:
@@ -198,6 +219,7 @@ class World:
         spec.option.timestep = self.options.timestep
         spec.option.gravity = list(self.options.gravity)
         spec.option.integrator = INTEGRATORS[self.options.integrator]
+        model_options.apply(spec.option, self.option_choice()[0])
         spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
         assets = AssetLibrary(spec, files=self._assets.files, images=self._assets.images, sources=self._assets.sources)
         bodies: dict[str, Any] = {}
@@ -384,7 +406,7 @@ class World:
 
     def run(self, seconds: float) -> None:
         """Step until ``seconds`` of simulated time have passed."""
-        self.step(round(seconds / self.options.timestep))
+        self.step(round(seconds / float(self.model.opt.timestep)))
 
     def service(self, kind: str, entity: str) -> Any:
         """The service of type ``kind`` bound to ``entity`` (``[[services]]`` of a scene), created on first use.
@@ -503,6 +525,30 @@ class World:
         ``.mbin`` assets, images and what imports read (URDF robots: the URDF, its meshes, MTL and textures).
         """
         return sorted({*self._assets.files, *self._assets.images, *self._assets.sources})
+
+    def option_choice(self) -> tuple[dict[str, Any], list[str]]:
+        """The MuJoCo options the robots' own ``<option>`` give this world, and the overrides as warnings.
+
+        The rule is :mod:`simrun.world.options`'s: explicit world options govern, then the first robot
+        (entity order) that sets an option. Robots are the entities with ``own_options(base_dir)``
+        (:class:`~simrun.robots.mjcf_robot.MjcfRobot`); each model is read again (not compiled).
+        """
+        robots = []
+        for full, entity in self._entities.items():
+            own = getattr(entity, "own_options", None)
+            if own is not None:
+                try:
+                    robots.append((full, own(self.base_dir)))
+                except (EntityError, ValueError):
+                    continue  # the build names the problem, with its file and line
+        current = {"timestep": self.options.timestep, "integrator": int(INTEGRATORS[self.options.integrator])}
+        return model_options.choose(current, self.options.explicit, robots)
+
+    def scene_warnings(self) -> list[str]:
+        """Warnings about the world at its initial state, as ``simrun check`` prints them (simrun.world.checks)."""
+        from simrun.world.checks import scene_warnings
+
+        return scene_warnings(self)
 
     def warnings(self) -> dict[str, int]:
         """MuJoCo warnings raised so far, by name."""
