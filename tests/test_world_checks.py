@@ -40,7 +40,7 @@ def test_two_overlapping_geoms_are_named_with_their_depth() -> None:
 def test_a_fixed_planar_arm_on_the_ground_is_warned_and_a_free_one_is_not() -> None:
     fixed = _world("planar_arm.xml")
     assert fixed.scene_warnings() == [
-        "ground holds a fixed robot: geoms 'bot/link' and 'ground/plane' touch (3.0 mm) at the start; "
+        "ground holds a fixed robot: geoms 'bot/link' and 'ground/plane' touch (3.0 mm inside) at the start; "
         "the ground's friction acts against its joints: raise the robot or remove the ground"
     ]
     assert _world("planar_arm.xml", pose=Pose((0.0, 0.0, 0.01))).scene_warnings() == []  # 7 mm clear

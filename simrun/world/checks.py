@@ -13,7 +13,8 @@ the result does not depend on how far the world has run.
   16 cm deep). One line per pair of geoms, its deepest contact.
 - **Ground that holds a fixed robot**: a geom on a jointed body of a robot whose root cannot translate
   (its topmost jointed body has no free joint and no slide: an arm on a fixed base) touching simrun's
-  ground (a ``Ground`` or ``HeightField``) at the start, deeper than :data:`TOUCH` (0.1 mm inside): its joints then push
+  ground (a ``Ground`` or ``HeightField``) at the start, touching or inside (MuJoCo's contact distance
+  ``dist <= TOUCH``, 0; contacts MuJoCo excludes through ``gap`` are not counted): its joints then push
   against the ground's friction (a planar arm such as dm_control's ``reacher`` lying on the floor never
   reaches its target). A walker's feet on the floor are no warning: its root is free.
 """
@@ -29,8 +30,8 @@ if TYPE_CHECKING:
 
 #: Depth (m) beyond which two geoms in contact at the start are reported as an initial penetration.
 PENETRATION = 0.005
-#: Depth (m) beyond which a fixed robot's jointed geom counts as resting on the ground.
-TOUCH = 1e-4
+#: Depth (m) from which a fixed robot's jointed geom counts as touching the ground (0: resting on it).
+TOUCH = 0.0
 #: Entity types that are simrun's ground.
 GROUNDS = ("Ground", "HeightField")
 
@@ -45,6 +46,8 @@ def scene_warnings(world: World) -> list[str]:
     deep: dict[tuple[str, str], float] = {}
     held: dict[tuple[str, str], float] = {}
     for c in data.contact[: data.ncon]:
+        if c.exclude:  # in the margin's gap: MuJoCo applies no force
+            continue
         g1, g2 = int(c.geom1), int(c.geom2)
         names = sorted((_geom_name(model, g1), _geom_name(model, g2)))
         pair = (names[0], names[1])
@@ -52,7 +55,7 @@ def scene_warnings(world: World) -> list[str]:
         if dist < -PENETRATION:
             deep[pair] = min(dist, deep.get(pair, 0.0))
         grounded = [g for g in (g1, g2) if _owner(model, g, ground_names)]
-        if len(grounded) == 1 and dist < -TOUCH:
+        if len(grounded) == 1 and dist <= TOUCH:
             other = g2 if grounded[0] == g1 else g1
             if _held_by_ground(model, other):
                 held[pair] = min(dist, held.get(pair, 0.0))
@@ -63,7 +66,7 @@ def scene_warnings(world: World) -> list[str]:
         )
     for (a, b), dist in sorted(held.items()):
         lines.append(
-            f"ground holds a fixed robot: geoms {a!r} and {b!r} touch ({-dist * 1000:.1f} mm) at the start; "
+            f"ground holds a fixed robot: geoms {a!r} and {b!r} touch ({-dist * 1000:.1f} mm inside) at the start; "
             "the ground's friction acts against its joints: raise the robot or remove the ground"
         )
     return lines
