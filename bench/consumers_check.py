@@ -12,7 +12,7 @@ Two sets of models (issue 38):
 
 For each mesh file a model loads (MuJoCo's binary ``.msh`` is no meshtool input: counted only):
 
-- *consumer seen*: :func:`meshtool.consumers.find_consumers` (the same index ``obj2bin`` and ``validate``
+- *consumer seen*: :func:`meshtool.frame.consumers.find_consumers` (the same index ``obj2bin`` and ``validate``
   use) names this model's file among the mesh's consumers;
 - *consumer's frame*: the normaliser keeps the mesh Z-up as it is (``asset.json``'s ``transform.up`` is
   ``z``), the frame every URDF and MJCF consumer uses it in (MuJoCo reads the file's coordinates unrotated);
@@ -44,9 +44,9 @@ sys.path.insert(0, str(ROOT))
 
 from bench._report import write_section  # noqa: E402
 from bench.mjcf_robots import PACKAGES, classify, site_packages  # noqa: E402
-from meshtool.consumers import INDEX, find_consumers  # noqa: E402
 from meshtool.formats import mesh_format  # noqa: E402
-from meshtool.modelroot import find_model_root  # noqa: E402
+from meshtool.frame.consumers import INDEX, find_consumers  # noqa: E402
+from meshtool.frame.modelroot import find_model_root  # noqa: E402
 from meshtool.validate.rules import RULES  # noqa: E402
 from meshtool.validate.task import AssetTask, judge_asset, read_asset  # noqa: E402
 

@@ -3,7 +3,7 @@
 Usage: python bench/decompose_fixed.py . [--repeat 7] [--out docs/benchmarks.md]
 
 Interleaved for --repeat rounds, wall-clock and CPU (this process and its children):
-  * child start: ``meshtool.decompose.decompose`` of a closed tetrahedron without cache (the worker process
+  * child start: ``meshtool.hulls.decompose.decompose`` of a closed tetrahedron without cache (the worker process
     starts, imports numpy and CoACD, forks the run, CoACD's work on 4 triangles is negligible, the result
     comes back through a file);
   * manifold check: ``repair`` (manifold3d) of the bowl fixture (336 triangles);
@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 from _report import Timing, arguments, command, interleave, load_average, write_section
 
-from meshtool.decompose import decompose, repair
-from meshtool.hulls import Hull, HullOptions, convex_hull, hull_fit
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.hulls.compute import Hull, HullOptions, convex_hull, hull_fit
+from meshtool.hulls.decompose import decompose, repair
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 BEGIN, END = "<!-- decompose-fixed:begin -->", "<!-- decompose-fixed:end -->"
 
@@ -101,7 +101,7 @@ def table(results: dict[str, Timing], repeat: int) -> str:
         f"{sum(t.cpu_min for t in fixed):.3f} / {cpu:.3f} |",
         "",
         "Goal (issue 17): <= 0.5 s per asset. The worker is read the moment CoACD finishes (a pidfd, not a "
-        "poll), and the quality report and mass properties need no trimesh import (`meshtool/surface.py`). "
+        "poll), and the quality report and mass properties need no trimesh import (`meshtool/hulls/surface.py`). "
         "A cached decomposition skips all three steps and qhull too (the finished hulls are cached). CoACD's "
         "own search is not a fixed cost: on open, non-manifold parts its remeshing takes seconds even for a "
         "few triangles (the crate fixture: about 14 s CPU per 6-triangle part), which `make bench-hulls` "

@@ -3,7 +3,7 @@
 Usage: python bench/formats_check.py ../shared/robots [--corpus ../shared/corpus] [--derived 10] [--json OUT] [--docs]
 
 1. **Outcome**: every STL, COLLADA, PLY, glTF/GLB and OBJ file under the robots folder is normalised in memory
-   (:func:`meshtool.normalise.prepare`, default options) and checked against an independent parser
+   (:func:`meshtool.repair.normalise.prepare`, default options) and checked against an independent parser
    (``trimesh.load``, ``process=False``, scene graph applied): the same triangle count and the same bounding
    box of the geometry in the file's own units and axes (meshtool's reader output, before the frame change).
    COLLADA materials and textures kept are counted.
@@ -37,10 +37,10 @@ import trimesh
 from _report import write_section
 
 from meshtool.errors import MeshtoolError
-from meshtool.mesh import build_mesh
-from meshtool.normalise import prepare
-from meshtool.readers import FORMATS, format_of, read_mesh
-from meshtool.resolve import Resolver
+from meshtool.files.resolve import Resolver
+from meshtool.read import FORMATS, format_of, read_mesh
+from meshtool.repair.mesh import build_mesh
+from meshtool.repair.normalise import prepare
 
 TRIMESH_TYPE = {"obj": "obj", "stl": "stl", "ply": "ply", "gltf": "gltf", "glb": "glb", "collada": "dae"}
 

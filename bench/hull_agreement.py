@@ -3,11 +3,11 @@
 Usage: python bench/hull_agreement.py ../shared/corpus [--out docs/benchmarks.md]
 
 For each corpus OBJ (at most 12 MB) whose distinct vertices number at most
-``meshtool.hulls.NUMPY_HULL_POINTS`` (larger ones go to qhull), on the normalised positions:
+``meshtool.hulls.compute.NUMPY_HULL_POINTS`` (larger ones go to qhull), on the normalised positions:
   * exact: ``quickhull.hull3(points)`` against ``scipy.spatial.ConvexHull(points)``: same volume (relative
     difference), our vertex set containing qhull's (ours may keep a point lying on a face qhull merged);
   * budget 64 (the default): ``hull3(points, 64)`` against farthest-point insertion over qhull's vertices
-    (``meshtool.hulls._farthest_insertion``, the qhull path's own reduction): same vertex set or not, volumes;
+    (``meshtool.hulls.compute._farthest_insertion``, the qhull path's own reduction): same vertex set or not, volumes;
   * CPU of both, this process (scipy imported beforehand, so its import is not counted).
 """
 
@@ -22,9 +22,9 @@ from _report import arguments, load_average, write_section
 from scipy.spatial import ConvexHull
 
 from meshtool.errors import MeshtoolError
-from meshtool.hulls import NUMPY_HULL_POINTS, _farthest_insertion
-from meshtool.normalise import NormaliseOptions, prepare
-from meshtool.quickhull import hull3
+from meshtool.hulls.compute import NUMPY_HULL_POINTS, _farthest_insertion
+from meshtool.hulls.quickhull import hull3
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 BEGIN, END = "<!-- hull-agreement:begin -->", "<!-- hull-agreement:end -->"
 
@@ -83,7 +83,8 @@ def main() -> int:
         "",
         f"`python bench/hull_agreement.py ../shared/corpus`: every corpus OBJ of at most 12 MB whose distinct "
         f"vertices number at most {NUMPY_HULL_POINTS} (the ones `obj2bin`'s single hull makes in numpy, "
-        f"`meshtool/quickhull.py`; larger ones go to qhull): {n} meshes. {before} before, {load_average()} after.",
+        f"`meshtool/hulls/quickhull.py`; larger ones go to qhull): {n} meshes. {before} before, "
+        f"{load_average()} after.",
         "",
         "| check | meshes |",
         "|---|---|",

@@ -26,9 +26,9 @@ import trimesh
 from _report import arguments, load_average, write_section
 
 import meshtool
-from meshtool.convert import ConvertOptions, convert
-from meshtool.hulls import Hull, HullOptions, quality
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.hulls.compute import Hull, HullOptions, quality
+from meshtool.pipeline import ConvertOptions, convert
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 ROOT = Path(__file__).resolve().parent.parent
 MESHES = [

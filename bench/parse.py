@@ -29,10 +29,10 @@ import trimesh
 from _report import Timing, arguments, corpus_meshes, interleave, load_average, timed, write_section
 
 import meshtool
-from meshtool.convert import ConvertOptions, pack_file
-from meshtool.mesh import build_mesh
-from meshtool.normalise import NormaliseOptions, prepare
-from meshtool.obj.parse import parse_obj
+from meshtool.pipeline import ConvertOptions, pack_file
+from meshtool.read.obj.parse import parse_obj
+from meshtool.repair.mesh import build_mesh
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 MESHES = [
     ("stanford bunny, subdivided (1.11M tri)", "derived/stanford-bunny-subdiv2/stanford-bunny-subdiv2.obj"),
@@ -134,7 +134,7 @@ def table(rows: list[tuple[str, dict[str, float], dict[str, Timing]]], repeat: i
         "the like-for-like peer of `trimesh.load` and of tinyobjloader with `triangulate`; *prepare* = what "
         "`obj2bin` runs before hulls (read, mesh, units, up axis, small parts, statistics, textures to PNG: "
         "the fuze's 1024 x 1024 JPEG is decoded by trimesh.load too, but only prepare encodes it as the PNG "
-        "MuJoCo needs, once, at zlib level 1, `meshtool/textures.py`); *convert* = "
+        "MuJoCo needs, once, at zlib level 1, `meshtool/repair/textures.py`); *convert* = "
         "`pack_file` with the default single hull, no MuJoCo check (the whole `obj2bin` but the check and "
         "the write). Goals (issue 28): prepare >= 2x faster than trimesh.load and within 1.5x of "
         "tinyobjloader at every size, linear growth (the CPU per million triangles column).",

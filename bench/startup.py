@@ -28,7 +28,7 @@ from pathlib import Path
 
 from _report import Timing, arguments, command, interleave, load_average, write_section
 
-from meshtool.cli import COMMANDS
+from meshtool.cli.main import COMMANDS
 
 BEGIN, END = "<!-- startup:begin -->", "<!-- startup:end -->"
 HELP_BEGIN, HELP_END = "<!-- help:begin -->", "<!-- help:end -->"
@@ -120,21 +120,21 @@ def main() -> int:
         evidence = {
             "meshtool --version": importtime(
                 "import sys; sys.argv = ['meshtool', '--version']\n"
-                "from meshtool.cli import main\ntry: main()\nexcept SystemExit: pass"
+                "from meshtool.cli.main import main\ntry: main()\nexcept SystemExit: pass"
             ),
             "meshtool normalize": importtime(
                 f"import sys, tempfile; sys.argv = ['meshtool', 'normalize', {str(head)!r}, '-o', tempfile.mkdtemp(), "
-                "'--units', 'cm']\nfrom meshtool.cli import main\ntry: main()\nexcept SystemExit: pass"
+                "'--units', 'cm']\nfrom meshtool.cli.main import main\ntry: main()\nexcept SystemExit: pass"
             ),
             "obj2bin cached": importtime(
                 f"import sys, tempfile; sys.argv = ['obj2bin', {str(bowl)!r}, '--hulls', 'decompose', '--cache-dir', "
-                f"{str(cache)!r}, '-o', tempfile.mkdtemp() + '/b.mbin']\nfrom meshtool.cli import obj2bin\n"
+                f"{str(cache)!r}, '-o', tempfile.mkdtemp() + '/b.mbin']\nfrom meshtool.cli.main import obj2bin\n"
                 "try: obj2bin()\nexcept SystemExit: pass"
             ),
             "obj2bin cached --no-check": importtime(
                 f"import sys, tempfile; sys.argv = ['obj2bin', {str(bowl)!r}, '--hulls', 'decompose', '--cache-dir', "
                 f"{str(cache)!r}, '--no-check', '-o', tempfile.mkdtemp() + '/b.mbin']\n"
-                "from meshtool.cli import obj2bin\ntry: obj2bin()\nexcept SystemExit: pass"
+                "from meshtool.cli.main import obj2bin\ntry: obj2bin()\nexcept SystemExit: pass"
             ),
         }
     write_section(args.out, table(results, evidence, args.repeat), BEGIN, END)
@@ -184,9 +184,9 @@ def table(
     lines += [
         "",
         "*normalize* imports numpy, Pillow and the readers it uses, never trimesh, scipy, mujoco or pxr (mass "
-        "properties and hull quality are computed by `meshtool/surface.py`; a cached decomposition reads its "
+        "properties and hull quality are computed by `meshtool/hulls/surface.py`; a cached decomposition reads its "
         "finished hulls, so neither CoACD nor qhull runs). *obj2bin* compiles the packed asset in MuJoCo before "
-        "writing it (`meshtool/loadcheck.py`), which imports mujoco and simrun, unless these bytes passed the "
+        "writing it (`meshtool/mjcf/loadcheck.py`), which imports mujoco and simrun, unless these bytes passed the "
         "same check before (remembered in the cache beside the hulls, keyed by the bytes, simrun's files and the "
         "MuJoCo version): *obj2bin cached* has both caches warm, *check compiled* forgets the checks before "
         "every run, `--no-check` skips the check. "
@@ -286,7 +286,7 @@ def model_table(root: Path, bin_dir: Path, obj2mjcf: str | None, repeat: int) ->
         f"`python bench/startup.py . --repeat {repeat} --obj2mjcf .bench-peers/bin/obj2mjcf` (part of `make "
         f"bench`): every contender a fresh process (CPU: user + system of it and its children), interleaved, "
         f"{repeat} rounds after one warm-up round; {before} before, {load_average()} after. meshtool makes one "
-        "convex hull (numpy, `meshtool/quickhull.py`: no scipy or trimesh import) and compiles the written model "
+        "convex hull (numpy, `meshtool/hulls/quickhull.py`: no scipy or trimesh import) and compiles the written model "
         "in MuJoCo (`--no-cache`: nothing remembered); obj2mjcf writes the MJCF (`--save-mjcf`) and its meshes "
         "and compiles it (`--compile-model`), no decomposition. Goal (issue 28): no more CPU than obj2mjcf.",
         "",

@@ -26,8 +26,8 @@ import mujoco
 import numpy as np
 import yourdfpy
 
-from meshtool.urdf import UrdfOptions, import_urdf
-from meshtool.urdf_write import write_import
+from meshtool.urdf.import_robot import UrdfOptions, import_urdf
+from meshtool.urdf.write import write_import
 
 ROOT = Path(__file__).resolve().parent.parent
 

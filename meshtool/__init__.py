@@ -12,8 +12,6 @@ no numpy, trimesh or Pillow import; ``from meshtool import load`` works as usual
 from __future__ import annotations
 
 import importlib
-import sys
-from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
@@ -21,23 +19,23 @@ __version__ = "0.1.0"
 if TYPE_CHECKING:
     from meshtool.errors import MeshtoolError
     from meshtool.findings import Finding, Severity
-    from meshtool.normalise import NormalisedAsset, NormaliseOptions, normalise, normalise_to, write_asset
-    from meshtool.obj.mtl import parse_mtl
-    from meshtool.obj.parse import parse_obj
     from meshtool.packfile import PackedMesh, load, pack
+    from meshtool.read.obj.mtl import parse_mtl
+    from meshtool.read.obj.parse import parse_obj
+    from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, normalise, normalise_to, write_asset
 
 #: Public name -> the module that defines it.
 _LAZY = {
     "MeshtoolError": "meshtool.errors",
     "Finding": "meshtool.findings",
     "Severity": "meshtool.findings",
-    "NormalisedAsset": "meshtool.normalise",
-    "NormaliseOptions": "meshtool.normalise",
-    "normalise": "meshtool.normalise",
-    "normalise_to": "meshtool.normalise",
-    "write_asset": "meshtool.normalise",
-    "parse_mtl": "meshtool.obj.mtl",
-    "parse_obj": "meshtool.obj.parse",
+    "NormalisedAsset": "meshtool.repair.normalise",
+    "NormaliseOptions": "meshtool.repair.normalise",
+    "normalise": "meshtool.repair.normalise",
+    "normalise_to": "meshtool.repair.normalise",
+    "write_asset": "meshtool.repair.normalise",
+    "parse_mtl": "meshtool.read.obj.mtl",
+    "parse_obj": "meshtool.read.obj.parse",
     "PackedMesh": "meshtool.packfile",
     "load": "meshtool.packfile",
     "pack": "meshtool.packfile",
@@ -55,22 +53,6 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted({*globals(), *_LAZY})
-
-
-class _Package(ModuleType):
-    """The package module: importing the submodule ``meshtool.normalise`` keeps ``meshtool.normalise`` the function.
-
-    The import system sets a package's attribute to each submodule it loads; the function of the same name
-    (the public API) wins, as it did when this package imported it eagerly.
-    """
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if name == "normalise" and isinstance(value, ModuleType):
-            value = value.normalise
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
 
 
 __all__ = [

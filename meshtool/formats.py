@@ -5,11 +5,11 @@ types):
 
 * :data:`MESH_FORMATS`: a :class:`MeshFormat` row per input format: its name, suffixes, label, its reader
   (``module:function``, one signature for all: ``read(data, path, src, resolver) -> ObjData``), and how its
-  unit and up axis are decided. :func:`meshtool.readers.read_mesh`, the folder scans of ``obj2bin``,
+  unit and up axis are decided. :func:`meshtool.read.read_mesh`, the folder scans of ``obj2bin``,
   ``validate`` and ``meshtool urdf``, the up-axis defaults and the CLI help texts are derived from it.
 * :data:`OUTPUTS`: an :class:`OutputFormat` row per file the project writes: name, suffixes, what it is,
   how an existing file is recognised as ours (so it may be replaced without ``--force``), how it is
-  stamped, and which function writes it. :func:`meshtool.outdir.check_output` and
+  stamped, and which function writes it. :func:`meshtool.files.outdir.check_output` and
   :func:`simrun.outfile.check_output` decide overwrites through it; ``simrun replay``'s formats are its rows.
 
 Beside them, :data:`REPORT_FORMATS` lists ``meshtool validate``'s report formats with their suffixes (a ``-o``
@@ -114,16 +114,16 @@ class OutputFormat:
     def recogniser(self) -> Callable[[Path, int], bool]:
         """The recognising function (its module imported now)."""
         if self.magic:
-            has_magic = _resolve("meshtool.recognise:has_magic")  # named, as every row names its code
+            has_magic = _resolve("meshtool.files.recognise:has_magic")  # named, as every row names its code
             magic = self.magic
             return lambda path, size: bool(has_magic(path, magic))
         return _resolve(self.recognise)  # type: ignore[no-any-return]
 
 
-_R = "meshtool.readers."
+_R = "meshtool.read."
 MESH_FORMATS: list[MeshFormat] = [
     MeshFormat(
-        "obj", "OBJ", (".obj",), "meshtool.obj.parse:read", "evidence", "y",
+        "obj", "OBJ", (".obj",), "meshtool.read.obj.parse:read", "evidence", "y",
         "the OBJ convention (Y-up) assumed", "evidence", text=True,
     ),
     MeshFormat(
@@ -144,7 +144,7 @@ MESH_FORMATS: list[MeshFormat] = [
     ),
 ]  # fmt: skip
 
-_W = "meshtool.recognise:"
+_W = "meshtool.files.recognise:"
 OUTPUTS: list[OutputFormat] = [
     OutputFormat(
         "mbin", (".mbin",), "packed mesh (docs/mbin-spec.md)", "meshtool", _W + "is_mbin",
@@ -209,7 +209,7 @@ OUTPUTS: list[OutputFormat] = [
 #: evidence for the mesh's frame), by suffix: URDF, SDFormat (``.sdf``, ``.world``), and ``.xml``, which may
 #: hold either (or MJCF).
 DESCRIPTION_SUFFIXES: tuple[str, ...] = (".urdf", ".sdf", ".xml", ".world")
-#: The URDF's own suffix among them (a ROS package's robot: :mod:`meshtool.modelroot`).
+#: The URDF's own suffix among them (a ROS package's robot: :mod:`meshtool.frame.modelroot`).
 URDF_SUFFIX = DESCRIPTION_SUFFIXES[0]
 #: An OBJ's material library (written beside the OBJ by ``normalize`` and ``unpack``).
 MTL_SUFFIX = ".mtl"

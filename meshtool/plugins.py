@@ -4,13 +4,13 @@ meshtool never imports MuJoCo (or simrun). What needs a simulator is found throu
 here only (:func:`installed`, :func:`load_plugin`), each group loaded by one module:
 
 - group ``meshtool.mjcf``: ``builder`` builds, writes and compiles an MJCF folder from a
-  :class:`meshtool.model.ModelDesc` (``meshtool mjcf``, ``meshtool urdf``); ``check`` compiles one in memory
+  :class:`meshtool.mjcf.model_desc.ModelDesc` (``meshtool mjcf``, ``meshtool urdf``); ``check`` compiles one in memory
   (``obj2bin``'s check), loaded here. simrun registers :mod:`simrun.export.mjcf_builder`.
 - group ``meshtool.validate``: ``physics`` runs the P rules of ``meshtool validate`` on one packed asset,
   loaded by :mod:`meshtool.validate.physics`. simrun registers :mod:`simrun.asset_check`.
 
 The types both sides use (the model description, the outcome of a physics check) live in modules that load
-nothing (:mod:`meshtool.model`, :mod:`meshtool.validate.plugins`), so a plugin that imports them never
+nothing (:mod:`meshtool.mjcf.model_desc`, :mod:`meshtool.validate.plugin_types`), so a plugin that imports them never
 imports its caller: ``tests/test_layering.py`` counts each entry point as an import of its target by the
 module that loads it and finds no cycle.
 """
@@ -21,7 +21,7 @@ from functools import cache
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
-from meshtool.model import MjcfBuilder, ModelChecker, ModelDesc, ModelError
+from meshtool.mjcf.model_desc import MjcfBuilder, ModelChecker, ModelDesc, ModelError
 
 #: Entry-point group of the MJCF builder and the in-memory model check.
 MJCF_GROUP = "meshtool.mjcf"

@@ -300,8 +300,8 @@ def bowl() -> None:
 
 def scenes() -> None:
     """The seed's basic environment and a head on a table (uses the packed seed head)."""
-    from meshtool.convert import ConvertOptions, convert
-    from meshtool.normalise import NormaliseOptions
+    from meshtool.pipeline import ConvertOptions, convert
+    from meshtool.repair.normalise import NormaliseOptions
 
     folder = ROOT / "scenes"
     folder.mkdir(parents=True, exist_ok=True)

@@ -3,7 +3,7 @@
 Usage: python scripts/make_goldens.py [--check]
 
 * Format 1.1 goldens (``*-1.1.mbin``): converted from the fixtures with pinned options by the current
-  writer (``meshtool.convert``), exactly as ``obj2bin`` writes them.
+  writer (``meshtool.pipeline``), exactly as ``obj2bin`` writes them.
 * Format 1.0 goldens (``head.mbin``, ``crate_quantized.mbin``, ``features.mbin``, ``head_plain_meta.mbin``):
   written by meshtool 0.1.0 at the time (its normaliser has changed since, so their content cannot come from
   today's converter). The script re-assembles each from its stored sections with the writer's 1.0 container
@@ -20,11 +20,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from meshtool.convert import ConvertOptions, convert
-from meshtool.normalise import NormaliseOptions
 from meshtool.packfile import format as fmt
 from meshtool.packfile import load
 from meshtool.packfile.write import StoredSection, assemble
+from meshtool.pipeline import ConvertOptions, convert
+from meshtool.repair.normalise import NormaliseOptions
 
 ROOT = Path(__file__).resolve().parent.parent / "fixtures"
 GOLDEN = ROOT / "golden"

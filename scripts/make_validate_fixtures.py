@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from meshtool.convert import ConvertOptions, convert
-from meshtool.hulls import HullOptions, compute_hulls
-from meshtool.normalise import prepare
+from meshtool.hulls.compute import HullOptions, compute_hulls
 from meshtool.packfile import pack, parse
+from meshtool.pipeline import ConvertOptions, convert
+from meshtool.repair.normalise import prepare
 
 ROOT = Path(__file__).resolve().parent.parent / "fixtures" / "validate"
 

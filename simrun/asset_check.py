@@ -1,7 +1,7 @@
 """The physics plugin of ``meshtool validate``: compile, drop, settle, weigh and photograph one asset.
 
 Registered under the entry-point group ``meshtool.validate`` as ``physics`` (see
-:mod:`meshtool.validate.plugins`). The asset becomes a free body (visual geoms in group 2, its collision
+:mod:`meshtool.validate.plugin_types`). The asset becomes a free body (visual geoms in group 2, its collision
 hulls in group 3 at ``limits["density"]``) 5 % of its size (at most :data:`DROP_HEIGHT`) above a plane,
 tilted so that it lands on an edge or corner, and is simulated for ``limits["settle_time"]`` seconds with
 rolling resistance (:data:`FRICTION`, :data:`CONDIM`):
@@ -31,7 +31,7 @@ from PIL import Image, ImageDraw
 from meshtool.errors import MeshtoolError
 from meshtool.formats import suffix
 from meshtool.packfile import parse
-from meshtool.validate.plugins import PhysicsOutcome
+from meshtool.validate.plugin_types import PhysicsOutcome
 from meshtool.validate.rules import hit
 from simrun.errors import SimrunError
 from simrun.run.render import open_renderer, scene_option

@@ -1,7 +1,7 @@
 """simrun's file outputs: atomic (temporary file, then a rename) and never over what simrun did not write.
 
 Every simrun writer goes through :func:`write_bytes`, which applies meshtool's rules
-(:func:`meshtool.outdir.check_output`): an output path that is one of the run's inputs is always refused;
+(:func:`meshtool.files.outdir.check_output`): an output path that is one of the run's inputs is always refused;
 an existing file is replaced only when it is a meshtool/simrun output of the kind its suffix names, or
 when forced. The CLI sets the policy for a command with :func:`output_policy` (``--force`` and the
 command's inputs); library callers may pass ``force``/``inputs`` to :func:`check_output` directly.
@@ -24,8 +24,8 @@ from typing import Any
 
 from meshtool import __version__
 from meshtool.errors import OutputError
-from meshtool.outdir import check_output as meshtool_check_output
-from meshtool.outdir import write_file
+from meshtool.files.outdir import check_output as meshtool_check_output
+from meshtool.files.outdir import write_file
 from simrun.errors import SimrunError
 
 GENERATOR = f"simrun (meshtool {__version__})"

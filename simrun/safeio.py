@@ -12,7 +12,7 @@ import stat
 from pathlib import Path
 from typing import BinaryIO
 
-from meshtool.safeopen import describe_mode
+from meshtool.files.safeopen import describe_mode
 from simrun.errors import SimrunError
 
 #: Default largest file simrun reads whole (scenes, commands, textures, height-field images), bytes.

@@ -15,7 +15,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 #: The entry points, as ``pyproject.toml`` declares them.
-_ENTRY = {"meshtool": "meshtool.cli:main", "obj2bin": "meshtool.cli:obj2bin", "simrun": "simrun.cli.main:main"}
+_ENTRY = {
+    "meshtool": "meshtool.cli.main:main",
+    "obj2bin": "meshtool.cli.main:obj2bin",
+    "simrun": "simrun.cli.main:main",
+}
 
 
 @dataclass(frozen=True, slots=True)

@@ -254,7 +254,7 @@ def test_nesting_limit_is_the_same_through_every_parser():
     import json
     import tomllib
 
-    from meshtool.nesting import MAX_NESTING, NestingError, bounded, nesting_depth
+    from meshtool.files.nesting import MAX_NESTING, NestingError, bounded, nesting_depth
 
     assert nesting_depth({"a": [1, [2, {}]]}) == 4 and nesting_depth(3) == 0
     inside = "[" * (MAX_NESTING - 1) + "]" * (MAX_NESTING - 1)  # the document itself is one level

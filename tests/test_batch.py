@@ -1,4 +1,4 @@
-"""The one batch layer (meshtool/batch.py): this process, local workers and Dask give the same results.
+"""The one batch layer (meshtool/work/batch.py): this process, local workers and Dask give the same results.
 
 Ground truth: the bytes of the packs each executor wrote, the process facts of a worker that dies or hangs
 (its exit, the wall clock), and the indices of the tasks handed in.
@@ -12,8 +12,8 @@ import time
 import pytest
 from click.testing import CliRunner
 
-from meshtool.batch import BatchError, Executor, run_batch
-from meshtool.cli import obj2bin
+from meshtool.cli.main import obj2bin
+from meshtool.work.batch import BatchError, Executor, run_batch
 
 pytest.importorskip("distributed")
 

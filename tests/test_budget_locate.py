@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 
 from meshtool.errors import FormatError
-from meshtool.readers import budget
-from meshtool.readers.budget import ExpansionBudget, limit_from_env
-from meshtool.urdf_locate import MeshLocator, UrdfError
+from meshtool.read import budget
+from meshtool.read.budget import ExpansionBudget, limit_from_env
+from meshtool.urdf.locate import MeshLocator, UrdfError
 
 WHERE = {"path": "r.urdf", "line": 7}
 

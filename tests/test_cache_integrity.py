@@ -1,6 +1,6 @@
 """Caches that cannot lie (issue 27), and ``simrun play --record`` on a full disk.
 
-Every cache entry (hulls, validate results, compiled models) is a :mod:`meshtool.cachefile` envelope. For
+Every cache entry (hulls, validate results, compiled models) is a :mod:`meshtool.files.cachefile` envelope. For
 each cache, an entry that is truncated, has a flipped byte, wrong magic or version, is empty, or was copied
 from another key is a miss: the result equals a run with an empty cache (the ground truth), the entry is
 written again, the problem is described with the entry's path, and the command line exits as the fresh run
@@ -25,12 +25,12 @@ import numpy as np
 import pytest
 from conftest import FIXTURES
 
-import meshtool.decompose
+import meshtool.hulls.decompose
 import meshtool.validate.runner
-from meshtool import cachefile
-from meshtool.decompose import HULLS_KIND, PIECES_KIND, cache_key, decompose, read_hulls
-from meshtool.hulls import HullOptions, HullSet, compute_hulls
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.files import cachefile
+from meshtool.hulls.compute import HullOptions, HullSet, compute_hulls
+from meshtool.hulls.decompose import HULLS_KIND, PIECES_KIND, cache_key, decompose, read_hulls
+from meshtool.repair.normalise import NormaliseOptions, prepare
 from meshtool.validate import ValidateOptions, render, validate
 from meshtool.validate.cache import ResultCache
 from simrun import Box, MeshEntity, Pose, World
@@ -75,7 +75,11 @@ def only(folder: Path, pattern: str) -> Path:
 
 # -- running a command line in a child ------------------------------------------------------------------------
 
-_ENTRY = {"meshtool": "meshtool.cli:main", "obj2bin": "meshtool.cli:obj2bin", "simrun": "simrun.cli.main:main"}
+_ENTRY = {
+    "meshtool": "meshtool.cli.main:main",
+    "obj2bin": "meshtool.cli.main:obj2bin",
+    "simrun": "simrun.cli.main:main",
+}
 
 
 def run(
@@ -144,7 +148,7 @@ def _hulls(result: HullSet) -> tuple[list[tuple[bytes, bytes, int]], list[tuple[
 
 @pytest.mark.parametrize("case", CASES)
 def test_hull_entry(case: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    monkeypatch.setattr(meshtool.decompose, "decompose", _halves)
+    monkeypatch.setattr(meshtool.hulls.decompose, "decompose", _halves)
     bowl = prepare(FIXTURES / "bowl" / "bowl.obj", NormaliseOptions()).mesh
     box = prepare(BOX_DIR / "box.obj", NormaliseOptions()).mesh
     truth = _hulls(compute_hulls(bowl, HullOptions(mode="decompose", cache_dir=None), "bowl.obj"))
@@ -169,7 +173,7 @@ def test_hull_entry_of_the_other_kind_is_refused(monkeypatch: pytest.MonkeyPatch
     """The pieces of a key never stand in for its finished hulls (same key, other kind)."""
     key = "ab" * 32
     pieces = tmp_path / key[:2] / f"{key}.npz"
-    meshtool.decompose._write(tmp_path, key, [np.eye(4, 3), np.eye(4, 3) + 1])
+    meshtool.hulls.decompose._write(tmp_path, key, [np.eye(4, 3), np.eye(4, 3) + 1])
     shutil.copy(pieces, tmp_path / key[:2] / f"{key}.hulls.npz")
     problems: list[str] = []
     assert read_hulls(tmp_path, key, problems) is None and "another key" in problems[0]
@@ -177,7 +181,7 @@ def test_hull_entry_of_the_other_kind_is_refused(monkeypatch: pytest.MonkeyPatch
     cachefile.write_entry(tmp_path / key[:2] / f"{key}.hulls.npz", HULLS_KIND, key, b"PK\x03\x04 not a zip")
     assert read_hulls(tmp_path, key, problems) is None and "not a hull set" in problems[-1]
     cachefile.write_entry(pieces, PIECES_KIND, key, b"not an npz")
-    assert meshtool.decompose._read(tmp_path, key, problems) is None and "not a decomposition" in problems[-1]
+    assert meshtool.hulls.decompose._read(tmp_path, key, problems) is None and "not a decomposition" in problems[-1]
 
 
 def _fake_worker(args: list[str], timeout_s: float) -> tuple[int, bytes]:
@@ -191,7 +195,7 @@ def _fake_worker(args: list[str], timeout_s: float) -> tuple[int, bytes]:
 
 @pytest.mark.parametrize("case", ["truncated", "flipped-byte", "copied-from-another-key", "wrong-magic"])
 def test_decomposition_entry(case: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    monkeypatch.setattr(meshtool.decompose, "_run_worker", _fake_worker)
+    monkeypatch.setattr(meshtool.hulls.decompose, "_run_worker", _fake_worker)
     bowl = prepare(FIXTURES / "bowl" / "bowl.obj", NormaliseOptions()).mesh
     box = prepare(BOX_DIR / "box.obj", NormaliseOptions()).mesh
     options = HullOptions(mode="decompose", cache_dir=tmp_path)
@@ -457,9 +461,9 @@ def test_record_on_a_full_disk_is_one_error_and_no_file(tmp_path: Path) -> None:
 
 def test_an_empty_damaged_or_copied_check_marker_is_a_miss(tmp_path: Path) -> None:
     """Any file with a marker's name used to count as a passing check; now it must answer its key."""
-    from meshtool.loadcheck import _marker, check_pack
-    from meshtool.normalise import NormaliseOptions, prepare
+    from meshtool.mjcf.loadcheck import _marker, check_pack
     from meshtool.packfile import pack
+    from meshtool.repair.normalise import NormaliseOptions, prepare
 
     tile = Path(__file__).resolve().parent.parent / "fixtures" / "realworld" / "normal_maps" / "tile.obj"
     asset = prepare(tile, NormaliseOptions())

@@ -6,7 +6,7 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 
 HEAD = str(Path("head") / "Head 1.obj")
 

@@ -11,9 +11,9 @@ import mujoco
 import pytest
 from click.testing import CliRunner
 
-from meshtool.cli import main as meshtool_main
-from meshtool.cli_commands import obj2bin
-from meshtool.cli_output import EXIT_INPUT, EXIT_OK, Outcome, render_json
+from meshtool.cli.commands import obj2bin
+from meshtool.cli.main import main as meshtool_main
+from meshtool.cli.output import EXIT_INPUT, EXIT_OK, Outcome, render_json
 from simrun.cli.main import main as simrun_main
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,4 +1,4 @@
-"""The reporting layer (``meshtool/cli_output.py``) called in-process, checked against docs/cli.md.
+"""The reporting layer (``meshtool/cli/output.py``) called in-process, checked against docs/cli.md.
 
 Ground truth is outside the layer: docs/cli.md's exit-code table and ``--json`` description, what reaches
 stdout and stderr (pytest's ``capsys``), the JSON parser reading the rendered document, and the errors'
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from meshtool import cli_output as out
+from meshtool.cli import output as out
 from meshtool.errors import MeshtoolError, OutputError
 from meshtool.findings import info, warning
 from meshtool.validate.runner import ValidateError

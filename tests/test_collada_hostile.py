@@ -16,8 +16,8 @@ import trimesh
 from bounded import Outcome, run_bounded
 
 from meshtool.errors import FormatError
-from meshtool.readers import collada_xml
-from meshtool.readers.collada import read_collada
+from meshtool.read import collada_xml
+from meshtool.read.collada import read_collada
 
 NS = 'xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1"'
 CUBE_POS = "0 0 0 1 0 0 1 1 0 0 1 0 0 0 1 1 0 1 1 1 1 0 1 1"

@@ -20,13 +20,13 @@ import pytest
 from click.testing import CliRunner
 from conftest import FIXTURES
 
-from meshtool import consumers
-from meshtool.cli import main as meshtool_main
-from meshtool.cli import obj2bin
-from meshtool.consumers import ConsumerIndex, find_consumers, find_index_root
+from meshtool.cli.main import main as meshtool_main
+from meshtool.cli.main import obj2bin
 from meshtool.findings import Severity
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.frame import consumers
+from meshtool.frame.consumers import ConsumerIndex, find_consumers, find_index_root
 from meshtool.packfile.read import parse
+from meshtool.repair.normalise import NormaliseOptions, prepare
 from meshtool.validate.task import AssetTask, check_asset, read_asset
 
 VENDOR = FIXTURES / "vendor"

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from meshtool.hulls import HullOptions, compute_hulls
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.hulls.compute import HullOptions, compute_hulls
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 BOWL = Path(__file__).resolve().parent.parent / "fixtures" / "bowl" / "bowl.obj"
 pytest.importorskip("coacd")
@@ -29,7 +29,7 @@ def _workers(marker: str) -> list[int]:
             state = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()[0]
         except OSError:
             continue
-        if "meshtool.coacd_worker" in cmdline and marker in cmdline and state != "Z":
+        if "meshtool.hulls.coacd_worker" in cmdline and marker in cmdline and state != "Z":
             pids.append(int(entry))
     return pids
 
@@ -45,8 +45,8 @@ def _wait(condition, seconds: float = 30.0) -> bool:  # type: ignore[no-untyped-
 
 def test_spent_budget_gives_convex_hulls_with_a_warning(monkeypatch):
     asset = prepare(BOWL, NormaliseOptions(up="z"))
-    monkeypatch.setattr("meshtool.decompose.Budget.left", lambda self: 0.0)
-    monkeypatch.setattr("meshtool.decompose.decompose", lambda *a, **k: pytest.fail("decompose called"))
+    monkeypatch.setattr("meshtool.hulls.decompose.Budget.left", lambda self: 0.0)
+    monkeypatch.setattr("meshtool.hulls.decompose.decompose", lambda *a, **k: pytest.fail("decompose called"))
     result = compute_hulls(asset.mesh, HullOptions(mode="decompose", time_budget_s=60, cache_dir=None), "bowl.obj")
     (warn,) = [f for f in result.findings if f.code == "decompose-budget"]
     assert warn.severity.value == "warning" and "1 part(s)" in warn.message
@@ -57,7 +57,7 @@ def test_budget_left_limits_a_run_and_the_worker_is_cleaned_up(monkeypatch, tmp_
     monkeypatch.setenv("MESHTOOL_TEST_COACD_DELAY_S", "60")
     monkeypatch.setenv("TMPDIR", str(tmp_path))
     monkeypatch.setattr("tempfile.tempdir", None)
-    monkeypatch.setattr("meshtool.decompose.Budget.left", lambda self: 1.0)
+    monkeypatch.setattr("meshtool.hulls.decompose.Budget.left", lambda self: 1.0)
     asset = prepare(BOWL, NormaliseOptions(up="z"))
     result = compute_hulls(asset.mesh, HullOptions(mode="decompose", cache_dir=None), "bowl.obj")
     (failed,) = [f for f in result.findings if f.code == "decompose-failed"]
@@ -69,9 +69,9 @@ def test_budget_left_limits_a_run_and_the_worker_is_cleaned_up(monkeypatch, tmp_
 PARENT = """
 import sys
 from pathlib import Path
-from meshtool.decompose import decompose
-from meshtool.hulls import HullOptions
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.hulls.decompose import decompose
+from meshtool.hulls.compute import HullOptions
+from meshtool.repair.normalise import NormaliseOptions, prepare
 asset = prepare(Path(sys.argv[1]), NormaliseOptions(up="z"))
 decompose(asset.mesh.positions, asset.mesh.faces, HullOptions(mode="decompose", cache_dir=None))
 """

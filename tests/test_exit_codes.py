@@ -1,6 +1,6 @@
 """Exit codes as docs/cli.md's table says, where two commands used to disagree (issue 26).
 
-The table itself is tested against ``meshtool.cli_output.EXIT_CODES`` in ``tests/test_cli_vocabulary.py``;
+The table itself is tested against ``meshtool.cli.output.EXIT_CODES`` in ``tests/test_cli_vocabulary.py``;
 these are the cases that mapped errors elsewhere.
 """
 
@@ -37,14 +37,14 @@ def test_validate_maps_a_meshtool_error_to_exit_1_not_internal(monkeypatch, tmp_
     """A plain MeshtoolError from the run was exit 3 ("internal") in validate and exit 1 everywhere else."""
     from click.testing import CliRunner
 
-    import meshtool.cli_validate
-    from meshtool.cli import main
+    import meshtool.cli.validate
+    from meshtool.cli.main import main
     from meshtool.errors import MeshtoolError
 
     def refuse(*_args: object, **_kwargs: object) -> None:
         raise MeshtoolError("is not readable", path="a.obj", hint="check it")
 
-    monkeypatch.setattr(meshtool.cli_validate, "run_validate", refuse)
+    monkeypatch.setattr(meshtool.cli.validate, "run_validate", refuse)
     (tmp_path / "a.obj").write_text("v 0 0 0\n")
     result = CliRunner().invoke(main, ["validate", str(tmp_path / "a.obj"), "--no-cache"])
     assert result.exit_code == 1, result.output

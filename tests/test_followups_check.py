@@ -18,13 +18,13 @@ import pytest
 from click.testing import CliRunner
 
 import meshtool.plugins
-from meshtool.cli import main, obj2bin
-from meshtool.convert import ConvertOptions, convert
+from meshtool.cli.main import main, obj2bin
 from meshtool.errors import MeshtoolError
-from meshtool.loadcheck import check_pack
-from meshtool.model import ModelError
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.mjcf.loadcheck import check_pack
+from meshtool.mjcf.model_desc import ModelError
 from meshtool.packfile import pack
+from meshtool.pipeline import ConvertOptions, convert
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 ROOT = Path(__file__).resolve().parent.parent
 MICRO = ROOT / "fixtures" / "followups" / "micro_cube" / "micro.obj"
@@ -34,7 +34,7 @@ ONE_TRIANGLE = ROOT / "fixtures" / "realworld" / "one_triangle"
 
 def _obj2bin(*args: str) -> subprocess.CompletedProcess[str]:
     env = {k: v for k, v in os.environ.items() if k != "MESHTOOL_DEBUG"}
-    code = "import sys; from meshtool.cli import obj2bin; sys.exit(obj2bin())"
+    code = "import sys; from meshtool.cli.main import obj2bin; sys.exit(obj2bin())"
     return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, env=env, timeout=300)
 
 
@@ -134,7 +134,7 @@ def test_the_check_does_not_change_the_bytes(tmp_path: Path) -> None:
 # -- remembered checks (issue 17: a cached obj2bin does not pay for MuJoCo's import and compile) ----------------
 
 _REPORT_MUJOCO = (
-    "import sys; from meshtool.cli import obj2bin\n"
+    "import sys; from meshtool.cli.main import obj2bin\n"
     "try: obj2bin()\n"
     "except SystemExit as exc: code = exc.code\n"
     "print('mujoco imported' if 'mujoco' in sys.modules else 'mujoco not imported', file=sys.stderr)\n"
@@ -184,7 +184,7 @@ def test_a_refusal_is_never_remembered(tmp_path: Path) -> None:
 
 
 def test_the_remembered_check_names_the_plugin_files_and_mujoco_version() -> None:
-    from meshtool.loadcheck import plugin_identity
+    from meshtool.mjcf.loadcheck import plugin_identity
 
     identity = plugin_identity()
     assert identity is not None

@@ -19,11 +19,11 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from meshtool.cli import main
-from meshtool.convert import convert
-from meshtool.normalmaps import export_findings, looks_like_normal_map, normal_map
+from meshtool.cli.main import main
 from meshtool.packfile import load
 from meshtool.packfile.export import Z_UP_TO_Y_UP, to_glb
+from meshtool.pipeline import convert
+from meshtool.repair.normalmaps import export_findings, looks_like_normal_map, normal_map
 
 ROOT = Path(__file__).resolve().parent.parent
 TILE = ROOT / "fixtures" / "realworld" / "normal_maps"

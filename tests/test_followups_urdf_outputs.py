@@ -14,9 +14,9 @@ from pathlib import Path
 import mujoco
 from click.testing import CliRunner, Result
 
-from meshtool.cli import main
-from meshtool.model import stamped_files
-from meshtool.outdir import GENERATORS
+from meshtool.cli.main import main
+from meshtool.files.outdir import GENERATORS
+from meshtool.mjcf.model_desc import stamped_files
 
 PKG = Path(__file__).resolve().parent.parent / "fixtures" / "urdf" / "tiny_arm_description"
 ARM = PKG / "urdf" / "tiny_arm.urdf"

@@ -27,8 +27,8 @@ from PIL import Image
 
 from meshtool import formats
 from meshtool.errors import OutputError
+from meshtool.files.outdir import check_output
 from meshtool.formats import MESH_FORMATS, OUTPUTS, MeshFormat, OutputFormat, mesh_suffixes, register_mesh_format
-from meshtool.outdir import check_output
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "formats.md"
@@ -88,11 +88,11 @@ def test_every_writer_and_recogniser_exists(row: OutputFormat) -> None:
 
 def _written(kind: str, tmp: Path) -> Path:
     """A file of ``kind`` written by the project's own writer."""
-    from meshtool.convert import ConvertOptions, convert
-    from meshtool.normalise import NormaliseOptions
     from meshtool.packfile.export import to_glb, to_msh
     from meshtool.packfile.read import load
     from meshtool.packfile.usd import export_usd
+    from meshtool.pipeline import ConvertOptions, convert
+    from meshtool.repair.normalise import NormaliseOptions
 
     pack = tmp / "head.mbin"
     if not pack.exists():
@@ -175,7 +175,7 @@ def test_every_recogniser_knows_our_files_and_only_ours(row: OutputFormat, tmp_p
 
 
 OFF_READER = """
-from meshtool.readers.model import Piece, SourceFrame, SourceMesh, assemble
+from meshtool.read.source_mesh import Piece, SourceFrame, SourceMesh, assemble
 import numpy as np
 
 
@@ -209,10 +209,10 @@ def off_format(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> MeshFormat:
 
 
 def test_a_new_mesh_format_is_one_module_and_one_row(off_format: MeshFormat, tmp_path: Path) -> None:
-    from meshtool.convert import tree_jobs
-    from meshtool.normalise import NormaliseOptions, prepare
-    from meshtool.urdf import import_urdf
-    from meshtool.urdf_locate import MeshLocator
+    from meshtool.pipeline import tree_jobs
+    from meshtool.repair.normalise import NormaliseOptions, prepare
+    from meshtool.urdf.import_robot import import_urdf
+    from meshtool.urdf.locate import MeshLocator
     from meshtool.validate.runner import suffixes
 
     models = tmp_path / "models"
@@ -264,7 +264,7 @@ def test_registry_suffixes_are_written_in_the_registry_only() -> None:
         check=True,
     ).stdout.split()
     known = {s for row in MESH_FORMATS for s in row.suffixes} | {s for row in OUTPUTS for s in row.suffixes}
-    known.discard(".png")  # also the texture format of every reader and writer (meshtool/textures.py): an input
+    known.discard(".png")  # also the texture format of every reader and writer (meshtool/repair/textures.py): an input
     offenders = []
     for name in listed:
         if name == "meshtool/formats.py":

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from meshtool import formats, recognise
+from meshtool import formats
+from meshtool.files import recognise
 from meshtool.formats import MeshFormat
 from meshtool.packfile import load
 from meshtool.packfile.view import DEFAULT_COLOUR, asset_view, unique_name, unique_names

@@ -183,8 +183,8 @@ def test_validate_mjcf_and_simrun_see_the_vertices_every_other_path_sees(
     """
     from click.testing import CliRunner
 
-    from meshtool.cli import main as meshtool_main
-    from meshtool.cli import obj2bin
+    from meshtool.cli.main import main as meshtool_main
+    from meshtool.cli.main import obj2bin
     from meshtool.validate.task import AssetTask, read_asset
     from simrun import UrdfRobot, World
     from simrun.scene.scene_file import load_scene
@@ -263,7 +263,7 @@ def test_a_urdf_outside_a_ros_package_is_seen_by_every_path(tmp_path: Path, fmt:
     """``robot/urdf/w.urdf`` using ``../meshes/wedge.*`` with no ``package.xml``: obj2bin FILE vs simrun's URDF."""
     from click.testing import CliRunner
 
-    from meshtool.cli import obj2bin
+    from meshtool.cli.main import obj2bin
     from simrun import UrdfRobot, World
 
     mesh = _write(tmp_path / "robot" / "meshes", fmt)
@@ -301,8 +301,8 @@ def test_every_path_keeps_a_vendor_mesh_where_mujoco_puts_it(tmp_path: Path, par
     from click.testing import CliRunner
     from conftest import FIXTURES
 
-    from meshtool.cli import main as meshtool_main
-    from meshtool.cli import obj2bin
+    from meshtool.cli.main import main as meshtool_main
+    from meshtool.cli.main import obj2bin
     from meshtool.validate.task import AssetTask, read_asset
     from simrun import load_scene
 

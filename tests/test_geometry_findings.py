@@ -14,9 +14,9 @@ import pytest
 import trimesh
 from click.testing import CliRunner
 
-from meshtool.cli import main
-from meshtool.modelroot import MAX_LEVELS, find_model_root
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.cli.main import main
+from meshtool.frame.modelroot import MAX_LEVELS, find_model_root
+from meshtool.repair.normalise import NormaliseOptions, prepare
 from meshtool.validate.config import Limits
 from meshtool.validate.task import AssetTask, check_asset
 

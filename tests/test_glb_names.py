@@ -7,7 +7,7 @@ from pathlib import Path
 from click.testing import CliRunner
 from PIL import Image
 
-from meshtool.cli import obj2bin
+from meshtool.cli.main import obj2bin
 from meshtool.packfile import load
 from meshtool.packfile.export import to_glb
 

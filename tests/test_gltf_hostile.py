@@ -23,8 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bounded import Outcome, run_bounded
 
 from meshtool.errors import FormatError
-from meshtool.readers.gltf import read_gltf
-from meshtool.resolve import Resolver
+from meshtool.files.resolve import Resolver
+from meshtool.read.gltf import read_gltf
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 #: A tetrahedron: 4 float VEC3 positions (48 bytes), then 12 unsigned short indices (24 bytes): 72 bytes.

@@ -1,4 +1,4 @@
-"""The glTF writer (``meshtool/gltf_write.py``) checked against the glTF 2.0 specification and its readers.
+"""The glTF writer (``meshtool/export/gltf_write.py``) checked against the glTF 2.0 specification and its readers.
 
 In-process (so a mutation of the writer is seen): every test builds with :class:`GltfBuilder` directly and
 checks what it wrote against sources outside the writer:
@@ -32,7 +32,7 @@ import trimesh
 from PIL import Image
 
 import meshtool
-from meshtool.gltf_write import (
+from meshtool.export.gltf_write import (
     ARRAY_BUFFER,
     Z_UP_TO_Y_UP,
     Z_UP_TO_Y_UP_ROTATION,

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import meshtool.decompose
-import meshtool.hulls
-from meshtool.hulls import HullOptions, compute_hulls
-from meshtool.normalise import NormaliseOptions, prepare
+import meshtool.hulls.compute
+import meshtool.hulls.decompose
+from meshtool.hulls.compute import HullOptions, compute_hulls
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 
@@ -27,12 +27,12 @@ def _fail(*_args, **_kwargs):
 def test_second_run_reads_finished_hulls(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     mesh = prepare(FIXTURES / "bowl" / "bowl.obj", NormaliseOptions()).mesh
     options = HullOptions(mode="decompose", cache_dir=tmp_path)
-    monkeypatch.setattr(meshtool.decompose, "decompose", _halves)
+    monkeypatch.setattr(meshtool.hulls.decompose, "decompose", _halves)
     first = compute_hulls(mesh, options, "bowl.obj")
     assert len(first.hulls) == 2 and first.cache_hits == 0
     assert list(tmp_path.glob("*/*.hulls.npz"))
-    monkeypatch.setattr(meshtool.decompose, "decompose", _fail)
-    monkeypatch.setattr(meshtool.hulls, "convex_hull", _fail)
+    monkeypatch.setattr(meshtool.hulls.decompose, "decompose", _fail)
+    monkeypatch.setattr(meshtool.hulls.compute, "convex_hull", _fail)
     second = compute_hulls(mesh, options, "bowl.obj")
     assert second.cache_hits == 1
     for a, b in zip(first.hulls, second.hulls, strict=True):
@@ -45,7 +45,7 @@ def test_second_run_reads_finished_hulls(monkeypatch: pytest.MonkeyPatch, tmp_pa
 def test_damaged_hull_entry_is_recomputed(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     mesh = prepare(FIXTURES / "bowl" / "bowl.obj", NormaliseOptions()).mesh
     options = HullOptions(mode="decompose", cache_dir=tmp_path)
-    monkeypatch.setattr(meshtool.decompose, "decompose", _halves)
+    monkeypatch.setattr(meshtool.hulls.decompose, "decompose", _halves)
     first = compute_hulls(mesh, options, "bowl.obj")
     for entry in tmp_path.glob("*/*.hulls.npz"):
         entry.write_bytes(b"not an npz")

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from meshtool.cli import main, obj2bin
-from meshtool.convert import ConvertOptions, convert
-from meshtool.decompose import decompose
-from meshtool.hulls import Hull, HullOptions, compute_hulls, convex_hull
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.cli.main import main, obj2bin
+from meshtool.hulls.compute import Hull, HullOptions, compute_hulls, convex_hull
+from meshtool.hulls.decompose import decompose
 from meshtool.packfile import load
+from meshtool.pipeline import ConvertOptions, convert
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 BOWL = Path("bowl") / "bowl.obj"
 
@@ -198,7 +198,7 @@ def test_hulls_are_stored_and_reported(fixtures, tmp_path):
 
 
 def test_repair_merges_a_split_but_closed_mesh():
-    from meshtool.decompose import repair
+    from meshtool.hulls.decompose import repair
 
     box = __import__("trimesh").creation.box()
     split_points = box.vertices[box.faces].reshape(-1, 3)  # every triangle with its own three vertices
@@ -232,7 +232,7 @@ def test_reduced_hull_hugs_a_fine_sphere():
     stop left 6.5 %)."""
     import trimesh
 
-    from meshtool.hulls import _outside_distance
+    from meshtool.hulls.compute import _outside_distance
 
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.05)
     vertices, faces, notes = convex_hull(np.asarray(sphere.vertices), HullOptions(max_hull_vertices=64))

@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from meshtool.cli import main, obj2bin
+from meshtool.cli.main import main, obj2bin
 from meshtool.errors import FormatError, MeshtoolError
 from meshtool.findings import Finding, Severity
-from meshtool.normalise import NormaliseOptions, prepare
-from meshtool.urdf import element_lines, import_urdf
+from meshtool.repair.normalise import NormaliseOptions, prepare
+from meshtool.urdf.import_robot import element_lines, import_urdf
 
 FORMATS = Path(__file__).resolve().parent.parent / "fixtures" / "formats"
 INERTIAL = '<inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>'

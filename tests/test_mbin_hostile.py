@@ -18,11 +18,11 @@ import pytest
 import xxhash
 from click.testing import CliRunner
 
-from meshtool.convert import ConvertOptions, convert
 from meshtool.errors import PackFormatError
-from meshtool.hulls import HullOptions
-from meshtool.normalise import NormaliseOptions
+from meshtool.hulls.compute import HullOptions
 from meshtool.packfile import parse
+from meshtool.pipeline import ConvertOptions, convert
+from meshtool.repair.normalise import NormaliseOptions
 
 HEADER = struct.Struct("<8sHHIIIQI28s")
 ENTRY = struct.Struct("<4sBBH2QQQII16s")
@@ -306,7 +306,7 @@ def test_hostile_file_is_refused_with_an_offset(bases, case, base, attack, words
 
 @pytest.mark.parametrize(("case", "base", "attack", "words"), ATTACKS, ids=[a[0] for a in ATTACKS])
 def test_every_command_exits_1_with_one_error_line(bases, tmp_path, case, base, attack, words):
-    from meshtool.cli import main
+    from meshtool.cli.main import main
 
     path = tmp_path / f"{case}.mbin"
     path.write_bytes(hostile(bases, base, attack))
@@ -346,7 +346,7 @@ def test_simrun_refuses_a_hostile_asset(bases, tmp_path, case, base, attack, wor
 
 def test_a_texture_with_a_png_signature_that_does_not_decode_is_an_input_error(bases, tmp_path):
     """The reader checks the signature only; `export --glb` reports the undecodable image with exit 1."""
-    from meshtool.cli import main
+    from meshtool.cli.main import main
 
     path = tmp_path / "bad_png.mbin"
     path.write_bytes(hostile(bases, "lossless", replace_texture(b"\x89PNG\r\n\x1a\n" + bytes(64))))
@@ -367,7 +367,7 @@ def test_texture_within_the_limits_passes_and_the_bomb_offset_is_the_ihdr(bases,
 
 
 def test_validate_reports_a_texture_bomb_as_a_corrupt_pack(bases, tmp_path):
-    from meshtool.cli import main
+    from meshtool.cli.main import main
 
     (tmp_path / "bomb.mbin").write_bytes(hostile(bases, "lossless", replace_texture(png_claiming(30000, 30000))))
     result = CliRunner().invoke(main, ["validate", str(tmp_path / "bomb.mbin"), "--format", "json", "--no-cache"])

@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from meshtool.cli import main as meshtool_main
-from meshtool.cli_commands import obj2bin
+from meshtool.cli.commands import obj2bin
+from meshtool.cli.main import main as meshtool_main
 from simrun.scene.scene_file import load_scene
 from simrun.world.assets import pack_cache
 
-OBJ2BIN = [sys.executable, "-c", "from meshtool.cli import obj2bin; obj2bin()"]
+OBJ2BIN = [sys.executable, "-c", "from meshtool.cli.main import obj2bin; obj2bin()"]
 # An L-shaped prism (12 vertices, concave), modelled in millimetres, Z up: 40 x 30 x 10 mm.
 L_SHAPE = """\
 v 0 0 0

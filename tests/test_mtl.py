@@ -1,7 +1,7 @@
 import pytest
 
 from meshtool.errors import MtlParseError
-from meshtool.obj.mtl import format_mtl, parse_map_statement, parse_mtl
+from meshtool.read.obj.mtl import format_mtl, parse_map_statement, parse_mtl
 
 FULL = """# every statement
 newmtl shiny metal

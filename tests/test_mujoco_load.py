@@ -67,7 +67,7 @@ def test_meshtool_mjcf_without_a_builder_is_one_error_line(fixtures, tmp_path, m
     from click.testing import CliRunner
 
     import meshtool.plugins
-    from meshtool.cli import main as meshtool_main
+    from meshtool.cli.main import main as meshtool_main
 
     monkeypatch.setattr(meshtool.plugins, "mjcf_builder", lambda: None)
     result = CliRunner().invoke(meshtool_main, ["mjcf", str(SCENES / "head.mbin"), "-o", str(tmp_path / "m")])
@@ -78,7 +78,7 @@ def test_meshtool_mjcf_without_a_builder_is_one_error_line(fixtures, tmp_path, m
 def test_meshtool_mjcf_folder_loads_alone_with_its_texture_upright(tmp_path):
     from click.testing import CliRunner
 
-    from meshtool.cli import main as meshtool_main
+    from meshtool.cli.main import main as meshtool_main
 
     result = CliRunner().invoke(meshtool_main, ["mjcf", str(SCENES / "head.mbin"), "-o", str(tmp_path / "m")])
     assert result.exit_code == 0, result.output

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from meshtool.cli import main, obj2bin
+from meshtool.cli.main import main, obj2bin
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures"
 TILE = FIXTURES / "realworld" / "normal_maps"  # norm, map_Bump, map_Disp, map_Pr and a colour map

@@ -8,10 +8,10 @@ import pytest
 import trimesh
 from click.testing import CliRunner
 
-from meshtool.cli import main, obj2bin
-from meshtool.normalise import NormaliseOptions, prepare
+from meshtool.cli.main import main, obj2bin
 from meshtool.packfile import load, pack
 from meshtool.packfile.export import Z_UP_TO_Y_UP
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 HEAD = Path("head") / "Head 1.obj"
 
@@ -207,7 +207,7 @@ def test_killed_obj2bin_leaves_no_worker_behind(tmp_path):
     command = [
         sys.executable,
         "-c",
-        "from meshtool.cli import obj2bin; obj2bin()",
+        "from meshtool.cli.main import obj2bin; obj2bin()",
         str(src),
         "-o",
         str(tmp_path / "out"),

@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from meshtool.errors import ObjParseError
-from meshtool.mesh import build_mesh
-from meshtool.obj.faces import MAX_FACE_CORNERS
-from meshtool.obj.lines import reject_control_bytes
-from meshtool.obj.parse import MAX_MTLLIBS, parse_obj
+from meshtool.read.obj.faces import MAX_FACE_CORNERS
+from meshtool.read.obj.lines import reject_control_bytes
+from meshtool.read.obj.parse import MAX_MTLLIBS, parse_obj
+from meshtool.repair.mesh import build_mesh
 
 TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
 
@@ -212,7 +212,7 @@ def write_obj(tmp_path, name: str, text: str, mtl: str | None = None):
     ],
 )
 def test_coordinates_beyond_the_limit_are_refused_with_their_line(tmp_path, text, line):
-    from meshtool.normalise import prepare
+    from meshtool.repair.normalise import prepare
 
     src = write_obj(tmp_path, "far.obj", text)
     with watchdog(), pytest.raises(ObjParseError) as err:
@@ -221,7 +221,7 @@ def test_coordinates_beyond_the_limit_are_refused_with_their_line(tmp_path, text
 
 
 def test_coordinate_limit_applies_after_units_and_scale(tmp_path):
-    from meshtool.normalise import MAX_COORDINATE_M, NormaliseOptions, prepare
+    from meshtool.repair.normalise import MAX_COORDINATE_M, NormaliseOptions, prepare
 
     src = write_obj(tmp_path, "mm.obj", tetra("v 2e6 0 0"))  # 2e6 mm = 2 km: fine
     asset = prepare(src, NormaliseOptions(units="mm", up="z"))
@@ -233,7 +233,7 @@ def test_coordinate_limit_applies_after_units_and_scale(tmp_path):
 
 
 def test_far_vertex_no_face_uses_is_not_refused(tmp_path):
-    from meshtool.normalise import NormaliseOptions, prepare
+    from meshtool.repair.normalise import NormaliseOptions, prepare
 
     src = write_obj(tmp_path, "unused.obj", tetra("v 1 0 0") + "v 1e300 0 0\n")
     asset = prepare(src, NormaliseOptions(up="z"))
@@ -263,7 +263,7 @@ def test_huge_vertex_colours_become_white():
 
 
 def test_non_finite_mtl_colours_never_reach_the_clean_mtl(tmp_path):
-    from meshtool.normalise import NormaliseOptions, normalise
+    from meshtool.repair.normalise import NormaliseOptions, normalise
 
     mtl = "newmtl a\nKd nan inf 0.5\nKs 1_0 0 0\nNs infinity\nillum nan\nKa 0.1 0.2 0.3\n"
     src = write_obj(tmp_path, "kd.obj", "mtllib kd.mtl\nusemtl a\n" + tetra("v 1 0 0"), mtl)
@@ -278,7 +278,7 @@ def test_non_finite_mtl_colours_never_reach_the_clean_mtl(tmp_path):
 def test_qhull_failure_becomes_a_bounding_box_with_a_warning(monkeypatch):
     from scipy.spatial import QhullError
 
-    from meshtool import hulls
+    from meshtool.hulls import compute as hulls
 
     points = np.random.default_rng(0).random((40, 3))
 
@@ -296,7 +296,7 @@ def test_qhull_failure_becomes_a_bounding_box_with_a_warning(monkeypatch):
 @pytest.mark.parametrize("bad", [np.nan, np.inf, 1e308])
 def test_hulls_of_unhullable_points_raise_the_package_error(bad):
     from meshtool.errors import MeshtoolError
-    from meshtool.hulls import HullOptions, compute_hulls
+    from meshtool.hulls.compute import HullOptions, compute_hulls
 
     obj = parse_obj(f"v {bad} 0 0\nv -1 0 0\nv 0 1 0\nv 0 0 1\n".encode(), "q.obj")
     mesh, _ = build_mesh(obj)  # points only: kept as they are
@@ -348,7 +348,7 @@ ATTACKS = {
 def test_cli_answers_every_attack_with_one_error_line_or_a_finding(tmp_path, monkeypatch, command, attack):
     from click.testing import CliRunner
 
-    from meshtool.cli import main, obj2bin
+    from meshtool.cli.main import main, obj2bin
 
     text, mtl, code, expected = ATTACKS[attack]
     src = tmp_path / "in" / f"{attack}.obj"

@@ -1,4 +1,4 @@
-"""The OBJ reader's block helpers (meshtool/obj/lines.py), each against results written out by hand.
+"""The OBJ reader's block helpers (meshtool/read/obj/lines.py), each against results written out by hand.
 
 The reader has fast paths (one numpy call per block) and a line-by-line fallback that give the same arrays, so
 whole-file tests cannot tell whether the fast path ran; these tests pin each helper's own result.
@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from meshtool.obj.lines import VN, VT, F, V, _blank, classify, float_table, gather, numbers, values_per_line
-from meshtool.obj.lines import vector_block as block_of
+from meshtool.read.obj.lines import VN, VT, F, V, _blank, classify, float_table, gather, numbers, values_per_line
+from meshtool.read.obj.lines import vector_block as block_of
 
 
 def test_blank_replaces_each_keyword_and_the_slashes() -> None:

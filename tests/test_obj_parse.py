@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from meshtool.errors import ObjParseError
-from meshtool.obj.parse import parse_mtllib_names, parse_obj
+from meshtool.read.obj.parse import parse_mtllib_names, parse_obj
 
 CUBE = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n"
 

@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from meshtool.obj.parse import parse_obj
+from meshtool.read.obj.parse import parse_obj
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, width=64)
 

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from meshtool.cli import main, obj2bin
+from meshtool.cli.main import main, obj2bin
 from meshtool.errors import OutputError
-from meshtool.outdir import MARKER_KEY, check_output, replaceable_folder, write_folder
+from meshtool.files.outdir import MARKER_KEY, check_output, replaceable_folder, write_folder
 
 HEAD = Path("head") / "Head 1.obj"
 

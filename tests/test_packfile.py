@@ -7,12 +7,12 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from meshtool.errors import PackFormatError
-from meshtool.mesh import TriMesh
-from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
-from meshtool.obj.mtl import Material, TextureMap
 from meshtool.packfile import format as fmt
 from meshtool.packfile import pack, parse
 from meshtool.packfile.encode import oct_decode, oct_encode
+from meshtool.read.obj.mtl import Material, TextureMap
+from meshtool.repair.mesh import TriMesh
+from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, prepare
 
 coord = st.floats(-100, 100, allow_nan=False, width=32)
 

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from meshtool.hulls import HullOptions, _farthest_insertion, convex_hull
-from meshtool.quickhull import hull2, hull3, tolerance
+from meshtool.hulls.compute import HullOptions, _farthest_insertion, convex_hull
+from meshtool.hulls.quickhull import hull2, hull3, tolerance
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -106,8 +106,8 @@ def test_polygon_hull_is_qhulls(seed: int) -> None:
 def test_one_convex_hull_imports_neither_scipy_nor_trimesh(mesh: str) -> None:
     """The single hull of a fixture, in a fresh interpreter: the modules it imported are counted."""
     code = (
-        "import sys, json\nfrom pathlib import Path\nfrom meshtool.normalise import prepare, NormaliseOptions\n"
-        "from meshtool.hulls import HullOptions, convex_hull\n"
+        "import sys, json\nfrom pathlib import Path\nfrom meshtool.repair.normalise import prepare, NormaliseOptions\n"
+        "from meshtool.hulls.compute import HullOptions, convex_hull\n"
         f"asset = prepare(Path({str(ROOT / 'fixtures' / mesh)!r}), NormaliseOptions(strict=False))\n"
         "vertices, faces, notes = convex_hull(asset.mesh.positions, HullOptions())\n"
         "print(json.dumps([len(vertices), sorted(m for m in ('scipy', 'trimesh') if m in sys.modules)]))"

@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from meshtool.obj.lines import token_counts, values_per_line
-from meshtool.smallparts import MIN_VERTICES, _count_distinct
+from meshtool.read.obj.lines import token_counts, values_per_line
+from meshtool.repair.smallparts import MIN_VERTICES, _count_distinct
 
 
 def _peak(call: Callable[[], Any]) -> tuple[Any, int]:

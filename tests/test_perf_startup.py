@@ -17,8 +17,8 @@ HEAVY = ("numpy", "PIL", "trimesh", "scipy", "mujoco", "coacd", "pxr", "dask", "
 MESHTOOL = ("export", "hulls", "info", "mjcf", "normalize", "unpack", "urdf", "validate")
 SIMRUN = ("check", "doctor", "export", "play", "replay", "resim", "snapshot", "test", "view")
 CASES = (
-    [("meshtool.cli", "main", ["meshtool", "--help"]), ("meshtool.cli", "obj2bin", ["obj2bin", "--help"])]
-    + [("meshtool.cli", "main", ["meshtool", name, "--help"]) for name in MESHTOOL]
+    [("meshtool.cli.main", "main", ["meshtool", "--help"]), ("meshtool.cli.main", "obj2bin", ["obj2bin", "--help"])]
+    + [("meshtool.cli.main", "main", ["meshtool", name, "--help"]) for name in MESHTOOL]
     + [("simrun.cli.main", "main", ["simrun", "--help"])]
     + [("simrun.cli.main", "main", ["simrun", name, "--help"]) for name in SIMRUN]
 )
@@ -64,8 +64,9 @@ def test_import_simrun_does_not_load_mujoco_but_the_first_import_of_it_is_headle
 
 def test_the_light_copies_of_option_choices_agree_with_the_library() -> None:
     """The command lines keep the choices they show in ``--help`` without importing the library that owns them."""
-    from meshtool import cli_commands, cli_validate
-    from meshtool.units import UNIT_FACTORS
+    from meshtool.cli import commands as cli_commands
+    from meshtool.cli import validate as cli_validate
+    from meshtool.frame.units import UNIT_FACTORS
     from meshtool.validate.reports import FORMATS
     from simrun.cli import main as cli
     from simrun.run.render import MODES
@@ -77,7 +78,7 @@ def test_the_light_copies_of_option_choices_agree_with_the_library() -> None:
     assert cli.DEFAULT_SIZE == DEFAULT_SIZE
 
 
-@pytest.mark.parametrize("module", ["meshtool.cli", "simrun.cli.main"])
+@pytest.mark.parametrize("module", ["meshtool.cli.main", "simrun.cli.main"])
 def test_the_command_lines_run_numpy_without_spinning_blas_threads(module: str) -> None:
     """OpenBLAS starts a spinning thread per CPU when numpy loads; the command lines ask for none (counted)."""
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}

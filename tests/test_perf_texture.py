@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 from PIL import Image
 
-from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
+from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, prepare
 
 SIDE = 64
 

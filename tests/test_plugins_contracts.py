@@ -16,7 +16,7 @@ import pytest
 import meshtool.plugins as plugins
 import simrun.asset_check
 import simrun.export.mjcf_builder
-from meshtool.model import BodyDesc, GeomDesc, MeshDesc, ModelDesc, ModelError
+from meshtool.mjcf.model_desc import BodyDesc, GeomDesc, MeshDesc, ModelDesc, ModelError
 
 DECLARED = {(p.group, p.name): p.value for p in distribution("meshtool-simrun").entry_points}
 

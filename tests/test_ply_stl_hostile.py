@@ -18,8 +18,8 @@ import pytest
 from bounded import Outcome, run_bounded
 
 from meshtool.errors import FormatError, MeshtoolError
-from meshtool.readers.ply import read_ply
-from meshtool.readers.stl import read_stl
+from meshtool.read.ply import read_ply
+from meshtool.read.stl import read_stl
 
 CUBE_V = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
 CUBE_F = [

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
-from meshtool.progress import CLEAR, FRAMES, Display, elapsed_text
+from meshtool.work.progress import CLEAR, FRAMES, Display, elapsed_text
 
-OBJ2BIN = [sys.executable, "-c", "from meshtool.cli import obj2bin; obj2bin()"]
+OBJ2BIN = [sys.executable, "-c", "from meshtool.cli.main import obj2bin; obj2bin()"]
 # A U-shaped bracket (concave): CoACD splits it, which takes a moment.
 BRACKET = """\
 v 0 0 0

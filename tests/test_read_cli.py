@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 from click.testing import CliRunner
 
-from meshtool.cli import main, obj2bin
+from meshtool.cli.main import main, obj2bin
 from meshtool.packfile import load
 
 MIXED = Path("formats") / "mixed"

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from meshtool.errors import FormatError
-from meshtool.normalise import NormaliseOptions, prepare
-from meshtool.readers.collada import read_collada
+from meshtool.read.collada import read_collada
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 DAE = Path("formats") / "dae" / "cm_zup" / "link_cm_zup.dae"
 

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.errors import FormatError
-from meshtool.normalise import NormaliseOptions, prepare
-from meshtool.readers.gltf import read_gltf
-from meshtool.resolve import Resolver
+from meshtool.files.resolve import Resolver
+from meshtool.read.gltf import read_gltf
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 GLTF = Path("formats") / "gltf"
 

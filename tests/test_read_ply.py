@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from meshtool.errors import FormatError
-from meshtool.normalise import NormaliseOptions, prepare
-from meshtool.readers.ply import read_ply
+from meshtool.read.ply import read_ply
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 PLY = Path("formats") / "ply"
 CUBE = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)

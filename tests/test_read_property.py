@@ -12,9 +12,9 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from meshtool.convert import ConvertOptions, convert
-from meshtool.normalise import NormaliseOptions
 from meshtool.packfile import load
+from meshtool.pipeline import ConvertOptions, convert
+from meshtool.repair.normalise import NormaliseOptions
 
 WRITERS = {
     "binary.stl": {"file_type": "stl"},

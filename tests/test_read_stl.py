@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from meshtool.errors import FormatError
-from meshtool.normalise import NormaliseOptions, prepare
-from meshtool.readers.stl import read_stl
+from meshtool.read.stl import read_stl
+from meshtool.repair.normalise import NormaliseOptions, prepare
 
 STL = Path("formats") / "stl"
 CUBE = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import trimesh
 
-import meshtool.obj.write
+import meshtool.export.obj_write
 from meshtool.packfile.read import parse
-from meshtool.urdf import import_urdf
+from meshtool.urdf.import_robot import import_urdf
 
 QUIRKS = Path("urdf") / "quirks" / "quirks_robot" / "urdf" / "quirks.urdf"
 
@@ -38,7 +38,7 @@ def _forbid(*args, **kwargs):
 def test_no_obj_text_and_dae_materials_kept(fixtures, monkeypatch):
     monkeypatch.setattr(tempfile, "TemporaryDirectory", _forbid)
     monkeypatch.setattr(tempfile, "mkdtemp", _forbid)
-    monkeypatch.setattr(meshtool.obj.write, "format_obj", _forbid)
+    monkeypatch.setattr(meshtool.export.obj_write, "format_obj", _forbid)
     monkeypatch.setattr(trimesh.exchange.obj, "export_obj", _forbid)
     result = import_urdf(fixtures / QUIRKS)
     painted = parse(result.mbins["meshes/painted.mbin"], "painted")

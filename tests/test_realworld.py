@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from meshtool.cli import main
-from meshtool.consumers import find_consumers
-from meshtool.convert import ConvertOptions, convert
+from meshtool.cli.main import main
 from meshtool.errors import StrictModeError
-from meshtool.modelroot import find_model_root
-from meshtool.normalise import NormaliseOptions, normalise
-from meshtool.obj.mtl import parse_mtl, texture_colorspace
-from meshtool.obj.parse import parse_obj
+from meshtool.frame.consumers import find_consumers
+from meshtool.frame.modelroot import find_model_root
 from meshtool.packfile import load
+from meshtool.pipeline import ConvertOptions, convert
+from meshtool.read.obj.mtl import parse_mtl, texture_colorspace
+from meshtool.read.obj.parse import parse_obj
+from meshtool.repair.normalise import NormaliseOptions, normalise
 
 RW = Path(__file__).resolve().parent.parent / "fixtures" / "realworld"
 
@@ -311,7 +311,7 @@ def test_cli_up_and_units_auto(tmp_path):
 
 
 def test_a_changed_consumer_file_makes_the_mbin_stale(tmp_path):
-    from meshtool.convert import is_unchanged
+    from meshtool.pipeline import is_unchanged
 
     model = tmp_path / "crate"
     shutil.copytree(RW / "gazebo_model" / "crate", model)
@@ -337,7 +337,7 @@ def test_a_changed_consumer_file_makes_the_mbin_stale(tmp_path):
     ],
 )
 def test_header_comments_as_evidence(tmp_path, header, up, rule):
-    from meshtool.upaxis import decide_up
+    from meshtool.frame.upaxis import decide_up
 
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
     decision = decide_up(tmp_path / "m.obj", points, header, [], None)
@@ -345,7 +345,7 @@ def test_header_comments_as_evidence(tmp_path, header, up, rule):
 
 
 def test_header_units_are_evidence_but_not_applied():
-    from meshtool.units import header_unit, unit_evidence
+    from meshtool.frame.units import header_unit, unit_evidence
 
     header = ["This file uses centimeters as units for non-parametric coordinates."]
     assert header_unit(header) == "cm" and header_unit(["Blender 4.1.1"]) is None
@@ -356,7 +356,7 @@ def test_header_units_are_evidence_but_not_applied():
 def test_colour_maps_are_tagged_srgb_and_mujoco_reads_them_so(tmp_path):
     from PIL import Image
 
-    from meshtool.mjcf import build_mjcf
+    from meshtool.mjcf.asset_model import build_mjcf
 
     asset = normalise(RW / "normal_maps" / "tile.obj")
     tags = {name: Image.open(io.BytesIO(data)).info.get("srgb") for name, data in asset.textures.items()}
@@ -390,7 +390,7 @@ GROUND = RW / "gazebo_model" / "ground" / "meshes" / "ground.obj"
 @pytest.mark.parametrize("units", [[], ["--units", "m"], ["--units", "auto"]])
 def test_gazebo_ground_plane_passes_strict(units, tmp_path):
     """model.sdf uses the 10.9 m slab with no scale (metres): the size is vouched for, not suspicious."""
-    from meshtool.cli import obj2bin
+    from meshtool.cli.main import obj2bin
 
     out = tmp_path / "ground.mbin"
     result = CliRunner().invoke(obj2bin, [str(GROUND), "-o", str(out), "--strict", "--json", *units])

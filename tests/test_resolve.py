@@ -4,7 +4,7 @@ from pathlib import Path
 import pytest
 
 from meshtool.errors import ResolveError
-from meshtool.resolve import Resolver
+from meshtool.files.resolve import Resolver
 
 
 @pytest.fixture

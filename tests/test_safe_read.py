@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 
 from meshtool.errors import ObjParseError, ResolveError
-from meshtool.normalise import prepare
-from meshtool.resolve import Resolver, file_sha256, find_files, is_file, map_readonly, read_cache
-from meshtool.safeopen import GIB, MIB, ReadLimits, read_beneath, read_file
+from meshtool.files.resolve import Resolver, file_sha256, find_files, is_file, map_readonly, read_cache
+from meshtool.files.safeopen import GIB, MIB, ReadLimits, read_beneath, read_file
+from meshtool.repair.normalise import prepare
 
 SWAPS = 2000
 INSIDE, OUTSIDE = b"INSIDE-BYTES", b"OUTSIDE-SECRET"

@@ -55,7 +55,7 @@ def test_a_deeply_nested_scene_is_one_error_line(tmp_path: Path) -> None:
 
 def test_validate_with_300_character_names_is_one_error_line_exit_1(tmp_path: Path) -> None:
     """`meshtool validate LONG.obj` and `-o LONG.txt` once ended in `internal error` (ENAMETOOLONG, exit 3)."""
-    from meshtool.cli import main as meshtool_main
+    from meshtool.cli.main import main as meshtool_main
 
     long = "a" * 300
     fixture = Path(__file__).resolve().parent.parent / "fixtures" / "validate" / "clean"

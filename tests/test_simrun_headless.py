@@ -70,7 +70,7 @@ def _env(value: str | None) -> dict[str, str]:
 
 def _run(args: list[str], value: str | None, prelude: str = "") -> subprocess.CompletedProcess[str]:
     """A console script in a fresh process (``prelude`` runs before anything is imported)."""
-    module, func = {"simrun": ("simrun.cli.main", "main"), "meshtool": ("meshtool.cli", "main")}[args[0]]
+    module, func = {"simrun": ("simrun.cli.main", "main"), "meshtool": ("meshtool.cli.main", "main")}[args[0]]
     code = f"{prelude}\nimport sys\nsys.argv = {args!r}\nfrom {module} import {func}\n{func}()"
     return subprocess.run(
         [sys.executable, "-c", code], env=_env(value), capture_output=True, text=True, timeout=300, check=False

@@ -18,14 +18,17 @@ def _imported(code: str) -> set[str]:
     return {name.split(".")[0] for name in json.loads(out.strip().splitlines()[-1])}
 
 
-RUN = "import sys; sys.argv = ['meshtool', '{}']\nfrom meshtool.cli import main\ntry: main()\nexcept SystemExit: pass"
+RUN = (
+    "import sys; sys.argv = ['meshtool', '{}']\nfrom meshtool.cli.main import main\n"
+    "try: main()\nexcept SystemExit: pass"
+)
 
 
 @pytest.mark.parametrize(
     "code",
     [
         "import meshtool",
-        "import meshtool.cli",
+        "import meshtool.cli.main",
         "from meshtool import __version__",
         RUN.format("--version"),
         RUN.format("--help"),
@@ -38,16 +41,16 @@ def test_light_start_imports_nothing_heavy(code: str) -> None:
 def test_library_paths_that_need_no_trimesh() -> None:
     """Loading an .mbin and the normalise/pack path never import trimesh, scipy, mujoco or pxr."""
     loaded = _imported(
-        "import meshtool\nfrom meshtool.packfile import load, pack\nimport meshtool.normalise, meshtool.convert\n"
-        "import meshtool.cli_commands"
+        "import meshtool\nfrom meshtool.packfile import load, pack\n"
+        "import meshtool.repair.normalise, meshtool.pipeline\nimport meshtool.cli.commands"
     )
     assert not loaded & {"trimesh", "scipy", "mujoco", "pxr", "coacd", "dask", "simrun"}
 
 
 def test_lazy_names_resolve() -> None:
     import meshtool
-    from meshtool.normalise import normalise as function
     from meshtool.packfile import load
+    from meshtool.repair.normalise import normalise as function
 
     assert meshtool.load is load and meshtool.normalise is function  # the function, not the submodule
     assert set(meshtool.__all__) <= set(dir(meshtool))
@@ -57,7 +60,7 @@ def test_lazy_names_resolve() -> None:
 
 def test_help_summaries_are_the_commands_own() -> None:
     """`meshtool --help` lists the commands from a table; each summary must match the command's docstring."""
-    from meshtool import cli
+    from meshtool.cli import main as cli
 
     ctx = click.Context(cli.main)
     for name, (target, summary) in cli.COMMANDS.items():

@@ -1,4 +1,4 @@
-"""meshtool.surface against trimesh (an independent implementation) and against analytic solids."""
+"""meshtool.hulls.surface against trimesh (an independent implementation) and against analytic solids."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from meshtool import surface
+from meshtool.hulls import surface
 
 
 def _meshes() -> list[trimesh.Trimesh]:

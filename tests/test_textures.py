@@ -5,7 +5,7 @@ import pytest
 from PIL import Image
 
 from meshtool.errors import TextureError
-from meshtool.textures import to_png
+from meshtool.repair.textures import to_png
 
 RGB = (np.arange(8 * 6 * 3) * 7 % 256).astype(np.uint8).reshape(6, 8, 3)
 

@@ -3,8 +3,8 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshtool.obj.parse import parse_obj
-from meshtool.obj.triangulate import triangulate_polygons
+from meshtool.read.obj.parse import parse_obj
+from meshtool.read.obj.triangulate import triangulate_polygons
 
 
 def areas_and_normals(positions, tris):
@@ -155,7 +155,7 @@ def test_zero_area_large_polygon_gives_no_area():
 
 
 def test_ear_clipping_budget_fans_large_concave_polygons_once_spent(monkeypatch):
-    from meshtool.obj import triangulate
+    from meshtool.read.obj import triangulate
 
     points = comb(300)  # 1202 corners: over EARCUT_SMALL, charged 1202**2
     monkeypatch.setattr(triangulate, "EARCUT_BUDGET", int(1.5 * len(points) ** 2))

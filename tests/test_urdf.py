@@ -12,11 +12,11 @@ import trimesh
 import yourdfpy
 from click.testing import CliRunner
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.packfile import load
 from meshtool.packfile.read import parse
-from meshtool.urdf import UrdfError, UrdfOptions, import_urdf
-from meshtool.urdf_write import write_import
+from meshtool.urdf.import_robot import UrdfError, UrdfOptions, import_urdf
+from meshtool.urdf.write import write_import
 
 PKG = Path(__file__).resolve().parent.parent / "fixtures" / "urdf" / "tiny_arm_description"
 ARM = PKG / "urdf" / "tiny_arm.urdf"

@@ -19,8 +19,8 @@ from bounded import run_bounded
 
 from meshtool.errors import MeshtoolError
 from meshtool.packfile.read import parse
-from meshtool.urdf import UrdfOptions, import_urdf
-from meshtool.urdf_locate import MeshLocator, UrdfError
+from meshtool.urdf.import_robot import UrdfOptions, import_urdf
+from meshtool.urdf.locate import MeshLocator, UrdfError
 
 INSIDE_SIZE, OUTSIDE_SIZE = 0.1, 7.0
 

@@ -15,10 +15,10 @@ import trimesh
 import yourdfpy
 from click.testing import CliRunner
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.packfile.read import parse
-from meshtool.urdf import UrdfImport, import_urdf
-from meshtool.urdf_write import write_import
+from meshtool.urdf.import_robot import UrdfImport, import_urdf
+from meshtool.urdf.write import write_import
 
 URDF = Path(__file__).resolve().parent.parent / "fixtures" / "urdf" / "quirks" / "quirks_robot" / "urdf" / "quirks.urdf"
 

@@ -12,9 +12,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from meshtool.urdf import UrdfOptions, import_urdf
-from meshtool.urdf_locate import UrdfError
-from meshtool.urdf_write import write_import
+from meshtool.urdf.import_robot import UrdfOptions, import_urdf
+from meshtool.urdf.locate import UrdfError
+from meshtool.urdf.write import write_import
 
 INERTIAL = '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'
 HINGE = '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>'
@@ -169,7 +169,7 @@ def test_a_name_defined_twice_is_an_error(tmp_path: Path, kind: str) -> None:
 
 def test_a_consumer_urdf_with_an_unknown_encoding_is_not_evidence(tmp_path: Path) -> None:
     """``encoding='utf0'`` in a URDF beside a mesh raised LookupError from normalize's consumer search (exit 3)."""
-    from meshtool.normalise import NormaliseOptions, prepare
+    from meshtool.repair.normalise import NormaliseOptions, prepare
 
     (tmp_path / "meshes").mkdir()
     mesh = tmp_path / "meshes" / "m.obj"

@@ -6,7 +6,7 @@ import numpy as np
 from click.testing import CliRunner
 from pxr import Usd, UsdGeom, UsdPhysics, UsdShade
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.packfile import load
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
@@ -57,7 +57,7 @@ def test_name_starting_with_a_digit_exports_and_validates(tmp_path):
 
 def _two_clashing_materials(tmp_path: Path) -> Path:
     """An .mbin with materials ``a-b`` (red) and ``a_b`` (green): one sanitised prim name for both."""
-    from meshtool.cli import obj2bin
+    from meshtool.cli.main import obj2bin
 
     tetra = ["v 0 0 0", "v 1 0 0", "v 0 1 0", "v 0 0 1", "v 2 0 0", "v 3 0 0", "v 2 1 0", "v 2 0 1"]
     faces = ["f {} {} {}", "f {} {} {}", "f {} {} {}", "f {} {} {}"]

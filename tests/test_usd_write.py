@@ -1,4 +1,4 @@
-"""The project's one USD writer (:mod:`meshtool.usd_write`), read back by usd-core's own tools.
+"""The project's one USD writer (:mod:`meshtool.export.usd_write`), read back by usd-core's own tools.
 
 Ground truth: the stage as ``pxr`` opens it (its metadata, prim types, points and extents), usd-core's
 validators (0 errors), and the file bytes of two builds of the same calls.
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from meshtool.errors import OutputError
-from meshtool.usd_write import UsdBuilder, prim_name
+from meshtool.export.usd_write import UsdBuilder, prim_name
 
 pxr = pytest.importorskip("pxr")
 from pxr import Usd, UsdGeom, UsdPhysics, UsdShade, UsdValidation  # noqa: E402
@@ -112,4 +112,4 @@ def test_only_the_writer_creates_usd_stages() -> None:
         for path in (ROOT / package).rglob("*.py")
         if creators.search(path.read_text(encoding="utf-8"))
     )
-    assert found == ["meshtool/usd_write.py"]
+    assert found == ["meshtool/export/usd_write.py"]

@@ -1,4 +1,4 @@
-"""The USD writer (``meshtool/usd_write.py``) in-process, each method read back by usd-core (``pxr``).
+"""The USD writer (``meshtool/export/usd_write.py``) in-process, each method read back by usd-core (``pxr``).
 
 Ground truth: the stage as ``pxr`` opens it from the bytes the builder returns (attribute values,
 interpolations, connections, time samples, the transforms ``UsdGeom.XformCache`` composes), the
@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from meshtool.outdir import GENERATOR
-from meshtool.usd_write import UsdBuilder, prim_name
+from meshtool.export.usd_write import UsdBuilder, prim_name
+from meshtool.files.outdir import GENERATOR
 
 pxr = pytest.importorskip("pxr")
 from pxr import Sdf, Usd, UsdGeom, UsdPhysics, UsdShade  # noqa: E402

@@ -21,7 +21,7 @@ import pytest
 from click.testing import CliRunner
 from conftest import FIXTURES, GL
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.validate import ValidateOptions, load_config, render, validate
 
 SCHEMA = json.loads((FIXTURES.parent / "docs" / "validate-report.schema.json").read_text())

@@ -16,7 +16,7 @@ import pytest
 from click.testing import CliRunner
 from conftest import FIXTURES
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.validate import ValidateError, ValidateOptions, render, validate
 from meshtool.validate.reports.text import summary_lines
 
@@ -136,7 +136,7 @@ def test_a_hanging_judgement_on_a_worker_is_x002(client_dir, cluster, monkeypatc
 
 def _install_slow_plugin():
     from meshtool.validate import task
-    from meshtool.validate.plugins import PhysicsOutcome
+    from meshtool.validate.plugin_types import PhysicsOutcome
 
     real = task.physics_plugin
 

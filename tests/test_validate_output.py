@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.validate.reports import FORMATS, is_report
 
 SOURCE = Path(__file__).resolve().parent.parent / "fixtures" / "validate" / "_sources" / "box.obj"

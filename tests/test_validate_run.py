@@ -15,10 +15,10 @@ from click.testing import CliRunner
 from conftest import FIXTURES, GL, needs_gl
 from PIL import Image
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.validate import ValidateOptions, render, validate
 from meshtool.validate import task as task_module
-from meshtool.validate.plugins import PhysicsOutcome
+from meshtool.validate.plugin_types import PhysicsOutcome
 from meshtool.validate.rules import RULES
 from simrun.asset_check import _drop
 

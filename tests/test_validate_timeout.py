@@ -20,17 +20,17 @@ import pytest
 from click.testing import CliRunner
 from conftest import FIXTURES
 
-from meshtool.cli import main
+from meshtool.cli.main import main
 from meshtool.validate import ValidateOptions, load_config, render, validate
 from meshtool.validate import task as task_module
 from meshtool.validate.config import DEFAULT_TIMEOUT, ConfigError
-from meshtool.validate.plugins import PhysicsOutcome
+from meshtool.validate.plugin_types import PhysicsOutcome
 
 CLEAN = FIXTURES / "validate" / "clean"
 PLUGIN = """
 import os, signal, time
 from pathlib import Path
-from meshtool.validate.plugins import PhysicsOutcome
+from meshtool.validate.plugin_types import PhysicsOutcome
 
 def check(mbin, name, limits, thumbnail):
     if name.startswith("hang"):

@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 from bounded import run_bounded
 
-from meshtool.hulls import HullOptions, convex_hull
-from meshtool.mesh import TriMesh
-from meshtool.smallparts import fix_small_parts
+from meshtool.hulls.compute import HullOptions, convex_hull
+from meshtool.repair.mesh import TriMesh
+from meshtool.repair.smallparts import fix_small_parts
 
 TESTS = Path(__file__).resolve().parent
 SQUARE = TESTS.parent / "fixtures" / "scenes" / "boebot_square.toml"
@@ -62,7 +62,7 @@ def test_the_hull_of_a_flat_disc_is_a_thin_antiprism_made_in_n_log_n(tmp_path: P
     _child(
         "import numpy as np\n"
         "from test_work_bounds import disc\n"
-        "from meshtool.hulls import HullOptions, convex_hull\n"
+        "from meshtool.hulls.compute import HullOptions, convex_hull\n"
         "points, _ = disc(80_000)\n"
         "vertices, faces, notes = convex_hull(points, HullOptions())\n"
         f"np.savez({str(out)!r}, vertices=vertices, faces=faces, notes=np.array(notes))\n"
@@ -88,7 +88,7 @@ def test_the_hull_of_a_thick_finely_divided_cylinder_is_made_without_qhulls_merg
     out = tmp_path / "hull.npz"
     _child(
         "import numpy as np\n"
-        "from meshtool.hulls import HullOptions, convex_hull\n"
+        "from meshtool.hulls.compute import HullOptions, convex_hull\n"
         "t = np.linspace(0, 2 * np.pi, 40_000, endpoint=False)\n"
         "ring = np.c_[np.cos(t), np.sin(t)]\n"
         "points = np.r_[np.c_[ring, np.zeros(len(t))], np.c_[ring, np.full(len(t), 0.5)]]\n"
@@ -218,7 +218,7 @@ def test_fifty_thousand_parts_are_fixed_in_n_log_n() -> None:
     out = _child(
         "import json\n"
         "from test_work_bounds import scattered_parts\n"
-        "from meshtool.smallparts import fix_small_parts\n"
+        "from meshtool.repair.smallparts import fix_small_parts\n"
         "print(json.dumps([f.message for f in fix_small_parts(scattered_parts(50_000), 'x.obj')]))\n"
     )
     merges = [re.match(r"part 'p(\d+)' .* merged into part 'p(\d+)'", m) for m in json.loads(out)]

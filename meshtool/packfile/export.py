@@ -11,11 +11,11 @@ import numpy.typing as npt
 
 from meshtool import __version__
 from meshtool.errors import PackFormatError
+from meshtool.export.gltf_write import GENERATOR, Z_UP_TO_Y_UP, GltfBuilder, column_major
 from meshtool.formats import MTL_SUFFIX, suffix
-from meshtool.gltf_write import GENERATOR, Z_UP_TO_Y_UP, GltfBuilder, column_major
-from meshtool.obj.mtl import Material, TextureMap, format_mtl
 from meshtool.packfile.read import PackedMesh
 from meshtool.packfile.view import DEFAULT_COLOUR, asset_view, unique_names
+from meshtool.read.obj.mtl import Material, TextureMap, format_mtl
 
 
 def _floats(values: npt.NDArray[np.float32]) -> list[str]:
@@ -105,7 +105,7 @@ def to_msh(packed: PackedMesh) -> bytes:
 
 
 def to_glb(packed: PackedMesh) -> bytes:
-    """A glTF binary scene with one primitive per part, materials and textures (:mod:`meshtool.gltf_write`).
+    """A glTF binary scene with one primitive per part, materials and textures (:mod:`meshtool.export.gltf_write`).
 
     Vertex data stays in metres, Z-up, exactly as packed; each part's node carries :data:`Z_UP_TO_Y_UP` as its
     ``matrix``, so viewers that follow glTF's +Y-up show the asset standing upright. Texture coordinates are
@@ -115,9 +115,9 @@ def to_glb(packed: PackedMesh) -> bytes:
     ``d`` as ``baseColorFactor`` (blended when ``d < 1``), the colour map as ``baseColorTexture`` (sRGB, as
     glTF defines it), the tangent-space normal map as ``normalTexture`` (linear) with its ``-bm`` strength as
     ``scale``, its primitives with ``NORMAL`` and ``TANGENT``. Other maps have no glTF slot
-    (:func:`meshtool.normalmaps.export_findings` lists them). Images carry no colour-space chunks.
+    (:func:`meshtool.repair.normalmaps.export_findings` lists them). Images carry no colour-space chunks.
     """
-    from meshtool.normalmaps import vertex_normals, vertex_tangents
+    from meshtool.repair.normalmaps import vertex_normals, vertex_tangents
 
     view = asset_view(packed)
     gltf = GltfBuilder(GENERATOR)

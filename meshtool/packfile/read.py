@@ -23,10 +23,10 @@ import numpy as np
 import numpy.typing as npt
 
 from meshtool.errors import PackFormatError
+from meshtool.files.resolve import map_readonly
 from meshtool.packfile import format as fmt
 from meshtool.packfile import verify as check
 from meshtool.packfile.encode import dequantize_box, oct_decode
-from meshtool.resolve import map_readonly
 
 
 @dataclass(slots=True)
@@ -252,7 +252,7 @@ _DTYPE_NAMES = {code: name for name, code in fmt.CODES.items()}
 
 def _mesh_file(name: str) -> bool:
     """Whether ``name`` is a mesh file meshtool reads (OBJ, STL, PLY, glTF/GLB, COLLADA), by its suffix."""
-    from meshtool.readers import MESH_SUFFIXES
+    from meshtool.read import MESH_SUFFIXES
 
     return Path(name).suffix.lower() in MESH_SUFFIXES
 

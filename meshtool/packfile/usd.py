@@ -1,6 +1,6 @@
 """USD export of ``.mbin`` assets: UsdGeom meshes, UsdPreviewSurface materials, PNG textures, collision hulls.
 
-Built with the project's one USD writer (:class:`meshtool.usd_write.UsdBuilder`), as the world and recording
+Built with the project's one USD writer (:class:`meshtool.export.usd_write.UsdBuilder`), as the world and recording
 exports are. The stage is Z-up with ``metersPerUnit = 1`` (the pack's frame, written as it is). Each submesh
 becomes a ``UsdGeom.Mesh`` ``/NAME/Geom/submesh_K`` with normals and ``primvars:st``, bound to a material
 (``/NAME/Materials/MATERIAL``, names made valid and unique) whose ``UsdPreviewSurface`` reads its PNG
@@ -13,10 +13,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from meshtool.outdir import write_file
+from meshtool.export.usd_write import UsdBuilder, prim_name
+from meshtool.files.outdir import write_file
 from meshtool.packfile.read import PackedMesh
 from meshtool.packfile.view import PartMaterial, asset_view
-from meshtool.usd_write import UsdBuilder, prim_name
 
 
 def export_usd(packed: PackedMesh, out: Path, name: str) -> list[Path]:

@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from meshtool.errors import PackFormatError
-from meshtool.pnginfo import IHDR_WIDTH_OFFSET, over_limit, png_size
+from meshtool.repair.pnginfo import IHDR_WIDTH_OFFSET, over_limit, png_size
 
 HINT = "the file is damaged or was not written by meshtool; convert the source again"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -4,7 +4,7 @@ An ``.mbin`` stores its materials as the MTL-shaped records the normaliser produ
 ``maps``) and its triangles as one index buffer split into submeshes. Every consumer wants the same thing
 from that: one part per submesh with its own vertices, and a material reduced to what renderers and
 simulators draw. :func:`asset_view` is that conversion, done once, for the MJCF builder
-(:mod:`meshtool.mjcf`), simrun's asset loading (:mod:`simrun.world.assets`), and the GLB and USD exports
+(:mod:`meshtool.mjcf.asset_model`), simrun's asset loading (:mod:`simrun.world.assets`), and the GLB and USD exports
 (:mod:`meshtool.packfile.export`, :mod:`meshtool.packfile.usd`).
 
 Frame: positions, normals and hull vertices are metres in the pack's Z-up frame (``.mbin`` is always
@@ -76,7 +76,7 @@ class PartMaterial:
         alpha: ``d``, 1 opaque.
         colour_map: Index into :attr:`AssetView.textures` of the diffuse map (``map_Kd``), ``None`` when the
             material has none or the pack has no texture coordinates to map it with.
-        normal_map: Index of the tangent-space normal map (:func:`meshtool.normalmaps.normal_map`), ``None``
+        normal_map: Index of the tangent-space normal map (:func:`meshtool.repair.normalmaps.normal_map`), ``None``
             likewise.
         normal_scale: The normal map's strength (``-bm``; 1 by default).
         record: The pack's material record, for the maps no renderer slot takes (findings, USD roughness).
@@ -149,7 +149,7 @@ class AssetView:
 
 def asset_view(packed: PackedMesh) -> AssetView:
     """The typed view of ``packed`` (arrays are copies or read-only views; nothing refers back to the file)."""
-    from meshtool.normalmaps import normal_map
+    from meshtool.repair.normalmaps import normal_map
 
     recorded = list(packed.meta.get("textures", []))
     textures = [

@@ -10,15 +10,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from meshtool import __version__, surface
+from meshtool import __version__
 from meshtool.errors import PackFormatError
+from meshtool.hulls import surface
 from meshtool.packfile import format as fmt
 from meshtool.packfile.encode import max_angle_deg, oct_decode, oct_encode, quantize_box, render_mesh
 
 if TYPE_CHECKING:
-    from meshtool.hulls import Hull
-    from meshtool.normalise import NormalisedAsset
-    from meshtool.obj.mtl import Material
+    from meshtool.hulls.compute import Hull
+    from meshtool.read.obj.mtl import Material
+    from meshtool.repair.normalise import NormalisedAsset
 
 
 @dataclass(slots=True)
@@ -85,13 +86,13 @@ def pack(
     hulls: list[Hull] | None = None,
     hull_quality: dict[str, Any] | None = None,
 ) -> bytes:
-    """Pack a prepared asset (see :func:`meshtool.normalise.prepare`) into ``.mbin`` bytes.
+    """Pack a prepared asset (see :func:`meshtool.repair.normalise.prepare`) into ``.mbin`` bytes.
 
     Args:
         asset: The asset; its mesh is in metres, Z-up.
         quantize: Store positions and uvs as u16 in their bounding boxes and normals octahedral.
         options: The options that produced the asset, recorded in the metadata (for staleness checks).
-        hulls: Collision hulls (see :mod:`meshtool.hulls`), stored in the hull sections.
+        hulls: Collision hulls (see :mod:`meshtool.hulls.compute`), stored in the hull sections.
         hull_quality: The hulls' quality report, recorded in the metadata.
 
     Returns:
@@ -273,7 +274,7 @@ def _materials(materials: list[Material], textures: list[str]) -> list[dict[str,
 def _mass_properties(positions: npt.NDArray[np.float64], indices: npt.NDArray[np.int64]) -> dict[str, Any]:
     """Bounding box, area, and (for unit density, kg/m^3) volume, centre of mass and inertia.
 
-    Computed by :mod:`meshtool.surface` (bit-identical to trimesh's ``mass_properties``).
+    Computed by :mod:`meshtool.hulls.surface` (bit-identical to trimesh's ``mass_properties``).
     """
     if indices.shape[0] == 0:
         return {"area_m2": 0.0, "watertight": False}

@@ -9,7 +9,7 @@ every file the check read or looked for (MTLs, textures, a pack's sources; ``Non
 digest of everything under the asset's folder (:mod:`meshtool.validate.snapshot`: every name with its
 case, kind, permissions and link target), since any of it can change how a reference resolves. The entry
 is used only while all of them still match. Entries live in
-``CACHE/ab/abcdef....json``: a :mod:`meshtool.cachefile` envelope (the digest of the key it answers and of
+``CACHE/ab/abcdef....json``: a :mod:`meshtool.files.cachefile` envelope (the digest of the key it answers and of
 its content) around the JSON, written atomically. A damaged entry, one copied from another key or one
 that does not hold a result is a miss (described in :attr:`ResultCache.problems`), and the asset is
 checked again.
@@ -25,9 +25,10 @@ import os
 from pathlib import Path
 from typing import Any
 
-from meshtool import __version__, cachefile
+from meshtool import __version__
+from meshtool.files import cachefile
+from meshtool.files.resolve import file_sha256
 from meshtool.findings import Finding, Severity
-from meshtool.resolve import file_sha256
 from meshtool.validate.physics import environment
 from meshtool.validate.snapshot import dependency_listings, listing_digest
 from meshtool.validate.task import RULESET_VERSION, AssetResult, AssetTask
@@ -46,7 +47,7 @@ class ResultCache:
         misses: Lookups that found no usable entry (the asset is checked).
     """
 
-    #: Entry kind in the :mod:`meshtool.cachefile` envelope.
+    #: Entry kind in the :mod:`meshtool.files.cachefile` envelope.
     KIND = "meshtool-validate-result"
 
     def __init__(self, folder: Path | None, fingerprint: dict[str, Any]) -> None:

@@ -10,7 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from meshtool.findings import Finding
-from meshtool.hulls import Hull, hull_fit
+from meshtool.hulls.compute import Hull, hull_fit
 from meshtool.validate.config import Limits
 from meshtool.validate.rules import hit
 
@@ -31,7 +31,7 @@ def collision_findings(
         limits: Budgets and thresholds.
 
     Returns:
-        The findings and the fit report of :func:`meshtool.hulls.hull_fit`.
+        The findings and the fit report of :func:`meshtool.hulls.compute.hull_fit`.
     """
     out: list[Finding] = []
     if not hulls:

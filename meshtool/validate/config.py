@@ -34,10 +34,10 @@ from pathlib import Path
 from typing import Any
 
 from meshtool.errors import MeshtoolError
+from meshtool.files.nesting import DocumentLimitError, bounded
+from meshtool.files.resolve import is_file, read_cache
 from meshtool.findings import Finding, Severity
-from meshtool.nesting import DocumentLimitError, bounded
-from meshtool.resolve import is_file, read_cache
-from meshtool.units import UNIT_FACTORS
+from meshtool.frame.units import UNIT_FACTORS
 from meshtool.validate.rules import rule_id
 
 #: Seconds one asset's check may take before it is stopped with an X002 finding (``timeout``, ``--timeout``).
@@ -90,7 +90,7 @@ class Limits:
 
 #: Keys of a ``[[validate.paths]]`` entry.
 PATH_KEYS = ("glob", "units", "up", "severity", "ignore", "limits")
-#: Up axes a ``[[validate.paths]]`` entry may give (:class:`meshtool.normalise.NormaliseOptions`).
+#: Up axes a ``[[validate.paths]]`` entry may give (:class:`meshtool.repair.normalise.NormaliseOptions`).
 UP_AXES = ("y", "z", "auto")
 
 

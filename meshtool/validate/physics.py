@@ -1,6 +1,6 @@
 """The physics plugin of ``meshtool validate`` (entry point ``meshtool.validate:physics``): found and loaded here.
 
-Its signature and outcome are :mod:`meshtool.validate.plugins` (types only, which the plugin imports); this
+Its signature and outcome are :mod:`meshtool.validate.plugin_types` (types only, which the plugin imports); this
 module is the one that loads it, so the run-time edge to the plugin starts here (``tests/test_layering.py``).
 """
 
@@ -11,7 +11,7 @@ from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
 from meshtool.plugins import installed, load_plugin
-from meshtool.validate.plugins import COMPUTED_WITH, PhysicsCheck
+from meshtool.validate.plugin_types import COMPUTED_WITH, PhysicsCheck
 
 #: Entry-point group of ``meshtool validate``'s physics rules.
 VALIDATE_GROUP = "meshtool.validate"

@@ -3,10 +3,10 @@
 One stuck asset must not block a run of hundreds: every check has a deadline (``timeout`` seconds, see
 :data:`meshtool.validate.config.DEFAULT_TIMEOUT`). A check past it gives an X002 finding and the run goes on.
 
-- In worker processes (``jobs`` > 1, :mod:`meshtool.workpool`) each worker takes one asset at a time; a
+- In worker processes (``jobs`` > 1, :mod:`meshtool.work.workpool`) each worker takes one asset at a time; a
   worker past the deadline is killed (whatever it is stuck in: a loop, native code, a blocking read) and
   replaced, giving an X002 finding. A worker that dies on its own (a native crash) gives an X001 finding for
-  its asset. Workers are spawned and die with this process (:mod:`meshtool.lifeline`).
+  its asset. Workers are spawned and die with this process (:mod:`meshtool.work.lifeline`).
 - In this process (``jobs`` == 1) the deadline is a ``SIGALRM`` timer, which interrupts Python code and
   blocking system calls but not a single long native call; it needs the main thread (elsewhere checks run
   without a deadline). Use two or more workers for a hard limit.
@@ -21,10 +21,10 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from meshtool import workpool
 from meshtool.validate.physics import physics_plugin
 from meshtool.validate.rules import hit
 from meshtool.validate.task import AssetResult, AssetTask, ReadAsset, check_asset, judge_asset, read_asset
+from meshtool.work import workpool
 
 Check = Callable[[AssetTask], AssetResult]
 
@@ -60,7 +60,7 @@ class _Checker:
 def run_workers(
     tasks: list[AssetTask], jobs: int, timeout: float | None, check: Check = check_asset
 ) -> Iterator[AssetResult]:
-    """Check ``tasks`` in ``jobs`` worker processes (:mod:`meshtool.workpool`), yielding results as they come.
+    """Check ``tasks`` in ``jobs`` worker processes (:mod:`meshtool.work.workpool`), yielding results as they come.
 
     Args:
         tasks: The assets.

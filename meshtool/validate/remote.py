@@ -17,10 +17,10 @@ import importlib
 from collections.abc import Iterator
 from typing import Any
 
-from meshtool.batch import HERE, connect
 from meshtool.validate.pool import judge_in_thread, read_with_deadline
 from meshtool.validate.rules import hit
 from meshtool.validate.task import AssetResult, AssetTask, ReadAsset, judge_asset
+from meshtool.work.batch import HERE, connect
 
 
 def judge_remote(read: ReadAsset, timeout: float | None) -> tuple[AssetResult, str]:

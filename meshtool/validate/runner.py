@@ -14,17 +14,17 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from meshtool.batch import SchedulerError
 from meshtool.errors import MeshtoolError
+from meshtool.files.resolve import find_files
+from meshtool.files.safeopen import printable
 from meshtool.findings import Severity
 from meshtool.formats import mesh_suffixes, output_named
-from meshtool.resolve import find_files
-from meshtool.safeopen import printable
 from meshtool.validate.cache import ResultCache
 from meshtool.validate.config import ValidateConfig
 from meshtool.validate.pool import run_here, run_workers
 from meshtool.validate.remote import run_dask
 from meshtool.validate.task import AssetResult, AssetTask
+from meshtool.work.batch import SchedulerError
 
 EXECUTORS = ("local", "dask")
 
@@ -113,7 +113,7 @@ class ValidationReport:
         where: Assets checked in this run per place (``this process``, ``2 local worker processes``, a Dask
             worker's address); empty when every result came from the cache.
         cache_notes: One line per cache entry found but not used (damaged, answering another key): those
-            assets were checked again (:mod:`meshtool.cachefile`).
+            assets were checked again (:mod:`meshtool.files.cachefile`).
     """
 
     assets: list[AssetResult]

@@ -1,15 +1,15 @@
 """What an asset's folder holds: the names (with case), kinds, permissions and link targets of every entry.
 
 An OBJ's check can look at any file under its folder: references are resolved by exact path, ignoring case,
-by file name, through symbolic links (see :mod:`meshtool.resolve`); a file appearing, disappearing, changing
+by file name, through symbolic links (see :mod:`meshtool.files.resolve`); a file appearing, disappearing, changing
 case, becoming unreadable or a link pointing elsewhere can change the result without changing a byte of
 what the check read. The cache therefore keys a result on this listing as well as on the SHA-256 of every
 file read (:mod:`meshtool.validate.cache`), and the Dask executor ships the folder's files with it
 (:mod:`meshtool.validate.ship`).
 
-An OBJ's result also depends on folders above it (:mod:`meshtool.modelroot`, :mod:`meshtool.consumers`):
-a model-root marker (``package.xml``, ``model.config`` up to :data:`meshtool.modelroot.MAX_MARKER_LEVELS`
-folders up, a URDF up to :data:`meshtool.modelroot.MAX_LEVELS`) opens the whole model root to references,
+An OBJ's result also depends on folders above it (:mod:`meshtool.frame.modelroot`, :mod:`meshtool.frame.consumers`):
+a model-root marker (``package.xml``, ``model.config`` up to :data:`meshtool.frame.modelroot.MAX_MARKER_LEVELS`
+folders up, a URDF up to :data:`meshtool.frame.modelroot.MAX_LEVELS`) opens the whole model root to references,
 and description files (URDF, SDF, MJCF) there say the mesh's unit and frame. :func:`dependency_listings`
 covers those: the OBJ's folder and the model root recursively, and in each folder above the OBJ the markers
 and description files (names and SHA-256).
@@ -27,10 +27,10 @@ import stat
 from dataclasses import dataclass
 from pathlib import Path
 
-from meshtool.consumers import SUFFIXES as DESCRIPTION_SUFFIXES
 from meshtool.errors import MeshtoolError
-from meshtool.modelroot import MARKERS, MAX_LEVELS, MAX_MARKER_LEVELS, find_model_root
-from meshtool.safeopen import read_file
+from meshtool.files.safeopen import read_file
+from meshtool.frame.consumers import SUFFIXES as DESCRIPTION_SUFFIXES
+from meshtool.frame.modelroot import MARKERS, MAX_LEVELS, MAX_MARKER_LEVELS, find_model_root
 
 #: Entries listed under one asset folder at most (beyond: no listing, so the result is not cached).
 MAX_ENTRIES = 20_000

@@ -1,6 +1,6 @@
 """Source rules (S...), and the normaliser's findings translated into rule findings.
 
-The validator reads an OBJ exactly as ``meshtool normalize`` does (:func:`meshtool.normalise.prepare`, in
+The validator reads an OBJ exactly as ``meshtool normalize`` does (:func:`meshtool.repair.normalise.prepare`, in
 memory) and turns what the normaliser noticed into rule findings: a missing texture is a repair for the
 normaliser but a defect of the source for the validator.
 
@@ -17,9 +17,9 @@ import re
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from meshtool.consumers import ConsumerRef
+from meshtool.files.safeopen import printable
 from meshtool.findings import Finding, Severity
-from meshtool.safeopen import printable
+from meshtool.frame.consumers import ConsumerRef
 from meshtool.validate.rules import hit
 
 #: Normaliser finding code -> rule ID (codes not listed are repairs that need no attention).
@@ -81,7 +81,7 @@ def from_normaliser(findings: Iterable[Finding], consumers: Sequence[ConsumerRef
 
     Args:
         findings: The normaliser's findings.
-        consumers: The description files that use the OBJ (:func:`meshtool.consumers.find_consumers`): when
+        consumers: The description files that use the OBJ (:func:`meshtool.frame.consumers.find_consumers`): when
             there are some and none reads materials, S002/S003 are warnings naming the nearest one.
     """
     found = list(findings)

@@ -19,17 +19,17 @@ from typing import Any
 
 import numpy as np
 
-from meshtool.consumers import find_consumers
-from meshtool.convert import ConvertOptions
 from meshtool.errors import MeshtoolError
+from meshtool.files.resolve import Resolver, file_sha256, printable
 from meshtool.findings import Finding, Severity
 from meshtool.formats import mesh_format, mesh_format_named, output_named
-from meshtool.hulls import Hull, HullOptions, compute_hulls
-from meshtool.modelroot import find_model_root
-from meshtool.normalise import NormalisedAsset, NormaliseOptions, prepare
+from meshtool.frame.consumers import find_consumers
+from meshtool.frame.modelroot import find_model_root
+from meshtool.frame.units import scale_findings
+from meshtool.hulls.compute import Hull, HullOptions, compute_hulls
 from meshtool.packfile import pack, parse
-from meshtool.resolve import Resolver, file_sha256, printable
-from meshtool.units import scale_findings
+from meshtool.pipeline import ConvertOptions
+from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, prepare
 from meshtool.validate.collision import collision_findings
 from meshtool.validate.config import Limits
 from meshtool.validate.geometry import geometry_findings
@@ -53,7 +53,7 @@ class AssetTask:
             each is tried as is and with the pack's folder relative to ``scan_root`` appended.
         scan_root: The folder the asset was found under.
         thumbnails: Render a thumbnail.
-        units: Unit of a source mesh's coordinates (:class:`meshtool.normalise.NormaliseOptions` ``units``:
+        units: Unit of a source mesh's coordinates (:class:`meshtool.repair.normalise.NormaliseOptions` ``units``:
             ``mm``, ``cm``, ``m``..., ``auto``); ``None``: decided as ``normalize`` decides it. Packs are metres.
         up: Up axis of a source mesh (``y``, ``z``, ``auto``); ``None``: decided as ``normalize`` decides it.
         thumbnail_only: Only draw the thumbnail of an asset whose findings are cached (no rule is judged:
@@ -137,7 +137,7 @@ class ReadAsset:
     Attributes:
         task: The asset.
         result: Findings, deps and stats of the reading phase.
-        asset: An OBJ as :func:`meshtool.normalise.prepare` read it (MTLs and textures included).
+        asset: An OBJ as :func:`meshtool.repair.normalise.prepare` read it (MTLs and textures included).
         mbin: A pack's bytes.
         done: Nothing left to judge (the file could not be read, or the check failed).
     """

@@ -10,10 +10,10 @@ from typing import Any
 
 import click
 
-from meshtool import cli_output as out
-from meshtool.cli_common import VocabularyGroup
-from meshtool.cli_output import EXIT_INPUT, fail
-from meshtool.safeopen import printable
+from meshtool.cli import output as out
+from meshtool.cli.common import VocabularyGroup
+from meshtool.cli.output import EXIT_INPUT, fail
+from meshtool.files.safeopen import printable
 from simrun import __version__
 from simrun.cli.scenetest import test_command
 from simrun.cli.serve import serve_command
@@ -21,7 +21,7 @@ from simrun.cli.types import FPS, OUT, SECONDS, Number
 from simrun.errors import SimrunError
 from simrun.outfile import output_policy, write_bytes
 
-# Before anything imports numpy: single-threaded OpenBLAS (its idle threads spin; see meshtool/cli.py).
+# Before anything imports numpy: single-threaded OpenBLAS (its idle threads spin; see meshtool/cli/main.py).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 # Start-up (issue 28): this module imports click and simrun's light modules only; numpy, Pillow, MuJoCo and
 # the exporters (glb_export -> trimesh) are imported inside the command that uses them, so ``simrun --help``
@@ -33,8 +33,8 @@ DEFAULT_SIZE = (640, 480)
 #: The one default image size of play, replay and snapshot (docs/cli.md).
 DEFAULT_SIZE_TEXT = f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}"
 
-#: Exit codes: the one table of :data:`meshtool.cli_output.EXIT_CODES` (docs/cli.md), mapped by
-#: :func:`meshtool.cli_output.fail`; what a command produced is said through :mod:`meshtool.cli_output`.
+#: Exit codes: the one table of :data:`meshtool.cli.output.EXIT_CODES` (docs/cli.md), mapped by
+#: :func:`meshtool.cli.output.fail`; what a command produced is said through :mod:`meshtool.cli.output`.
 #: ``SIMRUN_DEBUG=1`` gives the traceback of an internal error (exit 3).
 
 
@@ -42,7 +42,7 @@ class _Group(VocabularyGroup):
     """The command group: a user error is one ``error:`` line (exit 1), a bug one ``internal error:`` line (3).
 
     The vocabulary shared with meshtool (``--json``, ``-q``, ``-v``, exit codes: docs/cli.md) comes from
-    :class:`meshtool.cli_common.VocabularyGroup`.
+    :class:`meshtool.cli.common.VocabularyGroup`.
     """
 
     program = "simrun"
@@ -61,7 +61,7 @@ class _Group(VocabularyGroup):
             return super().run_command(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
-        except Exception as exc:  # one mapping (meshtool.cli_output.fail): its kind decides 1 or 2; a bug is 3
+        except Exception as exc:  # one mapping (meshtool.cli.output.fail): its kind decides 1 or 2; a bug is 3
             fail(exc, "simrun")
 
 
@@ -319,9 +319,9 @@ def play_command(
         chosen,
     )
     with output_policy(force, [scene, commands_file]):
-        from meshtool.progress import report, subject
+        from meshtool.work.progress import report, subject
 
-        def progress(t: float) -> None:  # the progress line on a terminal's stderr (meshtool.progress.Display)
+        def progress(t: float) -> None:  # the progress line on a terminal's stderr (meshtool.work.progress.Display)
             report("simulated seconds", int(min(t, duration)), max(int(duration), 1))
 
         written = []

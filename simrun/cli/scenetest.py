@@ -15,8 +15,8 @@ from typing import Any, NoReturn
 
 import click
 
-from meshtool.cli_common import executor_options
-from meshtool.cli_output import (
+from meshtool.cli.common import executor_options
+from meshtool.cli.output import (
     EXIT_INPUT,
     EXIT_INTERNAL,
     EXIT_OK,
@@ -30,7 +30,7 @@ from meshtool.cli_output import (
     verdict,
     wrote,
 )
-from meshtool.safeopen import printable
+from meshtool.files.safeopen import printable
 from simrun.errors import SimrunError, UsageError
 
 #: A test failed (docs/cli.md: exit 1, as a check that failed in every command).
@@ -100,8 +100,8 @@ def test_command(
     verbose: bool,
 ) -> None:
     """Run every scene under PATHS x seed x variation and check its [[expect]] tables (docs/scene-format.md)."""
-    from meshtool.batch import SchedulerError
-    from meshtool.outdir import write_file
+    from meshtool.files.outdir import write_file
+    from meshtool.work.batch import SchedulerError
     from simrun.outfile import output_policy
     from simrun.scenetest.reports import render, session_line, to_text, verdict_line
     from simrun.scenetest.runner import TestOptions, run_tests

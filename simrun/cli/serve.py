@@ -6,9 +6,9 @@ from pathlib import Path
 
 import click
 
-from meshtool.cli_output import say, wrote
+from meshtool.cli.output import say, wrote
+from meshtool.files.safeopen import printable
 from meshtool.formats import suffix
-from meshtool.safeopen import printable
 from simrun.cli.types import OUT, Number
 from simrun.errors import SimrunError
 from simrun.outfile import output_policy

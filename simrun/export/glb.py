@@ -1,6 +1,6 @@
 """GLB export of a whole world, for web viewers: every visible geom at its initial world pose.
 
-Built with the project's one glTF writer (:class:`meshtool.gltf_write.GltfBuilder`), as the asset and
+Built with the project's one glTF writer (:class:`meshtool.export.gltf_write.GltfBuilder`), as the asset and
 recording exports are. glTF is Y-up, so one root node turned -90 degrees about X (:data:`Z_UP_TO_Y_UP`)
 maps the world's Z-up frame onto it; units stay metres. Each geom becomes a node named like the geom
 (``robot/chassis``) at its world pose under that root, with a material of its colour (``rgba_G``, G the geom
@@ -21,8 +21,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from meshtool.export.gltf_write import Z_UP_TO_Y_UP, Z_UP_TO_Y_UP_ROTATION, GltfBuilder
 from meshtool.formats import check_suffix
-from meshtool.gltf_write import Z_UP_TO_Y_UP, Z_UP_TO_Y_UP_ROTATION, GltfBuilder
 from simrun.errors import SimrunError
 from simrun.export.compiled_mesh import compiled_mesh
 from simrun.export.tessellate import geom_surface

@@ -1,4 +1,4 @@
-"""The one MJCF builder: a :class:`meshtool.model.ModelDesc` or a world's spec to a compiled MJCF folder.
+"""The one MJCF builder: a :class:`meshtool.mjcf.model_desc.ModelDesc` or a world's spec to a compiled MJCF folder.
 
 Everything MJCF that meshtool or simrun writes goes through here, on ``mujoco.MjSpec``:
 
@@ -8,11 +8,11 @@ Everything MJCF that meshtool or simrun writes goes through here, on ``mujoco.Mj
   per mesh (Wavefront OBJ: vertices, normals, texture coordinates, faces) and one PNG per texture,
   all flat beside the XML and referenced by plain file names, so the folder loads from wherever it is
   moved; the written folder is compiled again before it is returned, and must give the same model;
-- :func:`build_files` is the ``meshtool.mjcf`` entry point (``meshtool mjcf``, ``meshtool urdf``);
-- :func:`check_model` is the ``meshtool.mjcf`` ``check`` entry point: a compile in memory (``obj2bin``);
+- :func:`build_files` is the ``meshtool.mjcf.asset_model`` entry point (``meshtool mjcf``, ``meshtool urdf``);
+- :func:`check_model` is the ``meshtool.mjcf.asset_model`` ``check`` entry point: a compile in memory (``obj2bin``);
 - :func:`export_world_mjcf` writes a world (``simrun export --mjcf``).
 
-A model MuJoCo refuses raises :class:`meshtool.model.ModelError` with MuJoCo's message and the element
+A model MuJoCo refuses raises :class:`meshtool.mjcf.model_desc.ModelError` with MuJoCo's message and the element
 at fault (with the source file and line when the description knows them).
 """
 
@@ -31,7 +31,7 @@ import mujoco
 import numpy as np
 
 from meshtool.formats import check_suffix, mesh_suffixes, output_named, suffix
-from meshtool.model import MAX_BODY_DEPTH, GeomDesc, ModelDesc, ModelError, stamp_text
+from meshtool.mjcf.model_desc import MAX_BODY_DEPTH, GeomDesc, ModelDesc, ModelError, stamp_text
 from simrun.errors import SimrunError
 from simrun.outfile import GENERATOR, write_bytes
 
@@ -201,7 +201,7 @@ def folder_files(
     compiled there with ``MjModel.from_xml_path``; it must give the same counts, numbers and mesh arrays as
     the spec itself. A ``generator`` is written
     as a comment at the top of the XML with the other files and their SHA-256
-    (:func:`meshtool.model.stamp_text`).
+    (:func:`meshtool.mjcf.model_desc.stamp_text`).
 
     Raises:
         ModelError: MuJoCo refuses the spec, a referenced file is missing, or the written folder loads
@@ -373,7 +373,7 @@ def _check_folder(files: dict[str, bytes], xml_name: str, reference: mujoco.MjMo
 
 
 def build_files(model: ModelDesc) -> dict[str, bytes]:
-    """The ``meshtool.mjcf`` builder: ``model`` compiled and written as a flat MJCF folder's files.
+    """The ``meshtool.mjcf.asset_model`` builder: ``model`` compiled and written as a flat MJCF folder's files.
 
     Raises:
         ModelError: MuJoCo refuses the model (its message and the element at fault).
@@ -384,7 +384,7 @@ def build_files(model: ModelDesc) -> dict[str, bytes]:
 
 
 def check_model(model: ModelDesc) -> None:
-    """The ``meshtool.mjcf`` check: ``model`` compiled in memory, nothing written, nothing simulated.
+    """The ``meshtool.mjcf.asset_model`` check: ``model`` compiled in memory, nothing written, nothing simulated.
 
     Raises:
         ModelError: MuJoCo refuses the model (its message and the element at fault).

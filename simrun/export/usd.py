@@ -1,12 +1,12 @@
 """USD export of a whole world from its compiled MuJoCo model, with UsdPhysics schemas physics tools read.
 
-Built with the project's one USD writer (:class:`meshtool.usd_write.UsdBuilder`: stage, prim names, meshes,
+Built with the project's one USD writer (:class:`meshtool.export.usd_write.UsdBuilder`: stage, prim names, meshes,
 colliders, poses, stamp), as the asset and recording exports are; this module adds what it reads from
 MuJoCo: bodies, joints, drives, geoms.
 
 Layout: ``/World/TREE/BODY`` for every body (one ``Xform`` per kinematic tree hanging from the world, its
 bodies flat under it at their world poses at ``qpos0``, full names in a ``simrun:name`` attribute; prim
-names made valid and unique by the builder's one rule, :func:`meshtool.usd_write.prim_name`). Each body is a
+names made valid and unique by the builder's one rule, :func:`meshtool.export.usd_write.prim_name`). Each body is a
 ``RigidBodyAPI`` with ``MassAPI`` (MuJoCo's mass, centre of mass, principal moments and axes; massless
 bodies author the mass only); mocap bodies are kinematic. Hinge and slide joints become
 ``RevoluteJoint``/``PrismaticJoint`` (ball joints ``SphericalJoint``) in ``TREE/joints`` from the parent
@@ -30,7 +30,7 @@ import numpy as np
 import trimesh
 
 from meshtool.errors import OutputError
-from meshtool.usd_write import UsdBuilder
+from meshtool.export.usd_write import UsdBuilder
 from simrun.errors import SimrunError
 from simrun.export.compiled_mesh import compiled_mesh
 from simrun.outfile import GENERATOR, write_bytes

@@ -11,8 +11,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from meshtool.files.safeopen import printable
 from meshtool.formats import check_suffix, output_named
-from meshtool.safeopen import printable
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes, write_text
 from simrun.record.replay_glb import recording_gltf

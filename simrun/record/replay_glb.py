@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 from PIL import Image
 
-from meshtool.gltf_write import Z_UP_TO_Y_UP, GltfBuilder
+from meshtool.export.gltf_write import Z_UP_TO_Y_UP, GltfBuilder
 from simrun.errors import SimrunError
 from simrun.export.glb import COLLISION_GROUP
 from simrun.export.tessellate import Surface, geom_surface

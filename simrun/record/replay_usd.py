@@ -1,7 +1,8 @@
 """Animated USD of a recording: the static USD export with time samples on each moving body's transform.
 
 The stage is :mod:`simrun.export.usd`'s, physics schemas and all, decorated through the project's one USD
-writer (:meth:`meshtool.usd_write.UsdBuilder.timeline` and :meth:`~meshtool.usd_write.UsdBuilder.sample_pose`).
+writer (:meth:`~meshtool.export.usd_write.UsdBuilder.timeline` and
+:meth:`~meshtool.export.usd_write.UsdBuilder.sample_pose`).
 
 Each body prim's ``xformOp:translate`` (double3, metres) and ``xformOp:orient`` (quatd, w x y z) get one
 time sample per keyframe (:func:`simrun.record.replay_tracks.animation_keys`); the stage's
@@ -19,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from meshtool.usd_write import UsdBuilder
+from meshtool.export.usd_write import UsdBuilder
 from simrun.export.usd import export_world_usd
 from simrun.record.replay_tracks import I64, STILL, Tracks, rotation_error
 from simrun.world.world import World

@@ -33,9 +33,9 @@ import numpy as np
 import numpy.typing as npt
 
 from meshtool.errors import OutputError
+from meshtool.files.nesting import DocumentLimitError, bounded
+from meshtool.files.outdir import AtomicFile
 from meshtool.formats import output_named
-from meshtool.nesting import DocumentLimitError, bounded
-from meshtool.outdir import AtomicFile
 from simrun.errors import SimrunError
 from simrun.run.commands import Command, parse_command
 from simrun.safeio import FileReadError, open_regular, read_regular

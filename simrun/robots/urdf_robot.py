@@ -1,6 +1,6 @@
 """UrdfRobot: a URDF robot in a world, its meshes through meshtool's normalise -> hulls -> pack path.
 
-The robot is imported with :func:`meshtool.urdf.import_urdf` (package:// paths, mm meshes, JPG textures
+The robot is imported with :func:`meshtool.urdf.import_robot.import_urdf` (package:// paths, mm meshes, JPG textures
 and all) into a model description, built into a child spec by :func:`simrun.export.mjcf_builder.spec_from_model`
 (meshes from arrays, PNG textures in the world's virtual file system under names unique to the entity)
 and attached under the entity's body with the ``NAME/`` prefix: ``arm/shoulder`` is the joint
@@ -24,9 +24,9 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from meshtool.errors import MeshtoolError
-from meshtool.hulls import HullOptions
-from meshtool.model import BodyDesc
-from meshtool.urdf import UrdfOptions, import_urdf
+from meshtool.hulls.compute import HullOptions
+from meshtool.mjcf.model_desc import BodyDesc
+from meshtool.urdf.import_robot import UrdfOptions, import_urdf
 from simrun.errors import EntityError
 from simrun.export.mjcf_builder import compile_spec, spec_from_model
 from simrun.robots.diff_drive import DifferentialDrive

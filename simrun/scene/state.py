@@ -16,7 +16,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from meshtool.nesting import bounded
+from meshtool.files.nesting import bounded
 from simrun.errors import EntityError
 from simrun.world.world import World
 

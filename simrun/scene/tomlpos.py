@@ -16,7 +16,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from meshtool.nesting import DocumentLimitError, bounded
+from meshtool.files.nesting import DocumentLimitError, bounded
 from simrun.errors import SceneError
 from simrun.safeio import MAX_FILE_BYTES, FileReadError, read_regular
 

@@ -1,7 +1,7 @@
 """Where ``simrun test`` runs happen: this process, a pool of worker processes, or a Dask cluster.
 
 - In this process (``jobs`` == 1, local executor).
-- In worker processes (``jobs`` > 1, :mod:`meshtool.workpool`: spawned, dying with this process). A
+- In worker processes (``jobs`` > 1, :mod:`meshtool.work.workpool`: spawned, dying with this process). A
   worker takes one run at a time; a scene's bundle is sent to a worker once, with its first run there. A
   worker that dies (a native crash) gives an internal error for its run and is replaced; a run past
   ``timeout`` seconds is killed the same way.
@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from meshtool import workpool
+from meshtool.work import workpool
 from simrun.scenetest.bundle import Bundle
 from simrun.scenetest.task import RunResult, RunTask, run_task
 
@@ -48,7 +48,7 @@ class _Runner:
 def run_pool(
     tasks: list[RunTask], bundles: dict[str, Bundle], jobs: int, timeout: float | None
 ) -> Iterator[tuple[RunResult, str]]:
-    """Run the tasks in ``jobs`` worker processes (:mod:`meshtool.workpool`), yielding (result, worker)."""
+    """Run the tasks in ``jobs`` worker processes (:mod:`meshtool.work.workpool`), yielding (result, worker)."""
 
     def encode(task: RunTask, sent: set[Any]) -> tuple[RunTask, Bundle | None]:
         bundle = None if task.digest in sent else bundles[task.digest]
@@ -89,9 +89,9 @@ def run_dask(
 
     Raises:
         ImportError: dask.distributed is not installed.
-        meshtool.batch.SchedulerError: The scheduler cannot be reached.
+        meshtool.work.batch.SchedulerError: The scheduler cannot be reached.
     """
-    from meshtool.batch import connect
+    from meshtool.work.batch import connect
 
     if not tasks:
         return

@@ -1,6 +1,6 @@
 """The HTML report of ``simrun test``: one self-contained page, a card per failed run with its last frame.
 
-Styled like ``meshtool validate``'s page (:data:`meshtool.reportkit.REPORT_CSS`). Each failed or errored run
+Styled like ``meshtool validate``'s page (:data:`meshtool.work.reportkit.REPORT_CSS`). Each failed or errored run
 has a card with a thumbnail of its final state (rendered headless by the worker that ran it; a note says why
 when there is none), the expectations that missed, the values it ran with and the command that reproduces
 it; passed runs are one table.
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from html import escape
 
-from meshtool.reportkit import REPORT_CSS, no_preview_image, png_data_uri
+from meshtool.work.reportkit import REPORT_CSS, no_preview_image, png_data_uri
 from simrun import __version__
 from simrun.scenetest.report_lines import failure_line, verdict_line
 from simrun.scenetest.runner import Run, TestReport

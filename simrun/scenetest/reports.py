@@ -13,7 +13,7 @@ import math
 from typing import Any
 from xml.etree import ElementTree as ET
 
-from meshtool.reportkit import annotation_data, annotation_property
+from meshtool.work.reportkit import annotation_data, annotation_property
 from simrun import __version__
 from simrun.errors import UsageError
 from simrun.scenetest.expect import Outcome

@@ -220,7 +220,7 @@ def run_tests(paths: list[Path], options: TestOptions, progress: Progress | None
         SpecError, VaryError: Nothing to test, or a bad ``--vary`` key (usage errors).
         SceneError, SimrunError: A scene, commands file or expectation that cannot run (with FILE:LINE), or
             a failed-run recording that cannot be written.
-        meshtool.batch.SchedulerError: The Dask scheduler cannot be reached.
+        meshtool.work.batch.SchedulerError: The Dask scheduler cannot be reached.
     """
     started = time.perf_counter()
     cases = [load_case(p) for p in discover(paths)]

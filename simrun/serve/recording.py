@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from meshtool.errors import OutputError
-from meshtool.outdir import AtomicFile
+from meshtool.files.outdir import AtomicFile
 from simrun.errors import SimrunError
 from simrun.outfile import check_output
 from simrun.record.simlog import MAGIC, MAJOR, MINOR, Recorder

@@ -5,8 +5,8 @@
 MjSpec materials. One asset used by many entities is read and added once.
 
 A mesh file (OBJ, STL, PLY, glTF/GLB, COLLADA) where an ``.mbin`` can go is packed on the fly as ``obj2bin``
-does with its defaults (metres, ``--up auto``, one convex hull; :func:`meshtool.convert.pack_file`) and the
-pack kept in the user cache folder (``simrun/packs``, one :mod:`meshtool.cachefile` envelope per file) until
+does with its defaults (metres, ``--up auto``, one convex hull; :func:`meshtool.pipeline.pack_file`) and the
+pack kept in the user cache folder (``simrun/packs``, one :mod:`meshtool.files.cachefile` envelope per file) until
 the mesh, its MTLs or textures change.
 """
 
@@ -24,12 +24,13 @@ import xxhash
 from PIL import Image
 
 import meshtool
-from meshtool import cachefile, surface
+from meshtool.files import cachefile
+from meshtool.files.safeopen import printable
 from meshtool.formats import suffix
+from meshtool.hulls import surface
 from meshtool.packfile import PackedMesh, parse
 from meshtool.packfile.view import asset_view, unique_name
-from meshtool.pnginfo import png_end
-from meshtool.safeopen import printable
+from meshtool.repair.pnginfo import png_end
 from simrun.errors import EntityError
 from simrun.safeio import FileReadError, check_regular, read_regular
 
@@ -37,7 +38,7 @@ from simrun.safeio import FileReadError, check_regular, read_regular
 MAX_IMAGE_BYTES = 64 * 1024 * 1024
 #: Most pixels of a decoded texture or height-field image (8192 x 8192).
 MAX_IMAGE_PIXELS = 8192 * 8192
-#: Entry kind of a mesh file's pack in the :mod:`meshtool.cachefile` envelope.
+#: Entry kind of a mesh file's pack in the :mod:`meshtool.files.cachefile` envelope.
 PACK_KIND = "simrun-mesh-pack"
 #: Largest cached pack read, bytes (the limit on an ``.mbin`` read whole).
 MAX_PACK_BYTES = 1024**3
@@ -100,7 +101,7 @@ class AssetLibrary:
 
     def _pack(self, src: Path) -> PackedMesh:
         """The pack of the mesh file ``src`` (resolved): from the cache when it is current, else made and cached."""
-        from meshtool.convert import ConvertOptions, is_current, pack_file
+        from meshtool.pipeline import ConvertOptions, is_current, pack_file
 
         options = ConvertOptions(check=False)  # the world's compile checks it
         folder = pack_cache()
@@ -219,7 +220,7 @@ class AssetLibrary:
 
 def is_mesh_file(path: Path) -> bool:
     """Whether ``path`` names a mesh file meshtool packs (OBJ, STL, PLY, glTF/GLB, COLLADA), by its suffix."""
-    from meshtool.readers import MESH_SUFFIXES
+    from meshtool.read import MESH_SUFFIXES
 
     return path.suffix.lower() in MESH_SUFFIXES
 

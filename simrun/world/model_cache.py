@@ -7,7 +7,7 @@ meshtool). Two keys, both SHA-256:
 * the *description* key (:meth:`ModelCache.key`) over the format, the MuJoCo, simrun and meshtool versions,
   the content of simrun's and meshtool's model-building sources, the base folder relative names are
   resolved against, the options, the asset table and every entity's type and fields. It names the entry
-  (``DIR/KEY.mjb``) and is the key its :mod:`meshtool.cachefile` envelope must answer;
+  (``DIR/KEY.mjb``) and is the key its :mod:`meshtool.files.cachefile` envelope must answer;
 * the *content* key over the description key and, for every file an entity field or the asset table
   names (relative to the base folder), the real path it resolves to (symbolic links followed), its size
   and its XXH3-128 content hash. The entry records it; an entry of another content key is a miss.
@@ -45,14 +45,14 @@ import mujoco
 import numpy as np
 import xxhash
 
-from meshtool import cachefile
+from meshtool.files import cachefile
 
 if TYPE_CHECKING:
     from simrun.world.world import World
 
 #: Entry format; bump when what an entry holds changes.
 FORMAT = 2
-#: Entry kind in the :mod:`meshtool.cachefile` envelope.
+#: Entry kind in the :mod:`meshtool.files.cachefile` envelope.
 KIND = "simrun-compiled-model"
 #: Largest entry read, bytes.
 MAX_ENTRY_BYTES = 1 << 30
@@ -158,7 +158,7 @@ class _Content:
 
 
 class ModelCache:
-    """A folder of compiled models (``KEY.mjb``, each a :mod:`meshtool.cachefile` envelope).
+    """A folder of compiled models (``KEY.mjb``, each a :mod:`meshtool.files.cachefile` envelope).
 
     Args:
         folder: Where entries live (created on first store).

@@ -6,19 +6,19 @@ error base class (:class:`meshtool.errors.MeshtoolError`, :class:`simrun.errors.
 refusal; any other exception is a crash.
 
 Targets:
-    obj: ``meshtool.normalise.prepare`` on a mutated OBJ beside its fixture MTLs and textures.
+    obj: ``meshtool.repair.normalise.prepare`` on a mutated OBJ beside its fixture MTLs and textures.
     mtl: the same with the OBJ kept and one of its MTLs mutated.
     mbin: ``packfile.parse(verify=True)`` then what ``info``, ``unpack`` and ``export`` do with the pack.
     scene: ``simrun.scene.scene_file.load_scene`` then ``World.compile`` (what ``simrun check`` does), beside copies of
         the fixture scenes' assets.
     simlog: ``simrun.record.simlog.Simlog`` and every reading method, on recordings made from the fixture scenes.
-    stl, ply, gltf, glb, collada: ``meshtool.normalise.prepare`` (as ``meshtool normalize`` reaches it) on a
+    stl, ply, gltf, glb, collada: ``meshtool.repair.normalise.prepare`` (as ``meshtool normalize`` reaches it) on a
         mutated mesh file beside the buffers and textures it names; seeds: every fixture of the format (PLY
         also re-encoded as ASCII and both binary byte orders; glTF also with every file as a ``data:`` URI;
         the ``.gltf`` fixtures also packed as GLB).
-    urdf: ``meshtool.urdf.import_urdf`` then the model's MJCF build and compile (what ``meshtool urdf`` does,
-        without writing), on a mutated fixture URDF inside its package (meshes, ``package.xml``) with the
-        files beside the package.
+    urdf: ``meshtool.urdf.import_robot.import_urdf`` then the model's MJCF build and compile (what
+        ``meshtool urdf`` does, without writing), on a mutated fixture URDF inside its package (meshes,
+        ``package.xml``) with the files beside the package.
     commands: ``simrun.run.commands.load_commands`` then, against the fixture scene it names
         (``SCENE.commands.toml``), the service bindings, ``check_commands`` and each command applied in
         time order (what ``simrun play SCENE --commands FILE`` does).
@@ -147,7 +147,7 @@ def _mtl_strategy(seeds: list[Files]) -> Any:
 
 
 def _run_obj(files: Files, folder: Path) -> None:
-    from meshtool.normalise import NormaliseOptions, prepare
+    from meshtool.repair.normalise import NormaliseOptions, prepare
 
     prepare(write_input(files, folder), NormaliseOptions())
 
@@ -271,7 +271,7 @@ def _run_simlog(files: Files, folder: Path) -> None:
             log.close()
 
 
-# -- STL, PLY, glTF/GLB, COLLADA: meshtool.normalise.prepare picks the reader by suffix ------------------------
+# -- STL, PLY, glTF/GLB, COLLADA: meshtool.repair.normalise.prepare picks the reader by suffix ------------------------
 
 
 def _format_seeds(suffixes: tuple[str, ...], companions: tuple[str, ...]) -> list[Files]:
@@ -450,7 +450,7 @@ def _urdf_strategy(seeds: list[Files]) -> Any:
 def _run_urdf(files: Files, folder: Path) -> None:
     import logging
 
-    from meshtool.urdf import UrdfOptions, import_urdf
+    from meshtool.urdf.import_robot import UrdfOptions, import_urdf
 
     logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)  # its parse-error log lines, once per input
     result = import_urdf(write_input(files, folder), UrdfOptions())  # what `meshtool urdf` does, then

@@ -7,8 +7,8 @@ import re
 import stat
 from pathlib import Path
 
+from meshtool.files.outdir import check_output, is_within
 from meshtool.formats import COMPANION_SUFFIXES, REPORT_FORMATS, mesh_suffixes, output_named
-from meshtool.outdir import check_output, is_within
 from meshtool.validate.reports.html import to_html
 from meshtool.validate.reports.machine import to_github, to_json, to_junit
 from meshtool.validate.reports.text import to_text
@@ -62,7 +62,7 @@ INPUT_SUFFIXES = (
 
 
 def check_report_output(output: Path, paths: list[Path], force: bool) -> None:
-    """Refuse a report path that would destroy something (:func:`meshtool.outdir.check_output`).
+    """Refuse a report path that would destroy something (:func:`meshtool.files.outdir.check_output`).
 
     A file the run reads (one of ``paths``, or a file with an input suffix inside one of them) is refused
     always; another existing file that is not an earlier report (:func:`is_report`, or empty) unless ``force``.

@@ -9,12 +9,12 @@ from __future__ import annotations
 from html import escape
 
 from meshtool import __version__
-from meshtool.reportkit import REPORT_CSS, no_preview_image, png_data_uri
 from meshtool.validate.reports.machine import format_label, status
 from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
 from meshtool.validate.task import AssetResult
+from meshtool.work.reportkit import REPORT_CSS, no_preview_image, png_data_uri
 
 _TITLES = {"error": "Errors", "warning": "Warnings", "info": "Notes only", "clean": "Clean"}
 _PILLS = {"error": "with errors", "warning": "with warnings", "info": "with notes", "clean": "clean"}

@@ -13,11 +13,11 @@ from xml.etree import ElementTree as ET
 from meshtool import __version__
 from meshtool.findings import Finding, Severity
 from meshtool.formats import MESH_FORMATS, OUTPUTS
-from meshtool.reportkit import annotation_data, annotation_property
 from meshtool.validate.reports.names import printable_report
 from meshtool.validate.rules import RULES
 from meshtool.validate.runner import ValidationReport
 from meshtool.validate.task import AssetResult
+from meshtool.work.reportkit import annotation_data, annotation_property
 
 FORMAT = "meshtool-validate-report"
 FORMAT_VERSION = 1

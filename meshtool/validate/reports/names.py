@@ -1,7 +1,7 @@
 r"""Printable names for reports: every report format writes valid UTF-8.
 
 File names on disk need not be UTF-8; Python hands their stray bytes over as surrogate escapes, which no
-UTF-8 file or terminal can hold. Reports show those bytes as ``\xNN`` (:func:`meshtool.safeopen.printable`),
+UTF-8 file or terminal can hold. Reports show those bytes as ``\xNN`` (:func:`meshtool.files.safeopen.printable`),
 the way every other meshtool message does.
 """
 
@@ -10,8 +10,8 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
+from meshtool.files.safeopen import printable
 from meshtool.findings import Finding
-from meshtool.safeopen import printable
 from meshtool.validate.runner import ValidationReport
 from meshtool.validate.task import AssetResult
 

@@ -1,0 +1,334 @@
+"""The one batch layer: many independent tasks run in this process, in local worker processes, or on Dask.
+
+Every command that runs many items (``obj2bin DIR``, ``meshtool validate``, ``simrun test``) hands its tasks
+and a :class:`Work` to :func:`run_batch` with an :class:`Executor` saying where they run:
+
+- ``local`` with one job and no timeout: in this process, one task after another;
+- ``local`` otherwise: ``jobs`` worker processes (:mod:`meshtool.work.workpool`: spawned, dying with this process,
+  killed and replaced at the deadline or when they crash);
+- ``dask``: a Dask cluster (``scheduler`` address, or a local cluster of ``jobs`` single-threaded worker
+  processes). A task past its deadline on a worker is answered as lost at the deadline (the worker's thread
+  cannot be killed; the worker goes on with the next task).
+
+Results come as tasks finish, each with the index of its task, so a caller that needs the input order sorts by
+it: what a task computes never depends on where it ran, so outputs are byte-identical whatever the executor
+and the number of workers.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import threading
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any, Generic, Protocol, TypeVar
+
+from meshtool.errors import MeshtoolError
+from meshtool.work import workpool
+
+Task = TypeVar("Task")
+Result = TypeVar("Result")
+Task_contra = TypeVar("Task_contra", contravariant=True)
+
+#: Where a task ran in this process (the ``where`` of :func:`run_batch`).
+HERE = "this process"
+
+EXECUTORS = ("local", "dask")
+
+
+class BatchError(MeshtoolError):
+    """The executor cannot run the batch: dask is not installed, or its scheduler cannot be reached (exit 1)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Executor:
+    """Where a batch runs.
+
+    Attributes:
+        kind: ``local`` (this process or worker processes) or ``dask``.
+        jobs: Worker processes (local), or workers of the local Dask cluster when no ``scheduler`` is given.
+        timeout: Seconds one task may take (``None``: no limit). A local task past it is killed.
+        scheduler: Address of a running Dask scheduler (``tcp://host:8786``); ``None`` starts a local cluster.
+        connect_timeout: Seconds to try reaching ``scheduler``.
+    """
+
+    kind: str = "local"
+    jobs: int = 1
+    timeout: float | None = None
+    scheduler: str | None = None
+    connect_timeout: float = 30.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in EXECUTORS:
+            raise ValueError(f"executor {self.kind!r}: expected one of {', '.join(EXECUTORS)}")
+        if self.jobs < 1:
+            raise ValueError(f"jobs {self.jobs}: expected at least 1")
+        if self.scheduler and self.kind != "dask":
+            raise ValueError("a scheduler address needs the dask executor")
+
+    @property
+    def in_process(self) -> bool:
+        """Whether tasks run in this process (one local job, no deadline to enforce)."""
+        return self.kind == "local" and self.jobs <= 1 and self.timeout is None
+
+
+class Work(Protocol[Task_contra]):
+    """What a batch runs for each task; pickled to worker processes (a module-level class instance)."""
+
+    def prepare(self) -> None:
+        """Run once per worker before its first task (imports that must not count against a deadline)."""
+
+    def __call__(self, task: Task_contra, /) -> Any:
+        """The result of one task."""
+
+    def lost(self, task: Task_contra, why: str, /) -> Any:
+        """The result for a task that did not finish: ``why`` says what happened (one line)."""
+
+
+class _Handler(Generic[Task]):
+    """Adapts a :class:`Work` to :class:`meshtool.work.workpool.Handler` (tasks travel with their index)."""
+
+    def __init__(self, work: Work[Task]) -> None:
+        self.work = work
+
+    def prepare(self) -> None:
+        self.work.prepare()
+
+    def __call__(self, message: tuple[int, Task], /) -> _Done:
+        index, task = message
+        return _Done(index, self.work(task))
+
+
+@dataclass(frozen=True, slots=True)
+class _Done:
+    index: int
+    result: Any
+
+
+def run_batch(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> Iterator[tuple[int, Any, str]]:
+    """Run every task, yielding ``(index of the task, result, where it ran)`` as tasks finish.
+
+    ``where`` is :data:`HERE`, ``worker N`` (a local worker process) or a Dask worker's address.
+
+    Raises:
+        BatchError: The dask executor without dask.distributed installed, or its scheduler cannot be reached.
+    """
+    if not tasks:
+        return
+    if executor.in_process:
+        work.prepare()
+        for index, task in enumerate(tasks):
+            yield index, work(task), HERE
+    elif executor.kind == "local":
+        yield from _run_local(tasks, work, executor)
+    else:
+        yield from _run_dask(tasks, work, executor)
+
+
+def _run_local(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> Iterator[tuple[int, Any, str]]:
+    indexed = list(enumerate(tasks))
+
+    def died(message: tuple[int, Task], exitcode: int | None) -> _Done:
+        why = f"the worker process running it died ({workpool.exit_description(exitcode)})"
+        return _Done(message[0], work.lost(message[1], why))
+
+    def late(message: tuple[int, Task], timeout: float) -> _Done:
+        return _Done(message[0], work.lost(message[1], f"timed out after {timeout:g} s (the worker was stopped)"))
+
+    for done, number in workpool.run_workers(
+        indexed, executor.jobs, executor.timeout, _Handler(work), _Done, died, late
+    ):
+        yield done.index, done.result, f"worker {number}"
+
+
+#: The works a Dask worker process has prepared (by type), so ``prepare`` runs once per worker.
+_PREPARED: set[str] = set()
+_PREPARING = threading.Lock()
+
+
+def _remote(work: Work[Task], task: Task, timeout: float | None) -> tuple[Any, str]:
+    """What a Dask worker runs for one task: the result (or ``lost`` at the deadline) and the worker's address."""
+    distributed: Any = importlib.import_module("distributed")
+    try:
+        where = str(distributed.get_worker().address)
+    except ValueError:  # not inside a worker (a synchronous scheduler)
+        where = "dask"
+    key = f"{type(work).__module__}.{type(work).__qualname__}"
+    with _PREPARING:
+        if key not in _PREPARED:
+            work.prepare()
+            _PREPARED.add(key)
+    box: list[Any] = []
+    failure: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            box.append(work(task))
+        except BaseException as exc:  # re-raised below, in the task's own thread
+            failure.append(exc)
+
+    thread = threading.Thread(target=run, daemon=True, name="meshtool-batch-task")
+    thread.start()
+    thread.join(timeout)
+    if failure:
+        raise failure[0]
+    if not box:
+        return work.lost(task, f"timed out after {timeout:g} s on Dask worker {where}"), where
+    return box[0], where
+
+
+def _run_dask(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> Iterator[tuple[int, Any, str]]:
+    try:
+        distributed, client, cluster = connect(executor.scheduler, executor.jobs, executor.connect_timeout)
+    except ImportError:
+        raise BatchError(
+            "the Dask executor needs dask.distributed", hint="pip install 'meshtool-simrun[dask]'"
+        ) from None
+    except SchedulerError as exc:
+        raise BatchError(
+            f"cannot reach the Dask scheduler at {executor.scheduler or 'a new local cluster'}: {exc}",
+            hint=exc.hint
+            or "start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
+            "or run without --executor dask",
+        ) from None
+    try:
+        running = distributed.as_completed()
+        shipped: dict[Any, int] = {}
+        for index, task in enumerate(tasks):
+            future = client.submit(_remote, work, task, executor.timeout, pure=False)
+            shipped[future] = index
+            running.add(future)
+        for future in running:
+            index = shipped.pop(future)
+            try:
+                result, where = future.result()
+            except Exception as exc:  # the worker died, or the task raised or was lost
+                result, where = work.lost(tasks[index], f"the Dask worker failed ({type(exc).__name__}: {exc})"), "dask"
+            yield index, result, where
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def connect(scheduler: str | None, jobs: int, connect_timeout: float) -> tuple[Any, Any, Any]:
+    """``(distributed, client, cluster)``: a client of ``scheduler``, or of a new LocalCluster of ``jobs`` workers.
+
+    Raises:
+        ImportError: dask.distributed is not installed.
+        SchedulerError: The scheduler cannot be reached.
+    """
+    distributed: Any = importlib.import_module("distributed")
+    cluster = None
+    try:
+        if scheduler:
+            probe(scheduler, connect_timeout)
+            client = _client(distributed, scheduler, connect_timeout)
+        else:
+            cluster = distributed.LocalCluster(
+                n_workers=jobs,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            client = distributed.Client(cluster)
+    except (OSError, TimeoutError, ValueError) as exc:
+        if cluster is not None:
+            cluster.close()
+        raise SchedulerError(" ".join(str(exc).split()) or type(exc).__name__) from None
+    return distributed, client, cluster
+
+
+def _client(distributed: Any, scheduler: str, connect_timeout: float) -> Any:
+    """A client of ``scheduler``; whatever goes wrong while connecting is the scheduler's side, not a bug."""
+    try:
+        return distributed.Client(scheduler, timeout=f"{connect_timeout:g}s")
+    except (OSError, TimeoutError, ValueError):
+        raise
+    except Exception as exc:  # a garbled answer (MemoryError, a decoding error) from a service past the probe
+        raise SchedulerError(f"the service there is not Dask ({type(exc).__name__}: {exc})", NOT_DASK_HINT) from None
+
+
+#: The hint when something answers at the address but it is not a Dask scheduler.
+NOT_DASK_HINT = (
+    "check the address of --scheduler: a Dask scheduler listens on port 8786 by default, its dashboard on 8787"
+)
+#: A scheduler's greeting is a few hundred bytes; a first length past this is not Dask.
+_GREETING_LIMIT = 1 << 20
+
+
+class SchedulerError(Exception):
+    """The scheduler could not be reached (the runner turns it into a one-line error, exit 1).
+
+    Attributes:
+        hint: How to fix it, when more precise than the runner's general hint.
+    """
+
+    def __init__(self, message: str, hint: str | None = None) -> None:
+        super().__init__(message)
+        self.hint = hint
+
+
+def probe(scheduler: str, seconds: float) -> None:
+    """Check that a Dask scheduler answers at a ``tcp://`` address, before ``distributed`` is handed it.
+
+    A Dask scheduler greets every new connection at once with its handshake: an 8-byte little-endian length,
+    then that many bytes (the message's frames). A service that sends something else (an HTTP server's
+    ``400 Bad Request``: ``distributed`` would read ``HTTP/1.1`` as a length of 3.5e18 bytes and try to
+    allocate it) or nothing at all (``distributed`` would wait far past its timeout) is refused here, within
+    ``seconds`` in all. Other schemes (``tls://``, ``inproc://``) are left to ``distributed``.
+
+    Raises:
+        SchedulerError: Nothing listens there, the connection fails, or what answers is not Dask.
+    """
+    import socket
+    import struct
+    import time
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(scheduler)
+        if scheme != "tcp":
+            return
+        host, port = parse_host_port(location, 8786)
+    except ValueError as exc:
+        raise SchedulerError(f"not a Dask address ({exc})", hint="use tcp://HOST:PORT") from None
+    deadline = time.monotonic() + seconds
+
+    def receive(sock: socket.socket, n: int, what: str) -> bytes:
+        data = b""
+        while len(data) < n:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError
+            sock.settimeout(left)
+            chunk = sock.recv(n - len(data))
+            if not chunk:
+                shown = f" after {data[:40]!r}" if data else ""
+                raise SchedulerError(f"the service there closed the connection{shown} ({what})", NOT_DASK_HINT)
+            data += chunk
+        return data
+
+    try:
+        with socket.create_connection((host, port), timeout=seconds) as sock:
+            head = receive(sock, 8, "a Dask scheduler greets each connection")
+            (length,) = struct.unpack("<Q", head)
+            if not 0 < length <= _GREETING_LIMIT:
+                try:
+                    sock.settimeout(0.2)
+                    head += sock.recv(64)
+                except OSError:
+                    pass
+                first = head.split(b"\r\n", 1)[0][:60]
+                raise SchedulerError(f"the service there is not Dask (it sent {first!r})", NOT_DASK_HINT)
+            receive(sock, int(length), "in the middle of its greeting")
+    except TimeoutError:
+        raise SchedulerError(
+            f"no Dask greeting within {seconds:g} s (a scheduler greets each connection at once)",
+            hint=f"{NOT_DASK_HINT}, or raise --scheduler-timeout for a slow network",
+        ) from None
+    except OSError as exc:
+        raise SchedulerError((exc.strerror or type(exc).__name__).lower()) from None
