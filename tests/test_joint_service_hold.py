@@ -106,3 +106,20 @@ def test_wheels_are_left_to_the_drive_service() -> None:
 def test_an_unknown_hold_mode_is_refused() -> None:
     with pytest.raises(EntityError, match="hold must be one of all, commanded, got 'some'"):
         JointService(_urdf_arm(), "arm", hold="some")
+
+
+def test_the_wheels_of_a_built_in_drive_are_not_held() -> None:
+    """A JointService on a Pioneer leaves its wheels to the DriveService: 0.5 m as the simulator's chassis says."""
+    from simrun.robots.catalogue import Pioneer3DX
+
+    world = World()
+    world.insert(Ground(name="ground"))
+    world.insert(Pioneer3DX(name="base"))
+    drive = DriveService(world, "base")
+    service = JointService(world, "base")
+    start = world.body("base").xpos.copy()
+    drive.drive_distance(0.5, 0.5)
+    assert world.run_until(lambda: not drive.busy, 20.0)
+    moved = world.body("base").xpos - start
+    assert math.hypot(moved[0], moved[1]) == pytest.approx(0.5, abs=0.01)
+    assert service._wheels == {"left_wheel", "right_wheel"}

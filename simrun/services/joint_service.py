@@ -53,8 +53,9 @@ been given a target for at the position it has at the service's first tick (afte
 <simrun.world.world.World.reset>` or a rebuild: at the new initial state), through the same loops, so a URDF
 arm or a walker does not fold under gravity while only some of its joints are commanded. ``hold =
 "commanded"`` leaves such joints to the model (their controls are whatever is in ``data.ctrl``, MuJoCo's 0 at
-reset: a motor limp, a position servo pulled to 0), for code that writes those controls itself. Wheel joints an
-entity names (``wheels``) are never held: they belong to the ``DriveService``.
+reset: a motor limp, a position servo pulled to 0), for code that writes those controls itself. Wheel joints
+(a built-in drive's ``left_wheel``/``right_wheel``, the ``wheels`` an imported robot names) are never held:
+they belong to the ``DriveService``.
 
 Trajectories are time-stamped waypoints (seconds from the call), followed by linear interpolation in joint
 space with the segment's slope as velocity feed-forward; the joints not named hold their targets.
@@ -500,8 +501,20 @@ class JointService:
         self._mass, self._inertia = full, {}
         self._targets = {k: v for k, v in self._targets.items() if k in drives}
         self._held = {}  # a new model starts at its initial state: held again from there at the next tick
-        wheels = getattr(self.world.entity(self.name), "wheels", ())
-        self._wheels = {str(w) for w in wheels} if isinstance(wheels, tuple | list) else set()
+        self._wheels = self._wheel_joints()
+
+    def _wheel_joints(self) -> set[str]:
+        """The entity's driven wheel joints, without the prefix: the ``DriveService``'s, never held.
+
+        A built-in differential drive's ``left_wheel`` and ``right_wheel``, an imported robot's ``wheels``.
+        """
+        from simrun.robots.diff_drive import DifferentialDrive  # the registry names this module: import late
+
+        entity = self.world.entity(self.name)
+        if isinstance(entity, DifferentialDrive):
+            return {"left_wheel", "right_wheel"}
+        wheels = getattr(entity, "wheels", ())
+        return {str(w) for w in wheels} if isinstance(wheels, tuple | list) else set()
 
 
 class _Scratch:
