@@ -35,6 +35,26 @@ Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 
 Z_UP_TO_Y_UP_ROTATION = [-float(np.sqrt(0.5)), 0.0, 0.0, float(np.sqrt(0.5))]
 
 
+def unit_quaternions(quats: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Rotations (n, 4) or (4,) (x, y, z, w) made valid glTF: unit length and every component in [-1, 1].
+
+    glTF 2.0 requires node and animation rotations to be unit quaternions, each component in [-1, 1] (the
+    Khronos validator refuses ``1.0000000000000002``, which a rotation matrix turned into a quaternion can give).
+    Rows further than 1e-12 from unit length are divided by their length (a zero or non-finite row becomes the
+    identity), then every component is clamped to [-1, 1].
+    """
+    q = np.array(quats, dtype=np.float64)
+    rows = q.reshape(-1, 4)
+    norms = np.linalg.norm(rows, axis=1)
+    bad = ~np.isfinite(norms) | (norms == 0.0)
+    rows[bad] = (0.0, 0.0, 0.0, 1.0)
+    norms[bad] = 1.0
+    off = np.abs(norms - 1.0) > 1e-12
+    rows[off] /= norms[off, None]
+    np.clip(rows, -1.0, 1.0, out=rows)
+    return rows.reshape(q.shape)
+
+
 def column_major(matrix: npt.ArrayLike) -> list[float]:
     """A 4x4 matrix as a glTF node ``matrix`` (16 numbers, column by column)."""
     return [float(v) for v in np.asarray(matrix, dtype=np.float64).reshape(4, 4).T.ravel()]
@@ -147,8 +167,21 @@ class GltfBuilder:
         return self._add("meshes", {"name": name, "primitives": [primitive]})
 
     def node(self, item: dict[str, Any]) -> int:
-        """A node (``name``, ``translation``, ``rotation`` as x, y, z, w, ``mesh``, ``children``...)."""
+        """A node (``name``, ``translation``, ``rotation`` as x, y, z, w, ``mesh``, ``children``...).
+
+        The rotation is written as :func:`unit_quaternions` makes it.
+        """
+        if "rotation" in item:
+            item = {**item, "rotation": [float(v) for v in unit_quaternions(item["rotation"])]}
         return self._add("nodes", item)
+
+    def rotations(self, quats: npt.ArrayLike) -> int:
+        """An animation output accessor of (n, 4) rotations (x, y, z, w), made valid by :func:`unit_quaternions`.
+
+        Stored as float32, clamped again after the conversion (a float32 rounding can pass 1 too).
+        """
+        values = np.clip(unit_quaternions(quats).astype(np.float32), -1.0, 1.0)
+        return self.accessor(values, target=None)
 
     def scene(self, name: str, nodes: list[int]) -> None:
         """The default scene (scene 0); :meth:`extra_scene` adds others."""

@@ -8,8 +8,8 @@ Everything MJCF that meshtool or simrun writes goes through here, on ``mujoco.Mj
   per mesh (Wavefront OBJ: vertices, normals, texture coordinates, faces) and one PNG per texture,
   all flat beside the XML and referenced by plain file names, so the folder loads from wherever it is
   moved; the written folder is compiled again before it is returned, and must give the same model;
-- :func:`build_files` is the ``meshtool.mjcf.asset_model`` entry point (``meshtool mjcf``, ``meshtool urdf``);
-- :func:`check_model` is the ``meshtool.mjcf.asset_model`` ``check`` entry point: a compile in memory (``obj2bin``);
+- :func:`build_files` is the ``meshtool.mjcf`` entry point (``meshtool mjcf``, ``meshtool urdf``);
+- :func:`check_model` is the ``meshtool.mjcf`` ``check`` entry point: a compile in memory (``obj2bin``);
 - :func:`export_world_mjcf` writes a world (``simrun export --mjcf``).
 
 A model MuJoCo refuses raises :class:`meshtool.mjcf.model_desc.ModelError` with MuJoCo's message and the element
@@ -191,17 +191,30 @@ def folder_files(
     vfs: dict[str, bytes] | None = None,
     base_dir: Path | None = None,
     generator: str = "",
+    compiled_inertials: bool = False,
 ) -> dict[str, bytes]:
     """The files of a self-contained MJCF folder for ``spec``: ``xml_name``, ``*.obj`` and ``*.png``.
 
-    Meshes given as arrays become Wavefront ``.obj`` files (:func:`_obj`; other tools read them, as
-    ``mujoco-usd-converter``, where MuJoCo's legacy ``.msh`` is read by MuJoCo alone); meshes and textures
-    that name files are copied from ``vfs`` (the spec's in-memory files) or from ``base_dir``. Every file
-    name is made unique (MuJoCo caches meshes by file name). The result is written to a scratch folder and
-    compiled there with ``MjModel.from_xml_path``; it must give the same counts, numbers and mesh arrays as
-    the spec itself. A ``generator`` is written
-    as a comment at the top of the XML with the other files and their SHA-256
-    (:func:`meshtool.mjcf.model_desc.stamp_text`).
+    Meshes given as arrays, and MuJoCo's legacy binary ``.msh`` meshes (:func:`msh_arrays`), become Wavefront
+    ``.obj`` files (:func:`_obj`; other tools read them, as ``mujoco-usd-converter``, where ``.msh`` is read
+    by MuJoCo alone); other meshes and textures that name files are copied from ``vfs`` (the spec's
+    in-memory files) or from ``base_dir``. Every file name is made unique (MuJoCo caches meshes by file
+    name). The result is written to a scratch folder and compiled there with ``MjModel.from_xml_path``; it
+    must give the same counts, numbers and mesh arrays as the spec itself (a refusal names the first body,
+    joint or geom that differs and the field). A ``generator`` is written as a comment at the top of the XML
+    with the other files and their SHA-256 (:func:`meshtool.mjcf.model_desc.stamp_text`).
+
+    Args:
+        spec: The model (not changed: a copy is written).
+        xml_name: File name of the XML in the folder.
+        vfs: In-memory files the spec names (default: the spec's ``assets``).
+        base_dir: Where files the spec names and ``vfs`` lacks are read from.
+        generator: Written in the XML's stamp comment (none when empty).
+        compiled_inertials: Write every body's compiled mass, centre of mass and principal inertia as its
+            ``<inertial>`` (MuJoCo's ``compiler saveinertial``). A world's spec needs it: the models it
+            attached keep their own ``<compiler>`` settings (``boundmass``, ``boundinertia``,
+            ``balanceinertia``, ``inertiafromgeom``, ``inertiagrouprange``, ``settotalmass``) per element,
+            which one ``<compiler>`` in the written file cannot say.
 
     Raises:
         ModelError: MuJoCo refuses the spec, a referenced file is missing, or the written folder loads
@@ -222,7 +235,12 @@ def folder_files(
         used.add(name.lower())
         return name
 
+    msh = output_named("msh").suffixes
     for mesh in out.meshes:
+        if mesh.file and mesh.file.lower().endswith(msh):  # MuJoCo's own format: written as OBJ
+            _set_arrays(mesh, msh_arrays(_referenced(mesh.file, vfs, base_dir, spec), mesh.file))
+            mesh.file = ""
+            mesh.content_type = ""
         if mesh.file:
             name = claim(Path(mesh.file).stem, Path(mesh.file).suffix.lower())
             files[name] = _referenced(mesh.file, vfs, base_dir, spec)
@@ -241,6 +259,7 @@ def folder_files(
             raise ModelError(f"texture {texture.name!r}: cube textures from files are not exported")
     out.compiler.meshdir = ""
     out.compiler.texturedir = ""
+    out.compiler.saveinertial = compiled_inertials
     if generator:
         out.comment = stamp_text(generator, files)
     out.assets = dict(files)  # to_xml compiles the copy: it reads the new files from memory
@@ -286,6 +305,42 @@ def _libmujoco() -> Any:
         except (OSError, AttributeError):
             continue
     return None
+
+
+def msh_arrays(data: bytes, name: str) -> dict[str, np.ndarray]:
+    """The arrays of a MuJoCo ``.msh`` file (MuJoCo's legacy binary mesh; ``name`` names it in errors).
+
+    ``vert`` (n, 3), ``normal`` (n, 3) or (0, 3), ``texcoord`` (n, 2) or (0, 2) float32 and ``face`` (k, 3)
+    int32 (vertex indices). The format MuJoCo reads (``user_mesh.cc``, ``LoadMSH``): four little-endian int32
+    counts (vertices, normals, texture coordinates, faces; normals and texture coordinates are none or one per
+    vertex), then the float32 vertices, normals and texture coordinates and the int32 vertex indices of faces.
+
+    Raises:
+        ModelError: The bytes are not such a file (``name`` says which).
+    """
+    header = np.frombuffer(data[:16], dtype="<i4") if len(data) >= 16 else np.zeros(0, np.int32)
+    if len(header) == 4:
+        nv, nn, nt, nf = (int(v) for v in header)
+        sizes_ok = nv >= 4 and nn in (0, nv) and nt in (0, nv) and nf >= 0
+        if sizes_ok and len(data) == 16 + 12 * (nv + nn + nf) + 8 * nt:
+            floats = np.frombuffer(data, dtype="<f4", count=3 * nv + 3 * nn + 2 * nt, offset=16)
+            faces = np.frombuffer(data, dtype="<i4", count=3 * nf, offset=16 + 4 * len(floats))
+            if faces.size == 0 or (faces.min() >= 0 and faces.max() < nv):
+                return {
+                    "vert": floats[: 3 * nv].reshape(-1, 3),
+                    "normal": floats[3 * nv : 3 * (nv + nn)].reshape(-1, 3),
+                    "texcoord": floats[3 * (nv + nn) :].reshape(-1, 2),
+                    "face": faces.reshape(-1, 3),
+                }
+    raise ModelError(f"mesh file {name!r} is not a MuJoCo .msh mesh (counts and size disagree)", hint="check the asset")
+
+
+def _set_arrays(mesh: Any, arrays: dict[str, np.ndarray]) -> None:
+    """Give a spec mesh the arrays of a ``.msh`` file (its scale, inertia and other settings stay)."""
+    mesh.uservert = arrays["vert"].astype(np.float64).ravel()
+    mesh.usernormal = arrays["normal"].astype(np.float64).ravel()
+    mesh.usertexcoord = arrays["texcoord"].astype(np.float64).ravel()
+    mesh.userface = arrays["face"].astype(np.int32).ravel()
 
 
 def _referenced(file: str, vfs: dict[str, bytes], base_dir: Path | None, spec: mujoco.MjSpec) -> bytes:
@@ -357,23 +412,50 @@ def _check_folder(files: dict[str, bytes], xml_name: str, reference: mujoco.MjMo
             raise _refusal(str(exc), None) from None
     counts = ("nbody", "njnt", "ngeom", "nmesh", "ntex", "nmat", "nu", "neq", "nmeshvert", "nmeshface")
     differ = [c for c in counts if getattr(loaded, c) != getattr(reference, c)]
-    same = all(  # exact numbers in the XML; mesh inertias may differ in the last bits (summation order)
-        np.allclose(getattr(loaded, f), getattr(reference, f), rtol=1e-9, atol=1e-15)
-        for f in ("body_mass", "body_pos", "body_quat", "jnt_range", "jnt_axis", "body_inertia")
-    ) and all(  # the meshes' own arrays read back as they were (float32 numbers written exactly)
-        np.array_equal(getattr(loaded, f), getattr(reference, f))
-        for f in ("mesh_vert", "mesh_face", "mesh_normal", "mesh_texcoord", "mesh_facetexcoord")
-    )
-    if differ or not same:
-        what = (
-            ", ".join(f"{c} {getattr(loaded, c)} != {getattr(reference, c)}" for c in differ)
-            or "body masses, poses, inertias or joints"
-        )
+    if differ:
+        what = ", ".join(f"{c} {getattr(loaded, c)} != {getattr(reference, c)}" for c in differ)
         raise ModelError(f"the written MJCF loads differently from the model ({what})")
+    for field in _CHECKED:  # exact numbers in the XML; mesh inertias may differ in the last bits (summation order)
+        a, b = np.asarray(getattr(loaded, field)), np.asarray(getattr(reference, field))
+        close = np.isclose(a, b, rtol=1e-9, atol=1e-15).reshape(len(a), -1).all(axis=1)
+        if not close.all():
+            k = int(np.argmin(close))
+            kind = field.partition("_")[0]
+            element = {"body": reference.body, "jnt": reference.joint, "geom": reference.geom}[kind](k)
+            label = {"body": "body", "jnt": "joint", "geom": "geom"}[kind]
+            raise ModelError(
+                f"the written MJCF loads differently from the model: {label} {element.name or k!r} {field} "
+                f"{_numbers(a[k])} where the model has {_numbers(b[k])}",
+                hint="a setting of the model that the MJCF writer cannot say; please report it",
+            )
+    for field in ("mesh_vert", "mesh_face", "mesh_normal", "mesh_texcoord", "mesh_facetexcoord"):
+        if not np.array_equal(getattr(loaded, field), getattr(reference, field)):  # float32 numbers written exactly
+            raise ModelError(f"the written MJCF loads differently from the model: {field} of its meshes differ")
+
+
+#: Per-element numbers the written folder must reproduce (first index: the body, joint or geom).
+_CHECKED = (
+    "body_mass",
+    "body_inertia",
+    "body_ipos",
+    "body_iquat",
+    "body_pos",
+    "body_quat",
+    "jnt_range",
+    "jnt_axis",
+    "jnt_limited",
+    "geom_size",
+    "geom_pos",
+    "geom_quat",
+)
+
+
+def _numbers(values: Any) -> str:
+    return " ".join(f"{float(v):.9g}" for v in np.atleast_1d(values))
 
 
 def build_files(model: ModelDesc) -> dict[str, bytes]:
-    """The ``meshtool.mjcf.asset_model`` builder: ``model`` compiled and written as a flat MJCF folder's files.
+    """The ``meshtool.mjcf`` builder: ``model`` compiled and written as a flat MJCF folder's files.
 
     Raises:
         ModelError: MuJoCo refuses the model (its message and the element at fault).
@@ -384,7 +466,7 @@ def build_files(model: ModelDesc) -> dict[str, bytes]:
 
 
 def check_model(model: ModelDesc) -> None:
-    """The ``meshtool.mjcf.asset_model`` check: ``model`` compiled in memory, nothing written, nothing simulated.
+    """The ``meshtool.mjcf`` check: ``model`` compiled in memory, nothing written, nothing simulated.
 
     Raises:
         ModelError: MuJoCo refuses the model (its message and the element at fault).
@@ -407,7 +489,7 @@ def export_world_mjcf(world: Any, out: Path) -> list[Path]:
         raise SimrunError(f"{out}: {wrong}")
     world.compile()
     try:
-        files = folder_files(world.spec, out.name, base_dir=world.base_dir)
+        files = folder_files(world.spec, out.name, base_dir=world.base_dir, compiled_inertials=True)
     except ModelError as exc:
         raise SimrunError(f"{out}: {exc.one_line()}") from None
     written = []

@@ -185,6 +185,10 @@ def _equality_gap(model: mujoco.MjModel, e: int) -> str:
     name = model.eq(e).name or f"equality{e}"
     if kind == "joint":
         first = model.joint(int(model.eq_obj1id[e])).name
+        if int(model.eq_obj2id[e]) < 0:  # one joint: q1 - q1_0 = polycoef[0] (MuJoCo's rule), so held there
+            j = int(model.eq_obj1id[e])
+            held = float(model.qpos0[model.jnt_qposadr[j]]) + float(model.eq_data[e][0])
+            return f"equality {name}: joint {first} held at {held:g}; no UsdPhysics counterpart"
         second = model.joint(int(model.eq_obj2id[e])).name
         ratio = float(model.eq_data[e][1])
         return f"equality {name}: joint coupling {first} = {ratio:g} * {second}; no UsdPhysics counterpart"

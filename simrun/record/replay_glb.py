@@ -215,7 +215,7 @@ def recording_gltf(world: World, tracks: Tracks, keys: dict[int, I64], name: str
         if signature not in inputs:
             inputs[signature] = gltf.accessor(tracks.times[frames], bounds=True, target=None)
         translation = gltf.accessor(tracks.positions[frames, b], target=None)
-        rotation = gltf.accessor(tracks.quats[frames, b][:, [1, 2, 3, 0]], target=None)
+        rotation = gltf.rotations(tracks.quats[frames, b][:, [1, 2, 3, 0]])
         channels += [(body_nodes[b], "translation", inputs[signature], translation)]
         channels += [(body_nodes[b], "rotation", inputs[signature], rotation)]
     gltf.animation(name, channels)

@@ -161,6 +161,8 @@ class MjcfRobot(Entity):
             if not key.name:  # attach names an unnamed key after the prefix alone: two would clash
                 key.name = f"key{k}"
         _keep_flags(child)
+        if not self.free:
+            _massless_world_geoms(child)
         _take_settings(child, ctx.spec)
         world_only = [b.name or "(unnamed)" for b in child.worldbody.bodies if _world_only(b)]
         if world_only:
@@ -455,6 +457,17 @@ def _scale_total_mass(child: mujoco.MjSpec, compile_alone: Any) -> None:
         if math.isfinite(geom.mass):
             geom.mass *= scale
         geom.density *= scale
+
+
+def _massless_world_geoms(child: mujoco.MjSpec) -> None:
+    """Give the model's world geoms (a floor, a table it stands on) no mass, as MuJoCo gives the world body none.
+
+    Attached under the entity's body they would otherwise count as its mass (a 4 x 4 x 0.1 m slab: 1.6 t on a
+    body the model says is the world; every export's static body carried it). A free entity keeps them as
+    they are: its body must have a mass to move.
+    """
+    for geom in child.worldbody.geoms:
+        geom.mass = 0.0
 
 
 def _keep_flags(child: mujoco.MjSpec) -> None:
