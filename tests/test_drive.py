@@ -767,7 +767,7 @@ def test_laser_angles_noise_and_points():
     world.insert(Ground(name="ground"))
     world.insert(Box(name="wall", dimensions=(0.1, 4.0, 1.0), pose=Pose((2.05, 0, 0.5))))
     world.insert(Pioneer3DX(name="p", pose=Pose((0, 0, 0.001))))
-    laser = LaserRangeFinder(world, "p", fov_deg=90, rays=7, max_range=5.0, points=True)
+    laser = LaserRangeFinder(world, "p", height=0.3, fov_deg=90, rays=7, max_range=5.0, points=True)
     noisy = LaserRangeFinder(world, "p", fov_deg=90, rays=7, max_range=5.0, noise=0.05, seed=2)
     world.step(1)
     np.testing.assert_allclose(np.degrees(laser.angles), np.linspace(-45, 45, 7))
@@ -1101,7 +1101,10 @@ def test_laser_defaults_and_default_noise_seed():
     world, _ = boebot_world()
     laser = LaserRangeFinder(world, "bot")
     np.testing.assert_allclose(np.degrees(laser.angles), np.arange(-90, 91))  # 181 rays over 180 degrees
-    assert (laser.height, laser.max_range, laser.rate, laser.seed) == (0.3, 8.0, 10.0, 0)
+    assert (laser.height, laser.max_range, laser.rate, laser.seed) == (None, 8.0, 10.0, 0)
+    chassis = world.model.geom("bot/chassis")  # the default height: the chassis top, from MuJoCo's compiled geom
+    assert chassis.bodyid[0] == world.model.body("bot").id
+    assert laser.mount_height(world.model) == pytest.approx(chassis.pos[2] + chassis.size[2], abs=1e-12)
     single = LaserRangeFinder(world, "bot", rays=1)
     assert list(single.angles) == [0.0] or single.angles.shape == (1,)
     a, b = GPS(world, "bot", noise=0.1), GPS(world, "bot", noise=0.1, seed=0)

@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 
 from simrun.errors import EntityError
+from simrun.sensors.mount import camera_mount
 from simrun.world.assets import open_image, read_image_file
 from simrun.world.entity import BuildContext, Entity, Material, check_positive
 from simrun.world.pose import Pose
@@ -165,12 +166,19 @@ class Light(Entity):
 class Camera(Entity):
     """A camera at the entity's pose (MuJoCo cameras look along their -Z), or at ``eye`` looking at ``target``.
 
+    Where it rides (:func:`simrun.sensors.mount.camera_mount`): on ``body`` (a robot's body by its full name,
+    ``NAME/link``) when given, else, as a child of a robot (``parent``), on that robot's root body (the body that
+    moves: a free-base walker's trunk, not the marker left at its spawn point), else on its own body. Its
+    MuJoCo camera is put into that body of the spec, so MuJoCo moves it; the pose (or ``eye`` and ``target``)
+    is then in that body's frame. The robot must be inserted before the camera.
+
     Attributes:
         fovy: Vertical field of view, degrees.
         resolution: (width, height) pixels.
         eye: Position to look from (overrides the pose).
         target: Point to look at.
         main: Use this camera as the main view (the default rendering camera).
+        body: The body it rides on, by its full name (``NAME/link``); ``None``: see above.
     """
 
     TYPE: ClassVar[str] = "Camera"
@@ -179,6 +187,7 @@ class Camera(Entity):
     eye: tuple[float, float, float] | None = None
     target: tuple[float, float, float] | None = None
     main: bool = False
+    body: str | None = None
 
     def body_pose(self) -> Pose:
         """The pose, from eye/target when given."""
@@ -187,6 +196,11 @@ class Camera(Entity):
         return self.pose
 
     def build(self, body: Any, ctx: BuildContext) -> None:
-        """One camera."""
+        """One camera, in the body it rides on."""
         check_positive(self, fovy=self.fovy, width=self.resolution[0], height=self.resolution[1])
-        body.add_camera(name=ctx.full_name, fovy=self.fovy, resolution=list(self.resolution))
+        pose = self.body_pose()
+        mount, place = camera_mount(
+            ctx.spec, body, ctx.full_name, self.parent, self.body, (pose.position, pose.orientation)
+        )
+        pos, quat = place((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
+        mount.add_camera(name=ctx.full_name, pos=pos, quat=quat, fovy=self.fovy, resolution=list(self.resolution))

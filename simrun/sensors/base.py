@@ -15,15 +15,17 @@ import numpy as np
 import numpy.typing as npt
 
 from simrun.errors import EntityError
+from simrun.sensors.mount import Mount, robot_mask
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
     from simrun.world.world import World
 
 FloatArray = npt.NDArray[np.float64]
 
-#: What a ray sensor ignores: ``robot`` every geom of the robot it is mounted on (the whole tree of bodies
-#: under the top-level entity, mounted arms included), ``body`` only the mounting body's geoms, ``none``
-#: nothing.
+#: What a ray sensor ignores: ``robot`` every geom of the robot it is mounted on, whatever body it sits on
+#: (:func:`simrun.sensors.mount.robot_mask`: every body named ``TOP`` or ``TOP/...`` and the bodies below them,
+#: so a free-base model's trunk and legs, wheels and mounted arms), ``body`` only the mounting body's geoms,
+#: ``none`` nothing.
 EXCLUDES = ("robot", "body", "none")
 
 
@@ -33,18 +35,27 @@ MAX_CONTINUATIONS = 256
 NUDGE = 1e-6
 
 
+def check_exclude(exclude: str) -> str:
+    """``exclude`` when it is one of :data:`EXCLUDES`.
+
+    Raises:
+        EntityError: Another value (the message lists them).
+    """
+    if exclude not in EXCLUDES:
+        raise EntityError(f"exclude must be one of {', '.join(EXCLUDES)}, got {exclude!r}")
+    return exclude
+
+
 class RayCaster:
     """Casts rays from one point, ignoring the geoms of the robot the sensor is mounted on.
 
     Args:
-        entity: Full name of the mounting entity (its body).
+        mount: Where the sensor sits.
         exclude: One of :data:`EXCLUDES`.
     """
 
-    def __init__(self, entity: str, exclude: str = "robot") -> None:
-        if exclude not in EXCLUDES:
-            raise EntityError(f"exclude must be one of {', '.join(EXCLUDES)}, got {exclude!r}")
-        self.entity, self.exclude = entity, exclude
+    def __init__(self, mount: Mount, exclude: str = "robot") -> None:
+        self.mount, self.exclude = mount, check_exclude(exclude)
         self.body = -1
         self._own = np.zeros(0, dtype=bool)
         self._bound: mujoco.MjModel | None = None  # the model the cached ids are for (held: a freed id is reused)
@@ -53,10 +64,9 @@ class RayCaster:
     def bind(self, model: mujoco.MjModel) -> int:
         """The mounting body's id (and the geoms to ignore) for ``model``."""
         if self._bound is not model:
-            body = model.body(self.entity).id
+            body = self.mount.bind(model)
             if self.exclude == "robot":
-                root = model.body_rootid[body]
-                own = model.body_rootid[model.geom_bodyid] == root
+                own = robot_mask(model, self.mount.entity)[model.geom_bodyid]
             elif self.exclude == "body":
                 own = model.geom_bodyid == body
             else:
@@ -84,6 +94,9 @@ class RayCaster:
         n = len(geomid)
         skip = body if self.exclude != "none" else -1
         mujoco.mj_multiRay(model, data, origin, directions, None, 1, skip, geomid, dist, None, n, cutoff)
+        far = dist > cutoff  # mj_multiRay's cutoff only culls bounding spheres: a geom within it is hit beyond it
+        if far.any():
+            geomid[far], dist[far] = -1, -1.0
         if self.exclude != "robot":
             return
         own = self._own.take(geomid)  # the mask ends with False, which a miss (-1) indexes
@@ -120,8 +133,10 @@ class Sensor(abc.ABC):
         rate: Samples per simulated second; 0 samples after every step.
         noise: Standard deviation of additive Gaussian noise (sensor units).
         seed: Seed of the noise generator.
-        body: The body carrying it when not the entity's own: ``ENTITY/link``, a body of the entity's model
-            (an MJCF or URDF robot's link); kept as :attr:`mount`.
+        body: The body carrying it, by its full name (``NAME/link``: a link of an MJCF or URDF robot, a
+            mounted arm's wrist); ``None``: the robot's root body, the body that moves
+            (:func:`simrun.sensors.mount.root_body`). Resolved per compiled model by :attr:`mounting`
+            (a :class:`~simrun.sensors.mount.Mount`).
     """
 
     def __init__(
@@ -130,10 +145,8 @@ class Sensor(abc.ABC):
         world.entity(entity)
         if rate < 0 or noise < 0:
             raise EntityError("sensor rate and noise must be >= 0")
-        if body is not None and (not isinstance(body, str) or not body.startswith(f"{entity}/")):
-            raise EntityError(f"body {body!r} is not a body of {entity!r}; name one of its links as '{entity}/LINK'")
-        #: Full name of the body the sensor is mounted on (the entity's own body unless ``body`` is given).
-        self.mount = body if body is not None else entity
+        #: The body the sensor sits on (``mounting.bind(model)``: its id).
+        self.mounting = Mount(entity, body)
         self.world, self.entity, self.rate, self.noise, self.seed = world, entity, rate, noise, seed
         self.rng = np.random.default_rng(seed)
         self.reading: Any = None
@@ -141,6 +154,11 @@ class Sensor(abc.ABC):
         self.period = 1.0 / rate if rate else 0.0
         self.next_time = world.time
         world.controllers.append(self)
+
+    @property
+    def mount(self) -> str:
+        """Full name of the body the sensor sits on (``body``, or the root body's once a model is bound)."""
+        return self.mounting.name
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Take a sample (the world calls this when the sensor is due)."""

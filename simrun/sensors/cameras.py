@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from simrun.errors import EntityError, SimrunError
 from simrun.sensors.base import Sensor
+from simrun.sensors.mount import camera_mount
 from simrun.world.entity import BuildContext, Entity, check_positive
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
@@ -33,6 +34,9 @@ FOV_AXES = ("horizontal", "vertical")
 class StereoRig(Entity):
     """Two cameras ``NAME/left`` and ``NAME/right`` a ``baseline`` apart along Y, looking along +X.
 
+    They ride on ``body`` (a robot's body by its full name) or, as a child of a robot, on its root body, as a
+    :class:`~simrun.entities.environment.Camera` does (:func:`simrun.sensors.mount.camera_mount`).
+
     The defaults are the seed's stereo camera: two 320 x 240 images, a 30-degree field of view across the
     image's width (horizontal), 0.10 m between the eyes.
 
@@ -42,6 +46,8 @@ class StereoRig(Entity):
         fov_axis: ``horizontal`` (across the width, the seed's meaning) or ``vertical`` (across the height,
             MuJoCo's ``fovy``).
         resolution: (width, height), pixels.
+        body: The body the rig rides on, by its full name (``NAME/link``); ``None``: its parent robot's root
+            body, or its own.
     """
 
     TYPE: ClassVar[str] = "StereoRig"
@@ -49,6 +55,7 @@ class StereoRig(Entity):
     fov: float = 30.0
     fov_axis: str = "horizontal"
     resolution: tuple[int, int] = (320, 240)
+    body: str | None = None
 
     def fovy(self) -> float:
         """The vertical field of view MuJoCo's cameras get, degrees (square pixels)."""
@@ -68,12 +75,17 @@ class StereoRig(Entity):
             raise EntityError(f"{self.TYPE} {self.name!r}: fov_axis must be one of {', '.join(FOV_AXES)}")
         if not self.fov < 180.0:
             raise EntityError(f"{self.TYPE} {self.name!r}: fov must be below 180 degrees, got {self.fov}")
-        look_x = [0.5, 0.5, -0.5, -0.5]  # camera -Z -> body +X, camera +Y -> body +Z
+        look_x = (0.5, 0.5, -0.5, -0.5)  # camera -Z -> body +X, camera +Y -> body +Z
+        pose = self.body_pose()
+        mount, place = camera_mount(
+            ctx.spec, body, ctx.full_name, self.parent, self.body, (pose.position, pose.orientation)
+        )
         for side, sign in (("left", 1.0), ("right", -1.0)):
-            body.add_camera(
+            pos, quat = place((0.0, sign * self.baseline / 2, 0.0), look_x)
+            mount.add_camera(
                 name=ctx.name(side),
-                pos=[0.0, sign * self.baseline / 2, 0.0],
-                quat=look_x,
+                pos=pos,
+                quat=quat,
                 fovy=self.fovy(),
                 resolution=list(self.resolution),
             )

@@ -11,16 +11,13 @@ import numpy as np
 import numpy.typing as npt
 
 from simrun.errors import EntityError
-from simrun.sensors.base import RayCaster, Sensor
+from simrun.sensors.base import RayCaster, Sensor, check_exclude
+from simrun.sensors.mount import robot_mask, top_of
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
     from simrun.world.world import World
 
 FloatArray = npt.NDArray[np.float64]
-
-#: What a ray sensor ignores: ``robot`` every geom of the robot it is mounted on (the whole tree of bodies
-#: under the top-level entity, mounted arms included), ``body`` only the mounting body's geoms, ``none``
-#: nothing.
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,8 +42,11 @@ class LaserRangeFinder(Sensor):
 
     Args:
         world: The world.
-        entity: Entity carrying the laser (its body frame; the scan plane is its XY plane).
-        height: Mounting height above the body origin, metres (MSRS: 0.3 m above the base).
+        entity: Entity carrying the laser.
+        height: Mounting height above the mounting body's origin along its Z, metres (the scan plane is the
+            body's XY plane lifted by it); ``None`` (the default): the top of that body's geometry in the
+            compiled model (:func:`simrun.sensors.mount.top_of`: the chassis top of the built-in robots, 0.105 m
+            on the Boe-Bot; a torso's top), so the laser sees what stands on the ground around the robot.
         fov_deg: Field of view, degrees, centred ahead.
         rays: Number of rays.
         max_range: Metres.
@@ -56,14 +56,15 @@ class LaserRangeFinder(Sensor):
         seed: Noise seed.
         exclude: What the rays ignore (:data:`EXCLUDES`): by default every geom of the robot the laser is
             mounted on.
-        body: Mount on this body of the entity (``ENTITY/link``) instead of the entity's own body.
+        body: The body it sits on and follows, by its full name (``NAME/link``); ``None``: the robot's root
+            body (:func:`simrun.sensors.mount.root_body`), the body that moves.
     """
 
     def __init__(
         self,
         world: World,
         entity: str,
-        height: float = 0.3,
+        height: float | None = None,
         fov_deg: float = 180.0,
         rays: int = 181,
         max_range: float = 8.0,
@@ -76,9 +77,13 @@ class LaserRangeFinder(Sensor):
     ) -> None:
         if rays < 1 or max_range <= 0 or not 0 < fov_deg <= 360:
             raise EntityError("laser: rays >= 1, max_range > 0, 0 < fov <= 360")
-        self.caster = RayCaster(body or entity, exclude)
+        if height is not None and not math.isfinite(height):
+            raise EntityError(f"laser: height must be a finite number of metres, got {height!r}")
+        check_exclude(exclude)
         super().__init__(world, entity, rate, noise, seed, body)  # registers it: checks first
+        self.caster = RayCaster(self.mounting, exclude)
         self.height, self.max_range, self.points = height, max_range, points
+        self._lift, self._lift_model = 0.0, None
         span = math.radians(fov_deg)
         if fov_deg == 360:
             self.angles = np.linspace(-math.pi, math.pi, rays, endpoint=False)
@@ -92,7 +97,7 @@ class LaserRangeFinder(Sensor):
         """Cast all rays from the mounting point in the body's heading plane."""
         body = self.caster.bind(model)
         rotation = data.xmat[body].reshape(3, 3)
-        origin = data.xpos[body] + rotation[:, 2] * self.height
+        origin = data.xpos[body] + rotation[:, 2] * self.mount_height(model)
         directions = (self._local @ rotation.T).ravel()
         self.caster.cast(model, data, origin, directions, self._geomid, self._dist, self.max_range)
         ranges = np.where(self._geomid >= 0, self._dist, self.max_range)
@@ -103,3 +108,12 @@ class LaserRangeFinder(Sensor):
             hits = origin + directions.reshape(-1, 3) * ranges[:, None]
             hits[self._geomid < 0] = np.nan
         return LaserScan(float(data.time), self.angles, ranges, hits)
+
+    def mount_height(self, model: mujoco.MjModel) -> float:
+        """Height of the scan plane above the mounting body's origin, metres: ``height``, or the body's top."""
+        if self.height is not None:
+            return self.height
+        if self._lift_model is not model:
+            body = self.caster.bind(model)
+            self._lift, self._lift_model = top_of(model, body, robot_mask(model, self.entity)), model
+        return self._lift

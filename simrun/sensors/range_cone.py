@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 
 from simrun.errors import EntityError
-from simrun.sensors.base import RayCaster, Sensor
+from simrun.sensors.base import RayCaster, Sensor, check_exclude
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
     from simrun.world.world import World
@@ -44,9 +44,9 @@ class RangeCone(Sensor):
         seed: Noise seed.
         exclude: What the rays ignore (:data:`simrun.sensors.base.EXCLUDES`): by default every geom of the robot
             the sensor is mounted on.
-        body: Mount on this body of the entity (``ENTITY/link``, a link of an MJCF or URDF robot) instead of
-            the entity's own body; ``offset`` and ``direction`` are then in that body's frame, and the cone
-            turns with it.
+        body: The body it sits on and follows, by its full name (``NAME/link``, a link of an MJCF or URDF
+            robot); ``None``: the robot's root body (:func:`simrun.sensors.mount.root_body`). ``offset`` and
+            ``direction`` are in that body's frame, and the cone turns with it.
     """
 
     def __init__(
@@ -68,8 +68,9 @@ class RangeCone(Sensor):
     ) -> None:
         if max_range <= min_range or rays < 1 or cone_deg < 0:
             raise EntityError("range cone: 0 <= min_range < max_range, rays >= 1, cone >= 0")
-        self.caster = RayCaster(body or entity, exclude)
+        check_exclude(exclude)
         super().__init__(world, entity, rate, noise, seed, body)  # registers it: checks first
+        self.caster = RayCaster(self.mounting, exclude)
         self.offset = np.asarray(offset, dtype=float)
         self.min_range, self.max_range, self.response = min_range, max_range, response
         forward = np.asarray(direction, dtype=float) / np.linalg.norm(direction)

@@ -11,15 +11,12 @@ import numpy as np
 import numpy.typing as npt
 
 from simrun.sensors.base import Sensor
+from simrun.sensors.mount import robot_mask
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
     from simrun.world.world import World
 
 FloatArray = npt.NDArray[np.float64]
-
-#: What a ray sensor ignores: ``robot`` every geom of the robot it is mounted on (the whole tree of bodies
-#: under the top-level entity, mounted arms included), ``body`` only the mounting body's geoms, ``none``
-#: nothing.
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,7 +31,8 @@ class BumperReading:
 class Bumper(Sensor):
     """Reports contact between a geom of the entity (default its ``chassis``) and anything not of its robot.
 
-    The robot is the whole tree of bodies under the bumper's top-level entity (wheels, a mounted arm).
+    The robot is every body of the bumper's top-level entity (:func:`simrun.sensors.mount.robot_mask`: wheels, a
+    mounted arm, a free-base model's legs).
     """
 
     def __init__(self, world: World, entity: str, geom: str = "chassis", rate: float = 50.0) -> None:
@@ -47,8 +45,7 @@ class Bumper(Sensor):
         """Names of the geoms touching the bumper geom (excluding the robot's own)."""
         if self._bound is not model:
             self._gid = model.geom(self.geom).id
-            root = model.body_rootid[model.geom_bodyid[self._gid]]
-            self._own = model.body_rootid[model.geom_bodyid] == root
+            self._own = robot_mask(model, self.entity)[model.geom_bodyid]
             self._bound = model
         touching: tuple[str, ...] = ()
         pairs = data.contact.geom  # (ncon, 2): data.contact holds the ncon active contacts
@@ -112,7 +109,11 @@ class GPSReading:
 
 
 class GPS(Sensor):
-    """Body position with noise; optional geodetic coordinates around ``origin`` (lat, lon degrees, +X east)."""
+    """Body position with noise; optional geodetic coordinates around ``origin`` (lat, lon degrees, +X east).
+
+    ``body``: the body whose origin it reports, by its full name; ``None``: the robot's root body
+    (:func:`simrun.sensors.mount.root_body`), so a free-base walker's GPS follows its trunk.
+    """
 
     EARTH_RADIUS = 6_378_137.0
 
@@ -128,14 +129,10 @@ class GPS(Sensor):
     ) -> None:
         super().__init__(world, entity, rate, noise, seed, body)
         self.origin = origin
-        self._body = -1
-        self._bound: mujoco.MjModel | None = None
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> GPSReading:
         """Noisy position (and latitude/longitude)."""
-        if self._bound is not model:
-            self._body, self._bound = model.body(self.mount).id, model
-        p = self._noisy(data.xpos[self._body].copy())
+        p = self._noisy(data.xpos[self.mounting.bind(model)].copy())
         lat = lon = None
         if self.origin is not None:
             lat0, lon0 = self.origin
@@ -155,7 +152,7 @@ class IMUReading:
 
 
 class IMU(Sensor):
-    """Gyro, accelerometer and orientation of an entity's body."""
+    """Gyro, accelerometer and orientation of a body: ``body`` (full name), else the robot's root body."""
 
     def __init__(
         self, world: World, entity: str, rate: float = 100.0, noise: float = 0.0, seed: int = 0, body: str | None = None
@@ -165,7 +162,7 @@ class IMU(Sensor):
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> IMUReading:
         """Readings from the body's spatial velocity and acceleration (mj_rnePostConstraint)."""
         mujoco.mj_rnePostConstraint(model, data)
-        body = data.body(self.mount)
+        body = data.body(self.mounting.bind(model))
         rotation = body.xmat.reshape(3, 3)
         gyro = self._noisy(rotation.T @ body.cvel[:3])
         accel = self._noisy(rotation.T @ body.cacc[3:])  # at the subtree centre of mass; at rest it reads +g up
