@@ -510,7 +510,7 @@ def hull_fit(
     report: dict[str, object] = {"hulls": len(hulls), "vertices_per_hull": [len(h.vertices) for h in hulls]}
     if not hulls or faces.shape[0] == 0:
         return report
-    from meshtool import surface  # trimesh's formulas without trimesh's import cost (bit-identical)
+    from meshtool.hulls import surface  # trimesh's formulas without trimesh's import cost (bit-identical)
 
     volume = float(abs(surface.volume(positions, faces))) if surface.is_watertight(faces) else None
     hull_volume = float(sum(surface.volume(h.vertices, h.faces) for h in hulls))
