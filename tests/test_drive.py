@@ -1101,10 +1101,10 @@ def test_laser_defaults_and_default_noise_seed():
     world, _ = boebot_world()
     laser = LaserRangeFinder(world, "bot")
     np.testing.assert_allclose(np.degrees(laser.angles), np.arange(-90, 91))  # 181 rays over 180 degrees
-    assert (laser.height, laser.max_range, laser.rate, laser.seed) == (None, 8.0, 10.0, 0)
+    assert (laser.max_range, laser.rate, laser.seed) == (8.0, 10.0, 0)
     chassis = world.model.geom("bot/chassis")  # the default height: the chassis top, from MuJoCo's compiled geom
     assert chassis.bodyid[0] == world.model.body("bot").id
-    assert laser.mount_height(world.model) == pytest.approx(chassis.pos[2] + chassis.size[2], abs=1e-12)
+    assert laser.height == pytest.approx(chassis.pos[2] + chassis.size[2], abs=1e-12)
     single = LaserRangeFinder(world, "bot", rays=1)
     assert list(single.angles) == [0.0] or single.angles.shape == (1,)
     a, b = GPS(world, "bot", noise=0.1), GPS(world, "bot", noise=0.1, seed=0)

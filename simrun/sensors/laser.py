@@ -82,7 +82,9 @@ class LaserRangeFinder(Sensor):
         check_exclude(exclude)
         super().__init__(world, entity, rate, noise, seed, body)  # registers it: checks first
         self.caster = RayCaster(self.mounting, exclude)
-        self.height, self.max_range, self.points = height, max_range, points
+        #: The ``height`` given (``None``: the mounting body's top, see :attr:`height`).
+        self.given_height = height
+        self.max_range, self.points = max_range, points
         self._lift, self._lift_model = 0.0, None
         span = math.radians(fov_deg)
         if fov_deg == 360:
@@ -109,10 +111,18 @@ class LaserRangeFinder(Sensor):
             hits[self._geomid < 0] = np.nan
         return LaserScan(float(data.time), self.angles, ranges, hits)
 
+    @property
+    def height(self) -> float:
+        """Height of the scan plane above the mounting body's origin, metres: ``height``, or the body's top.
+
+        Read from the world's model (compiled now if need be).
+        """
+        return self.mount_height(self.world.model)
+
     def mount_height(self, model: mujoco.MjModel) -> float:
-        """Height of the scan plane above the mounting body's origin, metres: ``height``, or the body's top."""
-        if self.height is not None:
-            return self.height
+        """Height of the scan plane above the mounting body's origin in ``model``, metres: ``height``, or the top."""
+        if self.given_height is not None:
+            return self.given_height
         if self._lift_model is not model:
             body = self.caster.bind(model)
             self._lift, self._lift_model = top_of(model, body, robot_mask(model, self.entity)), model
