@@ -186,3 +186,41 @@ def test_glb_rotations_are_unit_and_in_range(tmp_path: Path) -> None:
     issues = json.loads(run.stdout)["issues"]
     shown = [(m["code"], m["pointer"], m["message"]) for m in issues["messages"]]
     assert (issues["numErrors"], issues["numWarnings"], issues["numInfos"], issues["numHints"]) == (0, 0, 0, 0), shown
+
+
+def test_a_model_without_joints_and_a_capsule_with_three_sizes_exports(tmp_path: Path) -> None:
+    """No joints (dm_control's props), a capsule given a third size it does not use (dm_control's rodent)."""
+    model = """<mujoco><worldbody><body name="prop" pos="0 0 0.1">
+  <geom name="c" type="capsule" size="0.01 0.02 0.005"/><geom name="s" type="sphere" size="0.02 0.5 0.5"/>
+</body></worldbody></mujoco>"""
+    (tmp_path / "m.xml").write_text(model, encoding="utf-8")
+    (tmp_path / "s.toml").write_text('[[entities]]\ntype = "MjcfRobot"\nname = "r"\nfile = "m.xml"\n', encoding="utf-8")
+    own = mujoco.MjModel.from_xml_path(str(tmp_path / "m.xml"))
+    world = load_scene(tmp_path / "s.toml")
+    world.compile()
+    loaded = _moved_export(world, tmp_path)
+    assert loaded.njnt == 0
+    assert np.array_equal(loaded.geom("r/c").size[:2], own.geom("c").size[:2])
+    assert loaded.geom("r/s").size[0] == own.geom("s").size[0]
+    assert np.allclose(loaded.body("r/prop").mass, own.body("prop").mass, rtol=1e-12)
+
+
+def test_msh_texture_coordinates_near_zero_read_back_within_a_float32_step(tmp_path: Path) -> None:
+    """A ``.msh`` v of 0.06472757 cannot come back exactly through OBJ's ``1 - v`` (float32): within 2^-23."""
+    vertices = np.array([(0, 0, 0), (0.04, 0, 0), (0, 0.03, 0), (0, 0, 0.02)], "<f4")
+    uvs = np.array([(0.0, 0.06472757), (1.0, 0.0647275), (0.0, 0.3), (0.5, 1e-9)], "<f4")
+    faces = np.array([(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)], "<i4")
+    data = struct.pack("<4i", 4, 0, 4, 4) + vertices.tobytes() + uvs.tobytes() + faces.tobytes()
+    (tmp_path / "t.msh").write_bytes(data)
+    (tmp_path / "m.xml").write_text(
+        '<mujoco><asset><mesh name="t" file="t.msh"/></asset><worldbody><body name="b"><geom type="mesh" mesh="t"/>'
+        "</body></worldbody></mujoco>",
+        encoding="utf-8",
+    )
+    (tmp_path / "s.toml").write_text('[[entities]]\ntype = "MjcfRobot"\nname = "r"\nfile = "m.xml"\n', encoding="utf-8")
+    own = mujoco.MjModel.from_xml_path(str(tmp_path / "m.xml"))
+    world = load_scene(tmp_path / "s.toml")
+    world.compile()
+    loaded = _moved_export(world, tmp_path)
+    assert np.array_equal(loaded.mesh_vert, own.mesh_vert)
+    assert np.abs(loaded.mesh_texcoord - own.mesh_texcoord).max() <= 2.0**-23
