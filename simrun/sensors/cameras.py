@@ -91,6 +91,18 @@ class StereoRig(Entity):
             )
 
 
+def _camera_body(model: mujoco.MjModel, camera: str) -> str:
+    """The full name of the body a camera of the model is in.
+
+    Raises:
+        EntityError: No camera of that name.
+    """
+    found = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+    if found < 0:
+        raise EntityError(f"no camera named {camera!r} in the model", key="camera")
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.cam_bodyid[found])) or ""
+
+
 @dataclass(frozen=True, slots=True)
 class Frame:
     """One rendered image: RGB (H, W, 3) u8 and, when asked, depth (H, W) metres."""
@@ -149,6 +161,11 @@ class Webcam(Sensor):
         super().__init__(world, entity, rate)
         self.eye = _Eye(camera, width, height, depth)
 
+    @property
+    def mount(self) -> str:
+        """Full name of the body the camera rides on (where its ``Camera``'s ``body`` put it)."""
+        return _camera_body(self.world.model, self.eye.camera)
+
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> Frame:
         """Render the camera's view."""
         return self.eye.render(model, data)
@@ -174,6 +191,11 @@ class StereoCamera(Sensor):
         width, height = entity.resolution
         self.left = _Eye(f"{rig}/left", width, height, depth)
         self.right = _Eye(f"{rig}/right", width, height, depth)
+
+    @property
+    def mount(self) -> str:
+        """Full name of the body the rig's cameras ride on (its ``body``, a robot's root, or its own)."""
+        return _camera_body(self.world.model, self.left.camera)
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> StereoFrame:
         """Render both eyes."""
