@@ -44,11 +44,7 @@ def check_body_name(entity: str, body: Any, key: str = "body") -> str | None:
     if body is None:
         return None
     if not isinstance(body, str) or not body.startswith(f"{entity}/"):
-        raise EntityError(
-            f"{key} {body!r} is not a body of {entity!r}; name one of its links as '{entity}/LINK'",
-            key=key,
-            entity=entity,
-        )
+        raise EntityError(f"{body!r} is not a body of {entity!r}; name one of its links as '{entity}/LINK'", key=key)
     return body
 
 
@@ -138,7 +134,7 @@ def robot_mask(model: mujoco.MjModel, entity: str) -> BoolArray:
     return mask
 
 
-def _unknown(entity: str, body: str, names: Iterable[str], key: str, robot: str) -> EntityError:
+def _unknown(body: str, names: Iterable[str], key: str, robot: str) -> EntityError:
     """The one-line error for a ``body`` that names no body: the closest name and the bodies of ``robot``."""
     known = [n for n in names if n == robot or n.startswith(f"{robot}/")]
     close = difflib.get_close_matches(body, known, n=1, cutoff=0.6)
@@ -146,9 +142,7 @@ def _unknown(entity: str, body: str, names: Iterable[str], key: str, robot: str)
     listed = ", ".join(known[:MAX_LISTED]) or "none"
     if len(known) > MAX_LISTED:
         listed += f" and {len(known) - MAX_LISTED} more"
-    return EntityError(
-        f"{body!r} is not a body of {robot!r}{hint}", key=key, entity=entity, hint=f"bodies of {robot!r}: {listed}"
-    )
+    return EntityError(f"{body!r} is not a body of {robot!r}{hint}", key=key, hint=f"bodies of {robot!r}: {listed}")
 
 
 def resolve_body(model: mujoco.MjModel, entity: str, body: str | None, key: str = "body") -> int:
@@ -162,7 +156,7 @@ def resolve_body(model: mujoco.MjModel, entity: str, body: str | None, key: str 
         return root_body(model, entity)
     found = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
     if found < 0:
-        raise _unknown(entity, body, _body_names(model), key, entity)
+        raise _unknown(body, _body_names(model), key, entity)
     return int(found)
 
 
@@ -193,7 +187,7 @@ def camera_mount(
             raise EntityError(f"{body!r} is not a body name; name a link as 'ROBOT/LINK'", key="body", entity=entity)
         mount = spec.body(body)
         if mount is None:
-            raise _unknown(entity, body, (b.name for b in spec.bodies), "body", top_entity(body))
+            raise _unknown(body, (b.name for b in spec.bodies), "body", top_entity(body))
     elif parent is not None:
         mount = spec_root_body(spec, parent)
     else:
