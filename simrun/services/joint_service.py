@@ -76,8 +76,9 @@ from simrun.errors import EntityError
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
     from simrun.world.world import World
 
-#: Default bandwidth of the position loops, rad/s (2 Hz).
-BANDWIDTH = 4 * math.pi
+#: Default bandwidth of the position loops, rad/s (4 Hz). Issue 37: at 2 Hz the force loops of dm_control's and
+#: gymnasium's walkers missed their targets under gravity (bench/mjcf_robots.py's worlds, 2 s; docs/robots.md).
+BANDWIDTH = 8 * math.pi
 #: What the service holds: every commandable joint (``all``) or only those given targets (``commanded``).
 HOLD_MODES = ("all", "commanded")
 _ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
