@@ -81,3 +81,18 @@ def test_a_scene_sets_options_explicitly_only_where_it_says_so(tmp_path: Path) -
         "warning: " + str(tmp_path / "set.toml") + ": option integrator: the world's integrator = IMPLICITFAST "
         "(set by the scene) overrides 'bot''s own integrator = RK4"
     ) in result.output
+
+
+def test_a_saved_scene_keeps_which_options_were_explicit(tmp_path: Path) -> None:
+    """Saved and loaded again: the robot's own timestep stays its own, an explicit integrator stays explicit."""
+    from simrun import save_scene
+
+    world = World(WorldOptions(integrator="implicit"), base_dir=tmp_path)
+    world.insert(MjcfRobot(name="bot", file=str(FREEBOT)))
+    save_scene(world, tmp_path / "saved.toml")
+    text = (tmp_path / "saved.toml").read_text()
+    assert "timestep" not in text and 'integrator = "implicit"' in text
+    again = load_scene(tmp_path / "saved.toml")
+    assert again.model.opt.timestep == 0.005  # the robot's
+    assert again.model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICIT
+    assert again.options.explicit == {"integrator"}

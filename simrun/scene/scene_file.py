@@ -258,13 +258,11 @@ def scene_text(world: World, state: str = "initial", folder: str | Path | None =
     if state not in ("initial", "current"):
         raise SimrunError(f"state must be 'initial' or 'current', got {state!r}")
     move = _mover(world.base_dir, Path(folder) if folder is not None else None)
-    doc: dict[str, Any] = {
-        "world": {
-            "timestep": world.options.timestep,
-            "gravity": list(world.options.gravity),
-            "integrator": world.options.integrator,
-        }
-    }
+    options = world.options  # timestep and integrator only where set explicitly: a robot's own stay its own
+    doc: dict[str, Any] = {"world": {"gravity": list(options.gravity)}}
+    for key in ("timestep", "integrator"):
+        if key in options.explicit:
+            doc["world"][key] = getattr(options, key)
     if world.assets:
         doc["assets"] = {name: move(file) for name, file in sorted(world.assets.items())}
     entities = []
