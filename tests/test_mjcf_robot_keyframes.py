@@ -122,3 +122,20 @@ def test_an_unknown_keyframe_is_refused_with_the_list() -> None:
     world.insert(MjcfRobot(name="bot", file="freebot.xml"))
     with pytest.raises(EntityError, match=r"no keyframe named 'home'; keyframes: bot/home"):
         world.reset("home")
+
+
+def test_a_keyed_mocap_body_lands_at_pose_times_its_key(tmp_path: Path) -> None:
+    """A top-level mocap body's keyed ``mpos``/``mquat`` are composed with the entity's pose too."""
+    (tmp_path / "mocap.xml").write_text(
+        '<mujoco><worldbody><body name="target" mocap="true" pos="0 0 0.5"><geom size="0.05" contype="0" '
+        'conaffinity="0"/></body></worldbody><keyframe><key name="up" mpos="0.2 0 1" '
+        'mquat="0.9238795325112867 0 0 0.3826834323650898"/></keyframe></mujoco>'
+    )
+    world = World(base_dir=tmp_path)
+    world.insert(MjcfRobot(name="m", file="mocap.xml", pose=POSES[1]))
+    _, data = world.compile()
+    world.reset("m/up")
+    p, q = np.asarray(POSES[1].position), np.asarray(POSES[1].orientation)
+    key_q = np.array([0.9238795325112867, 0.0, 0.0, 0.3826834323650898])
+    np.testing.assert_allclose(data.body("m/target").xpos, p + _rotate(q, np.array([0.2, 0.0, 1.0])), atol=1e-12)
+    _same_rotation(data.body("m/target").xquat, _mul(q, key_q))
