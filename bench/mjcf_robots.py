@@ -46,7 +46,13 @@ Then ``meshtool validate`` runs over the dm_control mesh folders (a large CI cas
 findings by rule. ``.msh`` files (MuJoCo's binary mesh format) are not a meshtool input; they are counted
 and loaded by MuJoCo in step 1.
 
-Usage: python bench/mjcf_robots.py [--docs] [--skip-validate]   (``make bench-mjcf``)
+With ``--chain`` (issue 37) every loadable model goes through the whole chain instead, as a user runs it
+(:data:`CHAIN`): ``simrun check``, ``simrun test`` with a joint expectation, and the MJCF (loaded from a moved
+folder), USD (opened in pxr) and GLB (the Khronos validator) exports; ``--docs`` writes that table into its
+own section of docs/robots.md (``mjcf-chain``), leaving the table above as it was. ``--budget`` bounds its
+wall time (models past it are listed as not run).
+
+Usage: python bench/mjcf_robots.py [--docs] [--skip-validate] [--chain [--budget S]]   (``make bench-mjcf``)
 """
 
 from __future__ import annotations
@@ -55,8 +61,10 @@ import argparse
 import collections
 import json
 import math
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -308,6 +316,214 @@ def measure(path: Path) -> dict[str, object]:
     return row
 
 
+#: The whole chain's columns (``chain``): name, what passing means.
+CHAIN = (
+    ("check", "`simrun check` of a scene with the model (1 s under gravity) exits 0"),
+    (
+        "test",
+        "`simrun test -j 1` of the gravity-free reach run passes (its expectation: the first commanded joint "
+        "ends within 25 % of its step of its target)",
+    ),
+    ("mjcf", "`simrun export --mjcf`, the folder moved elsewhere, loads in MuJoCo alone"),
+    ("usd", "`simrun export --usd` (`.usda`) opens in pxr with its bodies"),
+    ("glb", "`simrun export --glb` has 0 errors and 0 warnings in the Khronos glTF validator"),
+)
+VALIDATOR = ROOT / "tools" / "gltf-validator" / "node_modules" / "gltf-validator"
+
+
+CHAIN_BEGIN, CHAIN_END = "<!-- mjcf-chain:begin -->", "<!-- mjcf-chain:end -->"
+
+
+def chain_row(path: Path, budget_end: float) -> dict[str, object]:
+    """One model through the chain (:func:`chain`), its lift, root and reach targets as :func:`measure` sets them.
+
+    The targets come from the gravity-free world of the reach step, computed at the initial pose without
+    running it (``simrun test`` runs it). Past ``budget_end`` (``time.perf_counter``) the model is skipped.
+    """
+    height = lift(path)
+    row: dict[str, object] = {"model": path.name, "lift": height, "root": root_of(path) or "-", "ok": True}
+    if time.perf_counter() > budget_end:
+        row["chain"] = {name: "not run (time budget)" for name, _ in CHAIN}
+        return row
+    world = scene(path, 0.0, height)
+    try:
+        model, data = world.compile()
+    except Exception as exc:
+        row["chain"] = {name: f"load: {str(exc).splitlines()[0][:160]}" for name, _ in CHAIN}
+        return row
+    service = JointService(world, "robot")
+    targets = []
+    for name in service.joints():
+        j = model.joint(f"robot/{name}").id
+        q0 = float(data.qpos[model.jnt_qposadr[j]])
+        target = target_for(model, j, q0, authority(model, service, name))
+        targets.append((name, target, target - q0))
+    row["_targets"] = targets
+    with tempfile.TemporaryDirectory(prefix="mjcf-chain-") as scratch:
+        try:
+            row["chain"] = chain(path, row, Path(scratch))
+        except Exception as exc:
+            row["chain"] = {name: f"error: {type(exc).__name__}: {exc}"[:160] for name, _ in CHAIN}
+    return row
+
+
+def chain_scene(path: Path, row: dict[str, object], gravity: float, test: str = "") -> str:
+    """The scene of ``measure``'s world as TOML beside the model (``file`` relative), with a ``[test]`` table."""
+    root = root_of(path)
+    lines = [
+        "[world]",
+        f"timestep = {timestep(path)!r}",
+        f"gravity = [0.0, 0.0, {gravity!r}]",
+        "",
+        '[[entities]]\ntype = "Ground"\nname = "ground"',
+        "",
+        '[[entities]]\ntype = "Box"\nname = "box"\ndimensions = [0.2, 0.2, 0.2]',
+        "pose = { position = [1.5, 1.5, 0.1] }",
+        "",
+        f'[[entities]]\ntype = "MjcfRobot"\nname = "robot"\nfile = "{path.name}"',
+        f"pose = {{ position = [0.0, 0.0, {float(row['lift'])!r}] }}",  # type: ignore[arg-type]
+        f"free = {'true' if root == 'free' else 'false'}",
+        f"root_slides = {'true' if root == 'slides' else 'false'}",
+        "",
+        '[[services]]\ntype = "JointService"\nentity = "robot"',
+    ]
+    return "\n".join(lines) + "\n" + test
+
+
+def _cli(*args: str) -> tuple[int, str]:
+    """Run a ``simrun`` command in this process (click's runner): exit code and its last output line."""
+    from click.testing import CliRunner
+
+    from simrun.cli.main import main as simrun_cli
+
+    result = CliRunner().invoke(simrun_cli, list(args), catch_exceptions=True)
+    text = (result.output or "").strip().splitlines()
+    failed = [line.strip() for line in text if line.strip().startswith(("FAIL ", "error"))]  # the why, if said
+    text = failed[:1] or text
+    last = text[-1] if text else (f"{type(result.exception).__name__}: {result.exception}" if result.exception else "")
+    return result.exit_code, " ".join(last.split())
+
+
+def chain(path: Path, row: dict[str, object], scratch: Path) -> dict[str, str]:
+    """The whole chain for one model (:data:`CHAIN`): ``ok``, ``-`` (not applicable) or why it failed.
+
+    The scene files are written beside the model (inside the bench environment) and removed afterwards.
+    """
+    from pxr import Usd
+
+    folder, stem = path.parent, f"_simrun_chain_{path.stem}"
+    scene, reach, commands = folder / f"{stem}.toml", folder / f"{stem}.reach.toml", folder / f"{stem}.commands.toml"
+    out = scratch / path.stem
+    got: dict[str, str] = {}
+    try:
+        scene.write_text(chain_scene(path, row, -9.81), encoding="utf-8")
+        code, last = _cli("check", str(scene))
+        got["check"] = "ok" if code == 0 else f"exit {code}: {last}"
+        targets: list[tuple[str, float, float]] = row.get("_targets") or []  # type: ignore[assignment]
+        if targets:
+            names = [n for n, _, _ in targets]
+            values = [t for _, t, _ in targets]
+            first, target, step = targets[0]
+            tolerance = 0.25 * abs(step)
+            commands.write_text(
+                f'[[commands]]\nt = 0.0\nservice = "JointService"\nentity = "robot"\ncall = "set_positions"\n'
+                f"args = [{names!r}, {values!r}]\n".replace("'", '"'),
+                encoding="utf-8",
+            )
+            test = (
+                f'\n[test]\nduration = {REACH!r}\ncommands = "{commands.name}"\n\n[[expect]]\nid = "reach"\n'
+                f'kind = "joint"\njoint = "robot/{first}"\nmin = {target - tolerance!r}\nmax = {target + tolerance!r}\n'
+                'at = "end"\n'
+            )
+            reach.write_text(chain_scene(path, row, 0.0, test), encoding="utf-8")
+            code, last = _cli("test", str(reach), "-j", "1")
+            got["test"] = "ok" if code == 0 else f"exit {code}: {last}"
+        else:
+            got["test"] = "-"
+        out.mkdir(parents=True, exist_ok=True)
+        code, last = _cli("export", str(scene), "--mjcf", str(out / "mjcf" / "scene.xml"))
+        if code == 0:
+            moved = out / "moved"
+            shutil.move(out / "mjcf", moved)
+            try:
+                mujoco.MjModel.from_xml_path(str(moved / "scene.xml"))
+                got["mjcf"] = "ok"
+            except ValueError as exc:
+                got["mjcf"] = f"moved folder: {' '.join(str(exc).split())[:160]}"
+        else:
+            got["mjcf"] = f"exit {code}: {last}"
+        code, last = _cli("export", str(scene), "--usd", str(out / "scene.usda"))
+        if code == 0:
+            stage = Usd.Stage.Open(str(out / "scene.usda"))
+            bodies = sum(1 for prim in stage.Traverse() if prim.HasAttribute("physics:mass")) if stage else 0
+            got["usd"] = "ok" if bodies else "pxr: no rigid bodies"
+        else:
+            got["usd"] = f"exit {code}: {last}"
+        code, last = _cli("export", str(scene), "--glb", str(out / "scene.glb"))
+        got["glb"] = _validated(out / "scene.glb") if code == 0 else f"exit {code}: {last}"
+    finally:
+        for made in (scene, reach, commands):
+            made.unlink(missing_ok=True)
+    return {k: v.replace(f"{folder}/", "").replace(f"{out}/", "")[:220] for k, v in got.items()}
+
+
+def _validated(glb: Path) -> str:
+    node = shutil.which("node")
+    if node is None or not VALIDATOR.is_dir():
+        return "no validator (scripts/install_gltf_validator.sh)"
+    run = subprocess.run([node, str(ROOT / "scripts" / "gltf_validate.cjs"), str(glb)], capture_output=True, text=True)
+    if run.returncode != 0:
+        return f"validator: {run.stderr.strip()[:160]}"
+    issues = json.loads(run.stdout)["issues"]
+    if issues["numErrors"] or issues["numWarnings"]:
+        codes = sorted({m["code"] for m in issues["messages"] if m.get("severity", 9) <= 1})
+        return f"{issues['numErrors']} errors, {issues['numWarnings']} warnings: {', '.join(codes)[:120]}"
+    return "ok"
+
+
+def chain_table(rows: list[dict[str, object]], seconds: float) -> list[str]:
+    """The chain section's text and its counts, for every model that loads (``seconds``: the run's wall time)."""
+    measured = [r for r in rows if "chain" in r]
+    results: list[dict[str, str]] = [r["chain"] for r in measured]  # type: ignore[misc]
+    lines = [
+        "",
+        "### The whole chain",
+        "",
+        "Written by `python bench/mjcf_robots.py --chain --docs` (the models of the table above, MuJoCo "
+        f"{mujoco.__version__}; {seconds:.0f} s wall, {load_average()}). For every loadable model, the",
+        "scene of the table above (ground, box, the model as `robot` at its lift with its package's root, a",
+        "`JointService`) written beside it as TOML and run in this process through simrun's own command line:",
+        "",
+        *(f"- **{name}**: {meaning};" for name, meaning in CHAIN),
+        "",
+        "Counts (ok of applicable): "
+        + ", ".join(
+            f"{name} {sum(1 for c in results if c[name] == 'ok')} of {sum(1 for c in results if c[name] != '-')}"
+            for name, _ in CHAIN
+        )
+        + f"; {sum(1 for c in results if all(v in ('ok', '-') for v in c.values()))} of {len(measured)} "
+        "models through every step. `-`: no commanded joint to expect.",
+        "",
+        "| package | model | " + " | ".join(name for name, _ in CHAIN) + " |",
+        "|---|---|" + "---|" * len(CHAIN),
+    ]
+    notes = []
+    for r, got in zip(measured, results, strict=True):
+        cells = []
+        for name, _ in CHAIN:
+            value = got[name]
+            if value in ("ok", "-"):
+                cells.append(value)
+            else:
+                notes.append(f"- `{r['relative']}` {name}: {value}")
+                cells.append(f"**fail** ({len(notes)})")
+        lines.append(f"| {r['package']} | `{r['relative']}` | " + " | ".join(cells) + " |")
+    if notes:
+        lines += ["", "Failures, numbered as in the table:", ""]
+        lines += [f"{k}. {note.removeprefix('- ')}" for k, note in enumerate(notes, 1)]
+    return lines
+
+
 def validate(site: Path) -> dict[str, object]:
     """``meshtool validate`` over dm_control's mesh folders (STL; .msh is counted, not a meshtool input)."""
     meshes = sorted(p for p in (site / "dm_control").rglob("*") if p.suffix.lower() in (".stl", ".obj", ".msh"))
@@ -414,7 +630,13 @@ def main() -> int:
     parser.add_argument("--docs", action="store_true", help="write the section into docs/robots.md")
     parser.add_argument("--skip-validate", action="store_true", help="leave out meshtool validate")
     parser.add_argument("--only", default="", help="measure models whose path contains this text")
+    parser.add_argument(
+        "--chain", action="store_true", help="run the whole chain instead (check, test, exports: its own section)"
+    )
+    parser.add_argument("--budget", type=float, default=840.0, help="--chain: wall seconds before models are skipped")
     args = parser.parse_args()
+    started = time.perf_counter()
+    budget_end = started + args.budget
     site = site_packages()
     files = classify(site)
     rows: list[dict[str, object]] = []
@@ -427,14 +649,22 @@ def main() -> int:
                 final.append(("refused", path, f"refused by MuJoCo alone: {' '.join(str(exc).split())[:200]}"))
                 continue
             try:
-                row = measure(path)
+                row = chain_row(path, budget_end) if args.chain else measure(path)
             except Exception as exc:
                 row = {"ok": False, "reason": f"error: {type(exc).__name__}: {exc}"}
             row["package"] = path.relative_to(site).parts[0]
             row["relative"] = str(path.relative_to(site / path.relative_to(site).parts[0]))
             rows.append(row)
             print(f"{'pass' if row['ok'] else 'FAIL'} {row['relative']} {row.get('reason', '')}", file=sys.stderr)
+            if "chain" in row:
+                print(f"    chain {row['chain']}", file=sys.stderr, flush=True)
         final.append((kind, path, note))
+    if args.chain:
+        text = "\n".join([CHAIN_BEGIN, *chain_table(rows, time.perf_counter() - started), CHAIN_END])
+        print(text)
+        if args.docs:
+            write_section(ROOT / "docs" / "robots.md", text, CHAIN_BEGIN, CHAIN_END)
+        return 0
     check = None if args.skip_validate else validate(site)
     text = section(rows, final, site, check)
     print(text)
