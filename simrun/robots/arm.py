@@ -35,6 +35,7 @@ from simrun.robots.arm_joints import (
     _hinge,
     _replace,
 )
+from simrun.robots.contract import Robot
 from simrun.world.entity import BuildContext, Entity, check_positive
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
@@ -58,7 +59,7 @@ __all__ = [
 
 
 @dataclass(kw_only=True)
-class ArticulatedArm(Entity):
+class ArticulatedArm(Entity, Robot):
     """An arm from ``segments`` (base first), on a fixed base cylinder.
 
     Attributes:

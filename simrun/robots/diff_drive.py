@@ -4,12 +4,12 @@ Frame: the robot's body origin is on the ground at the midpoint of the drive axl
 contact points); +X is forward, +Y left, +Z up. A turn in place keeps the origin where it is, and odometry
 (:mod:`simrun.services.drive_service`) reports this point.
 
-Two driven wheels on hinge joints (``left_wheel``, ``right_wheel``, axes +Y) with a DC-motor actuator each:
-torque = ``stall_torque * (power - wheel_speed / no_load_speed)`` (power in [-1, 1]), limited to the
-stall torque (the motor driver's current limit). At full power a wheel without load turns at
-``no_load_speed``; held still it pushes with ``stall_torque``. A caster sphere with frictionless contact
-(condim 1) carries weight and never steers; a second one on the other side of the axle is optional (the
-Create's rear wheel: with its weight over the axle a single caster lets it rock onto its chassis).
+Two driven wheels on hinge joints (``left_wheel``, ``right_wheel``, axes +Y) with a DC-motor actuator each
+(:class:`simrun.robots.wheels.DCMotor`): torque = ``stall_torque * (power - wheel_speed / no_load_speed)``
+(power in [-1, 1]), limited to the stall torque (the motor driver's current limit). At full power a wheel
+without load turns at ``no_load_speed``; held still it pushes with ``stall_torque``. A caster sphere with
+frictionless contact (condim 1) carries weight and never steers; a second one on the other side of the axle
+is optional (the Create's rear wheel: with its weight over the axle a single caster lets it rock onto its chassis).
 Parameter names follow MSRS (docs/robots.md), each ready robot
 names the source of its numbers in ``SOURCES``.
 """
@@ -23,6 +23,8 @@ from typing import Any, ClassVar
 import mujoco
 
 from simrun.errors import EntityError
+from simrun.robots.contract import Robot
+from simrun.robots.wheels import DCMotor, Wheels
 from simrun.world.entity import BuildContext, Entity, check_positive
 
 _QUAT_Y_AXIS = [math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0]  # cylinder axis Z -> Y
@@ -30,7 +32,7 @@ CHASSIS_SHAPES = ("box", "disc")
 
 
 @dataclass(kw_only=True)
-class DifferentialDrive(Entity):
+class DifferentialDrive(Entity, Robot):
     """A two-wheeled robot with a caster; the defaults are the seed's Boe-Bot.
 
     Attributes:
@@ -111,6 +113,24 @@ class DifferentialDrive(Entity):
         """Chassis, wheels and casters, kg."""
         casters = 1 if self.second_caster_offset is None else 2
         return self.mass + 2 * self.wheel_mass + casters * self.caster_mass
+
+    @property
+    def motor(self) -> DCMotor:
+        """Each wheel's DC motor (``no_load_speed``, or ``motor_torque_scaling`` when given)."""
+        return DCMotor(self.stall_torque, self.wheel_speed_limit)
+
+    def driven_wheels(self, full_name: str, model: mujoco.MjModel, base: str) -> Wheels:
+        """The two wheels ``NAME/left_wheel`` and ``NAME/right_wheel``: ``wheel_radius`` and the track as given."""
+        return Wheels(
+            f"{full_name}/left_wheel",
+            f"{full_name}/right_wheel",
+            f"{full_name}/left_motor",
+            f"{full_name}/right_motor",
+            self.wheel_radius,
+            self.separation,
+            self.motor,
+            base,
+        )
 
     def casters(self) -> list[tuple[str, float, float]]:
         """(geom suffix, centre along X from the axle in metres, radius in metres) of each caster."""
@@ -208,7 +228,7 @@ class DifferentialDrive(Entity):
                 geom.group, geom.contype, geom.conaffinity, geom.density = 2, 0, 0, 0.0
                 if material:
                     geom.material = material
-        speed = self.wheel_speed_limit
+        motor = self.motor
         for side, sign in (("left", 1.0), ("right", -1.0)):
             wheel = body.add_body(
                 name=ctx.name(f"{side}_wheel"), pos=[0.0, sign * self.separation / 2, self.wheel_radius]
@@ -238,14 +258,4 @@ class DifferentialDrive(Entity):
                 rgba=[0.1, 0.1, 0.1, 1.0],
             )
             look.group, look.contype, look.conaffinity, look.density = 2, 0, 0, 0.0
-            motor = ctx.spec.add_actuator(
-                name=ctx.name(f"{side}_motor"), target=ctx.name(f"{side}_wheel"), trntype=mujoco.mjtTrn.mjTRN_JOINT
-            )
-            # DC motor: torque = stall * power - (stall / no_load) * wheel speed (back EMF), an affine bias that
-            # MuJoCo's implicit integrators treat as damping; the force limit is the driver's current limit
-            motor.gaintype, motor.biastype = mujoco.mjtGain.mjGAIN_FIXED, mujoco.mjtBias.mjBIAS_AFFINE
-            motor.gainprm[0] = self.stall_torque
-            motor.biasprm[2] = -self.stall_torque / speed
-            motor.ctrllimited = motor.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            motor.ctrlrange = [-1.0, 1.0]
-            motor.forcerange = [-self.stall_torque, self.stall_torque]
+            motor.add_to(ctx.spec, ctx.name(f"{side}_motor"), ctx.name(f"{side}_wheel"))

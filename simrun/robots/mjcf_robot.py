@@ -48,10 +48,11 @@ warning per difference), and its ``<size>`` is not carried over. Unnamed keyfram
 ``keyK`` (K: their index), so the attached ones are ``NAME/keyK``.
 
 Wheels: naming two wheel joints (``wheels = ["left", "right"]``) gives them simrun's DC motors
-``NAME/left_motor`` and ``NAME/right_motor`` (the model of :mod:`simrun.robots.diff_drive`, ``stall_torque`` and
+``NAME/left_motor`` and ``NAME/right_motor`` (:class:`simrun.robots.wheels.DCMotor`, ``stall_torque`` and
 ``no_load_speed``), replacing the model's own actuators on those joints, so :class:`~simrun.services.drive_service
-.DriveService` drives the model as it drives the built-in robots; the wheel radius and track are measured
-from the model unless given.
+.DriveService` drives the model as it drives the built-in robots; the wheel radius (from the wheel's collision
+geometry about its axis) and track are measured from the compiled model unless given
+(:mod:`simrun.robots.wheels`).
 """
 
 from __future__ import annotations
@@ -68,8 +69,9 @@ import mujoco
 import numpy as np
 
 from simrun.errors import EntityError
-from simrun.robots.diff_drive import DifferentialDrive
+from simrun.robots.contract import Robot
 from simrun.robots.mjcf_files import model_files
+from simrun.robots.wheels import WheelFields, Wheels, measure
 from simrun.world.entity import BuildContext, Entity
 from simrun.world.options import own_options
 
@@ -77,10 +79,6 @@ from simrun.world.options import own_options
 MAX_MJCF_BYTES = 64 * 1024 * 1024
 _LINE = re.compile(r"[Ll]ine(?: number)?[ =](\d+)")
 _ELEMENT = re.compile(r"Element '([^']*)'|XMLElement name=(\w+)")
-#: Geom types whose first size is a radius (a wheel's).
-_ROUND = tuple(
-    int(t) for t in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_ELLIPSOID)
-)
 #: Size settings copied from the world into the model before attaching (the world's govern).
 _SIZES = (
     "memory",
@@ -114,16 +112,14 @@ class WheelGeometry:
 
 
 @dataclass(kw_only=True)
-class MjcfRobot(Entity):
+class MjcfRobot(WheelFields, Entity, Robot):
     """A robot (or any model) from an MJCF file.
 
     Attributes:
         file: Path of the MJCF ``.xml`` (relative to the world folder).
-        wheels: Left and right wheel joints (names inside the model) for a drive; empty: none.
-        wheel_radius: Metres; ``None``: the largest radius of the geoms on the left wheel's body.
-        track: Metres; ``None``: the distance between the two wheel bodies at the initial pose.
-        stall_torque: Wheel torque at power 1 held still, N m (the DC motors ``wheels`` adds).
-        no_load_speed: Wheel speed at power 1 without load, rad/s.
+        wheels: Left and right wheel joints (names inside the model) for a drive; empty: none
+            (:class:`~simrun.robots.wheels.WheelFields`: ``wheel_radius``, ``track``, ``stall_torque``,
+            ``no_load_speed`` too).
         root_slides: Three slide joints on the model's top-level body (see the module); not with ``free``
             or ``kinematic``.
     """
@@ -133,11 +129,6 @@ class MjcfRobot(Entity):
     BODY_MOUNTS: ClassVar[bool] = True
 
     file: str
-    wheels: tuple[str, ...] = ()
-    wheel_radius: float | None = None
-    track: float | None = None
-    stall_torque: float = 1.0
-    no_load_speed: float = 10.0
     root_slides: bool = False
 
     # -- building ------------------------------------------------------------------------------------------
@@ -291,18 +282,13 @@ class MjcfRobot(Entity):
         )
 
     def _add_motors(self, child: mujoco.MjSpec) -> None:
-        who = f"MjcfRobot {self.name!r}"
-        add_wheel_motors(child, who, self.file, self.wheels, self.stall_torque, self.no_load_speed)
+        self.add_wheel_motors(child, f"MjcfRobot {self.name!r}", self.file)
 
     # -- wheels (DriveService) -----------------------------------------------------------------------------
 
-    def drive_description(self, base_dir: Path) -> DifferentialDrive:
-        """The drive the :class:`~simrun.services.drive_service.DriveService` controls: radius, track, motor, joints.
-
-        Raises:
-            EntityError: The entity names no wheels, or the model cannot be read.
-        """
-        return drive_description(self, base_dir)
+    def driven_wheels(self, full_name: str, model: mujoco.MjModel, base: str) -> Wheels | None:
+        """The named wheels in the world's model (:meth:`~simrun.robots.wheels.WheelFields.named_wheels`)."""
+        return self.named_wheels(full_name, model, base)
 
     def wheel_geometry(self, base_dir: Path) -> WheelGeometry:
         """Wheel joints, radius and track (measured from the model compiled alone where not given).
@@ -318,87 +304,18 @@ class MjcfRobot(Entity):
         return wheel_geometry(self, self._compiled(child, path))
 
 
-def add_wheel_motors(
-    child: mujoco.MjSpec, who: str, file: str, wheels: tuple[str, ...], stall_torque: float, no_load_speed: float
-) -> None:
-    """Give two wheel joints simrun's DC motors ``left_motor``, ``right_motor`` (replacing the model's own there).
-
-    The motor of :mod:`simrun.robots.diff_drive`: torque =
-    ``stall_torque * power - (stall_torque / no_load_speed) * speed`` (power in [-1, 1]), limited to the stall torque.
-
-    Raises:
-        EntityError: Not two joints of the model, or a motor number that is not positive (``who``: the entity).
-    """
-    if len(wheels) != 2:
-        raise EntityError(f"{who}: wheels names 2 joints (left, right), got {len(wheels)}")
-    for key, value in (("stall_torque", stall_torque), ("no_load_speed", no_load_speed)):
-        if not (math.isfinite(value) and value > 0):
-            raise EntityError(f"{who}: {key} must be a positive number, got {value!r}")
-    joints = {j.name for j in child.joints}
-    for wheel in wheels:
-        if wheel not in joints:
-            known = ", ".join(sorted(n for n in joints if n)) or "none"
-            raise EntityError(f"{who}: wheels names {wheel!r}, not a joint of {file} (joints: {known})")
-    for actuator in list(child.actuators):
-        if int(actuator.trntype) == int(mujoco.mjtTrn.mjTRN_JOINT) and actuator.target in wheels:
-            child.delete(actuator)
-    for side, joint in zip(("left", "right"), wheels, strict=True):
-        motor = child.add_actuator(name=f"{side}_motor", target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        motor.gainprm[0] = stall_torque
-        motor.biastype = mujoco.mjtBias.mjBIAS_AFFINE
-        motor.biasprm[:3] = [0.0, 0.0, -stall_torque / no_load_speed]
-        motor.ctrlrange = [-1.0, 1.0]
-        motor.ctrllimited = 1
-        motor.forcerange = [-stall_torque, stall_torque]
-        motor.forcelimited = 1
-
-
-def drive_description(entity: Any, base_dir: Path) -> DifferentialDrive:
-    """The :class:`DifferentialDrive` numbers of an entity with ``wheels`` (an MJCF or URDF robot).
-
-    Raises:
-        EntityError: The entity names no wheels.
-    """
-    if not entity.wheels:
-        raise EntityError(f"{entity.TYPE} {entity.name!r} names no wheels; set wheels = [LEFT_JOINT, RIGHT_JOINT]")
-    geometry = entity.wheel_geometry(base_dir)
-    return DifferentialDrive(
-        name=entity.name,
-        wheel_radius=geometry.radius,
-        track=geometry.track,
-        stall_torque=entity.stall_torque,
-        no_load_speed=entity.no_load_speed,
-    )
-
-
 def wheel_geometry(entity: Any, model: mujoco.MjModel) -> WheelGeometry:
-    """The wheels of ``entity`` (its ``name``, ``wheels``, ``wheel_radius``, ``track``) in its model compiled alone."""
-    radius, track, base = _measure(model, entity.wheels)
+    """The wheels of ``entity`` (:class:`~simrun.robots.wheels.WheelFields`) in its model compiled alone."""
+    radius, track = measure(model, entity.wheels[0], entity.wheels[1])
+    root = int(model.body_rootid[model.jnt_bodyid[model.joint(entity.wheels[0]).id]])
+    jnt = int(model.body_jntadr[root])
+    free = jnt >= 0 and int(model.jnt_type[jnt]) == int(mujoco.mjtJoint.mjJNT_FREE)
     return WheelGeometry(
         (f"{entity.name}/{entity.wheels[0]}", f"{entity.name}/{entity.wheels[1]}"),
         entity.wheel_radius if entity.wheel_radius is not None else radius,
         entity.track if entity.track is not None else track,
-        f"{entity.name}/{base}" if base is not None else entity.name,
+        f"{entity.name}/{model.body(root).name}" if free else entity.name,
     )
-
-
-def _measure(model: mujoco.MjModel, wheels: tuple[str, ...]) -> tuple[float, float, str | None]:
-    """(radius, track, free base body or None) of the wheels in a model compiled alone."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    bodies = [int(model.joint(w).bodyid[0]) for w in wheels]
-    radius = 0.0
-    for g in range(model.ngeom):
-        if model.geom_bodyid[g] == bodies[0] and int(model.geom_type[g]) in _ROUND:
-            radius = max(radius, float(model.geom_size[g][0]))
-    if radius <= 0:
-        radius = float(model.geom_rbound[model.geom_bodyid == bodies[0]].max(initial=0.0))
-    axis = data.xmat[bodies[0]].reshape(3, 3) @ model.jnt_axis[model.joint(wheels[0]).id]
-    track = abs(float(np.dot(data.xpos[bodies[1]] - data.xpos[bodies[0]], axis)))
-    root = int(model.body_rootid[bodies[0]])
-    jnt = int(model.body_jntadr[root])
-    free = jnt >= 0 and int(model.jnt_type[jnt]) == int(mujoco.mjtJoint.mjJNT_FREE)
-    return radius, track, (model.body(root).name if free else None)
 
 
 def place_keys(child: mujoco.MjSpec, alone: mujoco.MjModel, position: Any, orientation: Any) -> None:

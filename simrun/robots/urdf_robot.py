@@ -29,13 +29,14 @@ from meshtool.mjcf.model_desc import BodyDesc
 from meshtool.urdf.import_robot import UrdfOptions, import_urdf
 from simrun.errors import EntityError
 from simrun.export.mjcf_builder import compile_spec, spec_from_model
-from simrun.robots.diff_drive import DifferentialDrive
-from simrun.robots.mjcf_robot import WheelGeometry, add_wheel_motors, drive_description, wheel_geometry
+from simrun.robots.contract import Robot
+from simrun.robots.mjcf_robot import WheelGeometry, wheel_geometry
+from simrun.robots.wheels import WheelFields, Wheels
 from simrun.world.entity import BuildContext, Entity
 
 
 @dataclass(kw_only=True)
-class UrdfRobot(Entity):
+class UrdfRobot(WheelFields, Entity, Robot):
     """A robot from a URDF file.
 
     Attributes:
@@ -45,11 +46,9 @@ class UrdfRobot(Entity):
         hulls: Collision hulls of mesh colliders: ``convex`` (one per mesh) or ``decompose`` (CoACD).
         actuators: Add a motor per moving joint, named like the joint, limited to its URDF effort.
         wheels: Left and right wheel joints for a :class:`~simrun.services.drive_service.DriveService`: they get
-            simrun's DC motors ``NAME/left_motor`` and ``NAME/right_motor`` (as an ``MjcfRobot``'s wheels).
-        wheel_radius: Metres; ``None``: measured from the left wheel link's geometry.
-        track: Metres; ``None``: the distance between the two wheel links at the initial pose.
-        stall_torque: Wheel torque at power 1 held still, N m.
-        no_load_speed: Wheel speed at power 1 without load, rad/s.
+            simrun's DC motors ``NAME/left_motor`` and ``NAME/right_motor`` (as an ``MjcfRobot``'s wheels;
+            :class:`~simrun.robots.wheels.WheelFields`: ``wheel_radius``, ``track``, ``stall_torque``,
+            ``no_load_speed`` too).
     """
 
     TYPE: ClassVar[str] = "UrdfRobot"
@@ -58,11 +57,6 @@ class UrdfRobot(Entity):
     package_dirs: dict[str, str] = field(default_factory=dict)
     hulls: str = "convex"
     actuators: bool = False
-    wheels: tuple[str, ...] = ()
-    wheel_radius: float | None = None
-    track: float | None = None
-    stall_torque: float = 1.0
-    no_load_speed: float = 10.0
 
     def build(self, body: Any, ctx: BuildContext) -> None:
         """Import the URDF and attach its bodies, joints, geoms and assets under ``body``."""
@@ -89,17 +83,15 @@ class UrdfRobot(Entity):
                 model = dataclasses.replace(model, world_geoms=[], bodies=[world])
             child, files = spec_from_model(model, texture_prefix=prefix)
             if self.wheels:
-                add_wheel_motors(
-                    child, f"UrdfRobot {self.name!r}", self.urdf, self.wheels, self.stall_torque, self.no_load_speed
-                )
+                self.add_wheel_motors(child, f"UrdfRobot {self.name!r}", self.urdf)
             compile_spec(child, model)
         except MeshtoolError as exc:
             raise EntityError(f"UrdfRobot {self.name!r}: {exc.one_line()}") from None
         return child, files, result
 
-    def drive_description(self, base_dir: Path) -> DifferentialDrive:
-        """The drive a :class:`~simrun.services.drive_service.DriveService` controls (see :func:`drive_description`)."""
-        return drive_description(self, base_dir)
+    def driven_wheels(self, full_name: str, model: Any, base: str) -> Wheels | None:
+        """The named wheels in the world's model (:meth:`~simrun.robots.wheels.WheelFields.named_wheels`)."""
+        return self.named_wheels(full_name, model, base)
 
     def wheel_geometry(self, base_dir: Path) -> WheelGeometry:
         """Wheel joints, radius and track, measured from the robot compiled alone where not given."""

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from simrun.errors import EntityError
-from simrun.robots.diff_drive import DifferentialDrive
+from simrun.robots.contract import drive_wheels
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
     from simrun.world.world import World
@@ -73,7 +73,8 @@ class DriveService:
 
     Args:
         world: The world holding the robot.
-        entity: Full name of a :class:`~simrun.robots.diff_drive.DifferentialDrive` entity.
+        entity: Full name of a robot with wheels (:func:`simrun.robots.contract.drive_wheels`: a
+            ``DifferentialDrive``, a catalogue robot, an ``MjcfRobot`` or ``UrdfRobot`` naming ``wheels``).
         limits: ``cmd_vel`` limits.
         radius_scale: Odometry calibration: effective / nominal wheel radius.
         separation_scale: Odometry calibration: effective / nominal wheel separation.
@@ -83,7 +84,8 @@ class DriveService:
         rate: Control and odometry rate, Hz (controls hold between updates).
 
     Raises:
-        EntityError: The entity is not a differential-drive robot, or a number is not positive and finite.
+        EntityError: The entity is not a robot with wheels (the message says how to name them), or a number
+            is not positive and finite.
     """
 
     def __init__(
@@ -97,28 +99,24 @@ class DriveService:
         integral_gain: float | None = None,
         rate: float = 50.0,
     ) -> None:
-        robot = world.entity(entity)
-        described = getattr(robot, "drive_description", None)  # a model with named wheels (MjcfRobot)
-        wheels = robot.wheel_geometry(world.base_dir) if callable(described) else None  # type: ignore[attr-defined]
-        robot = described(world.base_dir) if callable(described) else robot
-        if not isinstance(robot, DifferentialDrive):
-            raise EntityError(f"{entity!r} is a {robot.TYPE}, not a differential-drive robot")
+        wheels = drive_wheels(world, entity)
         _finite("drive service", radius_scale=radius_scale, separation_scale=separation_scale, rate=rate)
         _finite("drive service", positive=False, gain=gain, integral_gain=integral_gain)
-        self.world, self.name, self.robot = world, entity, robot
-        #: Wheel joints and the body carrying the free joint (full names)
-        self._joint_names = wheels.joints if wheels else (f"{entity}/left_wheel", f"{entity}/right_wheel")
-        self._base = wheels.base if wheels else entity
+        self.world, self.name, self.robot = world, entity, world.entity(entity)
+        #: The wheels and motors driven (the robot contract's), and the body carrying the robot (full names)
+        self.wheels = wheels
+        self._joint_names = (wheels.left, wheels.right)
+        self._base = wheels.base
         self.limits = limits or DriveLimits()
-        self.radius = robot.wheel_radius * radius_scale
-        self.separation = robot.separation * separation_scale
+        self.radius = wheels.radius * radius_scale
+        self.separation = wheels.track * separation_scale
         self._fixed_gains = (gain, integral_gain)
         self.gain, self.ki = 0.0, 0.0  # set from the compiled model on the first tick (speed_loop)
         self._design: dict[str, float] = {}
         self._free = -1  # first dof of the robot's free joint (-1: none)
         self._timestep = world.options.timestep
         self._rested = False  # has stood still on its wheels since the start (or reset)
-        self.max_wheel_speed = robot.wheel_speed_limit
+        self.max_wheel_speed = wheels.motor.no_load_speed
         self.enabled = True
         self._mode = "idle"
         self._power = (0.0, 0.0)
@@ -427,10 +425,10 @@ class DriveService:
     def _lookup(self, model: mujoco.MjModel) -> tuple[int, int, int, int]:
         if self._ids is None or self._bound is not model:
             rebuilt = self._bound is not None  # a new model: the world restarted at time 0 from the initial poses
-            n, (left, right) = self.name, self._joint_names
+            left, right = self._joint_names
             self._ids = (
-                model.actuator(f"{n}/left_motor").id,
-                model.actuator(f"{n}/right_motor").id,
+                model.actuator(self.wheels.left_motor).id,
+                model.actuator(self.wheels.right_motor).id,
                 int(model.joint(left).dofadr[0]),
                 int(model.joint(right).dofadr[0]),
                 int(model.joint(left).qposadr[0]),
@@ -473,12 +471,12 @@ class DriveService:
         if jnt >= 0 and model.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_FREE:
             base = self._free = int(model.jnt_dofadr[jnt])
             mass, yaw = float(full[base, base]), float(full[base + 5, base + 5])
-            r, s = self.robot.wheel_radius, self.robot.separation
+            r, s = self.wheels.radius, self.wheels.track
             # a wheel's share of the robot: half its mass going straight, its yaw inertia turning in place
             inertia += max(mass * r * r / 2, 2 * yaw * r * r / (s * s))
-        robot, h, pole = self.robot, self.period, POLE
-        w0 = robot.wheel_speed_limit
-        tau = inertia * w0 / robot.stall_torque
+        motor, h, pole = self.wheels.motor, self.period, POLE
+        w0 = motor.no_load_speed
+        tau = inertia * w0 / motor.stall_torque
         a = math.exp(-h / tau)
         g = (1 - a) * w0
         if a >= pole * pole:
