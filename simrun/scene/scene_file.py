@@ -28,7 +28,7 @@ from simrun.scene.state import KEYS, apply_state, state_table
 from simrun.scene.tomlpos import KeyPath, line_of, read_toml
 from simrun.world.entity import Entity, Material
 from simrun.world.pose import Pose
-from simrun.world.registry import REGISTRY, names, scene_type, service_parameters
+from simrun.world.registry import REGISTRY, names, parameters, scene_type, service_parameters
 from simrun.world.world import MAX_TIMESTEP, MIN_TIMESTEP, World, WorldOptions
 
 #: Entity types by name (:mod:`simrun.world.registry`, the one list of scene types).
@@ -225,6 +225,7 @@ class _Loader:
                 known = ", ".join(names("sensors"))
                 raise self.error(f"unknown sensor type {kind!r} (known: {known})", (*where, "type"))
             target_key = REGISTRY[kind].binds
+            _known(spec, ["type", "name", target_key, *parameters("sensors", kind)], self, where)
             target = spec.get(target_key)
             owner = target.rsplit("/", 1)[0] if isinstance(target, str) and target_key == "camera" else target
             if isinstance(target, str) and target not in entities and owner not in entities:
@@ -487,6 +488,10 @@ def _convert(value: Any, hint: Any, loader: _Loader, where: KeyPath) -> Any:
             return Material(**coefficients)
         except EntityError as exc:
             raise loader.error(str(exc), where) from None
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis and args[0] in (str, int, float):
+        if not isinstance(value, list):  # a list of any length (MjcfRobot's wheels = ["left", "right"])
+            raise loader.error(f"expected an array, got {type(value).__name__} {value!r}", where)
+        return tuple(_convert(v, args[0], loader, (*where, k)) for k, v in enumerate(value))
     if origin is tuple:
         if Ellipsis in args or not all(a in (int, float) for a in args):
             raise loader.error("cannot be set in a scene file (create this entity in code)", where)

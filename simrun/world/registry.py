@@ -201,6 +201,24 @@ def service_parameters(kind: str) -> dict[str, Any]:
     return {name: hints[name] for name in params if name in hints}
 
 
+def parameters(group: Group, kind: str) -> tuple[str, ...]:
+    """The keys a scene table of type ``kind`` may set besides ``type``, ``name`` and what it binds.
+
+    Entities: the dataclass fields less the base (``name``, ``pose``, ``parent``, ``free``, ``kinematic``); services
+    and sensors: the constructor's parameters after ``(world, TARGET)`` (a constructor taking ``**kwargs``
+    passes them to its base's, whose parameters are read instead).
+    """
+    cls = load(group, kind)
+    if group == "entities":
+        base = {"name", "pose", "parent", "free", "kinematic"}
+        return tuple(f.name for f in dataclasses.fields(cls) if f.name not in base)
+    for owner in cls.__mro__:
+        params = list(inspect.signature(owner.__init__).parameters.values())[3:]
+        if not any(p.kind is p.VAR_KEYWORD for p in params):
+            return tuple(p.name for p in params if p.kind is not p.VAR_POSITIONAL)
+    return ()
+
+
 def service_arguments(binding: dict[str, Any]) -> dict[str, Any]:
     """Keyword arguments of a ``[[services]]`` binding (tables become the dataclass the parameter wants)."""
     hints = service_parameters(binding["type"])
