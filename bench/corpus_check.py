@@ -39,13 +39,12 @@ from typing import Any
 
 import mujoco
 
-from meshtool import MeshtoolError, NormaliseOptions, Severity, write_asset
+from meshtool import MeshtoolError, NormaliseOptions, Severity, normalise, write_asset
 from meshtool.changes import changes_data
 from meshtool.hulls.compute import HullOptions
 from meshtool.mjcf.asset_model import build_mjcf
 from meshtool.packfile import load
 from meshtool.pipeline import ConvertOptions, convert
-from meshtool.repair import normalise
 
 EXPLAINS_COUNT = {"degenerate-faces", "face-too-small", "part-padded"}
 UNITS = ("m", "cm", "mm", "in", "ft")

@@ -27,12 +27,12 @@ import trimesh
 from _report import Timing, arguments, corpus_meshes, interleave, load_average, timed, write_section
 
 import meshtool
+from meshtool import normalise
 from meshtool.packfile import format as fmt
 from meshtool.packfile import load, pack, parse
 from meshtool.packfile.export import to_glb, to_msh
 from meshtool.packfile.read import forget_checks
 from meshtool.packfile.write import StoredSection, assemble
-from meshtool.repair import normalise
 from meshtool.repair.normalise import NormaliseOptions
 
 MESHES = [

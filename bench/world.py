@@ -42,13 +42,12 @@ import numpy as np
 from _report import Timing, arguments, interleave, load_average, write_section
 from PIL import Image
 
-from meshtool import NormaliseOptions, normalise_to
+from meshtool import NormaliseOptions, normalise, normalise_to
 from meshtool.export.obj_write import format_obj
 from meshtool.hulls.compute import HullOptions, compute_hulls
 from meshtool.packfile import pack
 from meshtool.packfile.read import forget_checks
 from meshtool.pipeline import ConvertOptions, convert
-from meshtool.repair import normalise
 from simrun import MeshEntity, Pose, World
 from simrun.world.model_cache import ModelCache
 

@@ -7,11 +7,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from meshtool import NormaliseOptions, normalise_to
+from meshtool import NormaliseOptions, normalise, normalise_to
 from meshtool.errors import ObjParseError, OptionsError, OutputError, StrictModeError
 from meshtool.read.obj.mtl import parse_mtl
 from meshtool.read.obj.parse import parse_obj
-from meshtool.repair import normalise
 
 SAFE = re.compile(r"^[a-z0-9_.-]+$")
 HEAD = Path("head") / "Head 1.obj"
