@@ -1,4 +1,12 @@
-"""Mesh to ``.mbin`` conversion: one file, or a folder tree on the batch layer, skipping unchanged assets.
+"""The one composer of meshtool's stages, and mesh to ``.mbin`` conversion (one file, or a folder tree).
+
+The stages run in sequence here and nowhere else (``tests/test_layering.py`` checks it): read, frame and
+repair (:func:`repaired_asset`: a :class:`~meshtool.repair.normalise.NormalisedAsset`), hulls
+(:func:`asset_hulls`: a :class:`~meshtool.hulls.compute.HullSet`), pack (:func:`pack_asset`: ``.mbin``
+bytes whose META is a :class:`~meshtool.packfile.meta.PackMeta`). ``obj2bin`` FILE and DIR, ``meshtool
+hulls``, ``meshtool mjcf``, URDF meshes (:mod:`meshtool.urdf.meshes`), ``meshtool validate``
+(:mod:`meshtool.validate.task`) and simrun's mesh assets call these. Whether a pack is still current is
+:func:`is_current` / :func:`source_states` here, for every caller.
 
 A folder's files run where :mod:`meshtool.work.batch` puts them: this process, local worker processes (they die
 with their parent: on Linux the kernel sends them SIGKILL when the parent dies, ``prctl(PR_SET_PDEATHSIG)``,
@@ -8,7 +16,7 @@ no worker behind; a file past ``--timeout`` has its worker killed), or a Dask cl
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,9 +27,11 @@ from meshtool.files.resolve import file_sha256, find_files
 from meshtool.files.safeopen import printable
 from meshtool.findings import Finding
 from meshtool.formats import mesh_suffixes, suffix
-from meshtool.hulls.compute import HullOptions, compute_hulls, quality
-from meshtool.packfile import load, pack
-from meshtool.repair.normalise import NormaliseOptions, prepare, safe_file_stem
+from meshtool.hulls.compute import Hull, HullOptions, HullSet, compute_hulls, quality
+from meshtool.packfile import PackMeta, SourceEntry, load, pack
+from meshtool.packfile.meta import source_entries, source_files, source_path
+from meshtool.repair.mesh import TriMesh
+from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, prepare, safe_file_stem
 from meshtool.repair.normalmaps import mujoco_findings
 from meshtool.work.batch import Executor, run_batch
 from meshtool.work.progress import report as report_progress
@@ -136,18 +146,52 @@ def pack_file(src: Path, options: ConvertOptions | None = None) -> Packed:
         return _pack_file(src, options)
 
 
+def repaired_asset(src: Path, options: NormaliseOptions, *, data: bytes | None = None) -> NormalisedAsset:
+    """Stages read, frame and repair: ``src`` as triangles in metres, Z-up, with PNG textures and its record.
+
+    Every caller goes through here (``obj2bin``, ``meshtool hulls``, ``meshtool mjcf``, URDF meshes,
+    ``validate``, simrun's mesh assets); see :func:`meshtool.repair.normalise.prepare` for ``data`` and errors.
+    """
+    return prepare(src, options, data=data)
+
+
+def asset_hulls(mesh: TriMesh, options: HullOptions, name: str) -> HullSet:
+    """Stage hulls: the collision hulls of a repaired mesh (:func:`meshtool.hulls.compute.compute_hulls`)."""
+    return compute_hulls(mesh, options, name)
+
+
+def pack_asset(
+    asset: NormalisedAsset,
+    hulls: list[Hull],
+    options: dict[str, Any],
+    report: dict[str, Any] | None,
+    *,
+    quantize: bool = False,
+) -> bytes:
+    """Stage pack: the ``.mbin`` bytes of a repaired asset and its hulls.
+
+    Args:
+        asset: From :func:`repaired_asset`.
+        hulls: From :func:`asset_hulls`.
+        options: What made the pack, recorded as META ``options`` (:meth:`ConvertOptions.fingerprint`).
+        report: The hulls' report recorded as ``hull_quality`` (``None``: not recorded).
+        quantize: The quantised encoding.
+    """
+    return pack(asset, quantize, options, hulls, report)
+
+
 def _pack_file(src: Path, options: ConvertOptions) -> Packed:
     report_progress("reading and normalising")
-    asset = prepare(src, options.normalise)
+    asset = repaired_asset(src, options.normalise)
     report_progress("collision hulls")
-    hull_set = compute_hulls(asset.mesh, options.hulls, src.name)
+    hull_set = asset_hulls(asset.mesh, options.hulls, src.name)
     report_progress("packing")
     report = quality(asset.mesh, hull_set.hulls) if hull_set.hulls else None
     findings = [*asset.findings, *hull_set.findings]
     if options.normalise.strict and any(f.severity.value == "warning" for f in hull_set.findings):
         first = next(f for f in hull_set.findings if f.severity.value == "warning")
         raise StrictModeError(f"hull warning in strict mode: {first.one_line()}", path=src.name)
-    data = pack(asset, options.quantize, options.fingerprint(), hull_set.hulls, report)
+    data = pack_asset(asset, hull_set.hulls, options.fingerprint(), report, quantize=options.quantize)
     findings += mujoco_findings(asset.materials, src.name)  # about MuJoCo's use of the pack: not stored in it
     checked = "off"
     if options.check:  # before anything is written: a pack MuJoCo refuses is an error, not an output
@@ -156,14 +200,13 @@ def _pack_file(src: Path, options: ConvertOptions) -> Packed:
 
         checked, skipped = check_pack(data, src.name, options.check_cache)
         findings += skipped
-    roots = [src.parent, *options.normalise.search_paths]
-    used = [_source_path(str(s.get("path", "")), roots) for s in _files(asset.manifest.get("sources", []))]
+    used = source_files(source_entries(asset.manifest.get("sources")), [src.parent, *options.normalise.search_paths])
     stats = dict(asset.stats)
     stats["bytes"] = len(data)
     stats["hulls"] = report or {"hulls": 0}
     stats["hull_cache_hits"] = hull_set.cache_hits
     stats["mujoco_check"] = checked
-    return Packed(data, findings, stats, [p for p in used if p is not None])
+    return Packed(data, findings, stats, used)
 
 
 def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
@@ -178,46 +221,42 @@ def is_unchanged(src: Path, out: Path, options: ConvertOptions) -> bool:
     except (PackFormatError, MeshtoolError):
         return False
     try:
-        return is_current(packed.meta, src, options)
+        return is_current(packed.pack_meta, src, options)
     finally:
         packed.close()
 
 
-def is_current(meta: Any, src: Path, options: ConvertOptions) -> bool:
+def is_current(meta: PackMeta | Mapping[str, Any], src: Path, options: ConvertOptions) -> bool:
     """Whether the pack with metadata ``meta`` was made from the current ``src`` with ``options``.
 
-    The options and the SHA-256 of every source file (the mesh, its MTLs and textures) must match.
+    The options and the SHA-256 of every source file (the mesh, its MTLs and textures) must match; a
+    foreign or hostile META is never current.
     """
-    try:
-        if meta.get("options") != options.fingerprint():
-            return False
-        roots = [src.parent, *options.normalise.search_paths]
-        for source in _files(meta.get("sources", [])):
-            path = _source_path(str(source["path"]), roots)
-            if path is None or file_sha256(path) != source["sha256"]:
-                return False
-        return bool(meta.get("sources"))
-    except (KeyError, TypeError, AttributeError, ValueError):  # a hostile or foreign META: not up to date
+    meta = meta if isinstance(meta, PackMeta) else PackMeta(meta if isinstance(meta, Mapping) else {})
+    if not meta.has_options or meta.options != options.fingerprint() or not meta.sources_well_formed():
         return False
+    states = source_states(meta, [src.parent, *options.normalise.search_paths])
+    return bool(meta.sources) and all(path is not None and now == entry.sha256 for entry, path, now in states)
 
 
-def _files(sources: list[dict[str, str]]) -> list[dict[str, str]]:
-    """Source entries that are files.
+def source_states(meta: PackMeta, roots: Sequence[Path]) -> list[tuple[SourceEntry, Path | None, str | None]]:
+    """Each file a pack was made from (:meth:`PackMeta.file_sources`) with its path and current SHA-256.
 
-    Images embedded in a glTF/GLB (``crate.glb/name.png``) are not: the container's entry covers them.
+    The one staleness check: :func:`is_current` (``obj2bin``'s skip, simrun's pack cache) and validate's K003.
+
+    Args:
+        meta: The pack's metadata.
+        roots: The source's folder, then the search paths (:func:`meshtool.packfile.meta.source_path`).
+
+    Returns:
+        ``(entry, path, sha256 now)`` per file source; path ``None`` for a search path ``roots`` lacks,
+        digest ``None`` for a file that is missing or unreadable.
     """
-    containers = {str(s.get("path")) for s in sources if s.get("role") in ("gltf", "glb")}
-    return [
-        s for s in sources if not (s.get("role") == "texture" and str(s.get("path")).split("/", 1)[0] in containers)
-    ]
-
-
-def _source_path(shown: str, roots: list[Path]) -> Path | None:
-    if shown.startswith("<search-path "):
-        number, _, rel = shown[len("<search-path ") :].partition(">/")
-        k = int(number) if number.isdigit() else -1
-        return roots[k] / rel if 0 < k < len(roots) else None
-    return roots[0] / shown
+    out: list[tuple[SourceEntry, Path | None, str | None]] = []
+    for entry in meta.file_sources():
+        path = source_path(entry.path, roots)
+        out.append((entry, path, None if path is None else file_sha256(path)))
+    return out
 
 
 def tree_jobs(src_dir: Path, out_dir: Path) -> list[tuple[Path, Path]]:

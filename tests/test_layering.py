@@ -538,3 +538,64 @@ def test_meshtool_top_level_is_its_stage_folders_and_a_few_shared_modules():
 def test_every_meshtool_folder_says_what_it_holds(folder):
     init = ROOT / "meshtool" / folder / "__init__.py"
     assert ast.get_docstring(ast.parse(init.read_text())), init
+
+
+#: Each stage's entry (module, function): only meshtool/pipeline.py calls them in sequence (issue 38).
+STAGE_ENTRIES = {
+    ("meshtool.read", "read_mesh"): "read",
+    ("meshtool.read", "source_frame"): "frame",
+    ("meshtool.frame.decide", "decide_frame"): "frame",
+    ("meshtool.repair.normalise", "prepare"): "repair",
+    ("meshtool.hulls.compute", "compute_hulls"): "hulls",
+    ("meshtool.hulls", "compute_hulls"): "hulls",
+    ("meshtool.packfile", "pack"): "packfile",
+    ("meshtool.packfile.write", "pack"): "packfile",
+}
+#: Callers of a stage entry besides the composer and the stage's own folder, each with why.
+STAGE_ENTRY_EXCEPTIONS = {
+    # read -> frame -> repair still runs inside repair's prepare (the frame needs the repaired mesh's vertices);
+    # the composer enters the three through meshtool.pipeline.repaired_asset
+    ("meshtool/repair/normalise.py", "read_mesh"),
+    ("meshtool/repair/normalise.py", "source_frame"),
+    # the read stage hands the format's declared frame to the one decision
+    ("meshtool/read/__init__.py", "decide_frame"),
+    # the public API names the packer (a re-export for type checkers; nothing is called)
+    ("meshtool/__init__.py", "pack"),
+}
+
+
+def stage_entry_uses(source: str, module: str) -> list[tuple[str, str]]:
+    """``(name, stage)`` of every stage entry the code of ``module`` imports or reaches as ``mod.entry``."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            base = _from_base(node, module)
+            found += [(a.name, STAGE_ENTRIES[(base, a.name)]) for a in node.names if (base, a.name) in STAGE_ENTRIES]
+        elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name):
+            # ``from meshtool.hulls import compute`` then ``compute.compute_hulls(...)``
+            for (entry_module, name), stage in STAGE_ENTRIES.items():
+                if node.attr == name and entry_module.endswith(f".{node.value.id}"):
+                    found.append((name, stage))
+    return found
+
+
+@pytest.mark.parametrize("path", package_files(*PACKAGES), ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_only_the_composer_calls_a_stage_entry(path):
+    rel = _rel(path)
+    if rel == "meshtool/pipeline.py":
+        return
+    wrong = [
+        f"{name} ({stage})"
+        for name, stage in stage_entry_uses(path.read_text(), module_name(path))
+        if not rel.startswith(f"meshtool/{stage}/") and (rel, name) not in STAGE_ENTRY_EXCEPTIONS
+    ]
+    assert not wrong, f"{rel} calls stage entries {wrong}: go through meshtool/pipeline.py"
+
+
+def test_the_stage_entry_check_sees_imports_and_attribute_calls():
+    sample = (
+        "from meshtool.hulls import compute\nfrom meshtool.packfile import pack\nx = compute.compute_hulls\n"
+        "def f():\n    from meshtool.repair.normalise import prepare\n    return struct.pack\n"
+    )
+    found = stage_entry_uses(sample, "meshtool.urdf.meshes")
+    assert sorted(found) == [("compute_hulls", "hulls"), ("pack", "packfile"), ("prepare", "repair")]

@@ -416,15 +416,15 @@ def _convert_folder(
 @hull_options
 def hulls(src: Path, as_json: bool, **kw: Any) -> None:
     """Compute the collision hulls of SRC (a mesh file) and report their quality; writes nothing."""
-    from meshtool.hulls.compute import compute_hulls, quality
-    from meshtool.repair.normalise import prepare
+    from meshtool.hulls.compute import quality
+    from meshtool.pipeline import asset_hulls, repaired_asset
     from meshtool.work.progress import subject
 
     with _guard(as_json), subject(src.name):
         strict = bool(kw["strict"])  # here strict judges the hulls, not the normaliser
         options = _hull_options(kw)
-        asset = prepare(src, _normalise_options(kw, strict=False))
-        result = compute_hulls(asset.mesh, options, src.name)
+        asset = repaired_asset(src, _normalise_options(kw, strict=False))
+        result = asset_hulls(asset.mesh, options, src.name)
         summary = quality(asset.mesh, result.hulls)
         summary["cache_hits"] = result.cache_hits
         if strict and any(f.severity is not Severity.INFO for f in result.findings):

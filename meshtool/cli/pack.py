@@ -46,13 +46,15 @@ def _info_lines(file: Path, summary: dict[str, Any]) -> list[str]:
             f"  {s['kind']:<5}{s['index']:>3} {s['dtype']:>5} {shape:>12} at {s['offset']:>10} "
             f"{s['bytes']:>10} bytes {s['encoding']:>11}  {summary['checksum_algorithm']} {s['crc']} {s['checksum']}"
         )
-    meta = summary["meta"]
-    if meta.get("hull_quality"):
-        lines.append(f"  hulls: {_hull_summary(meta['hull_quality'])}")
-    t = meta.get("transform") or {}
+    from meshtool.packfile.meta import PackMeta
+
+    meta = PackMeta(summary["meta"])
+    if meta.hull_quality:
+        lines.append(f"  hulls: {_hull_summary(meta.hull_quality)}")
+    t = meta.transform
     lines.append(
         f"  source units {t.get('units')} (x{t.get('unit_scale')}), scale {t.get('scale')}, up {t.get('up')}; "
-        f"tool {(meta.get('tool') or {}).get('version')}"
+        f"tool {meta.tool.get('version')}"
     )
     return lines
 
@@ -109,7 +111,7 @@ def export(file: Path, glb: Path | None, msh: Path | None, usd: Path | None, for
                     findings(export_findings(packed, "glb"))  # maps glTF has no slot for
         if usd is not None:
             check_output(usd, "usd", force=force, inputs=[file])
-            names = list(packed.meta.get("textures", []))
+            names = list(packed.pack_meta.textures)
             for name, texture in zip(names, packed.textures, strict=True):  # the PNGs written beside the USD
                 check_output(usd.parent / name, None, force=force, inputs=[file], data=bytes(texture))
             written = export_usd(packed, usd, safe_file_stem(file.stem) or "asset")

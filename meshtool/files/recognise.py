@@ -60,8 +60,7 @@ def is_mbin(path: Path, size: int) -> bool:
         return False
     try:
         with load(path, verify=False) as packed:
-            tool = packed.meta.get("tool")
-            return isinstance(tool, dict) and bool(tool.get("name") == "meshtool")
+            return bool(packed.pack_meta.tool.get("name") == "meshtool")
     except MeshtoolError:
         return False
 

@@ -137,8 +137,8 @@ def _marker(cache_dir: Path | None, data: bytes) -> tuple[Path, str] | None:
 
 def _describe(packed: PackedMesh, textures: list[TextureDesc]) -> dict[str, str]:
     """Element name -> what it is in the user's terms (part and material, hull, texture file)."""
-    parts = list(packed.meta.get("parts", []))
-    files = list(packed.meta.get("textures", []))
+    parts = list(packed.pack_meta.parts)
+    files = list(packed.pack_meta.textures)
     out: dict[str, str] = {}
     for k, (_, _, material, part) in enumerate(packed.submeshes.tolist()):
         material_name = packed.materials[material].get("name") if packed.materials else None

@@ -30,7 +30,7 @@ def unpack_files(packed: PackedMesh, name: str) -> dict[str, bytes]:
     indices as the source file, bit for bit, in lossless mode.
     """
     files: dict[str, bytes] = {}
-    textures = list(packed.meta.get("textures", []))
+    textures = list(packed.pack_meta.textures)
     for k, data in enumerate(packed.textures):
         files[textures[k]] = bytes(data)
     materials = [_material(m) for m in packed.materials]
@@ -59,7 +59,7 @@ def unpack_files(packed: PackedMesh, name: str) -> dict[str, bytes]:
         corner = "{0}//{0}"
     else:
         corner = "{0}"
-    parts = list(packed.meta.get("parts", []))
+    parts = list(packed.pack_meta.parts)
     show_parts = len({int(r[3]) for r in packed.submeshes}) > 1 or any(
         parts[int(r[3])] != "default" for r in packed.submeshes
     )
@@ -191,7 +191,7 @@ def describe(packed: PackedMesh) -> dict[str, Any]:
         "index_type": str(packed.indices.dtype),
         "submeshes": int(packed.submeshes.shape[0]),
         "materials": [m.get("name") for m in packed.materials],
-        "textures": list(packed.meta.get("textures", [])),
+        "textures": list(packed.pack_meta.textures),
         "hulls": len(packed.hulls),
         # what each section's "crc" holds (docs/mbin-spec.md section 2)
         "checksum_algorithm": "crc32" if packed.version[1] == 0 else "xxh3-64-low32",

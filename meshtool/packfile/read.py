@@ -27,6 +27,7 @@ from meshtool.files.resolve import map_readonly
 from meshtool.packfile import format as fmt
 from meshtool.packfile import verify as check
 from meshtool.packfile.encode import dequantize_box, oct_decode
+from meshtool.packfile.meta import PackMeta
 
 
 @dataclass(slots=True)
@@ -92,6 +93,11 @@ class PackedMesh:
     sections: list[Section]
     raw: dict[str, npt.NDArray[Any]] = field(default_factory=dict)
     _map: mmap.mmap | None = None
+
+    @property
+    def pack_meta(self) -> PackMeta:
+        """:attr:`meta` as the typed record (:class:`meshtool.packfile.meta.PackMeta`)."""
+        return PackMeta(self.meta)
 
     def close(self) -> None:
         """Release the memory map (arrays must not be used afterwards)."""

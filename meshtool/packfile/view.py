@@ -151,7 +151,7 @@ def asset_view(packed: PackedMesh) -> AssetView:
     """The typed view of ``packed`` (arrays are copies or read-only views; nothing refers back to the file)."""
     from meshtool.repair.normalmaps import normal_map
 
-    recorded = list(packed.meta.get("textures", []))
+    recorded = list(packed.pack_meta.textures)
     textures = [
         Texture(str(recorded[k]) if k < len(recorded) else f"tex{k}{suffix('png')}", bytes(data))
         for k, data in enumerate(packed.textures)

@@ -15,6 +15,7 @@ from meshtool.errors import PackFormatError
 from meshtool.hulls import surface
 from meshtool.packfile import format as fmt
 from meshtool.packfile.encode import max_angle_deg, oct_decode, oct_encode, quantize_box, render_mesh
+from meshtool.packfile.meta import PackMeta
 
 if TYPE_CHECKING:
     from meshtool.hulls.compute import Hull
@@ -140,20 +141,19 @@ def pack(
     texture_names = sorted(asset.textures)
     sections.extend(_blob(fmt.KIND_TEXTURE, asset.textures[t], k) for k, t in enumerate(texture_names))
     sections.append(_deflated(_blob(fmt.KIND_MATERIALS, canonical_json(_materials(asset.materials, texture_names)))))
-    meta = {
-        **{k: v for k, v in asset.manifest.items() if k not in ("files", "format", "format_version", "tool")},
-        "format": "mbin",
-        "tool": {"name": "meshtool", "version": __version__},
-        "options": options or {},
-        "quantization": quant or None,
-        "textures": texture_names,
-        "parts": asset.mesh.part_names,
-        "render": {"vertices": int(n), "triangles": int(rm.indices.shape[0])},
-        "mass_properties": _mass_properties(rm.positions, rm.indices),
-        "hull_parts": [h.part for h in hulls or []],
-        "hull_quality": hull_quality,
-    }
-    sections.append(_deflated(_blob(fmt.KIND_META, canonical_json(meta))))
+    meta = PackMeta.of_asset(
+        asset.manifest,
+        tool={"name": "meshtool", "version": __version__},
+        options=options,
+        quantization=quant,
+        textures=texture_names,
+        parts=asset.mesh.part_names,
+        render={"vertices": int(n), "triangles": int(rm.indices.shape[0])},
+        mass_properties=_mass_properties(rm.positions, rm.indices),
+        hull_parts=[h.part for h in hulls or []],
+        hull_quality=hull_quality,
+    )
+    sections.append(_deflated(_blob(fmt.KIND_META, canonical_json(meta.raw))))
     return assemble(sections, fmt.FLAG_QUANTIZED if quantize else 0)
 
 

@@ -21,13 +21,13 @@ import numpy as np
 from meshtool.files.safeopen import printable
 from meshtool.findings import Finding
 from meshtool.formats import suffix
-from meshtool.hulls.compute import Hull, HullOptions, compute_hulls, quality
+from meshtool.hulls.compute import Hull, HullOptions, quality
 from meshtool.mjcf.asset_model import MeshParts, mesh_parts
-from meshtool.packfile import pack
 from meshtool.packfile.read import parse
+from meshtool.pipeline import asset_hulls, pack_asset, repaired_asset
 from meshtool.read import placed_up
 from meshtool.repair.mesh import safe_identifier
-from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, prepare, safe_file_stem
+from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, safe_file_stem
 from meshtool.repair.normalmaps import mujoco_findings
 from meshtool.urdf.locate import FoundMesh, UrdfError
 
@@ -84,7 +84,7 @@ def load_mesh(mesh: FoundMesh, scale: Scale, prefix: str, hulls: HullOptions) ->
     )
     findings: list[Finding] = []
     try:
-        asset = prepare(found, options, data=mesh.data)
+        asset = repaired_asset(found, options, data=mesh.data)
     except OSError as exc:  # a folder above the mesh changed while its companions were looked up
         raise UrdfError(
             f"mesh {found.name!r} changed while it was being read ({exc.strerror or type(exc).__name__}); not read",
@@ -94,11 +94,11 @@ def load_mesh(mesh: FoundMesh, scale: Scale, prefix: str, hulls: HullOptions) ->
     own = any(m.name != "default" for m in asset.materials)
     if not uniform:
         asset = _scaled(asset, s)
-    hull_set = compute_hulls(asset.mesh, hulls, found.name)
+    hull_set = asset_hulls(asset.mesh, hulls, found.name)
     report = quality(asset.mesh, hull_set.hulls) if hull_set.hulls else None
     findings += [*asset.findings, *hull_set.findings, *mujoco_findings(asset.materials, found.name)]
     meta = {"urdf_scale": [float(v) for v in s], "hulls": hulls.fingerprint()}
-    data = pack(asset, False, meta, list(hull_set.hulls), report)
+    data = pack_asset(asset, list(hull_set.hulls), meta, report)
     parts = mesh_parts(parse(data, f"{prefix}{suffix('mbin')}"), prefix, hulls.max_hull_vertices)
     return LoadedMesh(prefix, parts, data, own), findings
 
@@ -125,17 +125,12 @@ def _scaled(asset: NormalisedAsset, s: np.ndarray) -> NormalisedAsset:
 
 
 def mesh_sources(found: Path, root: Path, mbin: bytes) -> set[Path]:
-    """The mesh file and every file its pack's metadata lists as read (MTL, textures), as paths."""
-    out = {found}
+    """The mesh file and every file its pack's metadata lists as read (MTL, textures), as paths.
+
+    ``root``: the package root, the one search path the mesh was read with (:func:`load_mesh`).
+    """
     with parse(mbin, found.name, verify=False) as packed:
-        sources = packed.meta.get("sources", [])
-    for source in sources if isinstance(sources, list) else []:
-        shown = str(source.get("path", "")) if isinstance(source, dict) else ""
-        if shown.startswith("<search-path 1>/"):
-            out.add(root / shown[len("<search-path 1>/") :])
-        elif shown and not shown.startswith("<"):
-            out.add(found.parent / shown.split("#", 1)[0])
-    return out
+        return {found, *packed.pack_meta.source_files([found.parent, root])}
 
 
 def mesh_prefix(found: Path, taken: set[str]) -> str:

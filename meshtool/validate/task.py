@@ -26,10 +26,10 @@ from meshtool.formats import mesh_format, mesh_format_named, output_named
 from meshtool.frame.consumers import find_consumers
 from meshtool.frame.modelroot import find_model_root
 from meshtool.frame.units import scale_findings
-from meshtool.hulls.compute import Hull, HullOptions, compute_hulls
-from meshtool.packfile import pack, parse
-from meshtool.pipeline import ConvertOptions
-from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, prepare
+from meshtool.hulls.compute import Hull, HullOptions
+from meshtool.packfile import PackMeta, parse
+from meshtool.pipeline import ConvertOptions, asset_hulls, pack_asset, repaired_asset, source_states
+from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions
 from meshtool.validate.collision import collision_findings
 from meshtool.validate.config import Limits
 from meshtool.validate.geometry import geometry_findings
@@ -137,7 +137,7 @@ class ReadAsset:
     Attributes:
         task: The asset.
         result: Findings, deps and stats of the reading phase.
-        asset: An OBJ as :func:`meshtool.repair.normalise.prepare` read it (MTLs and textures included).
+        asset: An OBJ as :func:`meshtool.pipeline.repaired_asset` read it (MTLs and textures included).
         mbin: A pack's bytes.
         done: Nothing left to judge (the file could not be read, or the check failed).
     """
@@ -232,7 +232,7 @@ def _read_obj(read: ReadAsset) -> None:
     if (mesh_format(src) or mesh_format_named("obj")).text:  # binary formats (STL, PLY, GLB) are no text
         result.findings.extend(encoding_findings(shown, data))
     try:
-        asset = prepare(src, NormaliseOptions(units=task.units, up=task.up))
+        asset = repaired_asset(src, NormaliseOptions(units=task.units, up=task.up))
     except MeshtoolError as exc:
         rule = {"non-finite": "G001", "gltf-buffer-missing": "S013"}.get(str(exc.code), "S001")
         # a binary file's location is a byte offset, which findings have no field for: it leads the message
@@ -270,9 +270,9 @@ def _judge_obj(read: ReadAsset) -> None:
     if task.thumbnail_only:
         if mesh.faces.shape[0] > 0:
             hull_options = HullOptions(mode="convex", max_hull_vertices=task.limits.max_hull_vertices)
-            hull_set = compute_hulls(mesh, hull_options, name)
+            hull_set = asset_hulls(mesh, hull_options, name)
             options = ConvertOptions(hulls=hull_options)
-            _thumbnail(task, result, pack(asset, False, options.fingerprint(), hull_set.hulls, None))
+            _thumbnail(task, result, pack_asset(asset, hull_set.hulls, options.fingerprint(), None))
         return
     result.stats.update(asset.stats)
     result.findings.extend(geometry_findings(mesh.positions, mesh.faces, name, task.limits))
@@ -280,12 +280,12 @@ def _judge_obj(read: ReadAsset) -> None:
         result.notes.append("collision and physics not checked: the mesh has no faces")
         return
     hull_options = HullOptions(mode="convex", max_hull_vertices=task.limits.max_hull_vertices)
-    hull_set = compute_hulls(mesh, hull_options, name)
+    hull_set = asset_hulls(mesh, hull_options, name)
     found, report = collision_findings(mesh.positions, mesh.faces, hull_set.hulls, name, task.limits)
     result.findings.extend(found)
     result.stats["collision"] = report
     options = ConvertOptions(hulls=hull_options)
-    packed = pack(asset, False, options.fingerprint(), hull_set.hulls, report)
+    packed = pack_asset(asset, hull_set.hulls, options.fingerprint(), report)
     _physics(task, result, packed)
 
 
@@ -307,7 +307,7 @@ def _read_mbin(read: ReadAsset) -> None:
         result.findings.append(hit(rule, exc.one_line().removeprefix(f"{name}: "), name))
         read.done = True
         return
-    _staleness(task, result, packed.meta.get("sources", []))  # looks for the sources: where the files are
+    _staleness(task, result, packed.pack_meta)  # looks for the sources: where the files are
     packed.close()
     read.mbin = data
 
@@ -320,10 +320,9 @@ def _judge_mbin(read: ReadAsset) -> None:
         return
     name = task.path.name
     packed = parse(data, name, verify=False)  # verified when read
-    meta = packed.meta
     positions = np.asarray(packed.positions, dtype=np.float64)
     faces = np.asarray(packed.indices, dtype=np.int64)
-    result.stats.update(dict(meta.get("stats", {})))
+    result.stats.update(packed.pack_meta.stats)
     result.findings.extend(geometry_findings(positions, faces, name, task.limits))
     extent = np.ptp(positions, axis=0) if len(positions) else np.zeros(3)
     result.findings.extend(hit("U001", f.message, name) for f in scale_findings(extent, name, True))
@@ -340,9 +339,9 @@ def _judge_mbin(read: ReadAsset) -> None:
     _physics(task, result, data)
 
 
-def _staleness(task: AssetTask, result: AssetResult, sources: list[dict[str, Any]]) -> None:
+def _staleness(task: AssetTask, result: AssetResult, meta: PackMeta) -> None:
     """K003: find the pack's sources (its folder, then the source roots) and compare their hashes."""
-    if not sources:
+    if not meta.sources:
         result.notes.append("staleness not checked: the pack records no sources")
         return
     folder = task.path.parent
@@ -352,7 +351,7 @@ def _staleness(task: AssetTask, result: AssetResult, sources: list[dict[str, Any
             with contextlib.suppress(ValueError):  # the pack is not under the scanned folder
                 candidates.append(root / folder.resolve().relative_to(task.scan_root.resolve()))
         candidates.append(root)
-    obj = str(sources[0]["path"])
+    obj = meta.sources[0].path
     for base in candidates:
         first = base / obj
         digest = file_sha256(first)
@@ -360,14 +359,13 @@ def _staleness(task: AssetTask, result: AssetResult, sources: list[dict[str, Any
         if digest is None:
             continue
         changed, missing = [], []
-        for source in sources:
-            p = base / str(source["path"])
-            now = file_sha256(p)
-            result.deps[str(p.absolute())] = now
+        for source, path, now in source_states(meta, [base]):
+            if path is not None:
+                result.deps[str(path.absolute())] = now
             if now is None:
-                missing.append(str(source["path"]))
-            elif now != source["sha256"]:
-                changed.append(str(source["path"]))
+                missing.append(source.path)
+            elif now != source.sha256:
+                changed.append(source.path)
         if changed or missing:
             parts = [f"changed: {', '.join(changed)}"] if changed else []
             parts += [f"missing: {', '.join(missing)}"] if missing else []

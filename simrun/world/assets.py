@@ -113,7 +113,7 @@ class AssetLibrary:
                 cached = parse(found.payload, src.name)
             except meshtool.MeshtoolError:
                 cached = None
-            if cached is not None and is_current(cached.meta, src, options):
+            if cached is not None and is_current(cached.pack_meta, src, options):
                 self.sources.update(_pack_sources(cached, src))
                 return cached
         made = pack_file(src, options)
@@ -234,12 +234,7 @@ def pack_cache() -> Path:
 
 def _pack_sources(packed: PackedMesh, src: Path) -> list[Path]:
     """The files a cached pack of ``src`` was made from (the mesh, its MTLs and textures), as its metadata says."""
-    found = []
-    for source in packed.meta.get("sources", []):
-        path = src.parent / str(source.get("path", "")) if isinstance(source, dict) else None
-        if path is not None and path.is_file():
-            found.append(path)
-    return found
+    return [p for p in packed.pack_meta.source_files([src.parent]) if p.is_file()]
 
 
 def read_image_file(path: Path, shown: str) -> bytes:
