@@ -5,13 +5,14 @@ Ground truth: MuJoCo's own load of the fixture (``model.opt``), and the values t
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import mujoco
 import pytest
 from click.testing import CliRunner
 
-from simrun import Ground, Pose, World, WorldOptions, load_scene
+from simrun import EntityError, Ground, Pose, World, WorldOptions, load_scene
 from simrun.cli.main import main
 from simrun.robots.mjcf_robot import MjcfRobot
 
@@ -96,3 +97,10 @@ def test_a_saved_scene_keeps_which_options_were_explicit(tmp_path: Path) -> None
     assert again.model.opt.timestep == 0.005  # the robot's
     assert again.model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICIT
     assert again.options.explicit == {"integrator"}
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -0.002, 0.0])
+def test_a_timestep_given_as_nan_or_out_of_range_is_refused_not_taken_as_unset(bad):
+    with pytest.raises(EntityError, match="timestep must be in"):
+        WorldOptions(timestep=bad)
+    assert WorldOptions().explicit == frozenset() and WorldOptions(timestep=0.004).explicit == {"timestep"}

@@ -47,6 +47,14 @@ _mj_step = mujoco.mj_step  # bound once: World.step's single-step path is timed 
 DEFAULT_TIMESTEP, DEFAULT_GRAVITY, DEFAULT_INTEGRATOR = 0.002, (0.0, 0.0, -9.81), "implicitfast"
 
 
+class _NotGiven(float):
+    """The default of :attr:`WorldOptions.timestep`: a float (the field keeps its type) that means "not given"."""
+
+
+#: Told apart by identity, so a NaN passed on purpose is refused, not taken for "not given".
+_NOT_GIVEN = _NotGiven("nan")
+
+
 @dataclass(frozen=True, slots=True)
 class WorldOptions:
     """Physics options.
@@ -62,7 +70,7 @@ class WorldOptions:
         explicit: The names among ``timestep`` and ``integrator`` that were given (set from the arguments).
     """
 
-    timestep: float = math.nan  # nan, "": not given (the defaults above)
+    timestep: float = _NOT_GIVEN  # _NOT_GIVEN, "": not given (the defaults above)
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY
     integrator: str = ""
     explicit: frozenset[str] = field(default=frozenset(), init=False)
@@ -70,7 +78,7 @@ class WorldOptions:
     def __post_init__(self) -> None:
         given = frozenset(
             n
-            for n, unset in (("timestep", math.isnan(self.timestep)), ("integrator", not self.integrator))
+            for n, unset in (("timestep", self.timestep is _NOT_GIVEN), ("integrator", not self.integrator))
             if not unset
         )
         object.__setattr__(self, "explicit", given)
@@ -78,7 +86,7 @@ class WorldOptions:
             object.__setattr__(self, "timestep", DEFAULT_TIMESTEP)
         if "integrator" not in given:
             object.__setattr__(self, "integrator", DEFAULT_INTEGRATOR)
-        if not MIN_TIMESTEP <= self.timestep <= MAX_TIMESTEP:
+        if not MIN_TIMESTEP <= self.timestep <= MAX_TIMESTEP:  # NaN given on purpose fails here too
             raise EntityError(f"timestep must be in [{MIN_TIMESTEP:g}, {MAX_TIMESTEP:g}] seconds, got {self.timestep}")
         if self.integrator not in INTEGRATORS:
             raise EntityError(f"integrator must be one of {', '.join(INTEGRATORS)}")
