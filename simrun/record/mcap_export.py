@@ -6,12 +6,14 @@ time (``round(t * 1e9)``) and the same time in each message's ``timestamp``:
 
 * ``/tf``: ``foxglove.FrameTransforms``, every recorded frame: one transform per body from ``world`` to the
   body (``xpos`` metres and ``xquat``, MuJoCo's body frames, Z up), so the 3D panel shows every body;
-* ``/NAME/pose``: ``foxglove.PoseInFrame`` per robot, every frame: its body pose in ``world`` (ground truth);
+* ``/NAME/pose``: ``foxglove.PoseInFrame`` per robot (:func:`simrun.robots.contract.robots`: every robot
+  entity), every frame: its root body's pose in ``world`` (ground truth);
 * ``/NAME/odometry``: ``foxglove.PoseInFrame`` per drive service, at each checkpoint (every second): the
   service's odometry estimate (x, y, heading) in the frame ``NAME/odom``, which ``/tf`` places at the robot's
   pose of the first frame (the odometry origin of a run recorded from its start);
 * ``/sensors/NAME``: recorded sensor readings (``--record-sensors``): a laser as ``foxglove.LaserScan`` in
-  its robot's body frame (the scan origin ``height`` above it), a webcam as ``foxglove.RawImage`` (``rgb8``),
+  the frame of the body it is mounted on (``body``, else the robot's root; the scan origin ``height`` above
+  it), a webcam as ``foxglove.RawImage`` (``rgb8``),
   any other sensor as JSON (``message_encoding`` ``json``, its reading's fields).
 
 Messages are protobuf, with the schemas the SDK embeds, so Foxglove and any MCAP reader with protobuf
@@ -84,14 +86,16 @@ def _write(world: Any, log: Simlog, out: Path) -> McapSummary:
     from foxglove import channels as fc
     from foxglove import messages as fm
 
-    from simrun.robots.diff_drive import DifferentialDrive
+    from simrun.robots.contract import robots as robot_contracts
     from simrun.sensors.laser import LaserRangeFinder
     from simrun.services.drive_service import DriveService
 
     model, data = world.model, world.data
     bodies = [(b, model.body(b).name or f"body{b}") for b in range(1, model.nbody)]
-    robots = [(name, int(model.body(name).id)) for name, e in world if isinstance(e, DifferentialDrive)]
+    contracts = robot_contracts(world)
+    robots = [(name, int(model.body(r.root).id)) for name, r in contracts.items()]
     drives = [(k, c.name) for k, c in enumerate(world.controllers) if isinstance(c, DriveService)]
+    bases = {c.name: c.wheels.base for c in world.controllers if isinstance(c, DriveService)}
     counts: dict[str, int] = {}
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
@@ -144,7 +148,7 @@ def _write(world: Any, log: Simlog, out: Path) -> McapSummary:
             ]
             if first:  # the odometry frames: each robot's pose at the first frame, heading only (Z up)
                 for _, name in drives:
-                    b = int(model.body(name).id)
+                    b = int(model.body(bases[name]).id)
                     yaw = _yaw(data.xquat[b])
                     transforms.append(
                         fm.FrameTransform(
@@ -197,9 +201,9 @@ def _write(world: Any, log: Simlog, out: Path) -> McapSummary:
                     angles = np.asarray(reading["angles"], dtype=float)
                     scan = fm.LaserScan(
                         timestamp=stamp(t),
-                        frame_id=sensor.entity,
+                        frame_id=model.body(sensor.mounting.bind(model)).name,
                         pose=fm.Pose(
-                            position=fm.Vector3(x=0.0, y=0.0, z=float(sensor.height)),
+                            position=fm.Vector3(x=0.0, y=0.0, z=float(sensor.mount_height(model))),
                             orientation=fm.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
                         ),
                         start_angle=float(angles[0]),

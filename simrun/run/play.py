@@ -20,9 +20,9 @@ import numpy as np
 from PIL import Image
 
 from simrun.errors import SimrunError
+from simrun.robots.contract import robots as robot_contracts
 from simrun.run.commands import Command, check_commands, load_commands
 from simrun.safeio import FileReadError, read_regular
-from simrun.world.registry import REGISTRY, robot_types
 from simrun.world.world import World
 
 __all__ = ["Command", "PlayResult", "PythonController", "encode_gif", "encode_mp4", "load_commands", "play"]
@@ -167,8 +167,8 @@ def play(
     check_commands(world, list(commands or []))
     model, data = world.model, world.data
     pending = list(commands or [])
-    robot_classes = tuple(REGISTRY[kind].load() for kind in robot_types())
-    robots = {name: np.array(world.body(name).xpos) for name, e in world if isinstance(e, robot_classes)}
+    roots = {name: robot.root for name, robot in robot_contracts(world).items() if robot.mobile}
+    robots = {name: np.array(world.body(root).xpos) for name, root in roots.items()}
     travelled = dict.fromkeys(robots, 0.0)
     start_wall = time.perf_counter()
     dt = model.opt.timestep
@@ -196,7 +196,7 @@ def play(
         done += limit
         if done % sample_every == 0 or done == total:
             for name, previous in robots.items():
-                now = np.array(world.body(name).xpos)
+                now = np.array(world.body(roots[name]).xpos)
                 travelled[name] += float(np.linalg.norm(now[:2] - previous[:2]))
                 robots[name] = now
         if realtime:

@@ -1,11 +1,11 @@
-"""Interactive viewing with keyboard teleoperation of the first differential-drive robot."""
+"""Interactive viewing with keyboard teleoperation of the first robot with wheels (the robot contract's)."""
 
 from __future__ import annotations
 
 import time
 from typing import Any
 
-from simrun.robots.diff_drive import DifferentialDrive
+from simrun.robots.contract import robots
 from simrun.world.world import World
 
 KEY_SPACE, KEY_RIGHT, KEY_LEFT, KEY_DOWN, KEY_UP = 32, 262, 263, 264, 265
@@ -47,12 +47,13 @@ def run_viewer(world: World) -> None:
     """Open MuJoCo's passive viewer on the world, stepping in real time until the window closes."""
     import mujoco.viewer
 
-    robot = next((name for name, e in world if isinstance(e, DifferentialDrive)), None)
+    robot = next((name for name, r in robots(world).items() if r.wheels is not None), None)
     teleop = None
     if robot is not None:
         from simrun.services.drive_service import DriveService
 
-        teleop = Teleop(DriveService(world, robot))
+        bound = any(s.get("type") == "DriveService" and s.get("entity") == robot for s in world.services)
+        teleop = Teleop(world.service("DriveService", robot) if bound else DriveService(world, robot))
     model, data = world.model, world.data
     with mujoco.viewer.launch_passive(model, data, key_callback=teleop.key if teleop else None) as viewer:
         viewer.set_texts((mujoco.mjtFontScale.mjFONTSCALE_150, mujoco.mjtGridPos.mjGRID_TOPLEFT, HELP, ""))

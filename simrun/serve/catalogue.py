@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from simrun.errors import SimrunError
+from simrun.robots.contract import robots as robot_contracts
 from simrun.run.commands import LIFECYCLE, Command, parse_command
 from simrun.world.registry import REGISTRY, names
 from simrun.world.world import World
@@ -98,15 +99,24 @@ def service_queries(cls: type) -> list[str]:
 
 
 def build_catalogue(world: World) -> dict[str, Any]:
-    """The world's entities, bound services (commands with schemas, queries) and sensors (type, rate, entity)."""
+    """The world's entities, bound services (commands with schemas, queries) and sensors (type, rate, entity).
+
+    Each entity says whether it is a robot (the robot contract, :mod:`simrun.robots.contract`) and, for a robot,
+    its ``root`` body (the dashboard follows it); ``teleop`` lists the robots with wheels and a bound
+    ``DriveService``, in entity order (the dashboard's teleoperation list).
+    """
+    contracts = robot_contracts(world)
     entities = [
         {
             "name": name,
             "type": entity.TYPE,
-            "robot": bool(REGISTRY.get(entity.TYPE, None) and REGISTRY[entity.TYPE].robot),
+            "robot": name in contracts,
+            **({"root": contracts[name].root} if name in contracts else {}),
         }
         for name, entity in world
     ]
+    driven = {s["entity"] for s in world.services if s.get("type") == "DriveService"}
+    teleop = [name for name, r in contracts.items() if r.wheels is not None and name in driven]
     services = []
     for binding in world.services:
         kind, entity = binding["type"], binding["entity"]
@@ -140,6 +150,7 @@ def build_catalogue(world: World) -> dict[str, Any]:
         "entities": entities,
         "services": services,
         "sensors": sensors,
+        "teleop": teleop,
         "bodies": bodies,
         "timestep": float(model.opt.timestep),
     }

@@ -58,7 +58,7 @@
   const controls = new OrbitControls(camera, renderer.domElement);
   const yUp = (p) => new THREE.Vector3(p[0], p[2], -p[1]);
   function frameOn(poses) {
-    const robots = catalogue.entities.filter((e) => e.robot && poses[e.name]).map((e) => poses[e.name]);
+    const robots = catalogue.entities.filter((e) => e.robot && poses[e.root]).map((e) => poses[e.root]);
     const points = robots.length ? robots : Object.values(poses);
     const c = [0, 0, 0];
     for (const p of points) for (let k = 0; k < 3; k++) c[k] += p[k] / Math.max(1, points.length);
@@ -218,8 +218,10 @@
   });
   fillCommands();
 
-  // teleoperation of the drive robots: cmd_vel, re-sent while it is not zero (it expires after 0.5 s)
-  const drives = services.filter((s) => s.type === "DriveService");
+  // teleoperation of the robots with wheels and a DriveService (the catalogue's teleop list, from the robot
+  // contract): cmd_vel, re-sent while it is not zero (it expires after 0.5 s)
+  const teleop = catalogue.teleop || [];
+  const drives = teleop.map((name) => services.find((s) => s.type === "DriveService" && s.entity === name));
   drives.forEach((s, k) => $("robot").add(new Option(s.entity, String(k))));
   let linear = 0, angular = 0;
   function send() {
@@ -289,7 +291,7 @@
         label.className = "label";
         label.textContent = e.name;
         $("labels").appendChild(label);
-        labels.push({ name: e.name, label });
+        labels.push({ name: e.root || e.name, label });
       }
       return api("GET", "/api/state");
     })

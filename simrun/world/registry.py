@@ -1,10 +1,12 @@
 """The one registry of scene types: every entity, service and sensor a scene file may name.
 
 :class:`~simrun.world.world.World` (``service``, ``add_sensor``), :mod:`simrun.scene.scene_file` (``[[entities]]``,
-``[[services]]``, ``[[sensors]]``), :mod:`simrun.run.commands`, :mod:`simrun.run.play` (which entities are robots)
-and ``docs/scene-format.md`` (tests/test_simrun_registry.py keeps the document in step) read this table
-and nothing else. Classes are named by ``module:Class`` and imported on first use, so this module imports
-no other simrun module and the modules it names may import :mod:`simrun.world.world` freely: there is no cycle.
+``[[services]]``, ``[[sensors]]``), :mod:`simrun.run.commands` and ``docs/scene-format.md``
+(tests/test_simrun_registry.py keeps the document in step) read this table and nothing else; whether an entity
+is a robot is the robot contract's answer (:func:`simrun.robots.contract.is_robot`), not a registry flag.
+Classes are named by ``module:Class`` and imported on first use, so this
+module imports no other simrun module and the modules it names may import :mod:`simrun.world.world` freely:
+there is no cycle.
 
 Services and sensors are world controllers: both implement :class:`Controller`, the protocol the world's
 stepping loop, checkpoints (``.simlog``) and ``save_scene(state="current")`` rely on.
@@ -61,7 +63,6 @@ class SceneType:
         target: ``module:Class``.
         summary: One line for the documentation.
         binds: Services and sensors: the key naming what it is attached to (``entity``, ``camera``, ``rig``).
-        robot: Entities: a mobile robot (``simrun play`` reports the distance it drove).
     """
 
     name: str
@@ -69,7 +70,6 @@ class SceneType:
     target: str
     summary: str
     binds: str = "entity"
-    robot: bool = False
 
     def load(self) -> Any:
         """The class (imported now)."""
@@ -123,7 +123,6 @@ _ROBOTS = _types(
         ("IRobotCreate", "simrun.robots.catalogue:IRobotCreate", "iRobot Create."),
         ("LegoNxtTribot", "simrun.robots.catalogue:LegoNxtTribot", "LEGO Mindstorms NXT TriBot."),
     ],
-    robot=True,
 )
 _SERVICES = _types(
     "services",
@@ -233,8 +232,3 @@ def service_arguments(binding: dict[str, Any]) -> dict[str, Any]:
                 break
         out[key] = value
     return out
-
-
-def robot_types() -> tuple[str, ...]:
-    """Entity types that are mobile robots."""
-    return tuple(name for name, t in REGISTRY.items() if t.robot)
