@@ -4,7 +4,7 @@ Two tables, read by everything that needs to know about a format (as :mod:`simru
 types):
 
 * :data:`MESH_FORMATS`: a :class:`MeshFormat` row per input format: its name, suffixes, label, its reader
-  (``module:function``, one signature for all: ``read(data, path, src, resolver) -> ObjData``), and how its
+  (``module:function``, one signature for all: ``read(data, path, src, resolver) -> SourceMesh``), and how its
   unit and up axis are decided. :func:`meshtool.read.read_mesh`, the folder scans of ``obj2bin``,
   ``validate`` and ``meshtool urdf``, the up-axis defaults and the CLI help texts are derived from it.
 * :data:`OUTPUTS`: an :class:`OutputFormat` row per file the project writes: name, suffixes, what it is,
@@ -47,7 +47,7 @@ class MeshFormat:
         name: Format name (``obj``, ``stl``...): ``asset.json``'s source role and the reader's ``format``.
         label: How people write it (``OBJ``, ``glTF``).
         suffixes: Lower-case file suffixes, dot included.
-        reader: ``module:function`` of ``read(data: bytes, path: str, src: Path, resolver: Resolver) -> ObjData``
+        reader: ``module:function`` of ``read(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMesh``
             (imported on first use).
         up: How the up axis is decided (:data:`UpRule`).
         fallback_up: ``y`` or ``z``: the up axis when the rule finds nothing.

@@ -1,8 +1,8 @@
 """Mesh readers: OBJ/MTL, STL, PLY, glTF/GLB and COLLADA into one in-memory model.
 
 :func:`read_mesh` picks the reader by the file's suffix and returns an
-:class:`~meshtool.read.obj.parse.ObjData` (OBJ) or a :class:`~meshtool.read.source_mesh.SourceMesh` (every other
-format), which the normaliser consumes the same way. :func:`source_frame` decides the source unit and up
+:class:`~meshtool.read.source_mesh.SourceMesh` (the read stage's record, every format alike), which the
+normaliser consumes the same way. :func:`source_frame` decides the source unit and up
 axis with what the format declares (COLLADA ``<unit>``/``<up_axis>``, glTF metres Y-up); STL and PLY have
 neither and are treated like OBJ (options, consumer files, geometry), with a unit suggestion for STL.
 
@@ -24,7 +24,6 @@ from meshtool.frame.modelroot import ModelRoot
 from meshtool.frame.units import MAX_PLAUSIBLE_M, PLAUSIBLE_OBJECT_M, UNIT_FACTORS, UnitEvidence, unit_scale
 from meshtool.frame.upaxis import FloatArray, UpDecision
 from meshtool.read.obj.mtl import Material
-from meshtool.read.obj.parse import ObjData
 from meshtool.read.source_mesh import SourceFrame, SourceMesh
 
 #: File suffix (lower case) -> format name (derived from :data:`meshtool.formats.MESH_FORMATS`).
@@ -64,7 +63,7 @@ def placed_up(src: Path) -> str:
     return row.placed_up() if row is not None else "z"
 
 
-def read_mesh(src: Path, data: bytes, path: str, resolver: Resolver) -> ObjData:
+def read_mesh(src: Path, data: bytes, path: str, resolver: Resolver) -> SourceMesh:
     """Read the mesh in ``data`` with the reader for ``src``'s suffix.
 
     Args:
@@ -74,22 +73,22 @@ def read_mesh(src: Path, data: bytes, path: str, resolver: Resolver) -> ObjData:
         resolver: The asset's resolver (glTF buffers and embedded images go through it).
 
     Returns:
-        ``ObjData`` for OBJ, a :class:`SourceMesh` for the other formats.
+        The :class:`SourceMesh` (``format`` names the format).
 
     Raises:
         MeshtoolError: ``ObjParseError`` or ``FormatError`` naming the file and line or byte offset.
     """
     row = mesh_format(src) or mesh_format_named("obj")
-    result: ObjData = row.read()(data, path, src, resolver)
+    result: SourceMesh = row.read()(data, path, src, resolver)
     return result
 
 
-def source_role(obj: ObjData) -> str:
+def source_role(obj: SourceMesh) -> str:
     """The ``role`` of the mesh file in ``asset.json``'s ``sources`` (``obj``, ``stl``, ``gltf``...)."""
-    return obj.format if isinstance(obj, SourceMesh) else "obj"
+    return obj.format
 
 
-def source_entries(obj: ObjData, path: str, sha256: str) -> list[dict[str, str]]:
+def source_entries(obj: SourceMesh, path: str, sha256: str) -> list[dict[str, str]]:
     """``asset.json`` source entries of the mesh file (role: its format) and the files it read (glTF buffers).
 
     Args:
@@ -97,16 +96,16 @@ def source_entries(obj: ObjData, path: str, sha256: str) -> list[dict[str, str]]
         path: The mesh file as shown.
         sha256: Its SHA-256.
     """
-    extra = obj.sources if isinstance(obj, SourceMesh) else []
+    extra = obj.sources if obj.format != "obj" else []
     return [{"role": source_role(obj), "path": path, "sha256": sha256}, *extra]
 
 
-def material_library(obj: ObjData, src: Path) -> dict[str, tuple[Material, Path]]:
+def material_library(obj: SourceMesh, src: Path) -> dict[str, tuple[Material, Path]]:
     """The materials a non-OBJ format defines, keyed by name, as the normaliser's MTL library holds them.
 
     Texture references resolve relative to ``src``'s folder (the second element).
     """
-    if not isinstance(obj, SourceMesh):
+    if obj.format == "obj":
         return {}
     library: dict[str, tuple[Material, Path]] = {}
     for material in obj.materials:
@@ -115,7 +114,7 @@ def material_library(obj: ObjData, src: Path) -> dict[str, tuple[Material, Path]
 
 
 def source_frame(
-    obj: ObjData,
+    obj: SourceMesh,
     src: Path,
     positions: FloatArray,
     units: str | None,
@@ -144,7 +143,7 @@ def source_frame(
         The frame and its findings.
     """
     header = obj.header_comments
-    if not isinstance(obj, SourceMesh):
+    if obj.format == "obj":
         return decide_frame(src, positions, header, units, scale, up, root, normalised_before)
     declared = obj.frame
     user_unit = units if units in UNIT_FACTORS else None

@@ -1,10 +1,10 @@
 """The in-memory mesh model every reader fills, and the helper that assembles it from pieces.
 
-Every reader (OBJ, STL, PLY, glTF/GLB, COLLADA) returns an :class:`~meshtool.read.obj.parse.ObjData`: OBJ
-itself, every other format a :class:`SourceMesh`, which is an ``ObjData`` with what OBJ keeps elsewhere
-(its MTL files) or not at all: the materials the format defines, the unit and up axis it declares, and
-what the source locations of findings count (lines for text formats, facets/faces/triangles for binary
-ones). The normaliser consumes both the same way (:func:`meshtool.repair.mesh.build_mesh`).
+Every reader (OBJ, STL, PLY, glTF/GLB, COLLADA) returns a :class:`SourceMesh`, the read stage's record: the
+polygons and attributes, and what OBJ keeps elsewhere (its MTL files) or not at all: the materials the format
+defines, the unit and up axis it declares, and what the source locations of findings count (lines for text
+formats, facets/faces/triangles for binary ones). The normaliser consumes every format the same way
+(:func:`meshtool.repair.mesh.build_mesh`).
 
 Readers build the model from :class:`Piece` objects (one per primitive, polygon group or solid), which
 :func:`assemble` concatenates into the flat arrays, in piece order.
@@ -13,14 +13,16 @@ Readers build the model from :class:`Piece` objects (one per primitive, polygon 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from meshtool.findings import Finding, warning
-from meshtool.read.obj.mtl import Material
-from meshtool.read.obj.parse import ObjData
+
+if TYPE_CHECKING:  # the OBJ parser builds this record: no import of it here
+    from meshtool.read.obj.mtl import Material
+    from meshtool.read.obj.parse import MtllibRef
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -49,25 +51,71 @@ class SourceFrame:
 
 
 @dataclass(slots=True)
-class SourceMesh(ObjData):
-    """A mesh read from any format other than OBJ (see :class:`~meshtool.read.obj.parse.ObjData` for the arrays).
+class SourceMesh:
+    """The read stage's record: one mesh file as read, any format, polygons not yet triangulated.
+
+    Shapes: ``V`` vertices, ``T`` texture coordinates, ``N`` normals, ``F`` polygons, ``C`` polygon corners
+    (``C = face_sizes.sum()``). Coordinates are in the file's own units and axes.
 
     ``face_lines``/``vertex_lines`` hold the source location of each polygon/vertex, counted in
     ``location`` units (1-based): ``line`` for text formats, ``facet`` (STL), ``face`` (PLY), ``triangle``
     (glTF, COLLADA: the running triangle number in the file).
 
     Attributes:
-        format: ``stl``, ``ply``, ``gltf``, ``glb`` or ``collada``.
+        path: Name of the file, for messages.
+        positions: (V, 3) float64 vertex positions.
+        colors: (V, 3) float64 vertex colours in the file's range (usually 0..1), or ``None`` when no vertex
+            carries a colour; vertices without one are white.
+        texcoords: (T, 2) float64 ``u v`` (a missing ``v`` is 0; ``w`` is dropped).
+        normals: (N, 3) float64 normals as written (not renormalised).
+        vertex_lines: (V,) source location of each vertex.
+        face_sizes: (F,) corner count of each polygon (always >= 3).
+        face_lines: (F,) source location of each polygon.
+        face_material: (F,) index into ``material_names``, -1 before any ``usemtl``.
+        face_part: (F,) index into ``part_names`` (OBJ: the current ``g`` name, else ``o`` name, else
+            ``"default"``).
+        corner_v: (C,) 0-based vertex index of each corner.
+        corner_vt: (C,) 0-based texcoord index, -1 where the corner has none.
+        corner_vn: (C,) 0-based normal index, -1 where the corner has none.
+        material_names: Material names, in order of first use.
+        part_names: Group/object names, in order of first appearance.
+        mtllibs: Every file named by OBJ ``mtllib`` statements, in order (empty for other formats).
+        header_comments: Comment lines before the first statement (without the ``#``).
+        encoding: Text encoding the file was read with.
+        line_endings: ``lf``, ``crlf``, ``cr`` or ``mixed``.
+        findings: What the reader noticed (skipped statements, dropped attributes, ...).
+        format: ``obj``, ``stl``, ``ply``, ``gltf``, ``glb`` or ``collada`` (or a plugin format's name).
         location: What ``face_lines`` count.
-        materials: The definitions of ``material_names`` (same order). Texture maps name their image by a
-            reference the asset's resolver resolves: a relative URI for external images, or the name an
-            embedded image was registered under (:meth:`meshtool.files.resolve.Resolver.embed`).
+        materials: The definitions of ``material_names`` (same order) for formats that hold them (OBJ keeps
+            its own in MTL files). Texture maps name their image by a reference the asset's resolver
+            resolves: a relative URI for external images, or the name an embedded image was registered
+            under (:meth:`meshtool.files.resolve.Resolver.embed`).
         frame: The declared unit and up axis.
         record: Format-specific facts (counts, encoding, generator) for tests and reports.
         sources: ``asset.json`` source entries of other files the reader read (glTF buffers: role
             ``buffer``, path as the resolver shows it, SHA-256).
     """
 
+    path: str
+    positions: FloatArray
+    colors: FloatArray | None
+    texcoords: FloatArray
+    normals: FloatArray
+    vertex_lines: IntArray
+    face_sizes: IntArray
+    face_lines: IntArray
+    face_material: IntArray
+    face_part: IntArray
+    corner_v: IntArray
+    corner_vt: IntArray
+    corner_vn: IntArray
+    material_names: list[str]
+    part_names: list[str]
+    mtllibs: list[MtllibRef]
+    header_comments: list[str]
+    encoding: str
+    line_endings: str
+    findings: list[Finding] = field(default_factory=list)
     format: str = "obj"
     location: str = "line"
     materials: list[Material] = field(default_factory=list)
@@ -218,6 +266,8 @@ def _unique_materials(materials: list[Material], unbound: bool) -> list[Material
 
     ``unbound``: some pieces have no material while others have one (as OBJ faces before any ``usemtl``).
     """
+    from meshtool.read.obj.mtl import Material
+
     out: list[Material] = []
     taken: set[str] = set()
     for m in materials:

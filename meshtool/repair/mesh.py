@@ -1,6 +1,6 @@
 """Triangle meshes built from parsed OBJ data: triangulated, cleaned, compacted and ordered.
 
-:func:`build_mesh` turns an :class:`~meshtool.read.obj.parse.ObjData` into a :class:`TriMesh`: polygons are
+:func:`build_mesh` turns a :class:`~meshtool.read.source_mesh.SourceMesh` into a :class:`TriMesh`: polygons are
 triangulated, degenerate triangles dropped, unused vertices/texcoords/normals removed (order kept), and
 triangles ordered by material (first use) and then part name, so each material is one contiguous run.
 Coordinates stay in the source's units and axes; see :mod:`meshtool.frame.units` for conversion.
@@ -16,8 +16,8 @@ import numpy.typing as npt
 
 from meshtool.errors import ObjParseError
 from meshtool.findings import Finding, info, warning
-from meshtool.read.obj.parse import ObjData
 from meshtool.read.obj.triangulate import EARCUT_BUDGET, EARCUT_FREE, EARCUT_SMALL, triangulate_polygons
+from meshtool.read.source_mesh import SourceMesh
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -88,7 +88,7 @@ def unique_names(names: list[str], fallback: str) -> list[str]:
     return out
 
 
-def build_mesh(obj: ObjData) -> tuple[TriMesh, list[Finding]]:
+def build_mesh(obj: SourceMesh) -> tuple[TriMesh, list[Finding]]:
     """Triangulate and clean parsed OBJ data.
 
     Args:
@@ -288,7 +288,7 @@ def _used_mask(index: IntArray, size: int) -> npt.NDArray[np.bool_]:
     return used
 
 
-def _compact_vertices(obj: ObjData, faces: IntArray) -> tuple[FloatArray, FloatArray | None, IntArray]:
+def _compact_vertices(obj: SourceMesh, faces: IntArray) -> tuple[FloatArray, FloatArray | None, IntArray]:
     used = _used_mask(faces, obj.positions.shape[0])
     colors = obj.colors
     if used.all():

@@ -32,7 +32,7 @@ from meshtool.frame.modelroot import model_root_resolver
 from meshtool.frame.units import UNIT_FACTORS, apply_scale, rotation_matrix, scale_findings, to_z_up, unit_scale
 from meshtool.read import material_library, read_mesh, source_entries, source_frame
 from meshtool.read.obj.mtl import Material, TextureMap, format_mtl, opaque_if_invisible, parse_mtl
-from meshtool.read.obj.parse import ObjData
+from meshtool.read.source_mesh import SourceMesh
 from meshtool.repair.mesh import DEFAULT_MATERIAL, TriMesh, build_mesh, unique_names
 from meshtool.repair.smallparts import fix_small_parts
 from meshtool.repair.texroles import tag_textures
@@ -344,7 +344,7 @@ def check_extent(source: float, scaled: float, units: str, scale: float, path: s
         )
 
 
-def check_coordinate_range(obj: ObjData, units: str | None, scale: float) -> None:
+def check_coordinate_range(obj: SourceMesh, units: str | None, scale: float) -> None:
     """Refuse vertex coordinates beyond :data:`MAX_COORDINATE_M` once converted to metres.
 
     Only vertices that reach the output are checked (those faces use, or all of them when there are no

@@ -39,6 +39,7 @@ from meshtool.read.obj.lines import (
     reject_control_bytes,
     vector_block,
 )
+from meshtool.read.source_mesh import SourceMesh
 from meshtool.read.textio import decode_text
 
 if TYPE_CHECKING:
@@ -80,60 +81,6 @@ class MtllibRef:
 
 
 @dataclass(slots=True)
-class ObjData:
-    """The contents of one OBJ file, polygons not yet triangulated.
-
-    Shapes: ``V`` vertices, ``T`` texture coordinates, ``N`` normals, ``F`` polygons, ``C`` polygon corners
-    (``C = face_sizes.sum()``). Coordinates are in the file's own units and axes.
-
-    Attributes:
-        path: Name of the file, for messages.
-        positions: (V, 3) float64 vertex positions.
-        colors: (V, 3) float64 vertex colours in the file's range (usually 0..1), or ``None`` when no ``v``
-            line carries a colour; vertices without one are white.
-        texcoords: (T, 2) float64 ``u v`` (a missing ``v`` is 0; ``w`` is dropped).
-        normals: (N, 3) float64 normals as written (not renormalised).
-        vertex_lines: (V,) line number of each ``v`` statement.
-        face_sizes: (F,) corner count of each polygon (always >= 3).
-        face_lines: (F,) line number of each ``f`` statement.
-        face_material: (F,) index into ``material_names``, -1 before any ``usemtl``.
-        face_part: (F,) index into ``part_names`` (the current ``g`` name, else ``o`` name, else
-            ``"default"``).
-        corner_v: (C,) 0-based vertex index of each corner.
-        corner_vt: (C,) 0-based texcoord index, -1 where the corner has none.
-        corner_vn: (C,) 0-based normal index, -1 where the corner has none.
-        material_names: Names given to ``usemtl``, in order of first use.
-        part_names: Group/object names, in order of first appearance.
-        mtllibs: Every file named by ``mtllib`` statements, in order.
-        header_comments: Comment lines before the first statement (without the ``#``).
-        encoding: Text encoding the file was read with.
-        line_endings: ``lf``, ``crlf``, ``cr`` or ``mixed``.
-        findings: What the reader noticed (skipped statements, dropped attributes, ...).
-    """
-
-    path: str
-    positions: FloatArray
-    colors: FloatArray | None
-    texcoords: FloatArray
-    normals: FloatArray
-    vertex_lines: IntArray
-    face_sizes: IntArray
-    face_lines: IntArray
-    face_material: IntArray
-    face_part: IntArray
-    corner_v: IntArray
-    corner_vt: IntArray
-    corner_vn: IntArray
-    material_names: list[str]
-    part_names: list[str]
-    mtllibs: list[MtllibRef]
-    header_comments: list[str]
-    encoding: str
-    line_endings: str
-    findings: list[Finding] = field(default_factory=list)
-
-
-@dataclass(slots=True)
 class _State:
     """Statements handled one by one: events keyed by line number."""
 
@@ -150,7 +97,7 @@ class _State:
     recognised: int = 0
 
 
-def parse_obj(data: bytes | str, path: str = "<obj>") -> ObjData:
+def parse_obj(data: bytes | str, path: str = "<obj>") -> SourceMesh:
     """Parse an OBJ file.
 
     Args:
@@ -208,7 +155,7 @@ def parse_obj(data: bytes | str, path: str = "<obj>") -> ObjData:
         text = lines.text(i)
         if text.startswith("#"):
             header.append(text[1:].strip())
-    return ObjData(
+    return SourceMesh(
         path=path,
         positions=positions,
         colors=colors,
@@ -473,6 +420,6 @@ def _read_vectors(
     return columns(values, counts, list(range(width))), line_numbers
 
 
-def read(data: bytes, path: str, src: Path, resolver: Resolver) -> ObjData:
+def read(data: bytes, path: str, src: Path, resolver: Resolver) -> SourceMesh:
     """The formats registry's reader (:data:`meshtool.formats.MESH_FORMATS`): :func:`parse_obj`."""
     return parse_obj(data, path)

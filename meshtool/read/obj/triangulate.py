@@ -43,7 +43,7 @@ class Triangulation:
     """Triangles as corner indices.
 
     Attributes:
-        corners: (M, 3) indices into the polygon corner arrays (``ObjData.corner_*``).
+        corners: (M, 3) indices into the polygon corner arrays (``SourceMesh.corner_*``).
         face: (M,) index of the polygon each triangle came from.
         lost: Triangles that ear clipping could not produce (zero-area or self-overlapping polygons give
             fewer than ``n - 2``); these are counted as degenerate by callers.
