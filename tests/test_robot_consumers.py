@@ -93,3 +93,21 @@ def test_every_consumer_sees_the_same_robot(tmp_path, kind):
         topics = {c.topic for c in make_reader(stream).get_summary().channels.values()}
     assert "/bot/pose" in topics and "/ground/pose" not in topics
     assert ("/bot/odometry" in topics) == drives
+
+
+def test_joint_service_serves_a_built_in_arm():
+    """JointService commands a LynxL6's position servos by segment name; the joints get there (MuJoCo's qpos)."""
+    from simrun.robots.arm import LynxL6
+    from simrun.services.joint_service import JointService
+    from simrun.world.world import World
+
+    world = World()
+    world.insert(LynxL6(name="a"))
+    joints = JointService(world, "a")
+    model = world.model
+    servos = [model.joint(model.actuator_trnid[k, 0]).name.removeprefix("a/") for k in range(model.nu)]
+    assert list(joints.joints()) == servos and set(joints.kinds().values()) == {"position"}
+    joints.set_positions(["shoulder", "elbow"], [0.3, -0.4])
+    world.run(2.0)
+    assert world.data.joint("a/shoulder").qpos[0] == pytest.approx(0.3, abs=0.005)  # measured 0.3001
+    assert world.data.joint("a/elbow").qpos[0] == pytest.approx(-0.4, abs=0.005)
