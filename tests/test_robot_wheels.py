@@ -3,6 +3,7 @@ collision geometry; the robot contract reads the compiled model. Ground truth: M
 sizes, mesh vertices) and its simulation state (``data.xpos`` of the root body)."""
 
 import math
+import re
 from pathlib import Path
 
 import mujoco
@@ -96,3 +97,21 @@ def test_drive_service_on_a_model_without_wheels_says_how_to_name_them(tmp_path)
     world = load_scene(tmp_path / "s.toml")
     with pytest.raises(Exception, match=r"MjcfRobot 'bot' has no wheels; .*wheels = \[\"left\", \"right\"\]"):
         world.check_bindings()
+
+
+@pytest.mark.parametrize(
+    ("table", "line", "where", "typo", "meant"),
+    [
+        ('[[entities]]\ntype = "MjcfRobot"\nname = "bot"\nfile = "cylbot.xml"\nwheel = ["left", "right"]\n', 5,
+         "entities[0] 'bot'", "wheel", "wheels"),
+        ('[[entities]]\ntype = "BoeBot"\nname = "bot"\n\n[[services]]\ntype = "DriveService"\nentity = "bot"\n'
+         "rates = 10.0\n", 8, "services[0] 'DriveService'", "rates", "rate"),
+    ],
+)  # fmt: skip
+def test_unknown_entity_and_service_keys_name_the_known_keys_and_the_closest(tmp_path, table, line, where, typo, meant):
+    path = tmp_path / "s.toml"
+    path.write_text(table)
+    known = rf"unknown key \(known: .*\b{meant}\b.*\); did you mean '{meant}'\?"
+    pattern = rf"s\.toml:{line}: {re.escape(where)}: {typo}: {known}"
+    with pytest.raises(SceneError, match=pattern):
+        load_scene(path)

@@ -153,3 +153,26 @@ def test_unknown_types_name_the_registry(tmp_path):
     with pytest.raises(Exception, match=r"bad.toml:6: sensors\[0\] 'x': type: unknown sensor type 'Lidar'") as info:
         load_scene(path)
     assert ", ".join(names("sensors")) in str(info.value)
+
+
+def test_every_key_a_doc_row_names_exists():
+    """The other way round (issue 37): each bare `key` in a type's row is a key of that type's schema (its `as X`
+    type's, the base keys, a service's commands, an arm segment's keys); values are written quoted (`"convex"`)."""
+    from simrun.robots.arm_joints import ArmJoint, Segment
+    from simrun.serve.catalogue import service_commands
+    from simrun.world.registry import parameters
+
+    for group in GROUPS:
+        for name, row in _rows(group).items():
+            keys = set(parameters(group, name)) | BASE
+            like = re.match(r"\s*as (\w+)", row)
+            if like:
+                keys |= set(parameters(group, like.group(1)))
+            if group == "services":
+                keys |= set(service_commands(REGISTRY[name].load())) | {"state"}
+            if group == "sensors":
+                keys.add(REGISTRY[name].binds)
+            if "segments" in keys:
+                keys |= {f.name for f in dataclasses.fields(Segment)} | {f.name for f in dataclasses.fields(ArmJoint)}
+            unknown = sorted(set(re.findall(r"`([a-z][a-z0-9_]*)`", row)) - keys)
+            assert not unknown, f"docs/scene-format.md row of {name} names {unknown}, not keys of {name}"
