@@ -115,3 +115,14 @@ def test_unknown_entity_and_service_keys_name_the_known_keys_and_the_closest(tmp
     pattern = rf"s\.toml:{line}: {re.escape(where)}: {typo}: {known}"
     with pytest.raises(SceneError, match=pattern):
         load_scene(path)
+
+
+def test_a_sensor_key_typo_in_python_names_the_known_keys_and_the_closest():
+    """World.add_sensor (Python) gives the scene file's message, not Python's unexpected-keyword TypeError."""
+    from simrun import World
+    from simrun.robots.catalogue import BoeBot
+
+    world = World()
+    world.insert(BoeBot(name="bot"))
+    with pytest.raises(Exception, match=r"sensor 'l': ray: unknown key \(known: .*rays.*\); did you mean 'rays'\?"):
+        world.add_sensor({"type": "LaserRangeFinder", "name": "l", "entity": "bot", "ray": 5})

@@ -15,6 +15,7 @@ stepping loop, checkpoints (``.simlog``) and ``save_scene(state="current")`` rel
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import importlib
 import inspect
 import sys
@@ -216,6 +217,21 @@ def parameters(group: Group, kind: str) -> tuple[str, ...]:
         if not any(p.kind is p.VAR_KEYWORD for p in params):
             return tuple(p.name for p in params if p.kind is not p.VAR_POSITIONAL)
     return ()
+
+
+def unknown_key(group: Group, kind: str, table: dict[str, Any], fixed: tuple[str, ...]) -> str | None:
+    """Why a table of type ``kind`` is refused for its first unknown key, or ``None`` when every key is known.
+
+    The message names the key, the known ones (``fixed`` first: ``type``, ``name``, what it binds) and the
+    closest known key: ``ray: unknown key (known: type, name, entity, height, ...); did you mean 'rays'?``.
+    """
+    known = [*fixed, *parameters(group, kind)]
+    for key in table:
+        if key not in known:
+            close = difflib.get_close_matches(str(key), known, n=1, cutoff=0.6)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            return f"{key}: unknown key (known: {', '.join(known)}){hint}"
+    return None
 
 
 def service_arguments(binding: dict[str, Any]) -> dict[str, Any]:

@@ -25,7 +25,7 @@ from simrun.world import model_cache
 from simrun.world import options as model_options
 from simrun.world.assets import AssetLibrary
 from simrun.world.entity import BuildContext, Entity
-from simrun.world.registry import Controller, scene_type, service_arguments
+from simrun.world.registry import Controller, scene_type, service_arguments, unknown_key
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -445,6 +445,9 @@ class World:
         target = params.pop(registered.binds, None)
         if not isinstance(target, str):
             raise EntityError(f"sensor {name!r} needs a {registered.binds!r} string")
+        unknown = unknown_key("sensors", registered.name, spec, ("type", "name", registered.binds))
+        if unknown:
+            raise EntityError(f"sensor {name!r}: {unknown}")
         for key, value in params.items():
             if isinstance(value, list):
                 params[key] = tuple(value)
