@@ -9,19 +9,20 @@ so MuJoCo never meets a flat or degenerate hull. Decomposition runs CoACD in a s
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from meshtool.errors import MeshtoolError
-from meshtool.findings import Finding, info, warning
+from meshtool.findings import info, warning
 from meshtool.hulls import quickhull
 from meshtool.hulls.options import MAX_HULL_COORDINATE as MAX_HULL_COORDINATE
 from meshtool.hulls.options import MODES as MODES
 from meshtool.hulls.options import PRESETS as PRESETS
 from meshtool.hulls.options import HullOptions as HullOptions
 from meshtool.repair.mesh import TriMesh
+from meshtool.stages import HullSet as HullSet
 from meshtool.work.progress import report as report_progress
 
 FloatArray = npt.NDArray[np.float64]
@@ -41,15 +42,6 @@ class Hull:
     vertices: FloatArray
     faces: IntArray
     part: int
-
-
-@dataclass(slots=True)
-class HullSet:
-    """The hulls of one asset and what was noticed making them."""
-
-    hulls: list[Hull] = field(default_factory=list)
-    findings: list[Finding] = field(default_factory=list)
-    cache_hits: int = 0
 
 
 def convex_hull(points: FloatArray, options: HullOptions) -> tuple[FloatArray, IntArray, list[str]]:

@@ -1,6 +1,7 @@
 """The in-memory mesh model every reader fills, and the helper that assembles it from pieces.
 
-Every reader (OBJ, STL, PLY, glTF/GLB, COLLADA) returns a :class:`SourceMesh`, the read stage's record: the
+Every reader (OBJ, STL, PLY, glTF/GLB, COLLADA) returns a :class:`SourceMesh` (defined with the other stage
+records in :mod:`meshtool.stages`), the read stage's record: the
 polygons and attributes, and what OBJ keeps elsewhere (its MTL files) or not at all: the materials the format
 defines, the unit and up axis it declares, and what the source locations of findings count (lines for text
 formats, facets/faces/triangles for binary ones). The normaliser consumes every format the same way
@@ -12,116 +13,24 @@ Readers build the model from :class:`Piece` objects (one per primitive, polygon 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from meshtool.findings import Finding, warning
+from meshtool.stages import SourceFrame as SourceFrame
+from meshtool.stages import SourceMesh as SourceMesh
 
-if TYPE_CHECKING:  # the OBJ parser builds this record: no import of it here
+if TYPE_CHECKING:
     from meshtool.read.obj.mtl import Material
-    from meshtool.read.obj.parse import MtllibRef
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 #: Largest magnitude of a texture coordinate, normal component or colour value kept (as for OBJ).
 MAX_ATTRIBUTE = 1e6
-
-
-@dataclass(frozen=True, slots=True)
-class SourceFrame:
-    """The unit and up axis a format declares.
-
-    Attributes:
-        unit_m: Metres per source unit (COLLADA ``<unit meter>``; 1 for glTF), ``None`` when the format has
-            no unit (STL, PLY).
-        unit_text: Where the unit comes from, for ``asset.json`` (``COLLADA <unit meter="0.01"
-            name="centimeter"/>``).
-        up: ``y`` or ``z`` (after any ``X_UP`` rotation the reader did), ``None`` when the format says nothing.
-        up_text: Where the up axis comes from.
-    """
-
-    unit_m: float | None
-    unit_text: str
-    up: str | None
-    up_text: str
-
-
-@dataclass(slots=True)
-class SourceMesh:
-    """The read stage's record: one mesh file as read, any format, polygons not yet triangulated.
-
-    Shapes: ``V`` vertices, ``T`` texture coordinates, ``N`` normals, ``F`` polygons, ``C`` polygon corners
-    (``C = face_sizes.sum()``). Coordinates are in the file's own units and axes.
-
-    ``face_lines``/``vertex_lines`` hold the source location of each polygon/vertex, counted in
-    ``location`` units (1-based): ``line`` for text formats, ``facet`` (STL), ``face`` (PLY), ``triangle``
-    (glTF, COLLADA: the running triangle number in the file).
-
-    Attributes:
-        path: Name of the file, for messages.
-        positions: (V, 3) float64 vertex positions.
-        colors: (V, 3) float64 vertex colours in the file's range (usually 0..1), or ``None`` when no vertex
-            carries a colour; vertices without one are white.
-        texcoords: (T, 2) float64 ``u v`` (a missing ``v`` is 0; ``w`` is dropped).
-        normals: (N, 3) float64 normals as written (not renormalised).
-        vertex_lines: (V,) source location of each vertex.
-        face_sizes: (F,) corner count of each polygon (always >= 3).
-        face_lines: (F,) source location of each polygon.
-        face_material: (F,) index into ``material_names``, -1 before any ``usemtl``.
-        face_part: (F,) index into ``part_names`` (OBJ: the current ``g`` name, else ``o`` name, else
-            ``"default"``).
-        corner_v: (C,) 0-based vertex index of each corner.
-        corner_vt: (C,) 0-based texcoord index, -1 where the corner has none.
-        corner_vn: (C,) 0-based normal index, -1 where the corner has none.
-        material_names: Material names, in order of first use.
-        part_names: Group/object names, in order of first appearance.
-        mtllibs: Every file named by OBJ ``mtllib`` statements, in order (empty for other formats).
-        header_comments: Comment lines before the first statement (without the ``#``).
-        encoding: Text encoding the file was read with.
-        line_endings: ``lf``, ``crlf``, ``cr`` or ``mixed``.
-        findings: What the reader noticed (skipped statements, dropped attributes, ...).
-        format: ``obj``, ``stl``, ``ply``, ``gltf``, ``glb`` or ``collada`` (or a plugin format's name).
-        location: What ``face_lines`` count.
-        materials: The definitions of ``material_names`` (same order) for formats that hold them (OBJ keeps
-            its own in MTL files). Texture maps name their image by a reference the asset's resolver
-            resolves: a relative URI for external images, or the name an embedded image was registered
-            under (:meth:`meshtool.files.resolve.Resolver.embed`).
-        frame: The declared unit and up axis.
-        record: Format-specific facts (counts, encoding, generator) for tests and reports.
-        sources: ``asset.json`` source entries of other files the reader read (glTF buffers: role
-            ``buffer``, path as the resolver shows it, SHA-256).
-    """
-
-    path: str
-    positions: FloatArray
-    colors: FloatArray | None
-    texcoords: FloatArray
-    normals: FloatArray
-    vertex_lines: IntArray
-    face_sizes: IntArray
-    face_lines: IntArray
-    face_material: IntArray
-    face_part: IntArray
-    corner_v: IntArray
-    corner_vt: IntArray
-    corner_vn: IntArray
-    material_names: list[str]
-    part_names: list[str]
-    mtllibs: list[MtllibRef]
-    header_comments: list[str]
-    encoding: str
-    line_endings: str
-    findings: list[Finding] = field(default_factory=list)
-    format: str = "obj"
-    location: str = "line"
-    materials: list[Material] = field(default_factory=list)
-    frame: SourceFrame = SourceFrame(None, "", None, "")
-    record: dict[str, Any] = field(default_factory=dict)
-    sources: list[dict[str, str]] = field(default_factory=list)
 
 
 @dataclass(slots=True)

@@ -14,7 +14,7 @@ import math
 import os
 import re
 import unicodedata
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +37,7 @@ from meshtool.repair.mesh import DEFAULT_MATERIAL, TriMesh, build_mesh, unique_n
 from meshtool.repair.smallparts import fix_small_parts
 from meshtool.repair.texroles import tag_textures
 from meshtool.repair.textures import to_png
+from meshtool.stages import NormalisedAsset as NormalisedAsset
 from meshtool.work.progress import report as report_progress
 
 _MARKER = re.compile(r"^meshtool \S+ normalized OBJ: units=m up=z\b")
@@ -87,40 +88,6 @@ class NormaliseOptions:
             raise OptionsError(f"scale must be a positive finite number, got {self.scale!r}")
         if self.name is not None and not safe_file_stem(self.name):
             raise OptionsError(f"name {self.name!r} has no usable characters", hint="use letters, digits, _ . -")
-
-
-@dataclass(slots=True)
-class NormalisedAsset:
-    r"""A normalised asset in memory.
-
-    Attributes:
-        name: Folder and file stem.
-        files: Output file name to bytes (PNGs; :func:`normalise` adds ``NAME.obj``, ``NAME.mtl``,
-            ``asset.json``).
-        manifest: The content of ``asset.json``.
-        findings: Everything noticed, in pipeline order.
-        mesh: The triangle mesh in metres, Z-up, triangles ordered by material.
-        materials: Output materials in the order of ``mesh.material_names``, textures renamed.
-        textures: PNG file name to bytes.
-        source_paths: Each source's path as ``asset.json`` shows it -> the file actually read (absolute,
-            symbolic links resolved). Shown names are printable (``\xNN`` for bytes that are not UTF-8) and
-            relative to the asset folder; these are the real names, for callers that look at the files again.
-    """
-
-    name: str
-    files: dict[str, bytes]
-    manifest: dict[str, Any]
-    findings: list[Finding]
-    mesh: TriMesh
-    materials: list[Material]
-    textures: dict[str, bytes]
-    source_paths: dict[str, Path] = field(default_factory=dict)
-
-    @property
-    def stats(self) -> dict[str, Any]:
-        """Counts and bounding box (see ``asset.json``)."""
-        stats: dict[str, Any] = self.manifest["stats"]
-        return stats
 
 
 def safe_file_stem(text: str) -> str:
