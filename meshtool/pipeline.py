@@ -123,7 +123,8 @@ class Packed:
         data: The file's bytes.
         findings: The normaliser's, the hulls' and MuJoCo's findings.
         stats: Counts and sizes (as :attr:`ConvertResult.stats`).
-        inputs: The files the conversion read: the source, its MTLs, textures and buffers (:meth:`PackMeta.source_files`).
+        inputs: The files the conversion read: the source, its MTLs, textures and buffers
+            (:meth:`PackMeta.source_files`).
     """
 
     data: bytes
