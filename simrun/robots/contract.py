@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import mujoco
 
 from simrun.errors import EntityError
+from simrun.sensors.mount import root_body as mount_root_body
 
 if TYPE_CHECKING:  # the world imports the registry, which names the robot modules: no import back
     from simrun.robots.wheels import Wheels
@@ -194,34 +195,18 @@ def dataclass_has(entity: object, field: str) -> bool:
 def root_body(model: mujoco.MjModel, name: str) -> int:
     """The id of the body that moves with the entity ``name`` (the rule in the module).
 
+    The one rule, kept where sensors mount by default (:func:`simrun.sensors.mount.root_body`), so a sensor
+    without ``body`` sits on the body the contract calls the robot's root.
+
     Raises:
         EntityError: The entity has no body in the model.
     """
-    try:
-        own = model.body(name).id
-    except KeyError:
-        raise EntityError(f"{name!r} has no body in the model", entity=name) from None
-    if int(model.body_jntnum[own]) > 0 or int(model.body_mocapid[own]) >= 0 or int(model.body_parentid[own]) != 0:
-        return int(own)
-    prefix = f"{name}/"
-    parents = model.body_parentid
-    candidates = [b for b in range(1, model.nbody) if parents[b] == 0 and model.body(b).name.startswith(prefix)]
-    candidates += [b for b in range(1, model.nbody) if parents[b] == own]
-    for b in candidates:
-        first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
-        types = [int(t) for t in model.jnt_type[first : first + count]]
-        if _FREE in types or types.count(_SLIDE) >= 2:
-            return b
-    return int(own)
+    return mount_root_body(model, name)
 
 
-def _named(
-    model: mujoco.MjModel, kind: Any, count: int, body_of: Any, bodies: set[int], owned: Any
-) -> tuple[str, ...]:
+def _named(model: mujoco.MjModel, kind: Any, count: int, body_of: Any, bodies: set[int], owned: Any) -> tuple[str, ...]:
     """Names of the elements of one kind on the robot's bodies or named under it, model order."""
-    out: Iterable[str] = (
-        mujoco.mj_id2name(model, kind, k) or "" for k in range(count) if int(body_of[k]) in bodies
-    )
+    out: Iterable[str] = (mujoco.mj_id2name(model, kind, k) or "" for k in range(count) if int(body_of[k]) in bodies)
     found = [n for n in out if n]
     named = [mujoco.mj_id2name(model, kind, k) or "" for k in range(count)]
     found += [n for n in named if n and owned(n) and n not in found]
