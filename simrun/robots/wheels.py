@@ -53,9 +53,7 @@ class DCMotor:
     def check(self, who: str) -> None:
         """Raise :class:`EntityError` naming ``who`` unless both numbers are positive and finite."""
         for key, value in (("stall_torque", self.stall_torque), ("no_load_speed", self.no_load_speed)):
-            if isinstance(value, bool) or not (
-                isinstance(value, int | float) and math.isfinite(value) and value > 0
-            ):
+            if isinstance(value, bool) or not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise EntityError(f"{who}: {key} must be a positive number, got {value!r}", key=key)
 
     def torque(self, power: float, speed: float) -> float:
@@ -139,9 +137,7 @@ class WheelFields:
             EntityError: Not two joints of the model (``file``), or a motor number that is not positive.
         """
         if len(self.wheels) != 2:
-            raise EntityError(
-                f"{who}: wheels names 2 joints (left, right), got {len(self.wheels)}", key="wheels"
-            )
+            raise EntityError(f"{who}: wheels names 2 joints (left, right), got {len(self.wheels)}", key="wheels")
         self.motor.check(who)
         for key, value in (("wheel_radius", self.wheel_radius), ("track", self.track)):
             if value is not None and not (math.isfinite(value) and value > 0):
