@@ -232,15 +232,20 @@ def root_of(path: Path) -> str:
     return next((root for tail, root in ROOTS.items() if path.as_posix().endswith(tail)), "")
 
 
-def scene(path: Path, gravity: float, height: float) -> World:
-    """The model as ``robot`` beside a ground and a box, raised by ``height`` metres, with its package's root."""
+def scene(path: Path, gravity: float, height: float, pose: Pose | None = None) -> World:
+    """The model as ``robot`` beside a ground and a box, raised by ``height`` metres, with its package's root
+    (``pose``: the entity's pose instead, ``height`` then unused)."""
     options = WorldOptions(timestep=timestep(path), gravity=(0.0, 0.0, gravity))
     world = World(options, base_dir=path.parent)
     world.insert(Ground(name="ground"))
     world.insert(Box(name="box", dimensions=(0.2, 0.2, 0.2), pose=Pose((1.5, 1.5, 0.1))))
     root = root_of(path)
     robot = MjcfRobot(
-        name="robot", file=path.name, pose=Pose((0.0, 0.0, height)), free=root == "free", root_slides=root == "slides"
+        name="robot",
+        file=path.name,
+        pose=pose or Pose((0.0, 0.0, height)),
+        free=root == "free",
+        root_slides=root == "slides",
     )
     world.insert(robot)
     return world
@@ -327,11 +332,174 @@ CHAIN = (
     ("mjcf", "`simrun export --mjcf`, the folder moved elsewhere, loads in MuJoCo alone"),
     ("usd", "`simrun export --usd` (`.usda`) opens in pxr with its bodies"),
     ("glb", "`simrun export --glb` has 0 errors and 0 warnings in the Khronos glTF validator"),
+    (
+        "mount",
+        "a `Camera` and a 36-ray `LaserRangeFinder` with `body =` the robot's root body where it moves (free or "
+        "slides), else the deepest body under a commanded joint; 1 s under gravity with the reach targets; every "
+        "10th step the camera's `cam_xpos` is within 1 mm of the body's pose times the mount offset and no range "
+        "is shorter than `mj_ray` with the robot's geoms made transparent (`-`: no moving body)",
+    ),
+    (
+        "keyframe",
+        'the model at x 1.5 m, y -0.5 m, yaw 30 deg; `World.reset("robot/KEY")` with its first keyframe puts its '
+        "root body (first free joint's, else first top-level) at the entity pose composed with that body's pose "
+        "in MuJoCo's own load of the model reset to the key (1e-6 m and 1e-6 in the quaternion), a welded root's "
+        "entity body at the entity pose itself (`n/a`: no keyframe)",
+    ),
 )
 VALIDATOR = ROOT / "tools" / "gltf-validator" / "node_modules" / "gltf-validator"
 
 
 CHAIN_BEGIN, CHAIN_END = "<!-- mjcf-chain:begin -->", "<!-- mjcf-chain:end -->"
+
+
+MOUNT_OFFSET = (0.05, 0.02, 0.1)  # the chain's camera mount offset in the body's frame, m
+MOUNT_TILT = (math.cos(0.3), 0.0, math.sin(0.3), 0.0)  # its orientation in that frame (0.6 rad about y)
+KEY_POSE = (1.5, -0.5, math.radians(30.0))  # the keyframe step's entity pose: x, y (m), yaw (rad)
+
+
+def mount_body(model: mujoco.MjModel, joints: tuple[str, ...]) -> str:
+    """The body the chain's camera and laser ride on (full name, ``robot/...``); ``""`` when nothing moves.
+
+    The robot's root body (:func:`simrun.sensors.mount.root_body`) when it carries a free or slide joint;
+    else the deepest named body (ties: the last in MuJoCo's order) under a joint the service commands.
+    """
+    from simrun.sensors.mount import root_body
+
+    root = root_body(model, "robot")
+    first = int(model.body_jntadr[root])
+    moving = (int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    if any(int(t) in moving for t in model.jnt_type[first : first + int(model.body_jntnum[root])]):
+        if model.body(root).name.startswith("robot/"):
+            return str(model.body(root).name)
+        # ``free = true``: the free joint is on the entity's body; the model's first body under it rides it
+        children = [b for b in range(model.nbody) if int(model.body_parentid[b]) == root and b != root]
+        return str(model.body(children[0]).name) if children else ""
+    driven = {int(model.jnt_bodyid[model.joint(f"robot/{name}").id]) for name in joints}
+
+    def chain_of(b: int) -> list[int]:
+        out = [b]
+        while out[-1] != 0:
+            out.append(int(model.body_parentid[out[-1]]))
+        return out
+
+    below = [b for b in range(1, model.nbody) if driven & set(chain_of(b)) and model.body(b).name.startswith("robot/")]
+    if not below:
+        return ""
+    return str(model.body(max(below, key=lambda b: (len(chain_of(b)), b))).name)
+
+
+def _robot_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """Geom ids of the robot by name (as tests/test_mount.py picks them): its bodies' geoms and geoms named
+    ``robot/...`` on bodies other than the world."""
+    mine = [b for b in range(model.nbody) if model.body(b).name == "robot" or model.body(b).name.startswith("robot/")]
+    named = [g for g in range(model.ngeom) if model.geom(g).name.startswith("robot/") and model.geom_bodyid[g]]
+    return np.union1d(np.flatnonzero(np.isin(model.geom_bodyid, mine)), np.asarray(named, dtype=int))
+
+
+def chain_mount(path: Path, row: dict[str, object]) -> str:
+    """A camera and a laser on a moving link (:data:`CHAIN` ``mount``): ``ok``, ``-`` or why not.
+
+    The world of the check step (gravity on) with the reach targets commanded by its ``JointService``,
+    run 1 s; every 10th step the camera's ``cam_xpos`` is compared with the body's ``xpos + xmat @ offset``
+    (1 mm) and each laser range with ``mj_ray`` cast, in the state the step samples, in a copy of the model
+    whose robot geoms are transparent (a range shorter than that by over 1e-6 m saw the robot).
+    """
+    import copy
+
+    from simrun import Camera
+    from simrun.sensors.laser import LaserRangeFinder
+
+    height = float(row["lift"])  # type: ignore[arg-type]
+    probe = scene(path, -9.81, height)
+    model, _ = probe.compile()
+    targets: list[tuple[str, float, float]] = row.get("_targets") or []  # type: ignore[assignment]
+    body = mount_body(model, tuple(n for n, _, _ in targets))
+    if not body:
+        return "-"
+    world = scene(path, -9.81, height)
+    world.insert(Camera(name="chaincam", body=body, pose=Pose(MOUNT_OFFSET, MOUNT_TILT)))
+    laser = LaserRangeFinder(world, "robot", fov_deg=360, rays=36, height=0.0, rate=0, body=body)
+    model, data = world.compile()
+    service = JointService(world, "robot")
+    if targets:
+        service.set_positions([n for n, _, _ in targets], [t for _, t, _ in targets])
+    b, cam = model.body(body).id, model.camera("chaincam").id
+    clear = copy.copy(model)
+    geoms = _robot_geoms(model)
+    clear.geom_rgba[geoms, 3] = 0.0
+    clear.geom_matid[geoms] = -1
+    hit = np.zeros(1, dtype=np.int32)
+    worst_cam, worst_ray, short = 0.0, 0.0, 0
+    for step in range(round(1.0 / model.opt.timestep)):
+        truth = None
+        if step % 10 == 0:
+            rotation = data.xmat[b].reshape(3, 3)
+            origin = data.xpos[b].copy()
+            truth = []
+            for a in laser.angles:
+                ray = rotation @ np.array([math.cos(a), math.sin(a), 0.0])
+                d = mujoco.mj_ray(clear, data, origin, ray, None, 1, -1, hit)
+                truth.append(d if hit[0] >= 0 and d <= laser.max_range else laser.max_range)
+        world.step()
+        if truth is None:
+            continue
+        expected = data.xpos[b] + data.xmat[b].reshape(3, 3) @ np.asarray(MOUNT_OFFSET)
+        worst_cam = max(worst_cam, float(np.linalg.norm(data.cam_xpos[cam] - expected)))
+        gap = np.asarray(truth) - np.asarray(laser.reading.ranges)
+        short += int(np.sum(gap > 1e-6))
+        worst_ray = max(worst_ray, float(gap.max()))
+    if not np.all(np.isfinite(data.qpos)):
+        return "NaN in the state"
+    if worst_cam > 1e-3 or short:
+        return f"on `{body}`: camera off by {worst_cam:.3g} m; {short} laser ranges short (by up to {worst_ray:.3g} m)"
+    return "ok"
+
+
+def chain_keyframe(path: Path, row: dict[str, object]) -> str:
+    """Keyframe reset at an offset pose (:data:`CHAIN` ``keyframe``): ``ok``, ``n/a`` or why not.
+
+    The model as ``robot`` at ``x, y`` = :data:`KEY_POSE`, its lift, yawed; ``World.reset("robot/KEY")``
+    with the model's first keyframe. Truth: MuJoCo's own load of the model reset to that key
+    (``mj_resetDataKeyframe``); its root body (the body of its first free joint, else its first top-level
+    body) must be at the entity pose composed with that body's pose there (1e-6 m, quaternion 1e-6, either
+    sign); a welded root's entity body must also be at the entity pose itself.
+    """
+    alone = mujoco.MjModel.from_xml_path(str(path))
+    if alone.nkey == 0:
+        return "n/a"
+    key = alone.key(0).name or "key0"
+    truth = mujoco.MjData(alone)
+    mujoco.mj_resetDataKeyframe(alone, truth, 0)
+    mujoco.mj_forward(alone, truth)
+    free = [j for j in range(alone.njnt) if int(alone.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
+    top = [b for b in range(1, alone.nbody) if int(alone.body_parentid[b]) == 0]
+    if not free and not top:
+        return "n/a"  # keyframes but no body (a defaults file): nothing to place
+    root = int(alone.jnt_bodyid[free[0]]) if free else top[0]
+    if not alone.body(root).name:
+        return "root body unnamed: not matched"
+    x, y, yaw = KEY_POSE
+    height = float(row["lift"])  # type: ignore[arg-type]
+    turn = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+    world = scene(path, -9.81, height, Pose((x, y, height), turn))
+    model, data = world.compile()
+    world.reset(f"robot/{key}")
+    p, q = np.array((x, y, height)), np.array(turn)
+    flat = np.zeros(9)
+    mujoco.mju_quat2Mat(flat, q)
+    want_q = np.zeros(4)
+    mujoco.mju_mulQuat(want_q, q, truth.xquat[root])
+    b = model.body(f"robot/{alone.body(root).name}").id
+    off = float(np.linalg.norm(data.xpos[b] - (p + flat.reshape(3, 3) @ truth.xpos[root])))
+    turned = float(min(np.abs(data.xquat[b] - want_q).max(), np.abs(data.xquat[b] + want_q).max()))
+    if not free and root_of(path) == "":
+        own = model.body("robot").id
+        off = max(off, float(np.linalg.norm(data.xpos[own] - p)))
+        turned = max(turned, float(min(np.abs(data.xquat[own] - q).max(), np.abs(data.xquat[own] + q).max())))
+    if off > 1e-6 or turned > 1e-6:
+        return f"`{key}`: root off by {off:.3g} m, quaternion by {turned:.3g}"
+    return "ok"
 
 
 def chain_row(path: Path, budget_end: float) -> dict[str, object]:
@@ -461,6 +629,11 @@ def chain(path: Path, row: dict[str, object], scratch: Path) -> dict[str, str]:
             got["usd"] = f"exit {code}: {last}"
         code, last = _cli("export", str(scene), "--glb", str(out / "scene.glb"))
         got["glb"] = _validated(out / "scene.glb") if code == 0 else f"exit {code}: {last}"
+        for name, extra in (("mount", chain_mount), ("keyframe", chain_keyframe)):
+            try:
+                got[name] = extra(path, row)
+            except Exception as exc:
+                got[name] = f"error: {type(exc).__name__}: {exc}"
     finally:
         for made in (scene, reach, commands):
             made.unlink(missing_ok=True)
@@ -498,21 +671,29 @@ def chain_table(rows: list[dict[str, object]], seconds: float) -> list[str]:
         "",
         "Counts (ok of applicable): "
         + ", ".join(
-            f"{name} {sum(1 for c in results if c[name] == 'ok')} of {sum(1 for c in results if c[name] != '-')}"
+            f"{name} {sum(1 for c in results if c[name] == 'ok')} of "
+            f"{sum(1 for c in results if c[name] not in ('-', 'n/a'))}"
             for name, _ in CHAIN
         )
-        + f"; {sum(1 for c in results if all(v in ('ok', '-') for v in c.values()))} of {len(measured)} "
-        "models through every step. `-`: no commanded joint to expect.",
+        + f"; {sum(1 for c in results if all(v in ('ok', '-', 'n/a') for v in c.values()))} of {len(measured)} "
+        "models through every step. `-`: no commanded joint to expect (mount: no moving body); `n/a`: no keyframe.",
         "",
         "| package | model | " + " | ".join(name for name, _ in CHAIN) + " |",
         "|---|---|" + "---|" * len(CHAIN),
     ]
+    skipped = sum(1 for c in results if any(v == "not run (time budget)" for v in c.values()))
+    if skipped:
+        lines[3:3] = [
+            f"**Subset**: this run stopped at its wall-time budget (`--budget`); {skipped} of {len(measured)} models",
+            "were not run and are listed as failures (`not run (time budget)`).",
+            "",
+        ]
     notes = []
     for r, got in zip(measured, results, strict=True):
         cells = []
         for name, _ in CHAIN:
             value = got[name]
-            if value in ("ok", "-"):
+            if value in ("ok", "-", "n/a"):
                 cells.append(value)
             else:
                 notes.append(f"- `{r['relative']}` {name}: {value}")
