@@ -1,30 +1,28 @@
-"""Where checks run locally: in this process, or in worker processes that are killed at the per-asset timeout.
+"""What validate hands the one batch layer (:mod:`meshtool.work.batch`): the per-asset check and its lost results.
 
 One stuck asset must not block a run of hundreds: every check has a deadline (``timeout`` seconds, see
 :data:`meshtool.validate.config.DEFAULT_TIMEOUT`). A check past it gives an X002 finding and the run goes on.
 
-- In worker processes (``jobs`` > 1, :mod:`meshtool.work.workpool`) each worker takes one asset at a time; a
-  worker past the deadline is killed (whatever it is stuck in: a loop, native code, a blocking read) and
-  replaced, giving an X002 finding. A worker that dies on its own (a native crash) gives an X001 finding for
-  its asset. Workers are spawned and die with this process (:mod:`meshtool.work.lifeline`).
-- In this process (``jobs`` == 1) the deadline is a ``SIGALRM`` timer, which interrupts Python code and
-  blocking system calls but not a single long native call; it needs the main thread (elsewhere checks run
-  without a deadline). Use two or more workers for a hard limit.
+- In worker processes (``jobs`` > 1) each worker takes one asset at a time; a worker past the deadline is
+  killed (whatever it is stuck in: a loop, native code, a blocking read) and replaced, giving an X002 finding.
+  A worker that dies on its own (a native crash) gives an X001 finding for its asset.
+- In this process (``jobs`` == 1) the deadline is the batch layer's ``SIGALRM`` timer, which interrupts Python
+  code and blocking system calls but not a single long native call; it needs the main thread (elsewhere checks
+  run without a deadline). Use two or more workers for a hard limit.
+- On Dask (:mod:`meshtool.validate.remote`) files are read here and only what was read is shipped.
 """
 
 from __future__ import annotations
 
 import contextlib
-import signal
-import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 from meshtool.validate.physics import physics_plugin
 from meshtool.validate.rules import hit
 from meshtool.validate.task import AssetResult, AssetTask, ReadAsset, check_asset, judge_asset, read_asset
 from meshtool.work import workpool
+from meshtool.work.batch import Lost, ReadHere
 
 Check = Callable[[AssetTask], AssetResult]
 
@@ -43,84 +41,63 @@ def died(task: AssetTask, exitcode: int | None) -> AssetResult:
     return AssetResult(task.display, task.kind, [hit("X001", message, task.path.name)])
 
 
-@dataclass(frozen=True)
-class _Checker:
-    """What a validate worker runs (pickled into it): ``check`` per task."""
+def lost(task: AssetTask, why: str) -> AssetResult:
+    """The result of a check that did not finish (``why`` from the batch layer): X002 at the deadline, else X001."""
+    if isinstance(why, Lost) and why.timeout is not None:
+        return timed_out(task, why.timeout)
+    if isinstance(why, Lost) and why.failure is not None:
+        message = f"the Dask worker checking it failed ({why.failure})"
+        return AssetResult(task.display, task.kind, [hit("X001", message, task.path.name)])
+    return died(task, why.exitcode if isinstance(why, Lost) else None)
 
-    check: Check
+
+def _prepare() -> None:
+    with contextlib.suppress(Exception):  # a broken plugin is reported by the check itself
+        physics_plugin()  # imported before the first deadline starts: loading MuJoCo is not the asset's time
+
+
+@dataclass(frozen=True)
+class Checker:
+    """The batch :class:`~meshtool.work.batch.Work` of validate (pickled into workers): ``check`` per asset."""
+
+    check: Check = check_asset
 
     def prepare(self) -> None:
-        with contextlib.suppress(Exception):  # a broken plugin is reported by the check itself
-            physics_plugin()  # imported before the first deadline starts: loading MuJoCo is not the asset's time
+        """Load the physics plugin before the first deadline starts."""
+        _prepare()
 
-    def __call__(self, task: AssetTask) -> AssetResult:
+    def __call__(self, task: AssetTask, /) -> AssetResult:
+        """The asset's result."""
         return self.check(task)
 
-
-def run_workers(
-    tasks: list[AssetTask], jobs: int, timeout: float | None, check: Check = check_asset
-) -> Iterator[AssetResult]:
-    """Check ``tasks`` in ``jobs`` worker processes (:mod:`meshtool.work.workpool`), yielding results as they come.
-
-    Args:
-        tasks: The assets.
-        jobs: Worker processes (at most one per task).
-        timeout: Seconds one check may take (``None``: no limit).
-        check: The function a worker runs per task (importable: workers are spawned).
-    """
-    for result, _ in workpool.run_workers(tasks, jobs, timeout, _Checker(check), AssetResult, died, timed_out):
-        yield result
+    def lost(self, task: AssetTask, why: str, /) -> AssetResult:
+        """X002 (deadline) or X001 (its worker died or failed)."""
+        return lost(task, why)
 
 
-class _Alarm(BaseException):
-    """Raised by the SIGALRM handler (a BaseException: rules catch ``Exception`` and must not absorb it)."""
+@dataclass(frozen=True)
+class Judge:
+    """What a Dask worker runs on an asset read in this process (:func:`judge_asset`)."""
+
+    def prepare(self) -> None:
+        """Load the physics plugin before the first deadline starts."""
+        _prepare()
+
+    def __call__(self, read: ReadAsset, /) -> AssetResult:
+        """The read asset's result."""
+        return judge_asset(read)
+
+    def lost(self, read: ReadAsset, why: str, /) -> AssetResult:
+        """X002 (deadline) or X001 (the worker failed)."""
+        return lost(read.task, why)
 
 
-def run_here(tasks: list[AssetTask], timeout: float | None, check: Check = check_asset) -> Iterator[AssetResult]:
-    """Check ``tasks`` one by one in this process, each under a SIGALRM deadline where possible."""
-    armed = timeout is not None and threading.current_thread() is threading.main_thread() and hasattr(signal, "SIGALRM")
-    for task in tasks:
-        if not armed or timeout is None:
-            yield check(task)
-            continue
-
-        def on_alarm(_signum: int, _frame: Any) -> None:
-            raise _Alarm
-
-        previous = signal.signal(signal.SIGALRM, on_alarm)
-        try:
-            signal.setitimer(signal.ITIMER_REAL, timeout)
-            result = check(task)
-        except _Alarm:
-            result = timed_out(task, timeout)
-        finally:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, previous)
-        yield result
+def _read(task: AssetTask) -> tuple[bool, AssetResult | ReadAsset]:
+    read = read_asset(task)
+    if read.done:  # unreadable, refused or failed while reading: nothing to ship
+        return True, judge_asset(read)
+    return False, read
 
 
-def read_with_deadline(task: AssetTask, timeout: float | None) -> ReadAsset:
-    """:func:`read_asset` under a SIGALRM deadline where possible (a read past it is an X002 result)."""
-    box: list[ReadAsset] = []
-    for result in run_here([task], timeout, lambda t: _keep(box, read_asset(t))):
-        if not box:  # stopped at the deadline
-            return ReadAsset(task, result, done=True)
-    return box[0]
-
-
-def _keep(box: list[ReadAsset], read: ReadAsset) -> AssetResult:
-    box.append(read)
-    return read.result
-
-
-def judge_in_thread(read: ReadAsset, timeout: float | None) -> AssetResult:
-    """:func:`judge_asset` in a daemon thread, waiting at most ``timeout`` (for executors that own the process).
-
-    A check past the deadline is abandoned, not stopped: its thread runs on until the process ends (a
-    Dask LocalCluster's workers end with the run).
-    """
-    box: list[AssetResult] = []
-    thread = threading.Thread(target=lambda: box.append(judge_asset(read)), name="check", daemon=True)
-    thread.start()
-    thread.join(timeout)
-    return box[0] if box else timed_out(read.task, timeout or 0.0)
+#: Validate's split for Dask: read every file here, judge on the workers.
+READ_HERE: ReadHere[AssetTask] = ReadHere(_read, Judge())

@@ -21,10 +21,10 @@ from meshtool.findings import Severity
 from meshtool.formats import mesh_suffixes, output_named
 from meshtool.validate.cache import ResultCache
 from meshtool.validate.config import ValidateConfig
-from meshtool.validate.pool import run_here, run_workers
+from meshtool.validate.pool import Checker
 from meshtool.validate.remote import run_dask
 from meshtool.validate.task import AssetResult, AssetTask
-from meshtool.work.batch import SchedulerError
+from meshtool.work.batch import BatchError, Executor, run_batch
 
 EXECUTORS = ("local", "dask")
 
@@ -297,12 +297,16 @@ def _add_thumbnail(cached: AssetResult, drawn: AssetResult, task: AssetTask, cac
 
 def _run_local(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[tuple[AssetResult, str]]:
     timeout = options.effective_timeout()
+    if not tasks:  # everything came from the cache
+        return
     if options.jobs == 1 or (len(tasks) <= 1 and timeout is None):
-        for result in run_here(tasks, timeout):
-            yield result, "this process"
+        executor = Executor(jobs=1, timeout=timeout, alarm=True)
+        for _, result, where in run_batch(tasks, Checker(), executor):
+            yield result, where
     else:  # a single task with a deadline also goes to a worker: only a process can be stopped for sure
         workers = min(options.jobs, len(tasks))
-        for result in run_workers(largest_first(tasks), workers, timeout):
+        executor = Executor(jobs=workers, timeout=timeout)
+        for _, result, _ in run_batch(largest_first(tasks), Checker(), executor):
             yield result, f"{workers} local worker process{'es' if workers > 1 else ''}"
 
 
@@ -328,16 +332,5 @@ def _run_dask(tasks: list[AssetTask], options: ValidateOptions) -> Iterator[tupl
         yield from run_dask(
             tasks, options.scheduler, options.jobs, options.effective_timeout(), options.connect_timeout
         )
-    except ImportError:
-        raise ValidateError(
-            "the Dask executor needs dask.distributed", hint="pip install 'meshtool-simrun[dask]'"
-        ) from None
-    except SchedulerError as exc:
-        where = options.scheduler or "a new local cluster"
-        raise ValidateError(
-            f"cannot reach the Dask scheduler at {where}: {exc}",
-            hint=exc.hint
-            or "start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
-            "or run without --executor dask",
-            exit_code=1,
-        ) from None
+    except BatchError as exc:  # dask missing or its scheduler unreachable: the batch layer's one-line error
+        raise ValidateError(exc.message, hint=exc.hint, exit_code=1) from None

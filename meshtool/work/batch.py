@@ -3,7 +3,9 @@
 Every command that runs many items (``obj2bin DIR``, ``meshtool validate``, ``simrun test``) hands its tasks
 and a :class:`Work` to :func:`run_batch` with an :class:`Executor` saying where they run:
 
-- ``local`` with one job and no timeout: in this process, one task after another;
+- ``local`` with one job and no timeout (or ``alarm``): in this process, one task after another (with
+  ``alarm``, each under a ``SIGALRM`` deadline: it stops Python code and blocking system calls, not one long
+  native call, and needs the main thread);
 - ``local`` otherwise: ``jobs`` worker processes (:mod:`meshtool.work.workpool`: spawned, dying with this process,
   killed and replaced at the deadline or when they crash);
 - ``dask``: a Dask cluster (``scheduler`` address, or a local cluster of ``jobs`` single-threaded worker
@@ -13,14 +15,18 @@ and a :class:`Work` to :func:`run_batch` with an :class:`Executor` saying where 
 Results come as tasks finish, each with the index of its task, so a caller that needs the input order sorts by
 it: what a task computes never depends on where it ran, so outputs are byte-identical whatever the executor
 and the number of workers.
+
+A :class:`ReadHere` splits a task in two for Dask: a step run in this process (reading files, so that workers
+need no access to them), and a :class:`Work` on what it returns, shipped to the workers.
 """
 
 from __future__ import annotations
 
 import importlib
 import logging
+import signal
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, Protocol, TypeVar
 
@@ -51,6 +57,8 @@ class Executor:
         timeout: Seconds one task may take (``None``: no limit). A local task past it is killed.
         scheduler: Address of a running Dask scheduler (``tcp://host:8786``); ``None`` starts a local cluster.
         connect_timeout: Seconds to try reaching ``scheduler``.
+        alarm: One local job with a ``timeout`` runs in this process under a ``SIGALRM`` deadline instead of
+            in one worker process (soft: a single long native call is not stopped).
     """
 
     kind: str = "local"
@@ -58,6 +66,7 @@ class Executor:
     timeout: float | None = None
     scheduler: str | None = None
     connect_timeout: float = 30.0
+    alarm: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in EXECUTORS:
@@ -70,7 +79,45 @@ class Executor:
     @property
     def in_process(self) -> bool:
         """Whether tasks run in this process (one local job, no deadline to enforce)."""
-        return self.kind == "local" and self.jobs <= 1 and self.timeout is None
+        return self.kind == "local" and self.jobs <= 1 and (self.timeout is None or self.alarm)
+
+
+class Lost(str):
+    """Why a task did not finish (one line, the ``why`` of :meth:`Work.lost`), and what happened.
+
+    Attributes:
+        timeout: The deadline in seconds, when the task was stopped at it (else ``None``).
+        exitcode: The exit code of the local worker process that died running it (``None``: none died, or
+            killed by a signal and reaped without one).
+        failure: ``Type: message`` of what a Dask worker raised or how it was lost (else ``None``).
+    """
+
+    timeout: float | None
+    exitcode: int | None
+    failure: str | None
+
+    def __new__(
+        cls, text: str, *, timeout: float | None = None, exitcode: int | None = None, failure: str | None = None
+    ) -> Lost:
+        """A reason ``text`` with what happened (keywords as the attributes)."""
+        lost = super().__new__(cls, text)
+        lost.timeout, lost.exitcode, lost.failure = timeout, exitcode, failure
+        return lost
+
+
+@dataclass(frozen=True, slots=True)
+class ReadHere(Generic[Task]):
+    """A task split for Dask: ``read`` runs in this process, ``work`` on the workers with what it returned.
+
+    Attributes:
+        read: ``(finished, value)`` for a task: ``finished`` means ``value`` is already the task's result
+            (nothing to ship); otherwise ``value`` is shipped to a worker (it must pickle). Runs under the
+            executor's deadline (``SIGALRM`` where possible); past it the task is lost.
+        work: What a worker runs on a shipped value.
+    """
+
+    read: Callable[[Task], tuple[bool, Any]]
+    work: Work[Any]
 
 
 class Work(Protocol[Task_contra]):
@@ -106,10 +153,18 @@ class _Done:
     result: Any
 
 
-def run_batch(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> Iterator[tuple[int, Any, str]]:
+def run_batch(
+    tasks: Sequence[Task], work: Work[Task], executor: Executor, here: ReadHere[Task] | None = None
+) -> Iterator[tuple[int, Any, str]]:
     """Run every task, yielding ``(index of the task, result, where it ran)`` as tasks finish.
 
     ``where`` is :data:`HERE`, ``worker N`` (a local worker process) or a Dask worker's address.
+
+    Args:
+        tasks: The tasks.
+        work: What runs per task (locally; on Dask too unless ``here`` is given).
+        executor: Where they run.
+        here: For Dask: a step run in this process per task whose value the workers get (see :class:`ReadHere`).
 
     Raises:
         BatchError: The dask executor without dask.distributed installed, or its scheduler cannot be reached.
@@ -119,22 +174,54 @@ def run_batch(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> It
     if executor.in_process:
         work.prepare()
         for index, task in enumerate(tasks):
-            yield index, work(task), HERE
+            finished, result = alarmed(work, task, executor.timeout if executor.alarm else None)
+            yield index, result if finished else work.lost(task, _late_here(executor.timeout)), HERE
     elif executor.kind == "local":
         yield from _run_local(tasks, work, executor)
     else:
-        yield from _run_dask(tasks, work, executor)
+        yield from _run_dask(tasks, work, executor, here)
+
+
+class _Alarm(BaseException):
+    """Raised by the SIGALRM handler (a BaseException: code that catches ``Exception`` must not absorb it)."""
+
+
+def alarmed(call: Callable[[Task], Result], task: Task, timeout: float | None) -> tuple[bool, Result | None]:
+    """``(True, call(task))``, or ``(False, None)`` when a ``SIGALRM`` deadline of ``timeout`` s stopped it.
+
+    Without a timeout, outside the main thread or without ``SIGALRM`` the call runs without a deadline.
+    """
+    if timeout is None or threading.current_thread() is not threading.main_thread() or not hasattr(signal, "SIGALRM"):
+        return True, call(task)
+
+    def on_alarm(_signum: int, _frame: Any) -> None:
+        raise _Alarm
+
+    previous = signal.signal(signal.SIGALRM, on_alarm)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, timeout)
+        return True, call(task)
+    except _Alarm:
+        return False, None
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _late_here(timeout: float | None) -> Lost:
+    return Lost(f"timed out after {timeout or 0:g} s (stopped in this process)", timeout=timeout or 0.0)
 
 
 def _run_local(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> Iterator[tuple[int, Any, str]]:
     indexed = list(enumerate(tasks))
 
     def died(message: tuple[int, Task], exitcode: int | None) -> _Done:
-        why = f"the worker process running it died ({workpool.exit_description(exitcode)})"
+        why = Lost(f"the worker process running it died ({workpool.exit_description(exitcode)})", exitcode=exitcode)
         return _Done(message[0], work.lost(message[1], why))
 
     def late(message: tuple[int, Task], timeout: float) -> _Done:
-        return _Done(message[0], work.lost(message[1], f"timed out after {timeout:g} s (the worker was stopped)"))
+        why = Lost(f"timed out after {timeout:g} s (the worker was stopped)", timeout=timeout)
+        return _Done(message[0], work.lost(message[1], why))
 
     for done, number in workpool.run_workers(
         indexed, executor.jobs, executor.timeout, _Handler(work), _Done, died, late
@@ -147,8 +234,8 @@ _PREPARED: set[str] = set()
 _PREPARING = threading.Lock()
 
 
-def _remote(work: Work[Task], task: Task, timeout: float | None) -> tuple[Any, str]:
-    """What a Dask worker runs for one task: the result (or ``lost`` at the deadline) and the worker's address."""
+def _remote(work: Work[Task], task: Task, timeout: float | None) -> tuple[bool, Any, str]:
+    """What a Dask worker runs for one task: ``(finished, result or None at the deadline, worker's address)``."""
     distributed: Any = importlib.import_module("distributed")
     try:
         where = str(distributed.get_worker().address)
@@ -174,11 +261,13 @@ def _remote(work: Work[Task], task: Task, timeout: float | None) -> tuple[Any, s
     if failure:
         raise failure[0]
     if not box:
-        return work.lost(task, f"timed out after {timeout:g} s on Dask worker {where}"), where
-    return box[0], where
+        return False, None, where
+    return True, box[0], where
 
 
-def _run_dask(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> Iterator[tuple[int, Any, str]]:
+def _run_dask(
+    tasks: Sequence[Task], work: Work[Task], executor: Executor, here: ReadHere[Task] | None
+) -> Iterator[tuple[int, Any, str]]:
     try:
         distributed, client, cluster = connect(executor.scheduler, executor.jobs, executor.connect_timeout)
     except ImportError:
@@ -192,20 +281,44 @@ def _run_dask(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> It
             or "start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
             "or run without --executor dask",
         ) from None
+    remote: Work[Any] = here.work if here is not None else work
+    timeout = executor.timeout
     try:
         running = distributed.as_completed()
         shipped: dict[Any, int] = {}
+
+        def collect(futures: list[Any]) -> Iterator[tuple[int, Any, str]]:
+            for future in futures:
+                index = shipped.pop(future)
+                try:
+                    finished, result, where = future.result()
+                except Exception as exc:  # the worker died, or the task raised or was lost
+                    failure = f"{type(exc).__name__}: {exc}"
+                    why = Lost(f"the Dask worker failed ({failure})", failure=failure)
+                    finished, result, where = True, work.lost(tasks[index], why), "dask"
+                if not finished:
+                    late = Lost(f"timed out after {timeout or 0:g} s on Dask worker {where}", timeout=timeout or 0.0)
+                    result = work.lost(tasks[index], late)
+                yield index, result, where
+
         for index, task in enumerate(tasks):
-            future = client.submit(_remote, work, task, executor.timeout, pure=False)
+            value: Any = task
+            if here is not None:  # read in this process (under the deadline); only what it read travels
+                read, answer = alarmed(here.read, task, timeout)
+                if not read or answer is None:
+                    yield index, work.lost(task, _late_here(timeout)), HERE
+                    continue
+                finished, value = answer
+                if finished:
+                    yield index, value, HERE
+                    continue
+            future = client.submit(_remote, remote, value, timeout, pure=False)
             shipped[future] = index
             running.add(future)
+            if running.has_ready():
+                yield from collect(running.next_batch(block=False))
         for future in running:
-            index = shipped.pop(future)
-            try:
-                result, where = future.result()
-            except Exception as exc:  # the worker died, or the task raised or was lost
-                result, where = work.lost(tasks[index], f"the Dask worker failed ({type(exc).__name__}: {exc})"), "dask"
-            yield index, result, where
+            yield from collect([future])
     finally:
         client.close()
         if cluster is not None:
