@@ -82,7 +82,7 @@ def test_a_sensor_key_typo_names_the_known_keys_and_the_closest(tmp_path):
     )
     with pytest.raises(
         SceneError,
-        match=r"s\.toml:9: sensors\[0\] 'l': ray: unknown key \(known: .*rays.*\); "
+        match=r"s\.toml:9: sensors\[0\] 'l': ray: sensor 'l': unknown key 'ray' \(known: .*rays.*\); "
         r"did you mean 'rays'\?",
     ):
         load_scene(path)

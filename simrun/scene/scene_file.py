@@ -225,7 +225,11 @@ class _Loader:
                 known = ", ".join(names("sensors"))
                 raise self.error(f"unknown sensor type {kind!r} (known: {known})", (*where, "type"))
             target_key = REGISTRY[kind].binds
-            _known(spec, ["type", "name", target_key, *parameters("sensors", kind)], self, where)
+            keys = ["type", "name", target_key, *parameters("sensors", kind)]
+            unknown = next((key for key in spec if key not in keys), None)
+            if unknown is not None:
+                message = f"sensor {spec.get('name')!r}: unknown key {unknown!r} (known: {', '.join(keys)})"
+                raise self.error(message + _did_you_mean(unknown, keys), (*where, unknown))
             target = spec.get(target_key)
             owner = target.rsplit("/", 1)[0] if isinstance(target, str) and target_key == "camera" else target
             if isinstance(target, str) and target not in entities and owner not in entities:
