@@ -17,7 +17,7 @@ endif
 # pytest workers: one per core (pytest-xdist); TEST_JOBS=0 runs the suite in one process
 TEST_JOBS ?= auto
 
-.PHONY: install demo test lint bench bench-hulls bench-usd bench-mjcf corpus fuzz clean mutants
+.PHONY: install demo test lint bench bench-batch bench-hulls bench-usd bench-mjcf corpus fuzz clean mutants
 
 # setuptools says "Editable installation ... be careful with folders in your working directory" on every
 # editable install (a note, not a problem here): hidden, every other warning still shows.
@@ -79,6 +79,7 @@ bench: $(TEST_STAMP) $(PEERS)/.installed
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python bench/recordings.py --repeat 3
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python bench/scenetest.py --seeds 50 --rounds 2
 	$(BIN)/python bench/serve.py . --repeat 3
+	$(BIN)/python bench/batch_throughput.py ../shared/corpus --docs
 
 # The benchmarks' peers (obj2mjcf, the C++ tinyobjloader binding) live in their own environment inside the
 # checkout (ignored by git), never in the project's .venv.
@@ -93,6 +94,12 @@ $(PEERS)/.installed:
 # writes the "MJCF robots" section of docs/robots.md.
 bench-mjcf: $(STAMP)
 	$(BIN)/python bench/mjcf_robots.py --docs
+
+# Assets/s of obj2bin DIR and meshtool validate DIR over 1, 100 and 1,000 corpus assets with -j 1, -j 2 and a Dask
+# LocalCluster of 2 workers (issue 38; dask comes with the test extras): the "Batch throughput" section of
+# docs/benchmarks.md. The packs and reports must be byte-identical across the executors.
+bench-batch: $(TEST_STAMP)
+	$(BIN)/python bench/batch_throughput.py ../shared/corpus --sizes 1,100,1000 --docs
 
 bench-hulls: $(STAMP) $(PEERS)/.installed
 	$(BIN)/python bench/hulls.py ../shared/corpus --obj2mjcf=$(PEERS)/bin/obj2mjcf
