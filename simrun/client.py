@@ -81,7 +81,8 @@ class Client:
             data = json.dumps(body, allow_nan=False).encode("utf-8")
             headers["Content-Type"] = "application/json"
         if self.token:
-            headers["Authorization"] = f"Bearer {self.token}"
+            # a header carries latin-1 text only: any other token goes percent-encoded (the server decodes it)
+            headers["Authorization"] = f"Bearer {self.token if self.token.isascii() else quote(self.token, safe='')}"
         request = urllib.request.Request(self.base + path, data=data, method=method, headers=headers)
         try:
             with urllib.request.urlopen(request, timeout=self.timeout) as response:

@@ -36,6 +36,10 @@ from simrun.outfile import output_policy
     "--foxglove-port", type=click.IntRange(0, 65535), default=None,
     help="Also stream /tf and laser scans in the Foxglove WebSocket protocol on 127.0.0.1 (0: any free port).",
 )  # fmt: skip
+@click.option(
+    "--allow-origin", "allow_origins", multiple=True, metavar="ORIGIN",
+    help="Let pages of this web origin (scheme://host[:port]) use the server, besides its own; repeatable.",
+)  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
 def serve_command(
     scene: Path,
@@ -51,6 +55,7 @@ def serve_command(
     token: str | None,
     force: bool,
     foxglove_port: int | None = None,
+    allow_origins: tuple[str, ...] = (),
 ) -> None:
     """Run SCENE and serve it: HTTP/JSON services and sensors, a WebSocket stream, a dashboard at /.
 
@@ -71,6 +76,7 @@ def serve_command(
             token,
             on_ready=lambda url: say(f"{'foxglove' if url.startswith('ws:') else 'serving'} {url}"),
             foxglove_port=foxglove_port,
+            allow_origins=allow_origins,
         )
     for path in served.written:
         wrote(path, f"wrote {printable(path)}")

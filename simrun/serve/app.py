@@ -2,26 +2,26 @@
 
 Every route answers JSON; every refusal is ``{"error", "field", "status"}`` with a 4xx status naming the
 request field (never a traceback). Request bodies are JSON objects of at most :data:`MAX_BODY` bytes,
-sent as ``application/json`` (which also keeps other web sites' plain form posts out); ``NaN`` and
-``Infinity`` are refused. The routes and their schemas are in ``GET /openapi.json``
-(:mod:`simrun.serve.openapi`), versioned by :data:`simrun.serve.openapi.API_VERSION`.
+nested at most :data:`MAX_DEPTH` deep, sent as ``application/json`` (empty bodies too, which keeps other
+web sites' plain form and ``text/plain`` posts out); ``NaN`` and ``Infinity`` are refused, and every number
+must lie in the range its route's schema gives (:func:`check_numbers`). The routes and their schemas are in
+``GET /openapi.json`` (:mod:`simrun.serve.openapi`), versioned by :data:`simrun.serve.openapi.API_VERSION`.
 
-Access (:class:`Guard`): with a token every request needs ``Authorization: Bearer TOKEN`` (or
-``?token=TOKEN``, for a browser's first page load and WebSockets); without one, only requests whose
-``Host`` is the loopback address the server listens on are answered (a DNS-rebinding page cannot reach
-it). WebSocket handshakes from a page of another origin are refused.
+Access (:class:`Guard`, the rules of :mod:`simrun.serve.access`): every request and WebSocket handshake
+must name this server in ``Host`` (a DNS-rebinding page cannot reach it), come from the server's own
+origin or an allowed one when a browser sends ``Origin``, and carry the token when the server has one
+(``Authorization: Bearer TOKEN``, or ``?token=TOKEN`` for a browser's first page load and WebSockets).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import hmac
 import json
 import math
+import re
 from collections.abc import Callable
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 from starlette.applications import Starlette
 from starlette.exceptions import HTTPException
@@ -32,9 +32,10 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from simrun.errors import SimrunError
+from simrun.serve.access import Access
 from simrun.serve.catalogue import RequestError, command_from_request, plain, service_queries
 from simrun.serve.loop import CALL_TIMEOUT, MAX_RATE, MAX_STEPS, MIN_RATE, SimLoop, Subscriber, encode_png
-from simrun.serve.openapi import API_VERSION, openapi_document
+from simrun.serve.openapi import API_VERSION, MAX_ARGUMENT, openapi_document
 
 #: Largest request body, bytes.
 MAX_BODY = 64 * 1024
@@ -43,57 +44,74 @@ MAX_STREAMS = 64
 
 
 class Guard:
-    """ASGI middleware: the token, or (without one) loopback ``Host`` names only; same-origin WebSockets.
+    """ASGI middleware: the ``Host``, ``Origin`` and token rules of :class:`simrun.serve.access.Access`.
 
     Args:
         app: The application.
-        token: The required token, or ``None``.
-        hosts: ``Host`` header values accepted without a token (``127.0.0.1:8765``, ``localhost:8765``).
+        access: The rules (HTTP requests and WebSocket handshakes alike).
     """
 
-    def __init__(self, app: ASGIApp, token: str | None, hosts: set[str]) -> None:
-        self.app, self.token, self.hosts = app, token, hosts
+    def __init__(self, app: ASGIApp, access: Access) -> None:
+        self.app, self.access = app, access
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        """Answer the request, or refuse it (401/403 JSON; WebSocket close 1008)."""
+        """Answer the request, or refuse it (401/403 with the JSON error, a WebSocket handshake too)."""
         if scope["type"] not in ("http", "websocket"):
             await self.app(scope, receive, send)
             return
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
-        problem = self._refusal(scope, headers)
+        problem = self.access.refusal(headers, scope.get("query_string", b""))
         if problem is None:
             await self.app(scope, receive, send)
             return
-        status, message = problem
+        body = json.dumps({"error": problem.message, "field": problem.field, "status": problem.status}).encode()
         if scope["type"] == "websocket":
-            await send({"type": "websocket.close", "code": 1008, "reason": message[:120]})
+            if "websocket.http.response" not in scope.get("extensions", {}):  # closed unaccepted: uvicorn says 403
+                await send({"type": "websocket.close", "code": 1008, "reason": problem.message[:120]})
+                return
+            # the handshake is answered like an HTTP request: the status and the JSON error
+            raw = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]
+            await send({"type": "websocket.http.response.start", "status": problem.status, "headers": raw})
+            await send({"type": "websocket.http.response.body", "body": body})
             return
-        body = json.dumps({"error": message, "field": "authorization" if status == 401 else "host", "status": status})
-        response = Response(body, status, media_type="application/json")
+        response = Response(body, problem.status, media_type="application/json")
         await response(scope, receive, send)
 
-    def _refusal(self, scope: Scope, headers: dict[str, str]) -> tuple[int, str] | None:
-        host = headers.get("host", "")
-        if self.token is not None:
-            given = headers.get("authorization", "").removeprefix("Bearer ").strip()
-            if not given:
-                given = (parse_qs(scope.get("query_string", b"").decode("latin-1")).get("token") or [""])[0]
-            if not hmac.compare_digest(given.encode(), self.token.encode()):
-                return 401, "missing or wrong token: send 'Authorization: Bearer TOKEN' (or ?token=TOKEN)"
-        elif host not in self.hosts:
-            return 403, f"Host {host!r} is not this server's loopback address; use http://{sorted(self.hosts)[0]}/"
-        origin = headers.get("origin")
-        if scope["type"] == "websocket" and origin and urlsplit(origin).netloc != host:
-            return 403, f"WebSocket from another origin ({origin}) refused"
-        return None
+
+#: Deepest nesting of arrays and objects in a request body (checked on the bytes, before parsing).
+MAX_DEPTH = 32
+_STRUCTURE = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{}]', re.DOTALL)
 
 
-async def _body(request: Request) -> Any:
-    """The request's JSON body (``None`` when empty).
+def json_depth(raw: bytes, limit: int = MAX_DEPTH) -> int:
+    """How deep arrays and objects nest in the JSON text ``raw`` (strings skipped), counting stops past ``limit``."""
+    depth = deepest = 0
+    for match in _STRUCTURE.finditer(raw):
+        c = match.group()[0]
+        if c in b"[{":
+            depth += 1
+            if depth > deepest:
+                deepest = depth
+                if deepest > limit:
+                    break
+        elif c in b"]}":
+            depth -= 1
+    return deepest
+
+
+async def _body(request: Request, schema: dict[str, Any] | None = None) -> Any:
+    """The request's JSON body (``None`` when empty), its numbers checked against ``schema``.
+
+    Every body, an empty one too, must be sent as ``application/json``: a page of another site can send
+    ``text/plain`` or a form without asking, never ``application/json``.
 
     Raises:
-        RequestError: 413 too large, 415 not JSON, 400 malformed (NaN and Infinity refused).
+        RequestError: 413 too large, 415 not JSON, 400 malformed (NaN and Infinity refused) or nested deeper
+            than :data:`MAX_DEPTH`, 422 a number out of its range (:func:`check_numbers`).
     """
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if kind != "application/json":
+        raise RequestError(415, "content-type", f"send the body as application/json, not {kind or 'nothing'!r}")
     chunks, size = [], 0
     async for chunk in request.stream():
         size += len(chunk)
@@ -103,17 +121,58 @@ async def _body(request: Request) -> Any:
     raw = b"".join(chunks)
     if not raw.strip():
         return None
-    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if kind != "application/json":
-        raise RequestError(415, "content-type", f"send the body as application/json, not {kind or 'nothing'!r}")
+    if json_depth(raw) > MAX_DEPTH:
+        raise RequestError(400, "body", f"arrays and objects nest deeper than {MAX_DEPTH} levels")
     try:
-        return json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant)
+        body = json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant)
     except (UnicodeDecodeError, ValueError) as exc:
         raise RequestError(400, "body", f"not valid JSON ({exc})") from None
+    check_numbers(body, schema or {})
+    return body
 
 
 def _refuse_constant(name: str) -> Any:
     raise ValueError(f"{name} is not a JSON number")
+
+
+def _shown(value: int | float) -> str:
+    """A number for a message (an integer of hundreds of digits by its length)."""
+    text = repr(value)
+    return text if len(text) <= 24 else f"an integer of {len(text.lstrip('-'))} digits"
+
+
+def check_numbers(value: Any, schema: dict[str, Any], field: str = "") -> None:
+    """Refuse any number in ``value`` outside its range in ``schema`` (the route's OpenAPI request schema).
+
+    The walk follows ``properties``, ``oneOf`` (an array or an object), ``prefixItems`` (named by their
+    ``title``) and ``items``; a number whose schema gives no range must be within
+    +-:data:`simrun.serve.openapi.MAX_ARGUMENT`. NaN and infinity are left to the route's own checks;
+    booleans are not numbers.
+
+    Raises:
+        RequestError: 422 naming the field (``steps``, ``args.metres``) and its allowed range.
+    """
+    for option in schema.get("oneOf", ()):
+        if (option.get("type") == "array") == isinstance(value, list):
+            schema = option
+            break
+    if isinstance(value, dict):
+        properties = schema.get("properties", {})
+        for key, item in value.items():
+            check_numbers(item, properties.get(key, {}), f"{field}.{key}" if field else str(key))
+    elif isinstance(value, list):
+        prefix = schema.get("prefixItems", [])
+        for index, item in enumerate(value):
+            inner = prefix[index] if index < len(prefix) else schema.get("items", {})
+            name = inner.get("title")
+            check_numbers(item, inner, f"{field}.{name}" if name and field else field)
+    elif isinstance(value, int | float) and not isinstance(value, bool):
+        if isinstance(value, float) and not math.isfinite(value):
+            return
+        low = schema.get("minimum", -MAX_ARGUMENT)
+        high = schema.get("maximum", MAX_ARGUMENT)
+        if not low <= value <= high:
+            raise RequestError(422, field or "body", f"must be in [{low:g}, {high:g}], got {_shown(value)}")
 
 
 def _object(body: Any, known: tuple[str, ...]) -> dict[str, Any]:
@@ -130,19 +189,20 @@ def _object(body: Any, known: tuple[str, ...]) -> dict[str, Any]:
 
 def _number(body: dict[str, Any], key: str, low: float, high: float, integer: bool = False) -> float:
     value = body[key]
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise RequestError(422, key, f"expected a finite number, got {value!r}"[:200])
+    if isinstance(value, float) and not math.isfinite(value):
         raise RequestError(422, key, f"expected a finite number, got {value!r}")
-    if integer and not float(value).is_integer():
+    if not low <= value <= high:  # an int compares exactly, however large
+        raise RequestError(422, key, f"must be in [{low:g}, {high:g}], got {_shown(value)}")
+    if integer and isinstance(value, float) and not value.is_integer():
         raise RequestError(422, key, f"expected a whole number, got {value!r}")
-    if not low <= value <= high:
-        raise RequestError(422, key, f"must be in [{low:g}, {high:g}], got {value!r}")
     return float(value)
 
 
 def create_app(
     loop: SimLoop,
-    token: str | None = None,
-    hosts: set[str] | None = None,
+    access: Access,
     page: Callable[[], str] | None = None,
     recording: Callable[[], Any] | None = None,
 ) -> ASGIApp:
@@ -150,8 +210,7 @@ def create_app(
 
     Args:
         loop: The running simulation loop.
-        token: Required bearer token, or ``None`` (then only ``hosts`` are answered).
-        hosts: Accepted ``Host`` values without a token.
+        access: Who may talk to it (``Host``, ``Origin``, token).
         page: Returns the dashboard's HTML (``GET /``); ``None``: no dashboard.
         recording: Starts a new recording in the loop thread (``POST /api/recording/start``); ``None``: none.
     """
@@ -159,6 +218,11 @@ def create_app(
     services = [{"type": s["type"], "entity": s["entity"]} for s in catalogue["services"]]
     document = openapi_document(catalogue)
     streams: list[Subscriber] = []
+
+    def schema(path: str) -> dict[str, Any]:
+        """The request body schema of ``POST path`` in the published document (``{}``: none there)."""
+        body = document["paths"].get(path, {}).get("post", {}).get("requestBody")
+        return dict(body["content"]["application/json"]["schema"]) if body else {}
 
     async def run(fn: Callable[[Any], Any]) -> Any:
         future = loop.call(fn)
@@ -208,7 +272,9 @@ def create_app(
 
     async def service_call(request: Request) -> Response:
         p = request.path_params
-        command = command_from_request(services, p["service"], p["entity"], p["call"], await _body(request))
+        path = f"/api/services/{p['service']}/{p['entity']}/{p['call']}"
+        body = await _body(request, schema(path))
+        command = command_from_request(services, p["service"], p["entity"], p["call"], body)
 
         def call(w: Any) -> Any:
             result = loop.apply(command)(w)
@@ -263,15 +329,15 @@ def create_app(
         return Response(base64.b64decode(encode_jpeg(rgb)), media_type="image/jpeg")
 
     async def pause(request: Request) -> Response:
-        _object(await _body(request), ())
+        _object(await _body(request, schema("/api/pause")), ())
         return JSONResponse(await run(loop.set_paused(True)))
 
     async def resume(request: Request) -> Response:
-        _object(await _body(request), ())
+        _object(await _body(request, schema("/api/resume")), ())
         return JSONResponse(await run(loop.set_paused(False)))
 
     async def step(request: Request) -> Response:
-        body = _object(await _body(request), ("steps", "seconds"))
+        body = _object(await _body(request, schema("/api/step")), ("steps", "seconds"))
         if "steps" in body and "seconds" in body:
             raise RequestError(422, "seconds", "give steps or seconds, not both")
         if "seconds" in body:
@@ -282,23 +348,23 @@ def create_app(
         return JSONResponse(await run(loop.step_request(steps)))
 
     async def reset(request: Request) -> Response:
-        _object(await _body(request), ())
+        _object(await _body(request, schema("/api/reset")), ())
         return JSONResponse(await run(loop.reset()))
 
     async def rate(request: Request) -> Response:
-        body = _object(await _body(request), ("rate",))
+        body = _object(await _body(request, schema("/api/rate")), ("rate",))
         if "rate" not in body:
             raise RequestError(422, "rate", f"missing; give the real-time factor in [{MIN_RATE:g}, {MAX_RATE:g}]")
         return JSONResponse(await run(loop.set_rate(_number(body, "rate", MIN_RATE, MAX_RATE))))
 
     async def recording_start(request: Request) -> Response:
-        _object(await _body(request), ())
+        _object(await _body(request, schema("/api/recording/start")), ())
         if recording is None:
             raise RequestError(409, "", "this server records nowhere; start it with --record PATH")
         return JSONResponse(await run(lambda w: recording()))
 
     async def recording_stop(request: Request) -> Response:
-        _object(await _body(request), ())
+        _object(await _body(request, schema("/api/recording/stop")), ())
 
         def stop(w: Any) -> Any:
             current = loop.recording
@@ -411,4 +477,4 @@ def create_app(
             Exception: internal,
         },
     )
-    return Guard(app, token, hosts or set())
+    return Guard(app, access)

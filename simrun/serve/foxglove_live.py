@@ -9,12 +9,16 @@ Foxglove (the app, or any client of its protocol) connects to ``ws://127.0.0.1:N
 
 Log times are nanoseconds of simulated time, as in the MCAP export (:mod:`simrun.record.mcap_export`). The SDK's
 server keeps at most :data:`BACKLOG` messages per client and drops the oldest, so a slow client never
-slows the simulation. The protocol has no authentication: the server listens on the loopback address
-only (use an SSH tunnel from another machine).
+slows the simulation. The server listens on the loopback address only (use an SSH tunnel from another
+machine). The protocol has no authentication and the SDK's server checks no handshake, so the port is a
+:class:`simrun.serve.gate.Gate` that applies the rules of the HTTP server (:mod:`simrun.serve.access`:
+``Host``, ``Origin``, the token as ``?token=``) before it relays a connection to the SDK's server, which
+listens on a port browsers may not open.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 #: Messages the Foxglove server buffers per client before it drops the oldest.
@@ -27,20 +31,41 @@ class FoxgloveLive:
     Args:
         port: TCP port on 127.0.0.1 (0: a free one).
         catalogue: The served world's catalogue (:func:`simrun.serve.catalogue.build_catalogue`).
+        token: The server's token (clients give it as ``?token=`` or ``Authorization: Bearer``), or ``None``.
+        origins: Web origins allowed besides the port's own (``--allow-origin``).
 
     Attributes:
         port: The port it listens on.
     """
 
-    def __init__(self, port: int, catalogue: dict[str, Any]) -> None:
+    def __init__(
+        self, port: int, catalogue: dict[str, Any], token: str | None = None, origins: Iterable[str] = ()
+    ) -> None:
         import foxglove
         from foxglove import channels
 
+        from simrun.serve.access import Access
+        from simrun.serve.gate import BROWSER_BLOCKED_PORTS, Gate
+
         self._context = foxglove.Context()
-        self._server = foxglove.start_server(
-            name="simrun serve", host="127.0.0.1", port=port, context=self._context, message_backlog_size=BACKLOG
-        )
-        self.port = int(self._server.port)
+        self._server: Any = None
+        error: Exception | None = None
+        for inner in BROWSER_BLOCKED_PORTS:  # the first free one (the SDK refuses a port in use)
+            try:
+                self._server = foxglove.start_server(name="simrun serve", host="127.0.0.1", port=inner,
+                                                     context=self._context, message_backlog_size=BACKLOG)  # fmt: skip
+                break
+            except RuntimeError as exc:
+                error = exc
+        if self._server is None:
+            raise RuntimeError(f"no free port for the server behind the gate ({error})")
+        allowed = tuple(origins)
+        try:
+            self._gate = Gate(port, int(self._server.port), lambda p: Access.bound("127.0.0.1", p, token, allowed))
+        except OSError:
+            self._server.stop()
+            raise
+        self.port = self._gate.port
         self._tf = channels.FrameTransformsChannel("/tf", context=self._context)
         self._lasers = {
             s["name"]: (s, channels.LaserScanChannel(f"/sensors/{s['name']}", context=self._context))
@@ -93,7 +118,8 @@ class FoxgloveLive:
         channel.log(scan, log_time=round(time * 1e9))
 
     def close(self) -> None:
-        """Stop the server."""
+        """Stop the gate and the server."""
+        self._gate.close()
         self._server.stop()
 
 

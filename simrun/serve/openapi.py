@@ -4,6 +4,11 @@ Besides the fixed routes (state, pause, step, reset, rate, recording, sensors, t
 service's commands appear as their own paths (``/api/services/DriveService/boebot/drive_distance``) with
 the JSON Schema of their arguments, so a generic OpenAPI tool can call them. :data:`API_VERSION` is the
 interface's version (``info.version``): the major number changes when a route or field changes meaning.
+
+Every number a request may carry has its range here (``minimum``/``maximum``): ``steps``, ``seconds``,
+``rate``, and each command argument (at most :data:`MAX_ARGUMENT` in magnitude; the services check their
+own, tighter limits such as a power in [-1, 1]). The server enforces these ranges from this document
+(:func:`simrun.serve.app.check_numbers`), so a field added here is bounded there.
 """
 
 from __future__ import annotations
@@ -11,9 +16,12 @@ from __future__ import annotations
 from typing import Any
 
 from simrun import __version__
+from simrun.serve.loop import MAX_RATE, MAX_STEPS, MIN_RATE
 
 #: Version of the HTTP/WebSocket interface (``info.version`` of the document, ``api_version`` of ``GET /api``).
 API_VERSION = "1.0"
+#: Largest magnitude of a number in a service command's arguments (metres, degrees, seconds, radians...).
+MAX_ARGUMENT = 1e6
 
 _ERROR = {
     "type": "object",
@@ -64,9 +72,21 @@ def _empty() -> dict[str, Any]:
     return {"type": "object", "additionalProperties": False}
 
 
+def bounded(schema: dict[str, Any]) -> dict[str, Any]:
+    """A copy of an argument's schema with the range of its numbers (+-:data:`MAX_ARGUMENT`) added."""
+    out = dict(schema)
+    if out.get("type") in ("number", "integer"):
+        out.setdefault("minimum", -MAX_ARGUMENT)
+        out.setdefault("maximum", MAX_ARGUMENT)
+    if isinstance(out.get("items"), dict):
+        out["items"] = bounded(out["items"])
+    return out
+
+
 def openapi_document(catalogue: dict[str, Any]) -> dict[str, Any]:
     """The OpenAPI document of a server for ``catalogue`` (:func:`simrun.serve.catalogue.build_catalogue`)."""
     state = {"$ref": "#/components/schemas/State"}
+    longest = MAX_STEPS * float(catalogue["timestep"])
     paths: dict[str, Any] = {
         "/api": {"get": _op("Interface version and links.")},
         "/api/world": {"get": _op("Entities, bound services (commands, queries) and sensors.")},
@@ -86,7 +106,10 @@ def openapi_document(catalogue: dict[str, Any]) -> dict[str, Any]:
                 {
                     "type": "object",
                     "additionalProperties": False,
-                    "properties": {"steps": {"type": "integer", "minimum": 1}, "seconds": {"type": "number"}},
+                    "properties": {
+                        "steps": {"type": "integer", "minimum": 1, "maximum": MAX_STEPS},
+                        "seconds": {"type": "number", "minimum": 0, "maximum": longest, "description": "s"},
+                    },
                 },
                 state,
             )
@@ -98,7 +121,7 @@ def openapi_document(catalogue: dict[str, Any]) -> dict[str, Any]:
                 {
                     "type": "object",
                     "required": ["rate"],
-                    "properties": {"rate": {"type": "number", "exclusiveMinimum": 0}},
+                    "properties": {"rate": {"type": "number", "minimum": MIN_RATE, "maximum": MAX_RATE}},
                 },
                 state,
             )
@@ -114,11 +137,12 @@ def openapi_document(catalogue: dict[str, Any]) -> dict[str, Any]:
     }
     for service in catalogue["services"]:
         for call, info in service["commands"].items():
-            properties = {p["name"]: p["schema"] for p in info["parameters"]}
+            properties = {p["name"]: bounded(p["schema"]) for p in info["parameters"]}
             required = [p["name"] for p in info["parameters"] if "default" not in p]
+            positional = [{"title": name, **schema} for name, schema in properties.items()]
             args = {
                 "oneOf": [
-                    {"type": "array", "maxItems": len(properties)},
+                    {"type": "array", "maxItems": len(properties), "prefixItems": positional},
                     {"type": "object", "properties": properties, "required": required, "additionalProperties": False},
                 ]
             }

@@ -3,7 +3,8 @@
 :func:`serve` loads the scene in the simulation thread (a refused scene fails before anything listens),
 binds the socket (so ``--port 0`` works and the address is known), and runs uvicorn until SIGINT or
 SIGTERM (uvicorn's own handlers: open requests finish, streams close); then the simulation thread stops
-and the recording is written. Safe defaults: a host other than the loopback needs a token.
+and the recording is written. Safe defaults: a host other than the loopback needs a token; every port
+checks ``Host``, ``Origin`` and the token (:mod:`simrun.serve.access`).
 """
 
 from __future__ import annotations
@@ -37,14 +38,22 @@ def is_loopback(host: str) -> bool:
         return False
 
 
-def check_access(host: str, token: str | None) -> None:
-    """Refuse to listen beyond the loopback without a token, and short tokens.
+def check_access(host: str, token: str | None, origins: tuple[str, ...] = ()) -> None:
+    """Refuse to listen beyond the loopback without a token, short or unprintable tokens, malformed origins.
 
     Raises:
-        UsageError: A non-loopback host without ``--token``, or a token under :data:`MIN_TOKEN` characters.
+        UsageError: A non-loopback host without ``--token``, a token under :data:`MIN_TOKEN` characters or
+            with control characters (:func:`simrun.serve.access.check_token`), an ``--allow-origin`` that is
+            not ``scheme://host[:port]``.
     """
+    from simrun.serve.access import check_token, normalise_origin
+
     if token is not None and len(token) < MIN_TOKEN:
         raise UsageError(f"--token must be at least {MIN_TOKEN} characters (e.g. from 'openssl rand -hex 16')")
+    if token is not None:
+        check_token(token)
+    for origin in origins:
+        normalise_origin(origin)
     if not is_loopback(host) and token is None:
         raise UsageError(
             f"--host {host} makes the world reachable from other machines: give --token TOKEN (or SIMRUN_TOKEN) "
@@ -87,6 +96,7 @@ def serve(
     token: str | None = None,
     on_ready: Callable[[str], None] | None = None,
     foxglove_port: int | None = None,
+    allow_origins: tuple[str, ...] = (),
 ) -> Served:
     """Serve ``options.scene`` until SIGINT or SIGTERM.
 
@@ -97,6 +107,7 @@ def serve(
         token: Bearer token every request must carry.
         on_ready: Called with the URL once the server listens (and with the Foxglove server's ``ws://`` URL).
         foxglove_port: Also serve the Foxglove WebSocket protocol on 127.0.0.1 at this port (0: a free one).
+        allow_origins: Web origins (``https://app.example``) whose pages may use the server besides its own.
 
     Returns:
         The URL and the files written (the recording).
@@ -106,10 +117,11 @@ def serve(
     """
     import uvicorn
 
+    from simrun.serve.access import Access
     from simrun.serve.app import create_app
     from simrun.serve.page import dashboard_html
 
-    check_access(host, token)
+    check_access(host, token, allow_origins)
     written: list[Path] = []
 
     def start_recording(world: World, loop: SimLoop) -> Any:
@@ -151,7 +163,7 @@ def serve(
             from simrun.serve.foxglove_live import FoxgloveLive
 
             try:
-                loop.foxglove = FoxgloveLive(foxglove_port, loop.catalogue)
+                loop.foxglove = FoxgloveLive(foxglove_port, loop.catalogue, token, allow_origins)
             except Exception as exc:  # the SDK's own error (a port in use): one line
                 sock.close()
                 raise SimrunError(f"cannot start the Foxglove server on 127.0.0.1:{foxglove_port}: {exc}") from None
@@ -161,13 +173,9 @@ def serve(
     bound_port = sock.getsockname()[1]
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{shown}:{bound_port}/"
-    hosts = {f"{shown}:{bound_port}"}
-    if is_loopback(host):
-        hosts |= {f"localhost:{bound_port}", f"127.0.0.1:{bound_port}", f"[::1]:{bound_port}"}
     app = create_app(
         loop,
-        token=token,
-        hosts=hosts,
+        Access.bound(host, bound_port, token, allow_origins),
         page=lambda: dashboard_html(loop.catalogue, token is not None, options.record is not None),
         recording=new_recording if options.record is not None else None,
     )

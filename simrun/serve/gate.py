@@ -1,0 +1,185 @@
+"""A handshake check in front of a WebSocket server that has none of its own (the Foxglove SDK's).
+
+foxglove-sdk's server (``foxglove.start_server``, 0.30) accepts every handshake: it offers no hook to see
+the request's ``Host``, ``Origin`` or query (its ``ServerListener`` hears only subscriptions and
+messages, after the connection is made). :class:`Gate` listens on the public port instead and reads each
+connection's HTTP upgrade request (at most :data:`MAX_HEAD` bytes, within :data:`HEAD_TIMEOUT` seconds).
+:class:`~simrun.serve.access.Access` judges it: a refused one is answered ``HTTP 403`` (401 for a missing
+token) with the JSON error body and closed, so it never reaches the SDK; an accepted one is relayed byte for
+byte, its request first, to the SDK's server on 127.0.0.1.
+
+The SDK's server listens on one of the ports that the Fetch standard forbids browsers to open
+(:data:`BROWSER_BLOCKED_PORTS`: fetch and WebSocket both refuse them, ``ERR_UNSAFE_PORT``), so a page cannot go
+round the gate to it; programs on this machine can, as they can reach everything on the loopback.
+Everything runs on one asyncio loop in its own thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import socket
+import threading
+from collections.abc import Callable
+
+from simrun.serve.access import Access
+
+#: Largest HTTP upgrade request read, bytes (beyond: 431 and closed).
+MAX_HEAD = 16 * 1024
+#: Longest wait for the whole upgrade request, seconds (beyond: the connection is closed).
+HEAD_TIMEOUT = 10.0
+#: Most connections relayed at once (beyond: 503).
+MAX_CONNECTIONS = 64
+#: Ports above 1023 on the Fetch standard's "bad port" list (fetch.spec.whatwg.org/#port-blocking) that
+#: Chromium 156 refuses too (``ERR_UNSAFE_PORT``; it still opens 4190 and 6679 of that list): the server
+#: behind the gate listens on the first free one.
+BROWSER_BLOCKED_PORTS = (6665, 6666, 6667, 6668, 6669, 6697, 10080, 6566, 4045, 3659, 2049, 1723, 1720, 1719,
+                         5060, 5061, 6000)  # fmt: skip
+_REASONS = {401: "Unauthorized", 403: "Forbidden", 400: "Bad Request", 431: "Request Header Fields Too Large",
+            503: "Service Unavailable"}  # fmt: skip
+
+
+def _answer(status: int, field: str, message: str) -> bytes:
+    body = json.dumps({"error": message, "field": field, "status": status}).encode()
+    head = (
+        f"HTTP/1.1 {status} {_REASONS[status]}\r\nContent-Type: application/json\r\n"
+        f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n"
+    )
+    return head.encode("latin-1") + body
+
+
+def parse_head(head: bytes) -> tuple[str, dict[str, str]] | None:
+    """(request target, headers by lowercase name) of an HTTP/1.1 request head; ``None`` when malformed.
+
+    A header given twice keeps both values joined by ``", "`` (so two ``Host`` headers never name this server).
+    """
+    lines = head.decode("latin-1").split("\r\n")
+    parts = lines[0].split(" ")
+    if len(parts) != 3 or not parts[2].startswith("HTTP/1."):
+        return None
+    headers: dict[str, str] = {}
+    for line in lines[1:]:
+        if not line:
+            continue
+        name, colon, value = line.partition(":")
+        if not colon or not name or name != name.strip():
+            return None
+        key = name.lower()
+        headers[key] = f"{headers[key]}, {value.strip()}" if key in headers else value.strip()
+    return parts[1], headers
+
+
+class Gate:
+    """A TCP listener on 127.0.0.1 that checks WebSocket handshakes and relays the accepted ones.
+
+    Args:
+        port: Public port (0: a free one).
+        upstream: Port of the server behind it, on 127.0.0.1.
+        access: Makes the rules once the public port is known (``access(port)``).
+
+    Attributes:
+        port: The public port it listens on.
+        refused: Handshakes refused so far.
+    """
+
+    def __init__(self, port: int, upstream: int, access: Callable[[int], Access]) -> None:
+        self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        try:
+            self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            self._listener.bind(("127.0.0.1", port))
+            self._listener.listen(128)
+        except OSError:
+            self._listener.close()
+            raise
+        self.port = int(self._listener.getsockname()[1])
+        self.access = access(self.port)
+        self.upstream = upstream
+        self.refused = 0
+        self._open = 0
+        self._loop = asyncio.new_event_loop()
+        self._started = threading.Event()
+        self._thread = threading.Thread(target=self._main, name="simrun-serve-foxglove-gate", daemon=True)
+        self._thread.start()
+        self._started.wait(10)
+
+    def _main(self) -> None:
+        asyncio.set_event_loop(self._loop)
+        server = self._loop.run_until_complete(
+            asyncio.start_server(self._connection, sock=self._listener, limit=MAX_HEAD)
+        )
+        self._started.set()
+        try:
+            self._loop.run_forever()
+        finally:
+            server.close()
+            tasks = asyncio.all_tasks(self._loop)
+            for task in tasks:
+                task.cancel()
+            self._loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
+            self._loop.close()
+
+    async def _connection(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            if self._open >= MAX_CONNECTIONS:
+                await self._refuse(writer, 503, "", f"{MAX_CONNECTIONS} connections are open; try later")
+                return
+            self._open += 1
+            try:
+                await self._handshake(reader, writer)
+            finally:
+                self._open -= 1
+        except (OSError, asyncio.IncompleteReadError, TimeoutError):
+            pass
+        finally:
+            with contextlib.suppress(Exception):
+                writer.close()
+
+    async def _handshake(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), HEAD_TIMEOUT)
+        except (asyncio.LimitOverrunError, ValueError):
+            await self._refuse(writer, 431, "", f"the request head is larger than {MAX_HEAD} bytes")
+            return
+        parsed = parse_head(head)
+        if parsed is None:
+            await self._refuse(writer, 400, "", "not an HTTP/1.1 request")
+            return
+        target, headers = parsed
+        problem = self.access.refusal(headers, target.partition("?")[2].encode("latin-1"))
+        if problem is not None:
+            await self._refuse(writer, problem.status, problem.field, problem.message)
+            return
+        up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.upstream)
+        up_writer.write(head)
+        pumps = [asyncio.ensure_future(_pump(reader, up_writer)), asyncio.ensure_future(_pump(up_reader, writer))]
+        try:
+            await asyncio.wait(pumps, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            for pump in pumps:
+                pump.cancel()
+            with contextlib.suppress(Exception):
+                up_writer.close()
+
+    async def _refuse(self, writer: asyncio.StreamWriter, status: int, field: str, message: str) -> None:
+        self.refused += 1
+        writer.write(_answer(status, field, message))
+        with contextlib.suppress(OSError):
+            await writer.drain()
+
+    def close(self) -> None:
+        """Stop listening and drop the relayed connections."""
+        if self._loop.is_running():
+            self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(10)
+        self._listener.close()
+
+
+async def _pump(source: asyncio.StreamReader, sink: asyncio.StreamWriter) -> None:
+    """Copy ``source`` to ``sink`` until it ends (then half-close ``sink``)."""
+    with contextlib.suppress(OSError):
+        while chunk := await source.read(65536):
+            sink.write(chunk)
+            await sink.drain()
+        if sink.can_write_eof():
+            sink.write_eof()
