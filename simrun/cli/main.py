@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 import sys
@@ -529,3 +530,47 @@ def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, si
     Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")
     write_bytes(output, buffer.getvalue())
     out.wrote(output, f"wrote {output} ({width}x{height}, {render_mode})", kind="png")
+
+
+#: Folders MJCF models may read from besides the scene's and their own (simrun.robots.mjcf_read.ALLOW_ROOTS_ENV;
+#: this module imports no MuJoCo, so the name is written here and tests/test_mjcf_hostile.py checks they agree).
+ALLOW_ROOTS_ENV = "SIMRUN_ALLOW_ROOTS"
+
+
+def _allow_root(command: click.Command) -> click.Command:
+    """Give a scene command ``--allow-root DIR`` (repeatable): MJCF models may read files inside DIR too.
+
+    The folders go to the reader through ``SIMRUN_ALLOW_ROOTS`` (absolute, ``os.pathsep``-separated) for as long
+    as the command runs, so the processes it starts (``simrun test`` runs, Dask workers) allow them as well.
+    """
+    command.params.append(
+        click.Option(
+            ["--allow-root", "allow_roots"],
+            multiple=True,
+            type=click.Path(path_type=Path, file_okay=False, exists=True),
+            help="A folder MJCF models may read files from besides the scene's and their own (repeatable; "
+            "docs/limits.md).",
+        )
+    )
+    callback = command.callback
+    assert callback is not None
+
+    def run(*args: Any, allow_roots: tuple[Path, ...] = (), **kwargs: Any) -> Any:
+        before = os.environ.get(ALLOW_ROOTS_ENV)
+        if allow_roots:
+            known = [p for p in (before or "").split(os.pathsep) if p]
+            os.environ[ALLOW_ROOTS_ENV] = os.pathsep.join([*known, *(os.path.abspath(p) for p in allow_roots)])
+        try:
+            return callback(*args, **kwargs)
+        finally:
+            if allow_roots and before is None:
+                os.environ.pop(ALLOW_ROOTS_ENV, None)
+            elif allow_roots and before is not None:
+                os.environ[ALLOW_ROOTS_ENV] = before
+
+    command.callback = functools.update_wrapper(run, callback)
+    return command
+
+
+for _command in (check, export, play_command, snapshot, view, test_command, serve_command):
+    _allow_root(_command)

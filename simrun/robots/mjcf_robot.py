@@ -10,11 +10,15 @@ world, other entities' joints at their initial values, and follow the entity's p
 and mocap poses are composed with it (:func:`place_keys`), so two robots of one model reset to its ``home``
 (``World.reset("a/home")``) each land where their entity stands; a welded root is at the entity's pose anyway.
 
-Files: meshes, textures, height fields and skins are read from beside the model as MuJoCo would find them
-(:func:`simrun.robots.mjcf_files.model_files`: ``compiler meshdir``, ``texturedir``, ``assetdir``, absolute
-paths; the include files are recorded as read too, so ``simrun test`` bundles them) and put into the world's
-in-memory file system under names unique to the entity (MuJoCo caches meshes by file name), so ``simrun export --mjcf``
-writes them into its folder.
+Files: the model, its ``<include>`` files, meshes, textures, height fields, skins and flexcomp files are read
+by the project, not by MuJoCo (:mod:`simrun.robots.mjcf_read`, issue 42): found as MuJoCo would find them
+(``compiler meshdir``, ``texturedir``, ``assetdir``), bounded, race-free and only inside the scene's folder, the
+model's own folder and the folders ``allow_roots`` (or ``--allow-root DIR``) allows; counted and checked
+against docs/limits.md before MuJoCo parses anything. MuJoCo gets one include-free document and the bytes
+(:meth:`mujoco.MjSpec.from_string`), under names unique to the entity (MuJoCo caches meshes by file name);
+the world's in-memory file system keeps them, so ``simrun export --mjcf`` writes them into its folder, and
+every file read is recorded (``World.files_read``), so ``simrun test`` bundles them. MuJoCo's messages name
+the file and line the element came from (an included file's own line).
 
 Where the model goes: a model whose top-level bodies are welded to its world (an arm) is attached under
 the entity's body at the entity's pose, so ``free``, ``kinematic`` and ``parent`` work as for any entity
@@ -58,9 +62,7 @@ geometry about its axis) and track are measured from the compiled model unless g
 from __future__ import annotations
 
 import math
-import os
 import re
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -70,13 +72,13 @@ import numpy as np
 
 from simrun.errors import EntityError
 from simrun.robots.contract import Robot
-from simrun.robots.mjcf_files import model_files
+from simrun.robots.mjcf_read import DEFAULT_LIMITS, MjcfModel, MjcfReadError, allowed_roots, read_mjcf
 from simrun.robots.wheels import WheelFields, Wheels, measure
 from simrun.world.entity import BuildContext, Entity
 from simrun.world.options import own_options
 
-#: Largest MJCF file read, bytes (its includes and assets are MuJoCo's to bound).
-MAX_MJCF_BYTES = 64 * 1024 * 1024
+#: Largest MJCF file read, bytes (its includes and assets: :class:`simrun.robots.mjcf_read.Limits`).
+MAX_MJCF_BYTES = DEFAULT_LIMITS.xml_bytes
 _LINE = re.compile(r"[Ll]ine(?: number)?[ =](\d+)")
 _ELEMENT = re.compile(r"Element '([^']*)'|XMLElement name=(\w+)")
 #: Size settings copied from the world into the model before attaching (the world's govern).
@@ -122,6 +124,8 @@ class MjcfRobot(WheelFields, Entity, Robot):
             ``no_load_speed`` too).
         root_slides: Three slide joints on the model's top-level body (see the module); not with ``free``
             or ``kinematic``.
+        allow_roots: Folders (relative to the world folder, or absolute) the model may read files from besides
+            the scene's folder and its own (docs/scene-format.md); ``--allow-root DIR`` adds more.
     """
 
     TYPE: ClassVar[str] = "MjcfRobot"
@@ -130,24 +134,23 @@ class MjcfRobot(WheelFields, Entity, Robot):
 
     file: str
     root_slides: bool = False
+    allow_roots: tuple[str, ...] = ()
 
     # -- building ------------------------------------------------------------------------------------------
 
     def build(self, body: Any, ctx: BuildContext) -> None:
         """Read the model, move its files into memory and attach it under ``body`` (or at the pose in the world)."""
         path = ctx.base_dir / self.file
-        child = self._read(path)
         tag = "".join(c if c.isalnum() else "_" for c in ctx.full_name)
-        files, sources = _load_files(child, path, f"mjcf_{tag}_", self._fail)
-        child.assets = dict(files)
+        model, child = self._read(ctx.base_dir, f"mjcf_{tag}_")
         if self.wheels:
             self._add_motors(child)
         if self.root_slides:  # before any compile of the model: a compile ties its keyframes to its joints
-            self._add_root_slides(child, path)
+            self._add_root_slides(child, path, model)
         elif self.free:
             self._check_free(child, path)
-        _scale_total_mass(child, lambda: self._compiled(child, path))
-        alone = self._compiled(child, path)  # MuJoCo must take the model alone first: its message names the element
+        _scale_total_mass(child, lambda: self._compiled(child, model))
+        alone = self._compiled(child, model)  # MuJoCo must take the model alone first: its message names the element
         for k, key in enumerate(child.keys):
             if not key.name:  # attach names an unnamed key after the prefix alone: two would clash
                 key.name = f"key{k}"
@@ -171,9 +174,9 @@ class MjcfRobot(WheelFields, Entity, Robot):
         try:
             ctx.spec.attach(child, prefix=f"{ctx.full_name}/", frame=frame)
         except ValueError as exc:
-            raise self._fail(path, str(exc), "MuJoCo cannot attach it; rename the clashing element") from None
-        ctx.assets.vfs.update(files)
-        ctx.assets.sources.update(sources)
+            raise self._fail(model, str(exc), "MuJoCo cannot attach it; rename the clashing element") from None
+        ctx.assets.vfs.update(model.files)
+        ctx.assets.sources.update(model.sources())
 
     def own_options(self, base_dir: Path) -> dict[str, Any]:
         """The options the model's ``<option>`` sets (those differing from MuJoCo's defaults), by ``MjSpec`` name.
@@ -181,9 +184,17 @@ class MjcfRobot(WheelFields, Entity, Robot):
         Args:
             base_dir: The world's folder (``file`` is relative to it).
         """
-        return own_options(self._read(Path(base_dir) / self.file))
+        return own_options(self._read(Path(base_dir), "options_", assets=False)[1])
 
-    def _read(self, path: Path) -> mujoco.MjSpec:
+    def _read(self, base_dir: Path, prefix: str, assets: bool = True) -> tuple[MjcfModel, mujoco.MjSpec]:
+        """The model as :func:`~simrun.robots.mjcf_read.read_mjcf` reads it and MuJoCo parses it from the bytes.
+
+        Args:
+            base_dir: The world's folder (``file`` is relative to it; the scene's root).
+            prefix: Start of the in-memory file names.
+            assets: ``False``: the asset files are found and checked, not read (enough for the options).
+        """
+        path = base_dir / self.file
         try:
             st = path.stat()
         except OSError as exc:
@@ -194,28 +205,33 @@ class MjcfRobot(WheelFields, Entity, Robot):
             raise EntityError(f"MjcfRobot {self.name!r}: {path}: not a regular file; 'file' names an MJCF .xml")
         if st.st_size > MAX_MJCF_BYTES:
             raise EntityError(f"MjcfRobot {self.name!r}: {path}: {st.st_size} bytes, over {MAX_MJCF_BYTES}")
-        root = _root_tag(path)
-        if root != "mujoco":
-            hint = "use UrdfRobot for a URDF" if root == "robot" else "an MJCF model starts with <mujoco>"
-            raise EntityError(f"MjcfRobot {self.name!r}: {path}:1: <{root}> is not an MJCF model; {hint}")
         try:
-            return mujoco.MjSpec.from_file(str(path))
+            model = read_mjcf(path, allowed_roots(base_dir, self.allow_roots), prefix, assets=assets)
+        except MjcfReadError as exc:
+            raise EntityError(f"MjcfRobot {self.name!r}: {exc}") from None
+        try:
+            return model, model.spec()
         except ValueError as exc:
-            raise self._fail(path, str(exc), "fix that element (MuJoCo's XML reader refused it)") from None
+            raise self._fail(model, str(exc), "fix that element (MuJoCo's XML reader refused it)") from None
 
-    def _compiled(self, child: mujoco.MjSpec, path: Path) -> mujoco.MjModel:
+    def _compiled(self, child: mujoco.MjSpec, model: MjcfModel) -> mujoco.MjModel:
         try:
             return child.compile()
         except ValueError as exc:
-            raise self._fail(path, str(exc), "fix that element (MuJoCo refuses the model)") from None
+            raise self._fail(model, str(exc), "fix that element (MuJoCo refuses the model)") from None
 
-    def _fail(self, path: Path, message: str, hint: str) -> EntityError:
-        """A one-line error from MuJoCo's message: file, line and element first, then MuJoCo's words, then the hint."""
+    def _fail(self, model: MjcfModel, message: str, hint: str) -> EntityError:
+        """A one-line error from MuJoCo's message: file, line and element first, then MuJoCo's words, then the hint.
+
+        MuJoCo's line is one of the document the reader handed it; the message names the file and line the
+        element came from instead (the model's or an included file's).
+        """
         lines = [part.strip() for part in message.strip().splitlines() if part.strip()]
         text = " ".join(lines)
         line = _LINE.search(text)
         element, named, parse = _ELEMENT.search(text), _NAMED.search(text), _PARSE.search(text)
-        where = f"{path}:{line.group(1)}" if line else str(path)
+        origin = model.origin(int(line.group(1))) if line else None
+        where = f"{origin[0]}:{origin[1]}" if origin is not None else str(model.path)
         first = parse.group(1) if parse else lines[0] if lines else "unreadable"
         for prefix in ("XML Error: ", "Error: "):
             first = first.removeprefix(prefix)
@@ -226,7 +242,7 @@ class MjcfRobot(WheelFields, Entity, Robot):
             what = f" element named {named.group(1)!r}:"
         return EntityError(f"MjcfRobot {self.name!r}: {where}:{what} {first}; {hint}")
 
-    def _add_root_slides(self, child: mujoco.MjSpec, path: Path) -> None:
+    def _add_root_slides(self, child: mujoco.MjSpec, path: Path, model: MjcfModel) -> None:
         """Slides ``root_x``, ``root_y``, ``root_z`` (the entity frame's axes) first on the one top-level body."""
         who = f"MjcfRobot {self.name!r}"
         if self.free or self.kinematic:
@@ -240,7 +256,7 @@ class MjcfRobot(WheelFields, Entity, Robot):
             )
         top = tops[0]
         rotation = np.zeros(9)
-        mujoco.mju_quat2Mat(rotation, self._compiled(child.copy(), path).body_quat[1])  # its frame in the entity's
+        mujoco.mju_quat2Mat(rotation, self._compiled(child.copy(), model).body_quat[1])  # its frame in the entity's
         names = {j.name for j in child.joints}
         clash = sorted(n for n in ("root_x", "root_y", "root_z") if n in names)
         if clash:
@@ -296,12 +312,9 @@ class MjcfRobot(WheelFields, Entity, Robot):
         Args:
             base_dir: The world's folder (``file`` is relative to it).
         """
-        path = Path(base_dir) / self.file
-        child = self._read(path)
-        files, _ = _load_files(child, path, "wheels_", self._fail)
-        child.assets = dict(files)
+        model, child = self._read(Path(base_dir), "wheels_")
         self._add_motors(child)
-        return wheel_geometry(self, self._compiled(child, path))
+        return wheel_geometry(self, self._compiled(child, model))
 
 
 def wheel_geometry(entity: Any, model: mujoco.MjModel) -> WheelGeometry:
@@ -440,44 +453,3 @@ def _joint_fields(joint: Any) -> dict[str, Any]:
         for name in dir(joint)
         if not name.startswith("_") and name not in _NOT_COPIED and not callable(getattr(joint, name))
     }
-
-
-def _root_tag(path: Path) -> str:
-    """The name of the file's first element (the XML is MuJoCo's to judge; this only tells MJCF from others)."""
-    try:
-        for _, element in ET.iterparse(str(path), events=("start",)):
-            return str(element.tag)
-    except (ET.ParseError, OSError):
-        return "mujoco"  # let MuJoCo's reader name the line
-    return "mujoco"
-
-
-def _load_files(spec: mujoco.MjSpec, path: Path, prefix: str, fail: Any) -> tuple[dict[str, bytes], set[Path]]:
-    """Read every mesh, texture, height field and skin file the model names into memory, renaming them.
-
-    The files are those :func:`simrun.robots.mjcf_files.model_files` lists (includes among the real paths read).
-
-    Returns:
-        In-memory files (name to bytes) and the real paths read (the model and its includes too).
-    """
-    files: dict[str, bytes] = {}
-    sources: set[Path] = set()
-    taken: dict[Path, str] = {}
-    for item in model_files(path, spec):
-        real = Path(os.path.realpath(item.path))
-        sources.add(real)
-        if item.element is None:  # the model and its includes: MuJoCo has read them already
-            continue
-        if real not in taken:
-            try:
-                data = real.read_bytes()
-            except OSError as exc:
-                raise fail(
-                    path, f"{item.kind} {item.name!r}: cannot read {item.path} ({exc.strerror})", "put the file there"
-                ) from None
-            safe = "".join(c if c.isalnum() or c in "._-" else "_" for c in item.path.name)
-            taken[real] = f"{prefix}{len(taken)}_{safe}"
-            files[taken[real]] = data
-        item.point_to(taken[real])
-    spec.compiler.meshdir = spec.compiler.texturedir = ""
-    return files, sources
