@@ -1,7 +1,8 @@
 """The one composer of meshtool's stages, and mesh to ``.mbin`` conversion (one file, or a folder tree).
 
-The stages run in sequence here and nowhere else (``tests/test_layering.py`` checks it): read, frame and
-repair (:func:`repaired_asset`: a :class:`~meshtool.repair.normalise.NormalisedAsset`), hulls
+The stages run in sequence here and nowhere else (``tests/test_layering.py`` checks it; a file converted enters
+each stage's entry once, ``tests/test_pipeline_stages.py``): read, repair's mesh building, frame and repair's
+conversion (:func:`repaired_asset`: a :class:`~meshtool.stages.NormalisedAsset`), hulls
 (:func:`asset_hulls`: a :class:`~meshtool.hulls.compute.HullSet`), pack (:func:`pack_asset`: ``.mbin``
 bytes whose META is a :class:`~meshtool.packfile.meta.PackMeta`). ``obj2bin`` FILE and DIR, ``meshtool
 hulls``, ``meshtool mjcf``, URDF meshes (:mod:`meshtool.urdf.meshes`), ``meshtool validate``
@@ -27,12 +28,17 @@ from meshtool.files.resolve import file_sha256, find_files
 from meshtool.files.safeopen import printable
 from meshtool.findings import Finding
 from meshtool.formats import mesh_suffixes, suffix
+from meshtool.frame.declared import decide_asset_frame
+from meshtool.frame.modelroot import model_root_resolver
 from meshtool.hulls.compute import Hull, HullOptions, HullSet, compute_hulls, quality
 from meshtool.packfile import PackMeta, SourceEntry, load, pack
 from meshtool.packfile.meta import source_entries, source_files, source_path
+from meshtool.read.source_asset import read_source_asset
+from meshtool.repair.convert import build_asset_mesh, convert_asset
 from meshtool.repair.mesh import TriMesh
-from meshtool.repair.normalise import NormalisedAsset, NormaliseOptions, prepare, safe_file_stem
 from meshtool.repair.normalmaps import mujoco_findings
+from meshtool.repair.options import NormaliseOptions, safe_file_stem
+from meshtool.stages import NormalisedAsset
 from meshtool.work.batch import Executor, run_batch
 from meshtool.work.progress import report as report_progress
 from meshtool.work.progress import subject as progress_subject
@@ -148,12 +154,33 @@ def pack_file(src: Path, options: ConvertOptions | None = None) -> Packed:
 
 
 def repaired_asset(src: Path, options: NormaliseOptions, *, data: bytes | None = None) -> NormalisedAsset:
-    """Stages read, frame and repair: ``src`` as triangles in metres, Z-up, with PNG textures and its record.
+    """Stages read, repair (mesh), frame, repair (conversion): ``src`` in metres, Z-up, PNG textures, its record.
 
-    Every caller goes through here (``obj2bin``, ``meshtool hulls``, ``meshtool mjcf``, URDF meshes,
-    ``validate``, simrun's mesh assets); see :func:`meshtool.repair.normalise.prepare` for ``data`` and errors.
+    Every caller goes through here (``obj2bin``, ``meshtool normalize``, ``meshtool hulls``, ``meshtool mjcf``,
+    URDF meshes, ``validate``, simrun's mesh assets). Each stage's entry takes the record the one before it
+    returned (:mod:`meshtool.stages`): the file -> :class:`~meshtool.stages.SourceAsset` (read, with its MTLs)
+    -> :class:`~meshtool.stages.MeshedAsset` (repair: triangles in source units; the frame's geometry rules need
+    them) -> :class:`~meshtool.stages.FramedAsset` (frame: unit, scale, up axis) ->
+    :class:`~meshtool.stages.NormalisedAsset` (repair: metres, Z-up, materials, PNG textures, ``asset.json``).
+
+    Args:
+        src: The mesh file. Its folder is the asset root: references never resolve outside it except into
+            ``options.search_paths`` or the model root.
+        options: See :class:`~meshtool.repair.options.NormaliseOptions`.
+        data: The bytes of ``src`` when the caller has already read them race-free (the URDF importer reads
+            each mesh beneath its package with :meth:`meshtool.files.resolve.Resolver.read_real`); else read here.
+
+    Raises:
+        MeshtoolError: The file cannot be read or converted (the message names file and line), or
+            ``strict`` is set and there are warnings.
     """
-    return prepare(src, options, data=data)
+    resolver, root_findings = model_root_resolver(
+        src, options.search_paths, confine=options.confine, model_root=options.model_root
+    )
+    source = read_source_asset(src, resolver, data=data, up=options.up, notes=root_findings)
+    meshed = build_asset_mesh(source, options)
+    framed = decide_asset_frame(meshed, units=options.units, scale=options.scale, up=options.up)
+    return convert_asset(framed, options)
 
 
 def asset_hulls(mesh: TriMesh, options: HullOptions, name: str) -> HullSet:

@@ -1,14 +1,21 @@
 """The stage records: what each of meshtool's stages hands on, in one low module.
 
-read -> frame -> repair -> hulls -> pack (composed in :mod:`meshtool.pipeline`) pass these between them, so no
-stage imports its neighbour's internals to know what it receives:
+The stages (composed in :mod:`meshtool.pipeline`, the only place they run in sequence) pass these between them,
+each entry taking the record before it and returning the next, so no stage imports its neighbour's internals to
+know what it receives:
 
-- read: :class:`SourceMesh` (every format's in-memory model, with :class:`SourceFrame`, what the format declares);
-- frame: :class:`meshtool.frame.decide.Frame` (the unit and up-axis decision with its evidence; it lives with
-  the decision, whose consumer index it reads);
-- repair: :class:`NormalisedAsset` (triangles in metres, Z-up, PNG textures, the ``asset.json`` record);
-- hulls: :class:`HullSet`;
-- pack: :class:`PackMeta` (the ``.mbin`` META section, typed; :class:`SourceEntry` per file it was made from).
+1. read (:func:`meshtool.read.source_asset.read_source_asset`): the file's bytes -> :class:`SourceAsset` (the
+   :class:`SourceMesh`, every format's in-memory model with :class:`SourceFrame`, what the format declares; and
+   the materials its MTL files or the format itself define);
+2. repair, mesh building (:func:`meshtool.repair.convert.build_asset_mesh`) -> :class:`MeshedAsset` (triangles in
+   source units and axes);
+3. frame (:func:`meshtool.frame.declared.decide_asset_frame`) -> :class:`FramedAsset` (the unit and up-axis
+   decision, :class:`meshtool.frame.decide.Frame`, made on the built mesh's vertices; ``Frame`` lives with the
+   decision, whose consumer index it reads);
+4. repair, conversion (:func:`meshtool.repair.convert.convert_asset`) -> :class:`NormalisedAsset` (triangles in
+   metres, Z-up, PNG textures, the ``asset.json`` record);
+5. hulls: :class:`HullSet`;
+6. pack: :class:`PackMeta` (the ``.mbin`` META section, typed; :class:`SourceEntry` per file it was made from).
 
 At run time this module imports only numpy and :mod:`meshtool.findings`; the element types the records hold
 (materials, triangle meshes, hulls) are named for type checkers only.
@@ -27,6 +34,9 @@ import numpy.typing as npt
 from meshtool.findings import Finding
 
 if TYPE_CHECKING:
+    from meshtool.files.resolve import Resolution
+    from meshtool.frame.decide import Frame
+    from meshtool.frame.modelroot import ModelRootResolver
     from meshtool.hulls.compute import Hull
     from meshtool.read.obj.mtl import Material
     from meshtool.read.obj.parse import MtllibRef
@@ -127,6 +137,66 @@ class SourceMesh:
     frame: SourceFrame = SourceFrame(None, "", None, "")
     record: dict[str, Any] = field(default_factory=dict)
     sources: list[dict[str, str]] = field(default_factory=list)
+
+
+@dataclass(slots=True)
+class SourceAsset:
+    r"""The read stage's record: one mesh file as read, with the material definitions it names.
+
+    Attributes:
+        src: The mesh file (its folder is the asset root).
+        name: ``src``'s name as findings show it (printable: ``\xNN`` for bytes that are not UTF-8).
+        mesh: The file's model, in its own units and axes.
+        library: Material name -> (definition, the file whose folder its texture references resolve in): the
+            MTL files' materials (first definition wins), then the format's own (glTF, COLLADA).
+        resolver: How every file of the asset is reached (MTLs, textures, the model root the frame reads).
+        normalised_before: The file was written by meshtool (its first header comment says so).
+        findings: Everything noticed so far, in pipeline order.
+        sources: ``asset.json`` source entries of the files read (the mesh, its buffers, its MTLs).
+        source_paths: Each source's shown path -> the file actually read (:attr:`NormalisedAsset.source_paths`).
+        resolutions: Every MTL lookup, in order.
+    """
+
+    src: Path
+    name: str
+    mesh: SourceMesh
+    library: dict[str, tuple[Material, Path]]
+    resolver: ModelRootResolver
+    normalised_before: bool
+    findings: list[Finding]
+    sources: list[dict[str, str]]
+    source_paths: dict[str, Path]
+    resolutions: list[Resolution]
+
+
+@dataclass(slots=True)
+class MeshedAsset:
+    """Repair's mesh building: the read asset as a clean triangle mesh, still in source units and axes.
+
+    Attributes:
+        source: The read stage's record.
+        mesh: The triangle mesh (:func:`meshtool.repair.mesh.build_mesh`): (V, 3) positions in source units.
+        findings: ``source.findings`` and what building the mesh noticed.
+    """
+
+    source: SourceAsset
+    mesh: TriMesh
+    findings: list[Finding]
+
+
+@dataclass(slots=True)
+class FramedAsset:
+    """The frame stage's record: the meshed asset with its decided unit, scale and up axis.
+
+    Attributes:
+        meshed: Repair's mesh-building record.
+        frame: The decision and its evidence (units, scale, up, consumers).
+        findings: ``meshed.findings`` and the decision's findings.
+    """
+
+    meshed: MeshedAsset
+    frame: Frame
+    findings: list[Finding]
 
 
 @dataclass(slots=True)

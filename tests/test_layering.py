@@ -540,34 +540,36 @@ def test_every_meshtool_folder_says_what_it_holds(folder):
     assert ast.get_docstring(ast.parse(init.read_text())), init
 
 
-#: Each stage's entry (module, function): only meshtool/pipeline.py calls them in sequence (issue 38).
+#: Each stage's entry (module, function): only meshtool/pipeline.py calls them in sequence (issue 38). The
+#: composer's order: read -> repair (mesh building) -> frame -> repair (conversion) -> hulls -> packfile; the
+#: entries each stage's own entry reaches (read_mesh, build_mesh, source_frame, decide_frame) are listed too, so
+#: nothing outside the stage's folder calls them either. tests/test_pipeline_stages.py counts each once per file.
 STAGE_ENTRIES = {
+    ("meshtool.read.source_asset", "read_source_asset"): "read",
     ("meshtool.read", "read_mesh"): "read",
-    ("meshtool.read", "source_frame"): "frame",
+    ("meshtool.repair.convert", "build_asset_mesh"): "repair",
+    ("meshtool.repair.mesh", "build_mesh"): "repair",
+    ("meshtool.frame.declared", "decide_asset_frame"): "frame",
+    ("meshtool.frame.declared", "source_frame"): "frame",
     ("meshtool.frame.decide", "decide_frame"): "frame",
-    ("meshtool.repair.normalise", "prepare"): "repair",
+    ("meshtool.repair.convert", "convert_asset"): "repair",
     ("meshtool.hulls.compute", "compute_hulls"): "hulls",
-    ("meshtool.hulls", "compute_hulls"): "hulls",
     ("meshtool.packfile", "pack"): "packfile",
     ("meshtool.packfile.write", "pack"): "packfile",
 }
-#: Callers of a stage entry besides the composer and the stage's own folder, each with why.
-STAGE_ENTRY_EXCEPTIONS = {
-    # read -> frame -> repair still runs inside repair's prepare (the frame needs the repaired mesh's vertices);
-    # the composer enters the three through meshtool.pipeline.repaired_asset
-    ("meshtool/repair/normalise.py", "read_mesh"),
-    ("meshtool/repair/normalise.py", "source_frame"),
-    # the read stage hands the format's declared frame to the one decision
-    ("meshtool/read/__init__.py", "decide_frame"),
-    # the public API names the packer (a re-export for type checkers; nothing is called)
-    ("meshtool/__init__.py", "pack"),
-}
+#: Callers of a stage entry besides the composer and the stage's own folder, each with why. None: the read stage
+#: no longer hands its frame to the decision (the frame stage weighs the format's declaration itself), repair no
+#: longer runs read -> frame inside itself, and the public API's ``pack`` is a type-checking import (no call).
+STAGE_ENTRY_EXCEPTIONS: set[tuple[str, str]] = set()
 
 
 def stage_entry_uses(source: str, module: str) -> list[tuple[str, str]]:
-    """``(name, stage)`` of every stage entry the code of ``module`` imports or reaches as ``mod.entry``."""
+    """``(name, stage)`` of every stage entry the code of ``module`` imports or reaches as ``mod.entry``.
+
+    Imports under ``if TYPE_CHECKING:`` are left out: they never run.
+    """
     found = []
-    for node in ast.walk(ast.parse(source)):
+    for node in _runtime_nodes(ast.parse(source)):  # an ``if TYPE_CHECKING:`` import calls nothing
         if isinstance(node, ast.ImportFrom):
             base = _from_base(node, module)
             found += [(a.name, STAGE_ENTRIES[(base, a.name)]) for a in node.names if (base, a.name) in STAGE_ENTRIES]
@@ -595,7 +597,18 @@ def test_only_the_composer_calls_a_stage_entry(path):
 def test_the_stage_entry_check_sees_imports_and_attribute_calls():
     sample = (
         "from meshtool.hulls import compute\nfrom meshtool.packfile import pack\nx = compute.compute_hulls\n"
-        "def f():\n    from meshtool.repair.normalise import prepare\n    return struct.pack\n"
+        "def f():\n    from meshtool.repair.convert import convert_asset\n    return struct.pack\n"
+        "if TYPE_CHECKING:\n    from meshtool.read import read_mesh\n"
     )
     found = stage_entry_uses(sample, "meshtool.urdf.meshes")
-    assert sorted(found) == [("compute_hulls", "hulls"), ("pack", "packfile"), ("prepare", "repair")]
+    assert sorted(found) == [("compute_hulls", "hulls"), ("convert_asset", "repair"), ("pack", "packfile")]
+    assert stage_entry_uses("from meshtool.read import read_mesh\n", "meshtool.urdf.meshes") == [("read_mesh", "read")]
+
+
+def test_every_stage_entry_exists():
+    """Each (module, function) of :data:`STAGE_ENTRIES` names a function there (a renamed entry fails here)."""
+    import importlib
+    import inspect
+
+    for module, name in STAGE_ENTRIES:
+        assert inspect.isfunction(getattr(importlib.import_module(module), name, None)), (module, name)
