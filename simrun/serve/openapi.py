@@ -108,7 +108,12 @@ def openapi_document(catalogue: dict[str, Any]) -> dict[str, Any]:
                     "additionalProperties": False,
                     "properties": {
                         "steps": {"type": "integer", "minimum": 1, "maximum": MAX_STEPS},
-                        "seconds": {"type": "number", "minimum": 0, "maximum": longest, "description": "s"},
+                        "seconds": {
+                            "type": "number",
+                            "minimum": 0,
+                            "maximum": longest,
+                            "description": "Simulated seconds.",
+                        },
                     },
                 },
                 state,
