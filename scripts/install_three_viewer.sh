@@ -1,9 +1,11 @@
 #!/bin/sh
-# Install three.js (npm package `three`) and bundle the parts simrun's recording pages use (the WebGL
-# renderer, GLTFLoader, OrbitControls) with esbuild into tools/three-viewer/dist/viewer.js (git-ignored).
-# `simrun replay --html` inlines that file into each page, so the page works offline from a file:// URL.
-# Versions are pinned: the same bundle, byte for byte, on every machine. Set SIMRUN_VIEWER_JS to use a
-# bundle elsewhere. The HTML tests skip, saying why, without it.
+# Optional: build another three.js viewer bundle from npm, for SIMRUN_VIEWER_JS. simrun does not need it:
+# the dashboard and `simrun replay --html` inline the three.js module of the pip dependency nicegui
+# (docs/serve.md, "The viewer from pip"), and neither `make test` nor `make demo` runs this script.
+# It installs three.js (npm package `three`) and bundles the parts the pages use (the WebGL renderer,
+# GLTFLoader, OrbitControls) with esbuild into tools/three-viewer/dist/viewer.js (git-ignored), e.g. to try
+# a newer three.js: SIMRUN_VIEWER_JS=tools/three-viewer/dist/viewer.js simrun replay RUN.simlog --html RUN.html
+# Versions are pinned: the same bundle, byte for byte, on every machine.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 target="$here/tools/three-viewer"

@@ -1,7 +1,8 @@
-// simrun's recording player: plays the animated glTF embedded in the page with three.js (bundled by
-// scripts/install_three_viewer.sh and inlined before this script). Controls: play/pause (also the space
-// bar), a time slider, the clock, the playback speed; labels follow the moving bodies. The URL fragment
-// picks a moment: #t=12.5 opens paused at 12.5 s, #t=12.5&play plays from there; none plays from the start.
+// simrun's recording player: plays the animated glTF embedded in the page with three.js (nicegui's module
+// as a classic script, simrun.record.replay_html.viewer_bundle, inlined before this script). Controls:
+// play/pause (also the space bar), a time slider, the clock, the playback speed; labels follow the moving
+// bodies. The URL fragment picks a moment: #t=12.5 opens paused at 12.5 s, #t=12.5&play plays from there;
+// none plays from the start.
 // window.simrunPlayer = {ready, time(), duration, setTime(t), play(), pause(), screen(name)} for scripts.
 (function () {
   "use strict";
@@ -113,7 +114,15 @@
   setInterval(advance, 100);
   resize();
 
-  new GLTFLoader().parse(bytes.buffer, "", (gltf) => {
+  const loader = new GLTFLoader();
+  // Textures through an <img> (three's TextureLoader, as GLTFLoader does on Safari and older Firefox), not
+  // createImageBitmap: with three r180, headless Chromium's virtual time ran out while an ImageBitmap decoded
+  // (4 s of it for one PNG), so a page opened with --virtual-time-budget had not started playing.
+  loader.register((parser) => {
+    parser.textureLoader = new THREE.TextureLoader(parser.options.manager);
+    return { name: "simrun_image_textures" };
+  });
+  loader.parse(bytes.buffer, "", (gltf) => {
     scene.add(gltf.scene);
     const bodies = new Map();
     gltf.scene.traverse((o) => { if (o.userData && o.userData.simrun_body) bodies.set(o.userData.simrun_body, o); });
