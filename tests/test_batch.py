@@ -133,3 +133,115 @@ def test_an_unreachable_scheduler_is_a_batch_error_with_a_hint():
     with pytest.raises(BatchError) as caught:
         list(run_batch([("ok", 1)], Probe(), Executor("dask", scheduler="tcp://127.0.0.1:9", connect_timeout=2)))
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in caught.value.message and caught.value.hint
+
+
+#: How many times a :class:`Payload` was pickled in this process (each time it left for another process).
+PICKLED = []
+
+
+class Payload:
+    """A shared payload that counts, in the process that sends it, each time it is pickled."""
+
+    def __init__(self, size):
+        self.data = bytes(size)
+
+    def __getstate__(self):
+        PICKLED.append(len(self.data))
+        return {"data": self.data}
+
+    def __setstate__(self, state):
+        self.data = state["data"]
+
+
+class Sized:
+    """A shared work: the size of the payload and the process that ran the task (its pid)."""
+
+    def prepare(self):
+        pass
+
+    def __call__(self, task, shared):
+        kind, value = task
+        if kind == "die":
+            os._exit(value)
+        return (len(shared.data) + value, os.getpid(), id(shared))
+
+    def lost(self, task, why):
+        return ("lost", why)
+
+
+@pytest.mark.parametrize(("kind", "sent"), [("local", 2), ("dask", 1)])
+def test_a_shared_payload_leaves_this_process_once_per_worker_not_per_task(kind, sent):
+    """Eight tasks on two workers: the payload is pickled once per local worker (at its start) and once for
+    Dask (scattered to every worker); each worker process holds one copy for all its tasks."""
+    PICKLED.clear()
+    tasks = [("ok", k) for k in range(8)]
+    results = {i: r for i, r, _ in run_batch(tasks, Sized(), Executor(kind, jobs=2), shared=Payload(1 << 20))}
+    assert [results[i][0] for i in range(8)] == [(1 << 20) + k for k in range(8)]
+    assert len(PICKLED) == sent and set(PICKLED) == {1 << 20}
+    copies = {}
+    for _, pid, ident in results.values():
+        copies.setdefault(pid, set()).add(ident)
+    assert all(len(idents) == 1 for idents in copies.values()), copies
+    assert os.getpid() not in copies
+
+
+def test_a_replacement_worker_gets_the_shared_payload_too():
+    PICKLED.clear()
+    tasks = [("ok", 1), ("die", 9), ("ok", 2), ("ok", 3)]
+    results = {i: r for i, r, _ in run_batch(tasks, Sized(), Executor("local", jobs=1, timeout=60), shared=Payload(8))}
+    assert results[1] == ("lost", "the worker process running it died (exit code 9)")
+    assert [results[i][0] for i in (0, 2, 3)] == [9, 10, 11]
+    assert PICKLED == [8, 8]  # the first worker, then its replacement
+
+
+def test_in_this_process_the_shared_payload_is_the_object_itself():
+    payload = Payload(4)
+    PICKLED.clear()
+    out = list(run_batch([("ok", 0), ("ok", 1)], Sized(), Executor(), shared=payload))
+    assert [(i, r[0], r[1], r[2], w) for i, r, w in out] == [
+        (0, 4, os.getpid(), id(payload), "this process"),
+        (1, 5, os.getpid(), id(payload), "this process"),
+    ]
+    assert PICKLED == []
+
+
+def test_a_batch_takes_a_read_here_step_or_a_payload_not_both():
+    from meshtool.work.batch import ReadHere
+
+    here = ReadHere(lambda task: (True, task), Probe())
+    with pytest.raises(ValueError, match="not both"):
+        list(run_batch([("ok", 1)], Sized(), Executor("dask"), here, shared=Payload(1)))
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_progress_ticks_once_per_task_with_its_label(jobs):
+    ticks = []
+    tasks = [("ok", k) for k in range(5)]
+    order = [
+        i
+        for i, _, _ in run_batch(
+            tasks, Probe(), Executor(jobs=jobs), progress=ticks.append, label=lambda t: f"task {t[1]}"
+        )
+    ]
+    assert [t.done for t in ticks] == [1, 2, 3, 4, 5] and {t.total for t in ticks} == {5}
+    assert [t.last for t in ticks] == [f"task {i}" for i in order]  # the task that had just finished
+    assert ticks[-1].eta_s == 0 and ticks[-1].rate is not None and ticks[-1].rate > 0
+    assert ticks[-1].line().startswith("[5/5] 100%  ") and ticks[-1].line().endswith(f"last: task {order[-1]}")
+
+
+def test_the_batch_line_says_done_total_percent_rate_eta_and_the_last_name():
+    from meshtool.work.progress import Meter, Tick
+
+    line = Tick(37, 120, "crate.obj", 15.4, 2.4, 34.6).line()
+    assert line == "[ 37/120] 30%  2.4 items/s  eta 0:35  last: crate.obj"
+    assert Tick(1, 3, "a", 0.0, None, None).line() == "[1/3] 33%  - items/s  eta -  last: a"
+    assert Tick(9, 9, "z", 4000.0, 0.002, 0.0).line() == "[9/9] 100%  0.0 items/s  eta 0:00  last: z"
+    assert Tick(1, 900, "x", 1.0, 0.2, 4495.0).line().endswith("eta 1:14:55  last: x")
+    now = [100.0]
+    meter = Meter(10, clock=lambda: now[0])
+    for _ in range(4):  # from a cache: at once, not counted in the rate
+        meter.advance("cached", computed=False)
+    now[0] += 3.0
+    for _ in range(3):  # three checked in 3 s: 1 item/s, three left
+        tick = meter.advance("checked")
+    assert (tick.done, tick.rate, tick.eta_s, tick.elapsed_s) == (7, 1.0, 3.0, 3.0)

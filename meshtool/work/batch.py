@@ -18,6 +18,15 @@ and the number of workers.
 
 A :class:`ReadHere` splits a task in two for Dask: a step run in this process (reading files, so that workers
 need no access to them), and a :class:`Work` on what it returns, shipped to the workers.
+
+A ``shared`` payload (``simrun test``'s scene bundles: every file the scenes read) reaches every worker once,
+not once per task, and a :class:`SharedWork` gets it with each task: in this process it is the object
+itself; a local worker process receives it when it is started (a replacement worker too); on Dask it is
+scattered to every worker once (``broadcast``) and each task names it.
+
+Progress: with a ``progress`` callback, :func:`run_batch` counts the finished tasks with a
+:class:`meshtool.work.progress.Meter` and calls it with a :class:`~meshtool.work.progress.Tick` after each
+(the library never prints; the command line draws :meth:`~meshtool.work.progress.Tick.line`).
 """
 
 from __future__ import annotations
@@ -28,14 +37,17 @@ import signal
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeVar, overload
 
 from meshtool.errors import MeshtoolError
 from meshtool.work import workpool
+from meshtool.work.progress import Meter, TickSink
 
 Task = TypeVar("Task")
 Result = TypeVar("Result")
+Shared = TypeVar("Shared")
 Task_contra = TypeVar("Task_contra", contravariant=True)
+Shared_contra = TypeVar("Shared_contra", contravariant=True)
 
 #: Where a task ran in this process (the ``where`` of :func:`run_batch`).
 HERE = "this process"
@@ -44,7 +56,10 @@ EXECUTORS = ("local", "dask")
 
 
 class BatchError(MeshtoolError):
-    """The executor cannot run the batch: dask is not installed, or its scheduler cannot be reached (exit 1)."""
+    """The executor cannot run the batch: dask is not installed, or its scheduler cannot be reached (exit 1).
+
+    ``code`` says which: ``dask-missing`` or ``scheduler-unreachable``.
+    """
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,18 +148,57 @@ class Work(Protocol[Task_contra]):
         """The result for a task that did not finish: ``why`` says what happened (one line)."""
 
 
-class _Handler(Generic[Task]):
-    """Adapts a :class:`Work` to :class:`meshtool.work.workpool.Handler` (tasks travel with their index)."""
+class SharedWork(Protocol[Task_contra, Shared_contra]):
+    """A :class:`Work` that also gets the batch's ``shared`` payload with every task (see the module)."""
 
-    def __init__(self, work: Work[Task]) -> None:
+    def prepare(self) -> None:
+        """Run once per worker before its first task (imports that must not count against a deadline)."""
+
+    def __call__(self, task: Task_contra, shared: Shared_contra, /) -> Any:
+        """The result of one task, given the payload every worker received once."""
+
+    def lost(self, task: Task_contra, why: str, /) -> Any:
+        """The result for a task that did not finish: ``why`` says what happened (one line)."""
+
+
+class _NotShared:
+    """The ``shared`` of a batch without a payload (a plain :class:`Work`)."""
+
+    def __repr__(self) -> str:
+        return "NOT_SHARED"
+
+
+NOT_SHARED: Any = _NotShared()
+
+
+def _call(work: Any, task: Any, shared: Any) -> Any:
+    """``work(task)``, or ``work(task, shared)`` when the batch has a payload."""
+    return work(task) if isinstance(shared, _NotShared) else work(task, shared)
+
+
+@dataclass(frozen=True, slots=True)
+class _Payload:
+    """The shared payload as Dask scatters it: one object (a bare dict or list would be scattered item by item)."""
+
+    value: Any
+
+
+class _Handler(Generic[Task]):
+    """Adapts a work to :class:`meshtool.work.workpool.Handler` (tasks travel with their index).
+
+    The shared payload is an attribute: pickled into each worker process once, when it is started.
+    """
+
+    def __init__(self, work: Any, shared: Any) -> None:
         self.work = work
+        self.shared = shared
 
     def prepare(self) -> None:
         self.work.prepare()
 
     def __call__(self, message: tuple[int, Task], /) -> _Done:
         index, task = message
-        return _Done(index, self.work(task))
+        return _Done(index, _call(self.work, task, self.shared))
 
 
 @dataclass(frozen=True, slots=True)
@@ -153,8 +207,40 @@ class _Done:
     result: Any
 
 
+@overload
 def run_batch(
-    tasks: Sequence[Task], work: Work[Task], executor: Executor, here: ReadHere[Task] | None = None
+    tasks: Sequence[Task],
+    work: Work[Task],
+    executor: Executor,
+    here: ReadHere[Task] | None = None,
+    *,
+    progress: TickSink | None = None,
+    label: Callable[[Task], str] | None = None,
+) -> Iterator[tuple[int, Any, str]]: ...
+
+
+@overload
+def run_batch(
+    tasks: Sequence[Task],
+    work: SharedWork[Task, Shared],
+    executor: Executor,
+    here: None = None,
+    *,
+    shared: Shared,
+    progress: TickSink | None = None,
+    label: Callable[[Task], str] | None = None,
+) -> Iterator[tuple[int, Any, str]]: ...
+
+
+def run_batch(
+    tasks: Sequence[Task],
+    work: Any,
+    executor: Executor,
+    here: ReadHere[Task] | None = None,
+    *,
+    shared: Any = NOT_SHARED,
+    progress: TickSink | None = None,
+    label: Callable[[Task], str] | None = None,
 ) -> Iterator[tuple[int, Any, str]]:
     """Run every task, yielding ``(index of the task, result, where it ran)`` as tasks finish.
 
@@ -162,24 +248,45 @@ def run_batch(
 
     Args:
         tasks: The tasks.
-        work: What runs per task (locally; on Dask too unless ``here`` is given).
+        work: What runs per task (locally; on Dask too unless ``here`` is given): a :class:`Work`, or with
+            ``shared`` a :class:`SharedWork`.
         executor: Where they run.
         here: For Dask: a step run in this process per task whose value the workers get (see :class:`ReadHere`).
+        shared: A payload every worker gets once and the work with every task (see the module); it must pickle.
+        progress: Called with a :class:`~meshtool.work.progress.Tick` after each finished task.
+        label: The name of a task in a tick's ``last`` (default: ``#N``, its position from 1).
 
     Raises:
         BatchError: The dask executor without dask.distributed installed, or its scheduler cannot be reached.
+        ValueError: Both ``here`` and ``shared`` given.
     """
+    if here is not None and not isinstance(shared, _NotShared):
+        raise ValueError("a batch takes a ReadHere step or a shared payload, not both")
     if not tasks:
         return
+    if progress is None:
+        yield from _dispatch(tasks, work, executor, here, shared)
+        return
+    meter = Meter(len(tasks), progress)
+    for index, result, where in _dispatch(tasks, work, executor, here, shared):
+        meter.advance(label(tasks[index]) if label is not None else f"#{index + 1}")
+        yield index, result, where
+
+
+def _dispatch(
+    tasks: Sequence[Task], work: Any, executor: Executor, here: ReadHere[Task] | None, shared: Any
+) -> Iterator[tuple[int, Any, str]]:
     if executor.in_process:
         work.prepare()
         for index, task in enumerate(tasks):
-            finished, result = alarmed(work, task, executor.timeout if executor.alarm else None)
+            finished, result = alarmed(
+                lambda t: _call(work, t, shared), task, executor.timeout if executor.alarm else None
+            )
             yield index, result if finished else work.lost(task, _late_here(executor.timeout)), HERE
     elif executor.kind == "local":
-        yield from _run_local(tasks, work, executor)
+        yield from _run_local(tasks, work, executor, shared)
     else:
-        yield from _run_dask(tasks, work, executor, here)
+        yield from _run_dask(tasks, work, executor, here, shared)
 
 
 class _Alarm(BaseException):
@@ -212,7 +319,7 @@ def _late_here(timeout: float | None) -> Lost:
     return Lost(f"timed out after {timeout or 0:g} s (stopped in this process)", timeout=timeout or 0.0)
 
 
-def _run_local(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> Iterator[tuple[int, Any, str]]:
+def _run_local(tasks: Sequence[Task], work: Any, executor: Executor, shared: Any) -> Iterator[tuple[int, Any, str]]:
     indexed = list(enumerate(tasks))
 
     def died(message: tuple[int, Task], exitcode: int | None) -> _Done:
@@ -224,7 +331,7 @@ def _run_local(tasks: Sequence[Task], work: Work[Task], executor: Executor) -> I
         return _Done(message[0], work.lost(message[1], why))
 
     for done, number in workpool.run_workers(
-        indexed, executor.jobs, executor.timeout, _Handler(work), _Done, died, late
+        indexed, executor.jobs, executor.timeout, _Handler(work, shared), _Done, died, late
     ):
         yield done.index, done.result, f"worker {number}"
 
@@ -234,8 +341,11 @@ _PREPARED: set[str] = set()
 _PREPARING = threading.Lock()
 
 
-def _remote(work: Work[Task], task: Task, timeout: float | None) -> tuple[bool, Any, str]:
-    """What a Dask worker runs for one task: ``(finished, result or None at the deadline, worker's address)``."""
+def _remote(work: Any, task: Task, timeout: float | None, shared: Any = NOT_SHARED) -> tuple[bool, Any, str]:
+    """What a Dask worker runs for one task: ``(finished, result or None at the deadline, worker's address)``.
+
+    ``shared`` is the scattered payload (Dask hands the worker's copy in), or :data:`NOT_SHARED`.
+    """
     distributed: Any = importlib.import_module("distributed")
     try:
         where = str(distributed.get_worker().address)
@@ -249,9 +359,11 @@ def _remote(work: Work[Task], task: Task, timeout: float | None) -> tuple[bool, 
     box: list[Any] = []
     failure: list[BaseException] = []
 
+    value = shared.value if isinstance(shared, _Payload) else shared
+
     def run() -> None:
         try:
-            box.append(work(task))
+            box.append(_call(work, task, value))
         except BaseException as exc:  # re-raised below, in the task's own thread
             failure.append(exc)
 
@@ -266,13 +378,13 @@ def _remote(work: Work[Task], task: Task, timeout: float | None) -> tuple[bool, 
 
 
 def _run_dask(
-    tasks: Sequence[Task], work: Work[Task], executor: Executor, here: ReadHere[Task] | None
+    tasks: Sequence[Task], work: Any, executor: Executor, here: ReadHere[Task] | None, shared: Any
 ) -> Iterator[tuple[int, Any, str]]:
     try:
         distributed, client, cluster = connect(executor.scheduler, executor.jobs, executor.connect_timeout)
     except ImportError:
         raise BatchError(
-            "the Dask executor needs dask.distributed", hint="pip install 'meshtool-simrun[dask]'"
+            "the Dask executor needs dask.distributed", hint="pip install 'meshtool-simrun[dask]'", code="dask-missing"
         ) from None
     except SchedulerError as exc:
         raise BatchError(
@@ -280,10 +392,15 @@ def _run_dask(
             hint=exc.hint
             or "start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
             "or run without --executor dask",
+            code="scheduler-unreachable",
         ) from None
-    remote: Work[Any] = here.work if here is not None else work
+    remote: Any = here.work if here is not None else work
     timeout = executor.timeout
     try:
+        # once to every worker (a worker that joins later fetches it once from a peer), named by each task
+        payload = (
+            shared if isinstance(shared, _NotShared) else client.scatter(_Payload(shared), broadcast=True, hash=False)
+        )
         running = distributed.as_completed()
         shipped: dict[Any, int] = {}
 
@@ -312,7 +429,7 @@ def _run_dask(
                 if finished:
                     yield index, value, HERE
                     continue
-            future = client.submit(_remote, remote, value, timeout, pure=False)
+            future = client.submit(_remote, remote, value, timeout, payload, pure=False)
             shipped[future] = index
             running.add(future)
             if running.has_ready():

@@ -1,4 +1,4 @@
-r"""Progress of long work (stages of a conversion, parts of a decomposition, a simulation), for a display.
+r"""Progress of long work (stages of a conversion, parts of a decomposition, a simulation, a batch), for a display.
 
 The library never prints: it calls :func:`report`, which does nothing unless a caller (the CLI) installed a
 sink with :func:`reporting`. What a report is about (the file being converted) is set once around the work
@@ -9,6 +9,12 @@ stage, ``done/total`` and the time the stage has taken, redrawn in place (``\r\x
 by a ticker thread, so the line moves while CoACD or MuJoCo work and no report comes. It draws nothing when
 the stream is not a terminal (a pipe, a log, ``--json``) or with ``-q``; output written through
 :meth:`Display.write_above` clears the line first, so text never runs into it.
+
+A batch of many items (``obj2bin DIR``, ``meshtool validate``, ``simrun test``) reports through a
+:class:`Meter`: each finished item gives a :class:`Tick` (done, total, items per second, time left, the
+last item's name) to the caller's callback, and :meth:`Tick.line` is the one progress line the three
+commands show, ``[ 37/120] 31%  2.4 items/s  eta 0:35  last: NAME``. On a terminal the CLI hands it to
+:meth:`Display.batch` (the spinner in front; a stage reported by the work itself follows after `` -- ``).
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ import shutil
 import threading
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import TextIO
 
 #: ``sink(stage, done, total)``; ``total`` 0 when the stage has no count.
@@ -76,6 +83,81 @@ def elapsed_text(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}"
 
 
+def clock_text(seconds: float) -> str:
+    """``0:35``, ``12:05``, ``1:02:03``: a time left as a batch line shows it (whole seconds, rounded up)."""
+    whole = max(0, int(-(-seconds // 1)))
+    minutes, secs = divmod(whole, 60)
+    if minutes < 60:
+        return f"{minutes}:{secs:02d}"
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}"
+
+
+@dataclass(frozen=True, slots=True)
+class Tick:
+    """Where a batch stands after one more item finished.
+
+    Attributes:
+        done: Items finished (from a cache included), 1 to ``total``.
+        total: Items in the batch.
+        last: The name of the item that just finished (as the command names it: a file, a run).
+        elapsed_s: Seconds since the batch started (its :class:`Meter` was made).
+        rate: Items per second over the items this batch computed (not those answered from a cache), or
+            ``None`` before the first.
+        eta_s: Seconds left at that rate (``0`` when done), or ``None`` without a rate.
+    """
+
+    done: int
+    total: int
+    last: str
+    elapsed_s: float
+    rate: float | None
+    eta_s: float | None
+
+    def line(self) -> str:
+        """``[ 37/120] 31%  2.4 items/s  eta 0:35  last: NAME``: the batch line of every batch command."""
+        width = len(str(self.total))
+        percent = 100 * self.done // self.total if self.total else 100
+        rate = "- items/s" if self.rate is None else f"{self.rate:.1f} items/s"
+        eta = "-" if self.eta_s is None else clock_text(self.eta_s)
+        return f"[{self.done:>{width}}/{self.total}] {percent}%  {rate}  eta {eta}  last: {self.last}"
+
+
+#: ``sink(tick)``: what a batch calls after each finished item.
+TickSink = Callable[[Tick], None]
+
+
+class Meter:
+    """Counts a batch's finished items and tells ``sink`` a :class:`Tick` after each.
+
+    Args:
+        total: Items in the batch.
+        sink: The callback (``None``: count only).
+        clock: Monotonic seconds (for tests).
+    """
+
+    def __init__(self, total: int, sink: TickSink | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+        self.total = total
+        self.sink = sink
+        self.clock = clock
+        self.started = clock()
+        self.done = 0
+        self.computed = 0
+
+    def advance(self, last: str, *, computed: bool = True) -> Tick:
+        """One more item finished (``computed``: by this batch, not answered from a cache); its tick."""
+        self.done += 1
+        self.computed += computed
+        elapsed = self.clock() - self.started
+        rate = self.computed / elapsed if self.computed and elapsed > 0 else None
+        left = self.total - self.done
+        eta = 0.0 if left <= 0 else (left / rate if rate else None)
+        tick = Tick(self.done, self.total, last, elapsed, rate, eta)
+        if self.sink is not None:
+            self.sink(tick)
+        return tick
+
+
 class Display:
     """A progress line on a terminal: ``| head.obj: collision hulls 2/5  12 s``, redrawn in place.
 
@@ -99,6 +181,7 @@ class Display:
         self._lock = threading.RLock()
         self._label = ""
         self._count = ""
+        self._batch = ""
         self._since = 0.0
         self._frame = 0
         self._shown = False
@@ -117,14 +200,34 @@ class Display:
                 self._label, self._since = stage, self.clock()
             self._count = count
             self._draw()
-        if self._ticker is None:
-            self._ticker = threading.Thread(target=self._tick, name="meshtool-progress", daemon=True)
-            self._ticker.start()
+        self._start_ticker()
+
+    def batch(self, text: str | None) -> None:
+        """Lead the line with ``text`` (a batch's :meth:`Tick.line`; ``None``: none); drawn on the next tick.
+
+        The first one is drawn at once. A stage reported meanwhile follows it after `` -- ``.
+        """
+        if not self.enabled:
+            return
+        with self._lock:
+            first = not self._batch and not self._shown
+            self._batch = text or ""
+            if first and self._batch:
+                self._draw()
+        self._start_ticker()
+
+    def _start_ticker(self) -> None:
+        with self._lock:
+            if self._ticker is None:
+                self._ticker = threading.Thread(target=self._tick, name="meshtool-progress", daemon=True)
+                self._ticker.start()
 
     def line(self) -> str:
         """The progress line as drawn now (without the clearing sequence), cut to the terminal's width."""
         spinner = FRAMES[self._frame % len(FRAMES)]
-        text = f"{spinner} {self._label}{self._count}  {elapsed_text(self.clock() - self._since)}"
+        stage = f"{self._label}{self._count}  {elapsed_text(self.clock() - self._since)}" if self._label else ""
+        shown = f"{self._batch} -- {stage}" if self._batch and stage else self._batch or stage
+        text = f"{spinner} {shown}"
         width = shutil.get_terminal_size((80, 24)).columns
         return text if len(text) < width else text[: max(width - 2, 1)] + "~"  # a wrapped line cannot be cleared
 
@@ -136,7 +239,7 @@ class Display:
     def _tick(self) -> None:
         while not self._stop.wait(TICK_S):
             with self._lock:
-                if self._label:
+                if self._label or self._batch:
                     self._frame += 1
                     self._draw()
 
@@ -163,7 +266,7 @@ class Display:
             self._ticker.join()
             self._ticker = None
         with self._lock:
-            self._label = ""
+            self._label = self._batch = ""
             self.clear()
 
 
