@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from meshtool import __version__
-from meshtool.cli.common import VocabularyCommand, progress_enabled
+from meshtool.cli.common import VocabularyCommand, batch_progress, progress_enabled, progress_option
 from meshtool.cli.output import (
     EXIT_INPUT,
     exit_on_bug,
@@ -46,6 +46,7 @@ if TYPE_CHECKING:
     from meshtool.pipeline import ConvertOptions, ConvertResult
     from meshtool.repair.normalise import NormaliseOptions
     from meshtool.work.batch import Executor
+    from meshtool.work.progress import TickSink
 
 force_option = click.option(
     "--force",
@@ -291,6 +292,7 @@ def normalize(
     help="Also (without -o: only) write a MuJoCo model as MJCF_DIR/STEM/ (STEM.xml, meshes, textures), "
     "as meshtool mjcf does.",
 )
+@progress_option
 @force_option
 @normalise_options
 @hull_options
@@ -305,6 +307,7 @@ def obj2bin(
     timeout: float | None,
     no_check: bool,
     mjcf_dir: Path | None,
+    show_progress: bool | None,
     force: bool,
     as_json: bool,
     **kw: Any,
@@ -330,7 +333,8 @@ def obj2bin(
             return
         if _is_folder(src) and out is not None:
             where = Executor(executor, jobs, timeout, scheduler, scheduler_timeout)
-            _convert_folder(src, out, options, where, as_json, force)
+            with batch_progress(show_progress) as progress:
+                _convert_folder(src, out, options, where, as_json, force, progress)
             return
         default_name = f"{safe_file_stem(src.stem) or 'asset'}{suffix('mbin')}"
         target = out / default_name if out is not None and _is_folder(out) else out or Path(default_name)
@@ -368,18 +372,27 @@ def _is_folder(path: Path) -> bool:
 
 
 def _convert_folder(
-    src: Path, out: Path, options: ConvertOptions, executor: Executor, as_json: bool, force: bool
+    src: Path,
+    out: Path,
+    options: ConvertOptions,
+    executor: Executor,
+    as_json: bool,
+    force: bool,
+    progress: TickSink | None = None,
 ) -> None:
+    from meshtool.files.safeopen import printable
     from meshtool.pipeline import convert_tree, tree_jobs
+    from meshtool.work.progress import Meter
 
     results: list[ConvertResult] = []
     total = len(tree_jobs(src, out))
+    meter = Meter(total, progress)  # the batch line: files done of all, files/s, time left, the last file
     stream = convert_tree(src, out, options, force=force, executor=executor)
-    if progress_enabled() and not as_json:  # the progress line on stderr names each file and stage
-        results.extend(stream)
-    else:
-        for k, result in enumerate(stream, start=1):
-            results.append(result)
+    quiet_lines = progress_enabled() and not as_json  # on a terminal the progress line names each file and stage
+    for k, result in enumerate(stream, start=1):
+        results.append(result)
+        meter.advance(printable(result.source.name), computed=result.status != "unchanged")
+        if not quiet_lines:
             detail = result.error if result.error else str(result.output)
             say(f"[{k}/{total}] {result.status}: {result.source} -> {detail}")
     results.sort(key=lambda r: str(r.source))

@@ -12,16 +12,22 @@ Every command of the three gets, from :class:`VocabularyGroup` / :class:`Vocabul
 - the exit codes of :data:`meshtool.cli.output.EXIT_CODES`, and one ``error:`` line on stderr for a mistake: libraries'
   warnings and log records (numpy, trimesh, yourdfpy) are shown only with -v (:func:`quiet_libraries`).
 
-Progress displays go to stderr and only when stderr is a terminal (:func:`progress_enabled`).
+Progress displays go to stderr and only when stderr is a terminal (:func:`progress_enabled`). The batch
+commands (``obj2bin DIR``, ``meshtool validate``, ``simrun test``) draw one batch line
+(:meth:`meshtool.work.progress.Tick.line`) there, or, with ``--progress`` where stderr is not a terminal
+(a CI log), write it as a plain line at most every :data:`PLAIN_PERIOD_S` seconds and once at the end
+(:func:`batch_progress`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import io
 import logging
 import os
 import sys
+import time
 import warnings
 from collections.abc import Iterator, Sequence
 from typing import Any
@@ -38,7 +44,10 @@ from meshtool.cli.output import (
     render_json,
     usage_failed,
 )
-from meshtool.work.progress import Display, reporting
+from meshtool.work.progress import Display, Tick, TickSink, reporting
+
+#: Seconds between two plain batch lines (``--progress`` into a log).
+PLAIN_PERIOD_S = 1.0
 
 
 def executor_options(func: Any) -> Any:
@@ -69,6 +78,60 @@ def executor_options(func: Any) -> Any:
     return func
 
 
+def progress_option(func: Any) -> Any:
+    """Add ``--progress/--no-progress``: the batch line on stderr (default: only when stderr is a terminal)."""
+    return click.option(
+        "--progress/--no-progress",
+        "show_progress",
+        default=None,
+        help="Show the progress line on stderr [default: only on a terminal; into a log: one line a second].",
+    )(func)
+
+
+@contextlib.contextmanager
+def batch_progress(show: bool | None) -> Iterator[TickSink | None]:
+    """The callback that draws a batch's progress line, for the length of the batch (``None``: draw nothing).
+
+    Args:
+        show: ``--progress`` (``True``), ``--no-progress`` (``False``: the stage line of the work is not drawn
+            either) or neither (``None``: on a terminal only, never with ``--json`` or ``-q``).
+
+    On a terminal the line is the progress display's (redrawn in place, cleared before other output); else,
+    with ``--progress``, a plain line on stderr at most every :data:`PLAIN_PERIOD_S` seconds and the last one.
+    """
+    display = _DISPLAY.get()
+    if show is False:
+        with reporting(None):
+            yield None
+        return
+    if display is not None:
+        try:
+            yield lambda tick: display.batch(tick.line())
+        finally:
+            display.batch(None)
+        return
+    if not show:
+        yield None
+        return
+    yield _PlainLines(time.monotonic)
+
+
+class _PlainLines:
+    """Batch lines written whole to stderr (a log): one per :data:`PLAIN_PERIOD_S` at most, and the last."""
+
+    def __init__(self, clock: Any) -> None:
+        self.clock = clock
+        self.written: float | None = None
+
+    def __call__(self, tick: Tick) -> None:
+        now = self.clock()
+        if tick.done < tick.total and self.written is not None and now - self.written < PLAIN_PERIOD_S:
+            return
+        self.written = now
+        sys.stderr.write(tick.line() + "\n")
+        sys.stderr.flush()
+
+
 def progress_enabled() -> bool:
     """Whether to draw progress: only on a terminal's stderr (never into a pipe, a log or a JSON stream)."""
     return _is_tty(sys.stderr)
@@ -89,6 +152,10 @@ class Progress(Display):
 
     def __init__(self, enabled: bool | None = None) -> None:
         super().__init__(sys.stderr, enabled)
+
+
+#: The progress display drawing on this command's terminal, when one does.
+_DISPLAY: contextvars.ContextVar[Progress | None] = contextvars.ContextVar("meshtool_display", default=None)
 
 
 class _ClearFirst(io.TextIOBase):
@@ -222,6 +289,7 @@ def _run_vocabulary(as_json: bool, quiet: bool, verbose: int, program: str) -> I
         os.environ[DEBUG_VARIABLES.get(program, "MESHTOOL_DEBUG")] = "1"
     if not as_json:
         display = Progress(enabled=progress_enabled() and not quiet)
+        token = _DISPLAY.set(display if display.enabled else None)
         try:
             with reporting(display if display.enabled else None), contextlib.ExitStack() as stack:
                 if display.enabled:
@@ -232,6 +300,7 @@ def _run_vocabulary(as_json: bool, quiet: bool, verbose: int, program: str) -> I
                     stack.enter_context(contextlib.redirect_stdout(io.StringIO()))
                 yield
         finally:
+            _DISPLAY.reset(token)
             display.close()
         return
     extra = io.StringIO()  # only click's own text (--help, --version) reaches stdout in JSON mode

@@ -10,12 +10,12 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import Any, NoReturn
 
 import click
 import platformdirs
 
-from meshtool.cli.common import executor_options
+from meshtool.cli.common import batch_progress, executor_options, progress_option
 from meshtool.cli.output import (
     EXIT_INPUT,
     EXIT_INTERNAL,
@@ -32,9 +32,6 @@ from meshtool.cli.output import (
 from meshtool.errors import MeshtoolError
 from meshtool.files.outdir import write_file
 from meshtool.formats import REPORT_FORMATS, report_format_for
-
-if TYPE_CHECKING:
-    from meshtool.validate.task import AssetResult
 
 
 def run_validate(*args: Any, **kwargs: Any) -> Any:
@@ -168,6 +165,7 @@ def default_jobs() -> int:
 )
 @click.option("--no-cache", is_flag=True, help="Check everything again and store nothing.")
 @click.option("--thumbnails/--no-thumbnails", default=None, help="Render thumbnails (default: only for --format html).")
+@progress_option
 @click.option("-v", "--verbose", is_flag=True, help="Text report: list clean assets and notes too.")
 def validate_command(
     paths: tuple[Path, ...],
@@ -184,6 +182,7 @@ def validate_command(
     cache_dir: Path | None,
     no_cache: bool,
     thumbnails: bool | None,
+    show_progress: bool | None,
     verbose: bool,
     force: bool,
 ) -> None:
@@ -220,7 +219,8 @@ def validate_command(
             timeout=timeout,
             connect_timeout=scheduler_timeout,
         )
-        result = run_validate(list(paths), options, _progress_bar())
+        with batch_progress(show_progress) as progress:
+            result = run_validate(list(paths), options, progress)
         for line in result.cache_notes:  # a damaged or foreign cache entry: checked again, said once
             note(line)
         for name, out in plan:  # every report from the one run's results
@@ -265,22 +265,3 @@ def _usage(exc: MeshtoolError) -> NoReturn:
 
 def _colour(output: Path | None) -> bool:
     return output is None and sys.stdout.isatty() and "NO_COLOR" not in os.environ
-
-
-def _progress_bar() -> Any:
-    """A progress callback drawing a bar on stderr when it is a terminal, else ``None``."""
-    if not sys.stderr.isatty():
-        return None
-    state: dict[str, Any] = {}
-
-    def update(result: AssetResult, done: int, total: int) -> None:
-        bar = state.get("bar")
-        if bar is None:
-            bar = click.progressbar(length=total, label="validating", file=sys.stderr, show_pos=True)
-            bar.__enter__()
-            state["bar"] = bar
-        bar.update(1)
-        if done == total:
-            bar.__exit__(None, None, None)
-
-    return update

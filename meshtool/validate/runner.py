@@ -10,7 +10,7 @@ from __future__ import annotations
 import errno
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -25,6 +25,7 @@ from meshtool.validate.pool import Checker
 from meshtool.validate.remote import run_dask
 from meshtool.validate.task import AssetResult, AssetTask
 from meshtool.work.batch import BatchError, Executor, run_batch
+from meshtool.work.progress import Meter, TickSink
 
 EXECUTORS = ("local", "dask")
 
@@ -32,10 +33,6 @@ EXECUTORS = ("local", "dask")
 def suffixes() -> tuple[str, ...]:
     """What validate checks in a folder: every mesh format's suffixes and the pack's (the formats registry)."""
     return (*mesh_suffixes(), *output_named("mbin").suffixes)
-
-
-#: Called with each asset's result, the number done so far and the total.
-Progress = Callable[[AssetResult, int, int], None]
 
 
 class ValidateError(MeshtoolError, RuntimeError):
@@ -193,14 +190,15 @@ def display_path(path: Path) -> str:
 
 
 def validate(
-    paths: list[Path], options: ValidateOptions | None = None, progress: Progress | None = None
+    paths: list[Path], options: ValidateOptions | None = None, progress: TickSink | None = None
 ) -> ValidationReport:
     """Check every asset under ``paths``.
 
     Args:
         paths: Files and folders.
         options: See :class:`ValidateOptions`.
-        progress: Called with each asset's result as it is done (cached ones first), the count done and the total.
+        progress: Called with a :class:`meshtool.work.progress.Tick` as each asset is done (cached ones first,
+            not counted in its rate; ``last``: the asset's display path).
 
     Returns:
         The report (findings with the configuration applied). Exit codes are the caller's business.
@@ -227,6 +225,7 @@ def validate(
             )
         )
     cache = ResultCache(options.cache_dir, config.fingerprint())
+    meter = Meter(len(tasks), progress)
     results: dict[str, AssetResult] = {}
     todo: list[AssetTask] = []
     pictures: list[AssetTask] = []  # cached results without the thumbnail this run wants: drawn alone
@@ -238,8 +237,7 @@ def validate(
         results[task.display] = cached
         if task.thumbnails and cached.thumbnail is None and cached.drawable and not options.changed_only:
             pictures.append(replace(task, thumbnail_only=True))
-        if progress:
-            progress(cached, len(results), len(tasks))
+        meter.advance(task.display, computed=False)
     by_display = {t.display: t for t in todo}
     listings = {t.display: cache.listings(t) for t in todo}  # before the checks read: a later change is news
     runner = _run_dask if options.executor == "dask" else _run_local
@@ -253,8 +251,7 @@ def validate(
         result.listings = listings[result.path]
         cache.store(by_display[result.path], result)
         results[result.path] = result
-        if progress:
-            progress(result, len(results), len(tasks))
+        meter.advance(result.path)
     report = ValidationReport(
         [],
         checked=cache.misses,
