@@ -9,6 +9,8 @@ command it concerns) and *how to fix it* (``hint``); ``str(error)`` is one line,
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -146,3 +148,17 @@ class Origin:
     def error(self, message: str, hint: str | None = None) -> EntityError:
         """An :class:`EntityError` located here (path, line, key and entity as fields)."""
         return EntityError(message, path=self.path, line=self.line, key=self.key, entity=self.label, hint=hint)
+
+
+def did_you_mean(word: object, known: Iterable[str]) -> str:
+    """The hint for a misspelt name: ``; did you mean 'rays'?``, or ``""`` when no known name is close.
+
+    The one "did you mean" of simrun (scene keys and types, sensor bodies, commands' entities): the known name
+    closest to ``word`` by :func:`difflib.get_close_matches` (similarity ratio at least 0.6).
+
+    Args:
+        word: The name given (anything; compared as ``str(word)``).
+        known: The names it may have meant.
+    """
+    close = difflib.get_close_matches(str(word), list(known), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""

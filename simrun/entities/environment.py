@@ -98,7 +98,13 @@ class HeightField(Entity):
 
 @dataclass(kw_only=True)
 class Sky(Entity):
-    """The skybox: a vertical gradient from ``top`` to ``bottom`` colour, or a PNG."""
+    """The skybox: a vertical gradient from ``top`` to ``bottom`` colour, or a PNG.
+
+    Attributes:
+        top: RGB 0..1 at the zenith.
+        bottom: RGB 0..1 at the nadir.
+        texture: A PNG (relative to the scene folder) instead of the gradient.
+    """
 
     TYPE: ClassVar[str] = "Sky"
     HAS_BODY: ClassVar[bool] = False

@@ -8,11 +8,8 @@ writes a canonical file, so save, load, save gives identical text.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import os
-import types
-import typing
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +17,7 @@ import tomli_w
 
 from meshtool.formats import suffix
 from simrun.entities.mesh_entity import MeshEntity
-from simrun.errors import EntityError, Origin, SceneError, SimrunError
+from simrun.errors import EntityError, Origin, SceneError, SimrunError, did_you_mean
 from simrun.outfile import write_text
 from simrun.robots.urdf_robot import UrdfRobot
 from simrun.safeio import FileReadError, check_regular
@@ -28,23 +25,32 @@ from simrun.scene.state import KEYS, apply_state, state_table
 from simrun.scene.tomlpos import KeyPath, line_of, read_toml
 from simrun.world.entity import Entity, Material
 from simrun.world.pose import Pose
-from simrun.world.registry import REGISTRY, names, parameters, scene_type, service_parameters
+from simrun.world.registry import (
+    MAX_HEIGHT_CELLS,
+    MAX_MAGNITUDE,
+    REGISTRY,
+    Fail,
+    arguments,
+    convert,
+    key_text,
+    known_keys,
+    names,
+    scene_type,
+    unknown_message,
+)
 from simrun.world.world import MAX_TIMESTEP, MIN_TIMESTEP, World, WorldOptions
 
 #: Entity types by name (:mod:`simrun.world.registry`, the one list of scene types).
 ENTITY_TYPES = names("entities")
 _TOP = ("world", "assets", "entities", "services", "sensors", "state", "test", "expect")  # test, expect: simrun test
-_BASE = ("type", "name", "parent", "pose", "free", "kinematic")
 #: Largest scene file read, bytes.
 MAX_SCENE_BYTES = 16 * 1024 * 1024
 #: Most entities in one scene file (the world's body limit, :data:`simrun.world.world.MAX_BODIES`, also holds).
 MAX_ENTITIES = 10_000
-#: Largest magnitude of any number in a scene (metres, kg, seconds...); larger values are typing mistakes.
-MAX_MAGNITUDE = 1e6
 #: Highest sensor sampling rate accepted from a scene, Hz.
 MAX_SENSOR_RATE = 10_000.0
-#: Most cells of a height field given as numbers.
-MAX_HEIGHT_CELLS = 1024 * 1024
+# MAX_MAGNITUDE and MAX_HEIGHT_CELLS, the limits of every value, are the registry's (its ``arguments``), named here too.
+__all__ = ["ENTITY_TYPES", "MAX_HEIGHT_CELLS", "MAX_MAGNITUDE", "load_scene", "save_scene", "scene_text"]
 #: Entity parameters that name a file (relative to the scene's folder), checked at load.
 _FILE_FIELDS = ("texture", "image", "urdf", "asset", "visual_mesh")
 _GROUPS = ("entities", "services", "sensors")
@@ -77,11 +83,19 @@ class _Loader:
         """A :class:`SceneError` at a key path (``("entities", 3, "mass")``) with its line (or ``line_at``'s)."""
         line = line_of(self.lines, line_at or where) if (line_at or where) else None
         if len(where) >= 2 and where[0] in _GROUPS and isinstance(where[1], int):
-            rest = _key_text(where[2:])
+            rest = key_text(where[2:])
             text = f"{rest}: {message}" if rest else message
             key = f"{where[0]}[{where[1]}]"
             return SceneError(text, self.name, key, line, self.labels.get(where[:2]))
-        return SceneError(message, self.name, _key_text(where) or None, line)
+        return SceneError(message, self.name, key_text(where) or None, line)
+
+    def fail(self, where: KeyPath) -> Fail:
+        """The :class:`~simrun.world.registry.Fail` of the table at ``where``: its errors name this file and line."""
+
+        def fail(message: str, path: KeyPath, line_at: KeyPath | None = None) -> SceneError:
+            return self.error(message, (*where, *path), None if line_at is None else (*where, *line_at))
+
+        return fail
 
     def load(self) -> World:
         doc = self.read()
@@ -125,16 +139,17 @@ class _Loader:
     def world_options(self, table: Any) -> WorldOptions:
         _known(table, ("timestep", "gravity", "integrator"), self, ("world",))
         values: dict[str, Any] = {}
+        fail = self.fail(("world",))
         if "timestep" in table:
-            step = _number(table["timestep"], self, ("world", "timestep"))
+            step = convert(table["timestep"], float, fail, ("timestep",))
             if not MIN_TIMESTEP <= step <= MAX_TIMESTEP:
                 message = f"must be in [{MIN_TIMESTEP:g}, {MAX_TIMESTEP:g}] seconds, got {step:g}"
                 raise self.error(message, ("world", "timestep"))
             values["timestep"] = step
         if "gravity" in table:
-            values["gravity"] = _vector(table["gravity"], 3, self, ("world", "gravity"))
+            values["gravity"] = convert(table["gravity"], tuple[float, float, float], fail, ("gravity",))
         if "integrator" in table:
-            values["integrator"] = _typed(table["integrator"], str, self, ("world", "integrator"))
+            values["integrator"] = convert(table["integrator"], str, fail, ("integrator",))
         try:
             return WorldOptions(**values)
         except EntityError as exc:
@@ -190,11 +205,7 @@ class _Loader:
             if kind not in names("services"):
                 known = ", ".join(names("services"))
                 raise self.error(f"unknown service type {kind!r} (known: {known})", (*where, "type"))
-            hints = service_parameters(kind)
-            _known(service, ["type", "entity", *hints], self, where)
-            for key, hint in hints.items():
-                if key in service:
-                    _convert(service[key], hint, self, (*where, key))
+            arguments("services", kind, service, self.fail(where))  # checked here, converted when bound
             if not isinstance(service.get("entity"), str):
                 raise self.error("a service needs an 'entity' string naming the entity it drives", where)
             if service["entity"] not in entities:
@@ -225,11 +236,12 @@ class _Loader:
                 known = ", ".join(names("sensors"))
                 raise self.error(f"unknown sensor type {kind!r} (known: {known})", (*where, "type"))
             target_key = REGISTRY[kind].binds
-            keys = ["type", "name", target_key, *parameters("sensors", kind)]
+            keys = known_keys("sensors", kind)
             unknown = next((key for key in spec if key not in keys), None)
             if unknown is not None:
                 message = f"sensor {spec.get('name')!r}: unknown key {unknown!r} (known: {', '.join(keys)})"
-                raise self.error(message + _did_you_mean(unknown, keys), (*where, unknown))
+                raise self.error(message + did_you_mean(unknown, keys), (*where, unknown))
+            arguments("sensors", kind, spec, self.fail(where))  # checked at the key's line; World.add_sensor again
             target = spec.get(target_key)
             owner = target.rsplit("/", 1)[0] if isinstance(target, str) and target_key == "camera" else target
             if isinstance(target, str) and target not in entities and owner not in entities:
@@ -375,14 +387,6 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _key_text(path: KeyPath) -> str:
-    """``("pose", "position", 1)`` as ``pose.position[1]``."""
-    text = ""
-    for part in path:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
-    return text
-
-
 def _bad_value(value: Any, limit: float) -> str | None:
     """Why a sensor parameter is refused (a non-finite number or one over ``limit`` anywhere in it), or ``None``."""
     if isinstance(value, float) and not math.isfinite(value):
@@ -401,13 +405,7 @@ def _known(table: Any, keys: tuple[str, ...] | list[str], loader: _Loader, where
         raise loader.error("expected a table", where)
     for key in table:
         if key not in keys:
-            raise loader.error(f"unknown key (known: {', '.join(keys)}){_did_you_mean(key, keys)}", (*where, key))
-
-
-def _did_you_mean(key: object, keys: typing.Iterable[str]) -> str:
-    """``; did you mean 'dimensions'?`` for the known key closest to a misspelt ``key``, else ``""``."""
-    close = difflib.get_close_matches(str(key), list(keys), n=1, cutoff=0.6)
-    return f"; did you mean {close[0]!r}?" if close else ""
+            raise loader.error(unknown_message(key, keys), (*where, key))
 
 
 def _entity(table: Any, loader: _Loader, where: KeyPath) -> Entity:
@@ -416,39 +414,19 @@ def _entity(table: Any, loader: _Loader, where: KeyPath) -> Entity:
     kind = table.get("type")
     known = ", ".join(ENTITY_TYPES)
     if "type" not in table:  # a misspelt key is named at its own line, with the closest known key
-        typo = next((k for k in table if _did_you_mean(k, ("type",))), None)
+        typo = next((k for k in table if did_you_mean(k, ("type",))), None)
         if typo is not None:
-            message = f"unknown key (an entity needs 'type', one of: {known}){_did_you_mean(typo, ('type',))}"
+            message = f"unknown key (an entity needs 'type', one of: {known}){did_you_mean(typo, ('type',))}"
             raise loader.error(message, (*where, typo))
         raise loader.error(f"missing key 'type' (one of: {known})", where)
     if not isinstance(kind, str) or kind not in ENTITY_TYPES:  # a list or table is unhashable
-        hint = _did_you_mean(kind, ENTITY_TYPES) if isinstance(kind, str) else ""
+        hint = did_you_mean(kind, ENTITY_TYPES) if isinstance(kind, str) else ""
         raise loader.error(f"unknown entity type {kind!r} (known: {known}){hint}", (*where, "type"))
     cls: type[Entity] = scene_type("entities", kind).load()
-    hints = typing.get_type_hints(cls)
-    fields = [f.name for f in dataclasses.fields(cls)]
-    params = [f for f in fields if f not in _BASE]
-    _known(table, list(_BASE) + params, loader, where)
+    _known(table, known_keys("entities", kind), loader, where)
     if not isinstance(table.get("name"), str):
         raise loader.error("every entity needs a 'name' string", (*where, "name"))
-    values: dict[str, Any] = {"name": table["name"]}
-    if "parent" in table:
-        values["parent"] = _typed(table["parent"], str, loader, (*where, "parent"))
-    for flag in ("free", "kinematic"):
-        if flag in table:
-            values[flag] = _typed(table[flag], bool, loader, (*where, flag))
-    if "pose" in table:
-        pose = table["pose"]
-        _known(pose, ("position", "orientation"), loader, (*where, "pose"))
-        position = _vector(pose.get("position", [0, 0, 0]), 3, loader, (*where, "pose", "position"))
-        orientation = _vector(pose.get("orientation", [1, 0, 0, 0]), 4, loader, (*where, "pose", "orientation"))
-        try:
-            values["pose"] = Pose(position, orientation)  # type: ignore[arg-type]
-        except ValueError as exc:
-            raise loader.error(str(exc), (*where, "pose")) from None
-    for param in params:
-        if param in table:
-            values[param] = _convert(table[param], hints[param], loader, (*where, param))
+    values = arguments("entities", kind, table, loader.fail(where))
     if kind == "Camera":
         _check_camera(values, loader, where)
     try:
@@ -464,99 +442,3 @@ def _check_camera(values: dict[str, Any], loader: _Loader, where: KeyPath) -> No
     if eye is not None and target is not None and math.dist(eye, target) < 1e-9:
         message = f"eye and target are the same point {list(eye)}; the camera would look nowhere"
         raise loader.error(message, (*where, "target"))
-
-
-def _convert(value: Any, hint: Any, loader: _Loader, where: KeyPath) -> Any:
-    """Check a TOML value against a field's type annotation and convert it (lists to tuples...)."""
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin in (types.UnionType, typing.Union):
-        options = [a for a in args if a is not type(None)]
-        return _convert(value, options[0], loader, where)
-    if isinstance(hint, type) and hasattr(hint, "from_scene"):  # a value that reads itself (an arm's segments)
-        try:
-            return hint.from_scene(value, _key_text(where[2:]))
-        except EntityError as exc:  # its message starts with the key path (``segments[1].length: ...``)
-            raise loader.error(str(exc), where[:2], line_at=where) from None
-    if dataclasses.is_dataclass(hint) and isinstance(hint, type) and hint is not Material:  # e.g. DriveLimits
-        fields = typing.get_type_hints(hint)
-        _known(value, list(fields), loader, where)
-        converted = {k: _convert(v, fields[k], loader, (*where, k)) for k, v in value.items()}
-        try:
-            return hint(**converted)
-        except (EntityError, ValueError, TypeError) as exc:
-            raise loader.error(str(exc), where) from None
-    if hint is Material:
-        _known(value, ("restitution", "dynamic_friction", "static_friction"), loader, where)
-        coefficients = {k: _number(v, loader, (*where, k)) for k, v in value.items()}
-        try:
-            return Material(**coefficients)
-        except EntityError as exc:
-            raise loader.error(str(exc), where) from None
-    if origin is tuple and len(args) == 2 and args[1] is Ellipsis and args[0] in (str, int, float):
-        if not isinstance(value, list):  # a list of any length (MjcfRobot's wheels = ["left", "right"])
-            raise loader.error(f"expected an array, got {type(value).__name__} {value!r}", where)
-        return tuple(_convert(v, args[0], loader, (*where, k)) for k, v in enumerate(value))
-    if origin is tuple:
-        if Ellipsis in args or not all(a in (int, float) for a in args):
-            raise loader.error("cannot be set in a scene file (create this entity in code)", where)
-        numbers = _vector(value, len(args), loader, where)
-        for k, (v, a) in enumerate(zip(numbers, args, strict=True)):
-            if a is int and not float(v).is_integer():
-                raise loader.error(f"expected a whole number, got {v!r}", (*where, k))
-        return tuple(int(v) if a is int else v for v, a in zip(numbers, args, strict=True))
-    if origin is list:
-        return _grid(value, loader, where)
-    if origin is dict:
-        if not isinstance(value, dict):
-            raise loader.error(f"expected a table, got {type(value).__name__}", where)
-        for key, item in value.items():
-            _typed(item, str, loader, (*where, key))
-        return dict(value)
-    if hint is float:
-        return _number(value, loader, where)
-    if hint is int:
-        number = _typed(value, int, loader, where)
-        if abs(number) > MAX_MAGNITUDE:
-            raise loader.error(f"must be at most {MAX_MAGNITUDE:g} in magnitude, got {number}", where)
-        return number
-    if not isinstance(hint, type):
-        raise loader.error("cannot be set in a scene file (create this entity in code)", where)
-    return _typed(value, hint, loader, where)
-
-
-def _grid(value: Any, loader: _Loader, where: KeyPath) -> list[list[float]]:
-    """A rectangular array of arrays of numbers (a height field), at least 2 x 2."""
-    if not isinstance(value, list) or not value or not all(isinstance(row, list) for row in value):
-        raise loader.error("expected an array of arrays of numbers (rows)", where)
-    width = len(value[0])
-    for r, row in enumerate(value):
-        if len(row) != width:
-            raise loader.error(
-                f"row {r} has {len(row)} numbers, row 0 has {width}; rows must be equally long", (*where, r)
-            )
-    if len(value) < 2 or width < 2:
-        raise loader.error(f"needs at least 2 x 2 numbers, got {len(value)} x {width}", where)
-    if len(value) * width > MAX_HEIGHT_CELLS:
-        raise loader.error(f"{len(value)} x {width} numbers, over the limit of {MAX_HEIGHT_CELLS}", where)
-    return [[_number(v, loader, (*where, r, c)) for c, v in enumerate(row)] for r, row in enumerate(value)]
-
-
-def _typed(value: Any, kind: type, loader: _Loader, where: KeyPath) -> Any:
-    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-        raise loader.error(f"expected {kind.__name__}, got {type(value).__name__} {value!r}", where)
-    return value
-
-
-def _number(value: Any, loader: _Loader, where: KeyPath) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise loader.error(f"expected a finite number, got {value!r}", where)
-    if abs(value) > MAX_MAGNITUDE:
-        raise loader.error(f"must be at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}", where)
-    return float(value)
-
-
-def _vector(value: Any, n: int, loader: _Loader, where: KeyPath) -> tuple[float, ...]:
-    if not isinstance(value, list) or len(value) != n:
-        got = f"{len(value)}" if isinstance(value, list) else type(value).__name__
-        raise loader.error(f"expected {n} numbers, got {got}", where)
-    return tuple(_number(v, loader, (*where, k)) for k, v in enumerate(value))

@@ -181,7 +181,14 @@ class StereoFrame:
 
 
 class StereoCamera(Sensor):
-    """Both cameras of a :class:`StereoRig`, rendered together."""
+    """Both cameras of a :class:`StereoRig`, rendered together.
+
+    Args:
+        world: The world.
+        rig: Full name of the :class:`StereoRig` (its resolution is the images').
+        depth: Also render depth.
+        rate: Hz (0: every step).
+    """
 
     def __init__(self, world: World, rig: str, depth: bool = False, rate: float = 15.0) -> None:
         entity = world.entity(rig)

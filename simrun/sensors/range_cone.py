@@ -35,8 +35,8 @@ class RangeCone(Sensor):
         direction: Viewing direction in the body frame.
         cone_deg: Full cone angle, degrees (0: a single ray).
         rays: Rays across the cone (per axis).
-        min_range: Shorter distances read as ``min_range``.
-        max_range: Nothing within it reads ``max_range``.
+        min_range: Shorter distances read as ``min_range``, metres.
+        max_range: Nothing within it reads ``max_range``, metres.
         response: (distance, value) pairs; ``value`` is interpolated from the distance (default: the
             distance itself).
         rate: Hz.

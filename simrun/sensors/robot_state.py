@@ -33,6 +33,12 @@ class Bumper(Sensor):
 
     The robot is every body of the bumper's top-level entity (:func:`simrun.sensors.mount.robot_mask`: wheels, a
     mounted arm, a free-base model's legs).
+
+    Args:
+        world: The world.
+        entity: Full name of the entity carrying the bumper.
+        geom: The bumper geom, by its name inside the entity (``ENTITY/geom``).
+        rate: Samples per simulated second; 0 samples after every step.
     """
 
     def __init__(self, world: World, entity: str, geom: str = "chassis", rate: float = 50.0) -> None:
@@ -67,7 +73,16 @@ class EncoderReading:
 
 
 class Encoders(Sensor):
-    """Joint encoders of named joints of an entity (default the two drive wheels)."""
+    """Joint encoders of named joints of an entity (default the two drive wheels).
+
+    Args:
+        world: The world.
+        entity: Full name of the entity.
+        joints: The joints read, by their names inside the entity (``ENTITY/joint``).
+        rate: Samples per simulated second; 0 samples after every step.
+        noise: Standard deviation of the angle noise, rad (the speeds are exact).
+        seed: Seed of the noise generator.
+    """
 
     def __init__(
         self,
@@ -111,8 +126,15 @@ class GPSReading:
 class GPS(Sensor):
     """Body position with noise; optional geodetic coordinates around ``origin`` (lat, lon degrees, +X east).
 
-    ``body``: the body whose origin it reports, by its full name; ``None``: the robot's root body
-    (:func:`simrun.sensors.mount.root_body`), so a free-base walker's GPS follows its trunk.
+    Args:
+        world: The world.
+        entity: Full name of the entity carrying it.
+        rate: Samples per simulated second; 0 samples after every step.
+        noise: Standard deviation of the position noise, metres.
+        seed: Seed of the noise generator.
+        origin: (latitude, longitude) of the world origin, degrees; ``None``: no geodetic coordinates.
+        body: The body whose origin it reports, by its full name; ``None``: the robot's root body
+            (:func:`simrun.sensors.mount.root_body`), so a free-base walker's GPS follows its trunk.
     """
 
     EARTH_RADIUS = 6_378_137.0

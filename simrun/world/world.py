@@ -25,7 +25,7 @@ from simrun.world import model_cache
 from simrun.world import options as model_options
 from simrun.world.assets import AssetLibrary
 from simrun.world.entity import BuildContext, Entity
-from simrun.world.registry import Controller, scene_type, service_arguments, unknown_key
+from simrun.world.registry import Controller, arguments, python_fail, scene_type, service_arguments
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -437,20 +437,14 @@ class World:
         Raises:
             EntityError: Unknown type, missing or duplicate name, unknown entity or parameter.
         """
-        params = dict(spec)
-        kind, name = params.pop("type", None), params.pop("name", None)
+        kind, name = spec.get("type"), spec.get("name")
         registered = scene_type("sensors", kind)
         if not isinstance(name, str) or name in self.sensors:
             raise EntityError(f"a sensor needs a unique 'name', got {name!r}")
-        target = params.pop(registered.binds, None)
+        target = spec.get(registered.binds)
         if not isinstance(target, str):
             raise EntityError(f"sensor {name!r} needs a {registered.binds!r} string")
-        unknown = unknown_key("sensors", registered.name, spec, ("type", "name", registered.binds))
-        if unknown:
-            raise EntityError(f"sensor {name!r}: {unknown}")
-        for key, value in params.items():
-            if isinstance(value, list):
-                params[key] = tuple(value)
+        params = arguments("sensors", registered.name, spec, python_fail(f"sensor {name!r}"))  # as a scene's
         try:
             sensor = registered.load()(self, target, **params)
         except TypeError as exc:
