@@ -2,17 +2,18 @@
 
 An entry is keyed by the asset's path and content hash (SHA-256), the rule-set version, the meshtool version,
 the options that change raw findings (the source roots; the asset's own limits, units and up axis, which
-per-path settings may give it: :meth:`AssetTask.settings`) and the environment (the physics plugin and the
-versions of the libraries the rules compute with). Nothing a report format asks for is part of the key: one
-entry serves every format. It holds the raw result (its thumbnail when one was drawn), the SHA-256 of
-every file the check read or looked for (MTLs, textures, a pack's sources; ``None`` for absent), and the
-digest of everything under the asset's folder (:mod:`meshtool.validate.snapshot`: every name with its
-case, kind, permissions and link target), since any of it can change how a reference resolves. The entry
-is used only while all of them still match. Entries live in
-``CACHE/ab/abcdef....json``: a :mod:`meshtool.files.cachefile` envelope (the digest of the key it answers and of
-its content) around the JSON, written atomically. A damaged entry, one copied from another key or one
-that does not hold a result is a miss (described in :attr:`ResultCache.problems`), and the asset is
-checked again.
+per-path settings may give it: :meth:`AssetTask.settings`), the environment (the physics plugin and the
+versions of the libraries the rules compute with) and, for a mesh, what the description files under its
+consumer index root say about it (:func:`meshtool.validate.snapshot.consumer_state`: every URDF/SDF/MJCF that
+uses it, with its SHA-256, taken before the check reads anything). Nothing a report format asks for is part of
+the key: one entry serves every format. It holds the raw result (its thumbnail when one was drawn), the
+SHA-256 of every file the check read or looked for (MTLs, textures, a pack's sources; ``None`` for absent),
+and the digest of everything under the asset's folder (:mod:`meshtool.validate.snapshot`: every name with its
+case, kind, permissions and link target), since any of it can change how a reference resolves. The entry is
+used only while all of them still match. Entries live in ``CACHE/ab/abcdef....json``: a
+:mod:`meshtool.files.cachefile` envelope (the digest of the key it answers and of its content) around the
+JSON, written atomically. A damaged entry, one copied from another key or one that does not hold a result is a
+miss (described in :attr:`ResultCache.problems`), and the asset is checked again.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from meshtool.files import cachefile
 from meshtool.files.resolve import file_sha256
 from meshtool.findings import Finding, Severity
 from meshtool.validate.physics import environment
-from meshtool.validate.snapshot import dependency_listings, listing_digest
+from meshtool.validate.snapshot import consumer_state, dependency_listings, listing_digest
 from meshtool.validate.task import RULESET_VERSION, AssetResult, AssetTask
 
 
@@ -56,16 +57,31 @@ class ResultCache:
         self.hits = 0
         self.misses = 0
         self.exclude = Path(os.path.realpath(folder)) if folder is not None else None
+        self._consumers: dict[Path, str] = {}  # mesh (resolved) -> consumer_state, taken at lookup
+        self._contents: dict[Path, str] = {}  # description file -> sha256, hashed once a run
         self.salt = json.dumps(
             {"meshtool": __version__, "rules": RULESET_VERSION, "options": fingerprint, "environment": environment()},
             sort_keys=True,
         )
 
     def key(self, task: AssetTask, content_sha256: str) -> str:
-        """The entry key of an asset with the given content hash."""
+        """The entry key of an asset with the given content hash (and, for a mesh, its consumers' state)."""
         settings = json.dumps(task.settings(), sort_keys=True)
-        text = f"{self.salt}\n{settings}\n{task.path.resolve()}\n{content_sha256}"
+        text = f"{self.salt}\n{settings}\n{task.path.resolve()}\n{content_sha256}\n{self.consumers(task)}"
         return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()  # non-UTF-8 names: raw bytes
+
+    def consumers(self, task: AssetTask) -> str:
+        """:func:`~meshtool.validate.snapshot.consumer_state` of a mesh, taken once a run (``""`` for a pack).
+
+        Taken at the first lookup, before the check reads: a consumer edited during the check is news next run.
+        """
+        if task.kind == "mbin":  # a pack's findings do not depend on who uses its sources
+            return ""
+        path = task.path.resolve()
+        state = self._consumers.get(path)
+        if state is None:
+            state = self._consumers[path] = consumer_state(task.path, self._contents)
+        return state
 
     def lookup(self, task: AssetTask) -> AssetResult | None:
         """The cached result, if every file it depends on is unchanged; counted in :attr:`hits` / :attr:`misses`.

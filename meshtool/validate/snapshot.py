@@ -14,6 +14,14 @@ and description files (URDF, SDF, MJCF) there say the mesh's unit and frame. :fu
 covers those: the OBJ's folder and the model root recursively, and in each folder above the OBJ the markers
 and description files (names and SHA-256).
 
+Consumers may sit further away, anywhere under the mesh's *index root*
+(:func:`meshtool.frame.consumers.find_index_root`: ``robots/NAME/robot.xml`` over ``meshes/PART/part.obj``
+below one repository). :func:`consumer_state` is what
+the description files there say about one mesh: the root, every reference to the mesh (file, format, scale,
+the reference as written), the limit that stopped the index, and each consumer file's SHA-256. It is part of
+the cache key, so a result is checked again when a file that uses the mesh changes (or one starts or stops
+using it), and not when a description file that does not use it changes.
+
 The listing does not follow links into folders (a link is recorded with its target) and stops at
 :data:`MAX_ENTRIES` entries: an asset in a bigger folder is checked but not cached. The cache folder is left
 out when it lies inside (its entries change with every run).
@@ -30,6 +38,7 @@ from pathlib import Path
 from meshtool.errors import MeshtoolError
 from meshtool.files.safeopen import read_file
 from meshtool.frame.consumers import SUFFIXES as DESCRIPTION_SUFFIXES
+from meshtool.frame.consumers import consumers_and_limit, find_index_root, printable_root
 from meshtool.frame.modelroot import MARKERS, MAX_LEVELS, MAX_MARKER_LEVELS, find_model_root
 
 #: Entries listed under one asset folder at most (beyond: no listing, so the result is not cached).
@@ -136,3 +145,25 @@ def dependency_listings(obj: Path, exclude: Path | None = None) -> dict[str, str
         keys.append(f"tree:{root.folder}")
     keys.extend(f"dir:{folder}" for folder in [here, *here.parents][1 : max(MAX_LEVELS, MAX_MARKER_LEVELS) + 1])
     return {key: listing_digest(key, exclude) for key in keys}
+
+
+def consumer_state(obj: Path, contents: dict[Path, str] | None = None) -> str:
+    """SHA-256 (hex) of what the description files under ``obj``'s index root say about it (see the module).
+
+    Args:
+        obj: The mesh file.
+        contents: Description file (real path) -> ``sha256:...``, filled and reused across the meshes of a run
+            (each consumer file is hashed once).
+    """
+    here = Path(os.path.realpath(obj.parent))
+    model_root = find_model_root(here)
+    refs, limit = consumers_and_limit(obj, model_root)
+    known = {} if contents is None else contents
+    lines = [printable_root(find_index_root(here, model_root)), limit or ""]
+    for ref in refs:  # nearest first, then by path: a stable order
+        scale = "" if ref.scale is None else " ".join(repr(float(v)) for v in ref.scale)
+        real = Path(os.path.realpath(here / ref.file))
+        if real not in known:
+            known[real] = _content(str(real))
+        lines.append(f"{ref.file}\0{ref.format}\0{scale}\0{ref.ref}\0{known[real]}")
+    return hashlib.sha256("\n".join(lines).encode("utf-8", "surrogateescape")).hexdigest()

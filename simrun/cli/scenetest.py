@@ -11,11 +11,11 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import NoReturn
 
 import click
 
-from meshtool.cli.common import executor_options
+from meshtool.cli.common import batch_progress, executor_options, progress_option
 from meshtool.cli.output import (
     EXIT_INPUT,
     EXIT_INTERNAL,
@@ -66,7 +66,7 @@ def _jobs() -> int:
     type=click.FloatRange(0, min_open=True),
     default=None,
     metavar="SECONDS",
-    help="Stop a run in a worker process after this long (an error for that run; needs -j 2 or more).",
+    help="Stop a run after this long (an error for that run): it runs in a worker process, even with -j 1.",
 )
 @click.option(
     "--format", "fmt", type=click.Choice(["text", "json", "junit", "github", "html"]), default="text", show_default=True
@@ -81,6 +81,7 @@ def _jobs() -> int:
 )
 @click.option("--thumbnails/--no-thumbnails", default=None, help="Picture failed runs (default: only for html).")
 @click.option("--force", is_flag=True, help="Replace files under --record-failures that simrun did not write.")
+@progress_option
 @click.option("-v", "--verbose", is_flag=True, help="Text report: list every run and expectation.")
 def test_command(
     paths: tuple[Path, ...],
@@ -97,11 +98,12 @@ def test_command(
     record_dir: Path | None,
     thumbnails: bool | None,
     force: bool,
+    show_progress: bool | None,
     verbose: bool,
 ) -> None:
     """Run every scene under PATHS x seed x variation and check its [[expect]] tables (docs/scene-format.md)."""
     from meshtool.files.outdir import write_file
-    from meshtool.work.batch import SchedulerError
+    from meshtool.work.batch import BatchError
     from simrun.outfile import output_policy
     from simrun.scenetest.reports import render, session_line, to_text, verdict_line
     from simrun.scenetest.runner import TestOptions, run_tests
@@ -126,23 +128,18 @@ def test_command(
         if len(set(keys)) != len(keys):
             _usage("--vary: a key is given twice")
         check_run_count(options.seeds, options.axes, max_runs)  # before any scene is read or run planned
-        with output_policy(force, list(paths)):
-            result = run_tests(list(paths), options, _progress_bar())
+        with output_policy(force, list(paths)), batch_progress(show_progress) as progress:
+            result = run_tests(list(paths), options, progress)
         # names on disk that are not UTF-8 (surrogate escapes) are shown as \xNN, as everywhere else
         text = printable(to_text(result, verbose) if fmt == "text" else render(result, fmt))
         if output is not None:
             write_file(output, text.encode("utf-8"))
     except (SpecError, VaryError) as exc:  # a usage error, or a missing input: exit 1 (docs/cli.md)
         fail(exc, "simrun", "usage error" if exit_code_of(exc) == EXIT_USAGE else "error")
-    except ImportError:
-        problem("the Dask executor needs dask.distributed (pip install 'meshtool-simrun[dask]')", EXIT_FAILED)
-    except SchedulerError as exc:
-        where = scheduler or "a new local cluster"
-        hint = getattr(exc, "hint", None) or (
-            "start one (dask scheduler) with workers (dask worker ADDRESS), check --scheduler, "
-            "or raise --scheduler-timeout"
-        )
-        problem(f"cannot reach the Dask scheduler at {where}: {exc}; {hint}", EXIT_FAILED)
+    except BatchError as exc:  # dask.distributed missing, or the scheduler unreachable: one line, exit 1
+        if exc.code == "dask-missing":
+            problem(f"{exc.message} ({exc.hint})", EXIT_FAILED)
+        problem(f"{exc.message}; {exc.hint}", EXIT_FAILED)
     except SimrunError as exc:
         fail(exc, "simrun")
     except OSError as exc:
@@ -160,22 +157,3 @@ def test_command(
 
 def _usage(message: str) -> NoReturn:
     fail(UsageError(message), "simrun", "usage error")
-
-
-def _progress_bar() -> Any:
-    """A progress callback drawing a bar on stderr when it is a terminal, else ``None``."""
-    if not sys.stderr.isatty():
-        return None
-    state: dict[str, Any] = {}
-
-    def update(done: int, total: int) -> None:
-        bar = state.get("bar")
-        if bar is None:
-            bar = click.progressbar(length=total, label="simulating", file=sys.stderr, show_pos=True)
-            bar.__enter__()
-            state["bar"] = bar
-        bar.update(1)
-        if done == total:
-            bar.__exit__(None, None, None)
-
-    return update

@@ -3,7 +3,8 @@
 - :mod:`simrun.scenetest.expect`: the ``[[expect]]`` tables and how a run is judged;
 - :mod:`.spec`: which scenes, their ``[test]`` table, the preflight check and the bundle of files;
 - :mod:`.vary`: seeds, ``--vary`` and pose jitter;
-- :mod:`.task`: one run (what a worker executes); :mod:`.executors`: this process, a pool, Dask;
+- :mod:`.task`: one run (what a worker executes, through meshtool's batch layer: this process, worker
+  processes or Dask);
 - :mod:`.runner`: the plan, the results in order, failed runs recorded; :mod:`.reports`, :mod:`.report_html`.
 """
 

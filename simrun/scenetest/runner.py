@@ -2,9 +2,10 @@
 
 :func:`run_tests` checks every scene first (:func:`simrun.scenetest.spec.load_case`: a bad scene, commands
 file or expectation is one error before anything runs), plans one :class:`~simrun.scenetest.task.RunTask`
-per run in a fixed order (scene, variation, seed), hands them to an executor
-(:mod:`simrun.scenetest.executors`), and puts the results back in that order, so the report does not
-depend on which worker finished first. Failed runs are written, with their scene as run and the files it
+per run in a fixed order (scene, variation, seed), hands them to the batch layer shared with meshtool
+(:func:`meshtool.work.batch.run_batch`: this process, local worker processes or Dask; the scenes' bundles
+are its shared payload, sent to each worker once), and puts the results back in that order, so the report
+does not depend on which worker finished first. Failed runs are written, with their scene as run and the files it
 reads, under ``record_dir``, where ``simrun resim`` re-simulates them bit for bit.
 """
 
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -20,11 +21,13 @@ from typing import Any
 import tomli_w
 
 from meshtool.formats import suffix
+from meshtool.work.batch import Executor, run_batch
+from meshtool.work.progress import TickSink
 from simrun.errors import SimrunError
 from simrun.outfile import write_bytes
 from simrun.scenetest.bundle import Bundle
 from simrun.scenetest.spec import Case, discover, load_case
-from simrun.scenetest.task import RunResult, RunTask
+from simrun.scenetest.task import RunResult, RunTask, SceneRuns
 from simrun.scenetest.vary import Axis, VaryError, apply, check_key, draw, jitter, variations
 
 EXECUTORS = ("local", "dask")
@@ -43,7 +46,8 @@ class TestOptions:
         executor: ``local`` or ``dask``.
         scheduler: Dask scheduler address, or ``None`` for a LocalCluster.
         connect_timeout: Seconds to try reaching the scheduler.
-        timeout: Seconds one run may take in a worker process (``None``: no limit).
+        timeout: Seconds one run may take (``None``: no limit): locally the run goes to a worker process
+            (even with one job) that is killed at the deadline; on Dask the run is abandoned there.
         record_dir: Folder to write failed runs into (scene as run, its files, ``.simlog``), or ``None``.
         thumbnails: Render a failed run's last state (for HTML reports).
     """
@@ -87,8 +91,13 @@ class Run:
     @property
     def label(self) -> str:
         """``SCENE seed=S KEY=VALUE ...``: the run's name in reports."""
-        values = " ".join(f"{k}={_num(v)}" for k, v in self.values.items())
-        return f"{self.case.display} seed={self.seed}" + (f" {values}" if values else "")
+        return run_label(self.case, self.seed, self.values)
+
+
+def run_label(case: Case, seed: int, values: dict[str, float]) -> str:
+    """``SCENE seed=S KEY=VALUE ...``: a run's name (reports, the progress line)."""
+    shown = " ".join(f"{k}={_num(v)}" for k, v in values.items())
+    return f"{case.display} seed={seed}" + (f" {shown}" if shown else "")
 
 
 def _num(value: float) -> str:
@@ -205,34 +214,30 @@ def _jitter_keys(offsets: dict[str, float]) -> dict[str, float]:
     return {f"jitter.{k}": v for k, v in offsets.items()}
 
 
-Progress = Callable[[int, int], None]
-
-
-def run_tests(paths: list[Path], options: TestOptions, progress: Progress | None = None) -> TestReport:
+def run_tests(paths: list[Path], options: TestOptions, progress: TickSink | None = None) -> TestReport:
     """Test every scene under ``paths`` (see the module).
 
     Args:
         paths: Scene files or folders.
         options: Seeds, variations, executor, recording.
-        progress: Called as ``progress(done, total)`` after each run.
+        progress: Called with a :class:`meshtool.work.progress.Tick` after each run (``last``: its label).
 
     Raises:
         SpecError, VaryError: Nothing to test, or a bad ``--vary`` key (usage errors).
         SceneError, SimrunError: A scene, commands file or expectation that cannot run (with FILE:LINE), or
             a failed-run recording that cannot be written.
-        meshtool.work.batch.SchedulerError: The Dask scheduler cannot be reached.
+        meshtool.work.batch.BatchError: dask.distributed is missing, or the Dask scheduler cannot be reached.
     """
     started = time.perf_counter()
     cases = [load_case(p) for p in discover(paths)]
     tasks, info = plan(cases, options)
     bundles = {c.bundle.digest: c.bundle for c in cases}
+    labels = [run_label(case, seed, values) for case, seed, _, values in info]
     results: dict[int, RunResult] = {}
     where: Counter[str] = Counter()
-    for result, worker in _execute(tasks, bundles, options):
+    for result, worker in _execute(tasks, bundles, options, progress, labels):
         results[result.index] = result
         where[worker] += 1
-        if progress is not None:
-            progress(len(results), len(tasks))
     runs = [Run(c, seed, v, values, results[k]) for k, (c, seed, v, values) in enumerate(info)]
     if options.record_dir is not None:
         _record(runs, tasks, options.record_dir, cases)
@@ -241,14 +246,37 @@ def run_tests(paths: list[Path], options: TestOptions, progress: Progress | None
     return report
 
 
-def _execute(tasks: list[RunTask], bundles: dict[str, Bundle], options: TestOptions) -> Iterator[tuple[RunResult, str]]:
-    from simrun.scenetest import executors
+def executor_of(options: TestOptions, runs: int) -> Executor:
+    """Where ``runs`` runs go: Dask, or local workers (``jobs``, at most one per run).
 
+    One local job runs in this process, unless a ``timeout`` needs a worker process it can stop.
+    """
     if options.executor == "dask":
-        return executors.run_dask(tasks, bundles, options.scheduler, options.jobs, options.connect_timeout)
-    if options.jobs > 1 and len(tasks) > 1:
-        return executors.run_pool(tasks, bundles, options.jobs, options.timeout)
-    return executors.run_here(tasks, bundles)
+        return Executor(
+            "dask",
+            jobs=options.jobs,
+            timeout=options.timeout,
+            scheduler=options.scheduler,
+            connect_timeout=options.connect_timeout,
+        )
+    return Executor("local", jobs=max(1, min(options.jobs, runs)), timeout=options.timeout)
+
+
+def _execute(
+    tasks: list[RunTask],
+    bundles: dict[str, Bundle],
+    options: TestOptions,
+    progress: TickSink | None = None,
+    labels: list[str] | None = None,
+) -> Iterator[tuple[RunResult, str]]:
+    """(result, where it ran) per task as they finish; the bundles the tasks use are the batch's shared payload."""
+    shared = {digest: bundles[digest] for digest in sorted({t.digest for t in tasks})}
+    names = labels or [t.scene_name for t in tasks]
+    executor = executor_of(options, len(tasks))
+    for _, result, where in run_batch(
+        tasks, SceneRuns(), executor, shared=shared, progress=progress, label=lambda t: names[t.index]
+    ):
+        yield result, where
 
 
 def _record(runs: list[Run], tasks: list[RunTask], folder: Path, cases: list[Case]) -> None:

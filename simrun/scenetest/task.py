@@ -8,6 +8,10 @@ it through the library (:func:`simrun.run.session.prepare`, :func:`simrun.run.pl
 :class:`~simrun.scenetest.expect.Observer`, and returns a :class:`RunResult`: plain data, the same whichever process
 or machine ran it. With ``record``, the run is recorded as a ``.simlog`` whose bytes come back when it
 failed (re-simulated by ``simrun resim`` next to the scene text).
+
+:class:`SceneRuns` is what the batch layer (:mod:`meshtool.work.batch`) runs: the bundles are its shared
+payload (sent to each worker once), a run that did not finish (its worker died, the deadline passed) is an
+``error`` result saying why.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import atexit
 import io
 import shutil
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
@@ -114,6 +119,34 @@ def run_task(task: RunTask, bundle: Bundle) -> RunResult:
         return RunResult(task.index, "error", error=_clean(str(exc), task, bundle))
     except Exception as exc:  # a bug in simrun or MuJoCo: reported, and the run goes on
         return RunResult(task.index, "error", error=f"internal error: {type(exc).__name__}: {exc}", internal=True)
+
+
+@dataclass(frozen=True, slots=True)
+class SceneRuns:
+    """The batch :class:`~meshtool.work.batch.SharedWork` of ``simrun test``: runs, with every bundle shared.
+
+    The shared payload maps bundle digest -> :class:`~simrun.scenetest.bundle.Bundle` (each worker gets it
+    once and unpacks a bundle on its first run of that scene).
+    """
+
+    def prepare(self) -> None:
+        """Import the simulator before the first run's deadline starts (loading MuJoCo is not a run's time)."""
+        import simrun.run.play  # noqa: F401
+
+    def __call__(self, task: RunTask, bundles: Mapping[str, Bundle], /) -> RunResult:
+        """The run's result."""
+        return run_task(task, bundles[task.digest])
+
+    def lost(self, task: RunTask, why: str, /) -> RunResult:
+        """An ``error``: stopped at ``--timeout``, or an internal error naming how its worker was lost."""
+        from meshtool.work.batch import Lost
+
+        if isinstance(why, Lost) and why.timeout is not None:
+            message = f"the run did not finish within {why.timeout:g} s and was stopped (--timeout)"
+            return RunResult(task.index, "error", error=message)
+        if isinstance(why, Lost) and why.failure is not None:
+            why = f"the Dask worker running it failed ({why.failure})"
+        return RunResult(task.index, "error", error=f"internal error: {why}", internal=True)
 
 
 def _scene_path(task: RunTask, bundle: Bundle) -> Path:
