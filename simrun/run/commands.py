@@ -9,14 +9,13 @@ them against a world's service bindings before the run starts, so no command fai
 
 from __future__ import annotations
 
-import difflib
 import inspect
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from simrun.errors import SceneError, SimrunError
+from simrun.errors import SceneError, SimrunError, did_you_mean
 from simrun.scene.tomlpos import line_of, read_toml
 from simrun.world.registry import REGISTRY, names
 from simrun.world.world import World
@@ -177,8 +176,7 @@ def check_commands(world: World, commands: list[Command]) -> None:
     entities = [name for name, _ in world]
     for command in commands:
         if command.entity not in entities:  # named at its entity = line, with the closest entity name
-            close = difflib.get_close_matches(command.entity, entities, n=1, cutoff=0.6)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
+            hint = did_you_mean(command.entity, entities)
             where = f"{command.entity_where}: " if command.entity_where else ""
             raise SimrunError(
                 f"{where}entity: no entity {command.entity!r} in the scene (entities: {', '.join(entities)}){hint}"

@@ -15,7 +15,6 @@ entity's name prefix; a robot contract may later answer the same questions.
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -23,7 +22,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from simrun.errors import EntityError
+from simrun.errors import EntityError, did_you_mean
 
 BoolArray = npt.NDArray[np.bool_]
 
@@ -137,8 +136,7 @@ def robot_mask(model: mujoco.MjModel, entity: str) -> BoolArray:
 def _unknown(body: str, names: Iterable[str], key: str, robot: str) -> EntityError:
     """The one-line error for a ``body`` that names no body: the closest name and the bodies of ``robot``."""
     known = [n for n in names if n == robot or n.startswith(f"{robot}/")]
-    close = difflib.get_close_matches(body, known, n=1, cutoff=0.6)
-    hint = f"; did you mean {close[0]!r}?" if close else ""
+    hint = did_you_mean(body, known)
     listed = ", ".join(known[:MAX_LISTED]) or "none"
     if len(known) > MAX_LISTED:
         listed += f" and {len(known) - MAX_LISTED} more"
