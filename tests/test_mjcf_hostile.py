@@ -339,9 +339,9 @@ def test_audit_hook_sees_no_open_outside_the_root(tmp_path: Path, text: Callable
     assert not bad, bad
 
 
-def _strace(tmp_path: Path, scene: Path, *args: str) -> tuple[int, list[str]]:
+def _strace(tmp_path: Path, scene: Path, *args: str, calls: str = "open,openat,openat2") -> tuple[int, list[str]]:
     log = tmp_path / "strace.log"
-    command = [STRACE or "strace", "-f", "-qq", "-e", "trace=open,openat,openat2", "-o", str(log)]
+    command = [STRACE or "strace", "-f", "-qq", "-e", f"trace={calls}", "-o", str(log)]
     done = subprocess.run(
         [*command, str(SIMRUN), "check", str(scene), *args],
         capture_output=True,
@@ -382,13 +382,16 @@ def test_strace_sees_no_open_outside_the_root(tmp_path: Path, text: Callable[[Pa
 def test_strace_mujoco_opens_no_model_file(tmp_path: Path) -> None:
     """A benign model with includes, a mesh and a texture: every one of its files is opened by the reader only.
 
+    All file system calls are traced (``%file``: opens, ``stat`` and the rest).
     The reader opens an included file or asset beside a folder descriptor with ``O_NOFOLLOW`` (``openat`` from
     the root); the main MJCF, named by the scene, with ``O_NONBLOCK``. MuJoCo's own ``fopen`` would show as an
     ``O_RDONLY`` open by path: there is none.
     """
     shutil.copytree(ROOT / "fixtures" / "mjcf" / "included", tmp_path / "arm")
-    code, lines = _strace(tmp_path, tmp_path / "arm" / "swing.toml")
+    code, lines = _strace(tmp_path, tmp_path / "arm" / "swing.toml", calls="%file")
     assert code == 0, lines[-5:]
+    looked_up = [line for line in lines if re.search(r'"(mjcf_arm_|options_|wheels_)\d', line)]
+    assert not looked_up, looked_up  # MuJoCo looks no in-memory name up on disk either
     opens = _opens(lines)
     for name in ("assets.xml", "defaults.xml", "link.xml", "paddle.obj", "grid.png"):
         mine = [o for o in opens if os.path.basename(o[1]) == name]

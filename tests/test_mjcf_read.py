@@ -210,3 +210,19 @@ def test_options_only_read_reads_no_asset(tmp_path: Path) -> None:
     model = read_mjcf(tmp_path / "arm" / "robot.xml", assets=False)
     assert model.files and all(data == b"" for data in model.files.values())
     assert model.spec().option.timestep == mujoco.MjModel.from_xml_path(str(INCLUDED / "robot.xml")).opt.timestep
+
+
+def test_a_flexcomp_file_is_read_by_the_reader(tmp_path: Path) -> None:
+    """MuJoCo reads a flexcomp's mesh while parsing: it gets the bytes then too."""
+    _mesh(tmp_path / "m" / "tet.obj", 0.3)
+    _write(
+        tmp_path / "f.xml",
+        '<mujoco><compiler meshdir="m"/><worldbody><flexcomp name="f" type="mesh" file="tet.obj" dim="2" '
+        'radius="0.01"><edge equality="true"/></flexcomp></worldbody></mujoco>',
+    )
+    reference = mujoco.MjModel.from_xml_path(str(tmp_path / "f.xml"))
+    model = read_mjcf(tmp_path / "f.xml")
+    assert [f.kind for f in model.read] == ["model", "flexcomp"]
+    compiled = model.spec().compile()
+    assert compiled.nflex == reference.nflex == 1
+    assert np.array_equal(compiled.flex_vert, reference.flex_vert) and compiled.nbody == reference.nbody

@@ -33,8 +33,9 @@ the project reads them all itself and hands MuJoCo only bytes:
    files (``PREFIX<k>_<name>``: unique per model, as MuJoCo caches meshes by file name), the files' bytes,
    the list of every file read (the model, its includes, its assets: the run bundle's list) and, per line of
    the document, the file and line the element came from, so MuJoCo's messages can name the real file.
-   :meth:`MjcfModel.spec` hands both to :meth:`mujoco.MjSpec.from_string` (``include`` for what MuJoCo reads
-   while parsing, ``assets`` for the compiler), so MuJoCo opens nothing by path.
+   :meth:`MjcfModel.spec` hands both to :meth:`mujoco.MjSpec.from_string` (``include``: what the parser reads,
+   the flexcomp files, and an empty stand-in for every other name it only looks up; ``assets``: what the
+   compiler reads), so MuJoCo opens nothing by path and looks nothing up on disk.
 """
 
 from __future__ import annotations
@@ -196,7 +197,12 @@ class MjcfModel:
         Raises:
             ValueError: MuJoCo refuses the model (its message names a line of :attr:`xml`: :meth:`origin`).
         """
-        return mujoco.MjSpec.from_string(self.xml, include=self.files, assets=dict(self.files))
+        # The parser reads flexcomp files and looks every other name up (on disk, relative to the working folder,
+        # where it is not in ``include``): those get an empty stand-in, the compiler reads ``assets``.
+        parsed = {name: b"" for name in self.files} | {
+            f.vfs: self.files[f.vfs] for f in self.read if f.kind == "flexcomp"
+        }
+        return mujoco.MjSpec.from_string(self.xml, include=parsed, assets=dict(self.files))
 
     def origin(self, line: int) -> tuple[Path, int] | None:
         """The file and line of the element at ``line`` of :attr:`xml`, ``None`` when there is none."""
