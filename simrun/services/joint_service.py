@@ -58,7 +58,14 @@ reset: a motor limp, a position servo pulled to 0), for code that writes those c
 they belong to the ``DriveService``.
 
 Trajectories are time-stamped waypoints (seconds from the call), followed by linear interpolation in joint
-space with the segment's slope as velocity feed-forward; the joints not named hold their targets.
+space with the segment's slope as velocity feed-forward (``profile = "cosine"``: the blend ``(1 - cos(pi u))
+/ 2`` of each segment, at rest at every waypoint, with its slope as feed-forward); the joints not named hold
+their targets. ``integral = False`` leaves the error integrals out of every loop.
+
+The built-in arms (:class:`~simrun.robots.arm.ArticulatedArm`, ``KukaLBR3``, ``LynxL6``) are served by this
+class too: :class:`~simrun.robots.arm.ArmService` is a JointService at 50 Hz with the cosine profile and no
+integral (their servos are designed critically damped, their gravity compensated), behind the arm's own
+names (``set_joint_targets``, ``move_to(joint_positions, duration)``, ``joint_states``).
 """
 
 from __future__ import annotations
@@ -81,6 +88,9 @@ if TYPE_CHECKING:  # the world imports the registry, which names this module: no
 BANDWIDTH = 8 * math.pi
 #: What the service holds: every commandable joint (``all``) or only those given targets (``commanded``).
 HOLD_MODES = ("all", "commanded")
+#: How a trajectory moves between two waypoints: a straight line at constant speed (``linear``) or
+#: ``a + (b - a) (1 - cos(pi u)) / 2`` (``cosine``: at rest at each waypoint; ``u`` the segment's time fraction).
+PROFILES = ("linear", "cosine")
 _ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
@@ -130,17 +140,38 @@ class JointService:
         bandwidth: Position-loop bandwidth ``w`` of velocity and force actuators, rad/s.
         hold: ``all``: joints without a target are held where they are (see the module); ``commanded``:
             only joints given a target are driven.
+        profile: How trajectories and ``move_to`` move between waypoints (:data:`PROFILES`): ``linear``
+            (constant speed on each segment) or ``cosine`` (at rest at every waypoint: the built-in arms').
+        integral: Whether the loops integrate the position error (a steady load's error removed; see the
+            module). ``False``: a position servo gets the target itself (``ctrl = gear q*`` for
+            ``<position>``), so its own designed step response is kept (the built-in arms, whose gravity is
+            compensated and whose servos are critically damped for their largest inertia).
 
     Raises:
-        EntityError: No such entity, a rate or bandwidth that is not a positive number, an unknown ``hold``.
+        EntityError: No such entity, a rate or bandwidth that is not a positive number, an unknown ``hold``
+            or ``profile``, an ``integral`` that is not a boolean.
     """
 
     def __init__(
-        self, world: World, entity: str, rate: float = 500.0, bandwidth: float = BANDWIDTH, hold: str = "all"
+        self,
+        world: World,
+        entity: str,
+        rate: float = 500.0,
+        bandwidth: float = BANDWIDTH,
+        hold: str = "all",
+        profile: str = "linear",
+        integral: bool = True,
     ) -> None:
         world.entity(entity)
         if hold not in HOLD_MODES:
             raise EntityError(f"JointService of {entity!r}: hold must be one of {', '.join(HOLD_MODES)}, got {hold!r}")
+        if profile not in PROFILES:
+            raise EntityError(
+                f"JointService of {entity!r}: profile must be one of {', '.join(PROFILES)}, got {profile!r}"
+            )
+        if not isinstance(integral, bool):
+            raise EntityError(f"JointService of {entity!r}: integral must be true or false, got {integral!r}")
+        self.profile, self.integral = profile, integral
         for key, value in (("rate", rate), ("bandwidth", bandwidth)):
             if (
                 isinstance(value, bool)
@@ -280,13 +311,16 @@ class JointService:
                 position = target[0] = position + velocity * h
             q, v = float(data.qpos[drive.qpos]), float(data.qvel[drive.dof])
             error = position - q
-            integral = self._integral.get(joint, 0.0) + error * h  # rad s (m s): the servos' load correction
+            integral = self._integral.get(joint, 0.0) + error * h if self.integral else 0.0  # rad s (m s)
             if (
                 drive.kind == "position"
             ):  # force = g u + b0 + b1 gear q (+ b2 speed): at rest where g u = -b0 - b1 gear q
                 bias = model.actuator_biasprm[drive.actuator]
-                shift = _servo_integral_rate(model, drive, w) * integral
-                ctrl = -(bias[0] + bias[1] * drive.gear * (position + shift)) / drive.gain
+                shift = _servo_integral_rate(model, drive, w) * integral if self.integral else 0.0
+                if bias[0] == 0 and bias[1] == -drive.gain:  # <position>: ctrl = gear q*, exactly
+                    ctrl = drive.gear * (position + shift)
+                else:
+                    ctrl = -(bias[0] + bias[1] * drive.gear * (position + shift)) / drive.gain
             elif drive.kind == "velocity":
                 servo = drive.gear * drive.gear * drive.gain  # joint torque per rad/s of speed error
                 hold = max(h, float(model.opt.timestep))  # how long a control stays
@@ -313,7 +347,7 @@ class JointService:
 
     def _keep_integral(self, joint: str, drive: _Drive, ctrl: float, push: float, integral: float) -> None:
         """Store the new error integral unless the control is clipped in the direction it pushes (no wind-up)."""
-        if not ((ctrl > drive.high and push > 0) or (ctrl < drive.low and push < 0)):
+        if self.integral and not ((ctrl > drive.high and push > 0) or (ctrl < drive.low and push < 0)):
             self._integral[joint] = integral
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -359,7 +393,7 @@ class JointService:
         for joint in joints:
             drive, (position, velocity) = self._drives[joint], goals[joint]
             error = position - float(data.qpos[drive.qpos])
-            integral = self._integral.get(joint, 0.0) + error * h
+            integral = self._integral.get(joint, 0.0) + error * h if self.integral else 0.0
             rate = 3.0 * w * w * error + 3.0 * w * (velocity - float(data.qvel[drive.dof])) + w * w * w * integral
             rates.append(rate)
             damped.append(drive.damping / (3.0 * w) * rate)
@@ -397,6 +431,12 @@ class JointService:
         k = max(i for i, t in enumerate(times) if t <= s)
         span = times[k + 1] - times[k]
         u = (s - times[k]) / span
+        if self.profile == "cosine":  # blend (1 - cos(pi u)) / 2, its slope pi sin(pi u) / (2 span)
+            blend, slope = 0.5 - 0.5 * math.cos(math.pi * u), 0.5 * math.pi * math.sin(math.pi * u) / span
+            for j, joint in enumerate(plan["joints"]):
+                a, b = rows[k][j], rows[k + 1][j]
+                self._targets[joint] = [a + (b - a) * blend, (b - a) * slope]
+            return
         for j, joint in enumerate(plan["joints"]):
             a, b = rows[k][j], rows[k + 1][j]
             self._targets[joint] = [a + (b - a) * u, (b - a) / span]
@@ -432,11 +472,15 @@ class JointService:
         return float(self.world.data.qpos[self._drives[joint].qpos])
 
     def _cancel(self, joints: list[str] | tuple[str, ...]) -> None:
-        """End a trajectory that moves any of ``joints`` (its other joints hold their current targets)."""
+        """End a trajectory that moves any of ``joints`` (its other joints hold their current targets).
+
+        Joints running at a velocity target (:meth:`set_velocities`) outside the trajectory keep running.
+        """
         if self._plan is not None and set(joints) & set(self._plan["joints"]):
+            for joint in self._plan["joints"]:
+                if joint in self._targets:
+                    self._targets[joint][1] = 0.0
             self._plan = None
-            for joint in self._targets:
-                self._targets[joint][1] = 0.0
 
     def _values(self, joints: list[str] | tuple[str, ...], values: Any, what: str) -> list[float]:
         self._lookup(self.world.model)
