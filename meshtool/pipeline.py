@@ -18,7 +18,7 @@ no worker behind; a file past ``--timeout`` has its worker killed), or a Dask cl
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -310,13 +310,20 @@ def tree_jobs(src_dir: Path, out_dir: Path) -> list[tuple[Path, Path]]:
     return jobs
 
 
-def _run(src: Path, out: Path, options: ConvertOptions, force: bool = False) -> ConvertResult:
-    if is_unchanged(src, out, options):
+def _run(src: Path, out: Path, options: ConvertOptions, force: bool = False, base: Path | None = None) -> ConvertResult:
+    """Convert ``src`` to ``out``, reporting both paths as given.
+
+    Relative paths are read and written beneath ``base`` when given (a Dask worker's working folder is not the
+    command's), so results are the same bytes on every executor.
+    """
+    read_src, write_out = (base / src, base / out) if base is not None else (src, out)
+    if is_unchanged(read_src, write_out, options):
         return ConvertResult(src, out, "unchanged")
     try:
-        return convert(src, out, options, force=force)
+        result = convert(read_src, write_out, options, force=force)
     except MeshtoolError as exc:
         return ConvertResult(src, out, "failed", error=f"{src}: {exc.one_line()}")
+    return replace(result, source=src, output=out)
 
 
 @dataclass(frozen=True, slots=True)
@@ -326,6 +333,7 @@ class _ConvertWork:
     options: ConvertOptions
     force: bool
     total: int
+    base: Path | None = None  # the command's working folder: relative task paths are beneath it
 
     def prepare(self) -> None:
         """Nothing to import ahead: the converter is this module."""
@@ -333,7 +341,7 @@ class _ConvertWork:
     def __call__(self, task: tuple[int, Path, Path], /) -> ConvertResult:
         k, src, out = task
         with progress_subject(f"[{k}/{self.total}] {printable(src.name)}"):
-            return _run(src, out, self.options, self.force)
+            return _run(src, out, self.options, self.force, self.base)
 
     def lost(self, task: tuple[int, Path, Path], why: str, /) -> ConvertResult:
         _, src, out = task
@@ -376,7 +384,7 @@ def convert_tree(
     pending = {k - 1: src for k, src, _ in tasks}
     if not executor.in_process:
         report_progress(_waiting(pending, executor.jobs), 0, len(work))
-    for index, result, _where in run_batch(tasks, _ConvertWork(options, force, len(work)), executor):
+    for index, result, _where in run_batch(tasks, _ConvertWork(options, force, len(work), Path.cwd()), executor):
         del pending[index]
         if not executor.in_process:
             report_progress(_waiting(pending, executor.jobs), len(work) - len(pending), len(work))

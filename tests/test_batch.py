@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 import time
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -59,6 +60,37 @@ def test_obj2bin_dir_writes_the_same_bytes_here_on_two_workers_and_on_dask(asset
     assert counts["-j1"] == counts["-j2"] == counts["dask"]
     assert counts["-j1"]["written"] == len(packs["-j1"]) >= 4
     assert packs["-j1"] == packs["-j2"] == packs["dask"]
+
+
+def test_obj2bin_relative_dir_on_a_dask_cluster_started_in_another_folder(assets, tmp_path, monkeypatch):
+    """A Dask worker's working folder is not the command's: relative DIR and -o still mean the command's."""
+    distributed = pytest.importorskip("distributed")
+    elsewhere = tmp_path / "cluster-cwd"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # the workers start here
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        work = tmp_path / "work"
+        shutil.copytree(assets / "stl", work / "in" / "stl")
+        monkeypatch.chdir(work)
+        here = run(obj2bin, "in", "-o", "out-here", "--no-cache", "--json", "-j", "1")
+        remote = run(
+            obj2bin,
+            "in",
+            "-o",
+            "out-dask",
+            "--no-cache",
+            "--json",
+            "--executor",
+            "dask",
+            "--scheduler",
+            cluster.scheduler_address,
+        )
+    assert here.exit_code == 0 and remote.exit_code == 0, remote.output
+    assert _packs(work / "out-dask") == _packs(work / "out-here") and _packs(work / "out-here")
+    shown = json.loads(remote.stdout)["assets"]
+    assert [a["source"] for a in shown] == [a["source"] for a in json.loads(here.stdout)["assets"]]
+    assert all(not Path(a["source"]).is_absolute() for a in shown)
+    assert not list(elsewhere.rglob("*.mbin"))  # nothing written where the workers run
 
 
 def test_scheduler_needs_the_dask_executor_and_an_unreachable_one_is_one_line(assets, tmp_path):

@@ -183,6 +183,8 @@ def serve(
         app,
         log_level="warning",
         access_log=False,
+        http="h11",  # not httptools, whatever is installed (nicegui brings uvicorn[standard]): the limits in
+        loop="asyncio",  # docs/limits.md are h11's and asyncio's, measured with these
         ws="websockets",
         ws_per_message_deflate=False,
         timeout_graceful_shutdown=3,
