@@ -14,9 +14,12 @@ from simrun.services.joint_service import JointService
 
 #: Two hinges on ``<position>`` servos (one geared 2), and a velocity servo, without gravity.
 SERVOS = """<mujoco><worldbody>
-  <body name="a" pos="0 0 1"><joint name="one" axis="0 1 0"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/></body>
-  <body name="b" pos="1 0 1"><joint name="two" axis="0 1 0"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/></body>
-  <body name="c" pos="2 0 1"><joint name="spin" axis="0 0 1"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/></body>
+  <body name="a" pos="0 0 1"><joint name="one" axis="0 1 0"/>
+    <geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/></body>
+  <body name="b" pos="1 0 1"><joint name="two" axis="0 1 0"/>
+    <geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/></body>
+  <body name="c" pos="2 0 1"><joint name="spin" axis="0 0 1"/>
+    <geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/></body>
 </worldbody>
 <actuator>
   <position name="one" joint="one" kp="50" kv="3"/>

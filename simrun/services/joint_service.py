@@ -42,6 +42,17 @@ the actuator (read from the compiled model, never from names):
   (poles ``w (-1 +- 1.29 i) / 4`` in that limit). The integral removes what the feed-forward misses
   (friction loss, contacts) and stops growing while the control is clipped in the error's direction (no
   wind-up). The actuator's own bias is subtracted: ``ctrl = (tau / gear - b0 - b1 gear q - b2 gear v) / gain``.
+  **Contacts** (issue 37): a joint whose limb touches something carries more than ``S``: a ball rolling on
+  the ground carries the body along (31 times its own inertia on dm_control's jumping ball), and the loop,
+  stable only while the inertia stays below 9 times its design, rang ever wider. Each tick the contacts of
+  the current pose that touch the entity are taken as held (MuJoCo's soft constraint rows) and the inertia
+  they add is added to ``S`` (capped at ``1 / (3 w h) - 1`` times ``S``, 5.6 at the defaults, so the loop
+  still samples stably when the contact lets go; beyond the cap the integral is slowed by ``4.5 / k``, ``k``
+  what is left; :meth:`JointService._with_contacts`). **Filtered actuators** (``dyntype filter`` or
+  ``filterexact``, dm_control's dog: 50 ms): the force follows the activation, not the control, and a 4 Hz
+  loop around a 50 ms lag is unstable (``tau w < 8 / 9`` is needed); the control is the one that brings the
+  activation to the wanted value in one control period (``(u - d act) / (1 - d)``, ``d`` the part of the
+  activation a held control leaves, from the filter's integration), clipped to the control range.
 
 Muscles, user-defined gains or biases, integrator dynamics without a position bias and actuators on
 tendons, sites or bodies are not commanded (:meth:`JointService.joints` leaves their joints out).
@@ -92,6 +103,12 @@ HOLD_MODES = ("all", "commanded")
 #: ``a + (b - a) (1 - cos(pi u)) / 2`` (``cosine``: at rest at each waypoint; ``u`` the segment's time fraction).
 PROFILES = ("linear", "cosine")
 _ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+#: MuJoCo's contact constraint types (a constraint row of one of them is a contact's).
+_CONTACTS = (
+    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS),
+    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
+    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC),
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,6 +145,8 @@ class _Drive:
     damping: float
     low: float
     high: float
+    lag: float = 0.0  # time constant of a filtered force actuator's activation, s (0: the control is the force)
+    exact: bool = False  # the filter is integrated exactly (``filterexact``), else by the integrator's Euler step
 
 
 class JointService:
@@ -194,6 +213,7 @@ class JointService:
         self._mass = np.zeros((0, 0))  # MuJoCo's mass matrix at the model's initial pose (nv x nv)
         self._inertia: dict[tuple[str, ...], np.ndarray[Any, np.dtype[np.float64]]] = {}  # force joints -> S
         self._wheels: set[str] = set()  # the entity's wheel joints (the DriveService's), never held
+        self._tree = np.zeros(0, dtype=np.intp)  # the dofs of the entity's bodies (its root's included)
         world.controllers.append(self)
 
     # -- commands ------------------------------------------------------------------------------------------
@@ -340,7 +360,13 @@ class JointService:
                 tau, error, integral = wanted[joint]
                 bias = model.actuator_biasprm[drive.actuator]  # force = gain ctrl + b0 + b1 length + b2 speed
                 offset = float(bias[0] + bias[1] * drive.gear * q + bias[2] * drive.gear * v)
-                ctrl = (tau / drive.gear - offset) / drive.gain
+                ctrl = (tau / drive.gear - offset) / drive.gain  # the activation that gives the torque
+                if drive.lag > 0:  # a filtered actuator: the control that brings the activation there in one hold
+                    self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
+                    act = float(data.act[model.actuator_actadr[drive.actuator]])
+                    decay = _filter_decay(model, drive, h)
+                    data.ctrl[drive.actuator] = min(drive.high, max(drive.low, (ctrl - decay * act) / (1.0 - decay)))
+                    continue
             if drive.kind != "velocity":
                 self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
             data.ctrl[drive.actuator] = min(drive.high, max(drive.low, ctrl))
@@ -389,18 +415,83 @@ class JointService:
         w, h = self.bandwidth, self.period
         dofs = [self._drives[j].dof for j in joints]
         feed = self._feed_forward(model, data)[dofs]
+        inertia, slower = self._with_contacts(model, dofs, self._joint_inertia(tuple(joints), dofs))
         rates, damped, errors, integrals = [], [], [], []
         for joint in joints:
             drive, (position, velocity) = self._drives[joint], goals[joint]
             error = position - float(data.qpos[drive.qpos])
             integral = self._integral.get(joint, 0.0) + error * h if self.integral else 0.0
-            rate = 3.0 * w * w * error + 3.0 * w * (velocity - float(data.qvel[drive.dof])) + w * w * w * integral
+            rate = (
+                3.0 * w * w * error
+                + 3.0 * w * (velocity - float(data.qvel[drive.dof]))
+                + slower * (w * w * w * integral)
+            )
             rates.append(rate)
             damped.append(drive.damping / (3.0 * w) * rate)
             errors.append(error)
             integrals.append(integral)
-        torque = self._joint_inertia(tuple(joints), dofs) @ np.asarray(rates) + np.asarray(damped) + feed
+        torque = inertia @ np.asarray(rates) + np.asarray(damped) + feed
         return {j: (float(torque[k]), errors[k], integrals[k]) for k, j in enumerate(joints)}
+
+    def _with_contacts(
+        self, model: mujoco.MjModel, dofs: list[int], free: np.ndarray[Any, np.dtype[np.float64]]
+    ) -> tuple[np.ndarray[Any, np.dtype[np.float64]], float]:
+        """``free`` (the force joints' inertia ``F``, every other dof free) plus what the entity's contacts add now.
+
+        The contacts of the current pose (MuJoCo's collision and constraint rows, computed in the scratch data
+        :meth:`_feed_forward` has just posed) that move any of the entity's dofs are taken as held, as MuJoCo's
+        soft constraints hold them (regulariser ``efc_R``). With ``X = J M^-1`` (their Jacobian ``J``, the mass
+        matrix ``M`` now), ``C`` its columns of the joints' dofs and ``G = J X' + R`` (the contacts' inverse
+        inertia), the joints' inverse inertia becomes ``F^-1 - C' G^-1 C``, whose inverse is ``F + D``,
+        ``D = F C' H^-1 C F``, ``H = G - C F C'`` (Woodbury; ``H``: the contacts' inverse inertia with the joints
+        locked). A ball rolling on the ground moves the whole body with it: its roll joint sees 31 times its own
+        inertia, and a loop designed for its own rang ever wider (``(s + w)^3`` stays stable up to 9 times the
+        design). ``D`` is added scaled down to at most ``1 / (3 w h) - 1`` times ``F`` (its largest eigenvalue
+        relative to ``F``, that of ``H^-1 C F C'``; ``h`` the control hold): a loop that much stiffer than the
+        free limb still samples stably when the contact lets go. What the cap leaves out, ``k`` times the
+        design's inertia, slows the integral by ``min(1, 4.5 / k)`` (the second value returned), so the loop
+        keeps half the Routh margin (``(s + w)^3``'s gains are stable while ``k < 9``). No contact on the
+        entity: ``(free, 1.0)``.
+        """
+        hold = max(self.period, float(model.opt.timestep))
+        room = 1.0 / (3.0 * self.bandwidth * hold) - 1.0
+        scratch = self._scratch
+        if room <= 0 or scratch is None or not self._tree.size:
+            return free, 1.0
+        work = scratch.data
+        mujoco.mj_collision(model, work)
+        if not work.ncon:
+            return free, 1.0
+        mujoco.mj_makeConstraint(model, work)
+        rows = int(work.nefc)
+        nv = model.nv
+        jac = np.zeros((rows, nv))
+        if mujoco.mj_isSparse(model):
+            mujoco.mju_sparse2dense(jac, work.efc_J, work.efc_J_rownnz, work.efc_J_rowadr, work.efc_J_colind)
+        else:
+            jac[:] = work.efc_J[: rows * nv].reshape(rows, nv)
+        touching = np.isin(work.efc_type[:rows], _CONTACTS) & (jac[:, self._tree] != 0).any(axis=1)
+        if not touching.any():
+            return free, 1.0
+        jac = np.ascontiguousarray(jac[touching])
+        mujoco.mj_crb(model, work)
+        mujoco.mj_factorM(model, work)
+        solved = np.empty_like(jac)
+        mujoco.mj_solveM(model, work, solved, jac)  # rows: M^-1 j
+        coupling = solved[:, dofs] @ free  # C F
+        through = coupling @ solved[:, dofs].T  # C F C'
+        locked = jac @ solved.T + np.diag(work.efc_R[:rows][touching]) - through  # H
+        try:
+            lower = np.linalg.cholesky(0.5 * (locked + locked.T))
+        except np.linalg.LinAlgError:
+            return free, 1.0
+        scaled = np.linalg.solve(lower, coupling)  # L^-1 C F: D = scaled' scaled
+        largest = float(np.linalg.eigvalsh(np.linalg.solve(lower, np.linalg.solve(lower, through).T)).max())
+        if not largest > 0:
+            return free, 1.0
+        result: np.ndarray[Any, np.dtype[np.float64]] = free + (scaled.T @ scaled) * min(1.0, room / largest)
+        left = (1.0 + largest) / (1.0 + min(largest, room))  # k: the inertia beyond the design, in its direction
+        return result, min(1.0, 4.5 / left)
 
     def _joint_inertia(self, joints: tuple[str, ...], dofs: list[int]) -> np.ndarray[Any, np.dtype[np.float64]]:
         """The inertia matrix the force joints ``joints`` (dofs ``dofs``) see with every other dof free."""
@@ -541,12 +632,17 @@ class JointService:
                 float(full[dof, dof]),
                 float(model.dof_damping[dof]),
                 *_ctrl_range(model, a),
+                *_lag(model, a, kind),
             )
         self._joints, self._drives, self._bound = joints, drives, model
         self._mass, self._inertia = full, {}
         self._targets = {k: v for k, v in self._targets.items() if k in drives}
         self._held = {}  # a new model starts at its initial state: held again from there at the next tick
         self._wheels = self._wheel_joints()
+        mine = [
+            b for b in range(model.nbody) if model.body(b).name in (self.name,) or model.body(b).name.startswith(prefix)
+        ]
+        self._tree = np.flatnonzero(np.isin(model.dof_bodyid, mine)).astype(np.intp)
 
     def _wheel_joints(self) -> set[str]:
         """The entity's driven wheel joints, without the prefix: the ``DriveService``'s, never held.
@@ -609,6 +705,30 @@ def _servo_integral_rate(model: mujoco.MjModel, drive: _Drive, w: float) -> floa
     if damping <= 0 or drive.mass <= 0:
         return 0.0
     return min(w / 3.0, 0.5 * damping / drive.mass)
+
+
+def _lag(model: mujoco.MjModel, a: int, kind: str) -> tuple[float, bool]:
+    """A force actuator's filter time constant (s, 0 without a filter) and whether it is ``filterexact``."""
+    dyntype = int(model.actuator_dyntype[a])
+    filters = (int(mujoco.mjtDyn.mjDYN_FILTER), int(mujoco.mjtDyn.mjDYN_FILTEREXACT))
+    if kind != "force" or dyntype not in filters or model.actuator_actadr[a] < 0:
+        return 0.0, False
+    lag = float(model.actuator_dynprm[a, 0])
+    return (lag, dyntype == filters[1]) if lag > 0 else (0.0, False)
+
+
+def _filter_decay(model: mujoco.MjModel, drive: _Drive, hold: float) -> float:
+    """How much of a filtered actuator's activation is left after a control held ``hold`` s (0 to 1).
+
+    MuJoCo's ``filter`` is ``act' = (ctrl - act) / lag``: one Euler step of ``dt`` keeps ``1 - dt / lag``
+    (``filterexact``, or the RK4 integrator: ``exp(-dt / lag)``); a control is held for
+    ``max(1, round(hold / dt))`` steps.
+    """
+    dt = float(model.opt.timestep)
+    steps = max(1, round(hold / dt))
+    if drive.exact or int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
+        return math.exp(-steps * dt / drive.lag)
+    return max(0.0, 1.0 - dt / drive.lag) ** steps
 
 
 def _ctrl_range(model: mujoco.MjModel, a: int) -> tuple[float, float]:
