@@ -331,6 +331,7 @@ class _Probe:
         try:
             if "body" in p:
                 self.body = world.body(p["body"])
+                self.body_id = int(self.body.id)
             self.point = np.array(self.body.xpos) if p.get("point") == "start" else np.array(p.get("point", ()))
             if e.kind == "joint":
                 self.joint = world.joint(p["joint"])
@@ -349,6 +350,47 @@ class _Probe:
         except (EntityError, KeyError) as exc:
             reason = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
             raise SceneError(str(reason), e.file, "expect", e.line, e.id) from None
+        checks: dict[str, Callable[[mujoco.MjData], tuple[bool, float]]] = {
+            "position": self._check_position,
+            "no_contact": self._check_no_contact,
+            "finite": self._check_finite,
+            "no_warnings": self._check_no_warnings,
+        }
+        #: ``check(data) -> (ok, miss)``: what :meth:`measure` gives, without its text, read from MuJoCo's arrays.
+        self.check = checks.get(e.kind, self._check_measured)
+
+    def _check_measured(self, data: mujoco.MjData) -> tuple[bool, float]:
+        ok, _, miss = self.measure()
+        return ok, miss
+
+    def _check_position(self, data: mujoco.MjData) -> tuple[bool, float]:
+        """The distance as :meth:`measure` computes it (``numpy.linalg.norm`` of a vector is ``sqrt(x . x)``)."""
+        offset = data.xpos[self.body_id, : len(self.point)] - self.point
+        distance = math.sqrt(float(offset.dot(offset)))
+        within: float = self.e.params["within"]
+        return distance <= within, distance - within
+
+    def _check_no_contact(self, data: mujoco.MjData) -> tuple[bool, float]:
+        """No contact of the pair: geom-pair masks over the contact arrays (a contact found: :meth:`measure`)."""
+        if data.ncon:
+            contacts = data.contact
+            g1, g2 = contacts.geom1, contacts.geom2
+            a, b = self.groups
+            if ((a[g1] & b[g2]) | (a[g2] & b[g1])).any():
+                return self._check_measured(data)
+        return True, 0.0
+
+    def _check_finite(self, data: mujoco.MjData) -> tuple[bool, float]:
+        """Finite: a sum is finite when every term is (a non-finite sum, even an overflow: :meth:`measure`)."""
+        if math.isfinite(float(data.qpos.sum()) + float(data.qvel.sum()) + float(data.qacc.sum())):
+            return True, 0.0
+        return self._check_measured(data)
+
+    def _check_no_warnings(self, data: mujoco.MjData) -> tuple[bool, float]:
+        """No warning: MuJoCo's counters (``data.warning.number``) are all zero (else :meth:`measure`)."""
+        if data.warning.number.any():
+            return self._check_measured(data)
+        return True, 0.0
 
     def measure(self) -> tuple[bool, str, float]:
         e, p, data = self.e, self.e.params, self.world.data
@@ -494,35 +536,63 @@ class Observer:
         self.realtime = [e for e in expectations if e.kind == "realtime"]
         self.dt = float(world.model.opt.timestep)
         self.state = [_State() for _ in self.probes]
+        self._live: list[int] = []
+        self._wake = -math.inf
+        self._schedule()
 
     def observe(self) -> None:
-        """Look at the world now (simulated time ``world.time``)."""
+        """Look at the world now (simulated time ``world.time``).
+
+        Each live expectation is checked from MuJoCo's arrays (:attr:`_Probe.check`); its text is made only when
+        the observation is the one it keeps (the first failure, the closest call, the best attempt).
+        """
         now, half = self.world.time, 0.5 * self.dt
-        for probe, state in zip(self.probes, self.state, strict=True):
+        if now < self._wake:
+            return
+        data = self.world.data
+        closed = False
+        for k in self._live:
+            probe, state = self.probes[k], self.state[k]
             e = probe.e
-            if state.decided or e.mode == "end" or now < e.start - half:
+            if now < e.start - half:
                 continue
             if e.stop is not None and now > e.stop + half:
                 self._close(probe, state)
+                closed = True
                 continue
-            ok, text, miss = probe.measure()
+            ok, miss = probe.check(data)
             state.count += 1
-            state.first = now if state.first is None else state.first
+            if state.first is None:
+                state.first = now
             state.last = now
             if e.mode == "at":
-                state.keep(ok, text, now, miss)
-                state.decided = True
+                self._keep(probe, state, now)
+                state.decided = closed = True
             elif e.mode == "always":
                 if not ok:
-                    state.keep(False, text, now, miss)
-                    state.decided = True
+                    self._keep(probe, state, now)
+                    state.decided = closed = True
                 elif state.time is None or miss > state.miss:  # keep the closest call
-                    state.keep(True, text, now, miss)
+                    self._keep(probe, state, now)
             elif ok:  # sometime
-                state.keep(True, text, now, miss)
-                state.decided = True
+                self._keep(probe, state, now)
+                state.decided = closed = True
             elif state.time is None or miss < state.miss:  # keep the best attempt
-                state.keep(False, text, now, miss)
+                self._keep(probe, state, now)
+        if closed:
+            self._schedule()
+
+    def _schedule(self) -> None:
+        """The expectations still observed (not decided, not due only at the end) and when the first one opens."""
+        self._live = [k for k, (p, s) in enumerate(zip(self.probes, self.state, strict=True)) if not s.decided]
+        self._live = [k for k in self._live if self.probes[k].e.mode != "end"]
+        starts = [self.probes[k].e.start for k in self._live]
+        self._wake = min(starts) - 0.5 * self.dt if starts else math.inf
+
+    @staticmethod
+    def _keep(probe: _Probe, state: _State, now: float) -> None:
+        ok, text, miss = probe.measure()
+        state.keep(ok, text, now, miss)
 
     def _close(self, probe: _Probe, state: _State) -> None:
         state.decided = True

@@ -556,8 +556,11 @@ class World:
         return scene_warnings(self)
 
     def warnings(self) -> dict[str, int]:
-        """MuJoCo warnings raised so far, by name."""
-        return {mujoco.mjtWarning(k).name: int(w.number) for k, w in enumerate(self.data.warning) if w.number}
+        """MuJoCo warnings raised so far, by name (read from the counters ``data.warning.number``, one array)."""
+        counts = self.data.warning.number
+        if not counts.any():
+            return {}
+        return {mujoco.mjtWarning(k).name: int(n) for k, n in enumerate(counts.tolist()) if n}
 
     # -- named access --------------------------------------------------------------------------------------
 
