@@ -10,6 +10,15 @@ the run goes, so memory stays bounded; the reader streams them back. They go to 
 the target, renamed over it when the run ends (also when it ends with an error: the records up to then);
 a recording that cannot be written whole (a full disk) leaves no ``.simlog`` and no temporary file.
 
+Version 1.2 (``Recorder(live=True)``, the recordings of ``simrun serve``) is written so that it cannot be
+lost: the file is made under a unique temporary name (``O_EXCL``) with its header, renamed over the target
+at once, and then grows in chunks: kind 4, u32 length, u32 CRC-32 of the records that follow, the records
+(kinds 1-3, and kind 5: a command applied, f64 time and the JSON ``[t, service, entity, call, args]``, so
+the header never grows with the commands). A chunk goes to the operating system at every checkpoint, every
+:data:`CHUNK_BYTES` and every :data:`CHUNK_WALL` wall seconds; finishing writes the last chunk and an end
+record (kind 6, length 0), with no second copy of the file. A recording cut short (SIGKILL, a full disk, a
+power cut) reads up to its last whole chunk; :attr:`Simlog.truncated` says what was cut.
+
 A recording is data: the reader checks every header key's presence, type and range, every record's
 length, time and finiteness, and never runs code it names. Paths in the header (scene, controller) are
 relative to the recording's folder, so a recording moves with its scene.
@@ -17,12 +26,16 @@ relative to the recording's folder, so a recording moves with its scene.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
 import os
 import platform
 import struct
+import tempfile
+import time as wallclock
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +56,13 @@ from simrun.world.world import MAX_TIMESTEP, MIN_TIMESTEP, World
 
 MAGIC = output_named("simlog").magic[0]  # the formats registry's row
 MAJOR, MINOR = 1, 1
-FRAME, CHECKPOINT, SENSORS = 1, 2, 3
+#: The minor version of chunked recordings (``Recorder(live=True)``).
+CHUNKED_MINOR = 2
+FRAME, CHECKPOINT, SENSORS, CHUNK, COMMAND, END = 1, 2, 3, 4, 5, 6
+#: Bytes of records gathered before a chunk is written (live recordings).
+CHUNK_BYTES = 1 << 20
+#: Longest wall time records wait before their chunk is written, seconds (live recordings).
+CHUNK_WALL = 0.5
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 #: Largest header accepted, bytes.
 MAX_HEADER_BYTES = 16 * 1024 * 1024
@@ -101,6 +120,10 @@ class Recorder:
         sensors: Names of ``world.sensors`` whose latest readings are recorded with every frame.
         controller: The Python controller module the run used: its path (relative to the recording) and
             SHA-256 are recorded; ``resim`` runs it only when given on the command line with that SHA-256.
+        live: Write a chunked version-1.2 recording in place (see the module): it exists from the start,
+            survives a kill up to its last chunk, takes commands as they happen (:meth:`command`), and a
+            failed write (a full disk) ends it, keeping what was written (:attr:`failed`), without stopping
+            the simulation. ``False``: version 1.1 through a temporary file renamed at :meth:`close`.
     """
 
     def __init__(
@@ -114,6 +137,7 @@ class Recorder:
         seed: int = 0,
         sensors: tuple[str, ...] = (),
         controller: Path | None = None,
+        live: bool = False,
     ) -> None:
         model = world.model
         self.world, self.period, self.checkpoint_every = world, period, checkpoint
@@ -149,21 +173,77 @@ class Recorder:
         }
         raw = json.dumps(header, sort_keys=True).encode("utf-8")
         self.path = path
-        try:  # streamed to a temporary file beside the target, renamed over it by close(): never a torn .simlog
-            self._file = AtomicFile(path)
-        except OutputError as exc:
-            raise SimrunError(f"{path}: {exc.message}") from None
-        self._write(MAGIC + struct.pack("<HHI", MAJOR, MINOR, len(raw)) + raw)
         self.frames = 0
+        self.live = live
+        #: Why a live recording ended early (a full disk), or ``None``.
+        self.failed: str | None = None
+        self._buffer = bytearray()
+        self._last_flush = wallclock.monotonic()
+        self._last_time = float(world.time)
+        self._fd: int | None = None
+        head = MAGIC + struct.pack("<HHI", MAJOR, CHUNKED_MINOR if live else MINOR, len(raw)) + raw
+        if live:
+            self._fd = _create_in_place(path, head)
+            self._good = len(head)  # bytes on disk that end with a whole chunk
+        else:
+            try:  # streamed to a temporary file beside the target, renamed over it by close(): never a torn .simlog
+                self._file = AtomicFile(path)
+            except OutputError as exc:
+                raise SimrunError(f"{path}: {exc.message}") from None
+            self._write(head)
         world.controllers.append(self)
 
     def _write(self, data: bytes) -> None:
-        """Append to the temporary file; a failed write (a full disk) drops the recording and says so."""
+        """Append a record (live: to the chunk being gathered).
+
+        A failed write (a full disk) drops a version-1.1 recording and says so.
+        """
+        if self.live:
+            if self._fd is not None:
+                self._buffer += data
+            return
         try:
             self._file.write(data)
         except OutputError as exc:
             self.abort()
             raise SimrunError(f"{self.path}: {exc.message}; nothing recorded") from None
+
+    def flush(self) -> None:
+        """Write the records gathered so far as one chunk (live recordings; a failed write ends the recording)."""
+        self._last_flush = wallclock.monotonic()
+        if self._fd is None or not self._buffer:
+            return
+        payload = bytes(self._buffer)
+        self._buffer.clear()
+        chunk = struct.pack("<BII", CHUNK, len(payload) + 4, zlib.crc32(payload)) + payload
+        try:
+            view = memoryview(chunk)
+            while view:
+                view = view[os.write(self._fd, view) :]
+        except OSError as exc:
+            self._end(f"{self.path}: cannot write: {exc.strerror or exc}; the recording ends at t = "
+                      f"{self._last_time:g} s ({self.frames} frames before the failed chunk are kept)")  # fmt: skip
+            return
+        self._good += len(chunk)
+
+    def _end(self, failure: str) -> None:
+        """A live recording's write failed: cut the torn chunk, close the file, remember why."""
+        fd, self._fd = self._fd, None
+        self.failed = failure
+        self._buffer.clear()
+        if fd is not None:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, self._good)
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+    def command(self, command: Command) -> None:
+        """Record a command applied at ``command.t`` (live recordings: it goes into the next chunk)."""
+        if not self.live:
+            raise SimrunError("commands are recorded as they happen only in live recordings")
+        entry = json.dumps([command.t, command.service, command.entity, command.call, list(command.args)])
+        body = struct.pack("<d", float(command.t)) + entry.encode("utf-8")
+        self._write(struct.pack("<BI", COMMAND, len(body)) + body)
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Write a frame, or a checkpoint when one is due."""
@@ -182,6 +262,14 @@ class Recorder:
             readings = {n: _plain(self.world.sensors[n].reading) for n in self.sensors}
             extra = struct.pack("<d", float(data.time)) + json.dumps(readings).encode("utf-8")
             self._write(struct.pack("<BI", SENSORS, len(extra)) + extra)
+        if self.live:
+            self._last_time = float(data.time)
+            if (
+                kind == CHECKPOINT
+                or len(self._buffer) >= CHUNK_BYTES
+                or wallclock.monotonic() - self._last_flush >= CHUNK_WALL
+            ):
+                self.flush()
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Recording continues across resets."""
@@ -208,6 +296,9 @@ class Recorder:
         """
         if self in self.world.controllers:
             self.world.controllers.remove(self)
+        if self.live:
+            self._close_live()
+            return
         if not keep:
             self.abort()
             return
@@ -216,11 +307,62 @@ class Recorder:
         except OutputError as exc:
             raise SimrunError(f"{self.path}: {exc.message}; nothing recorded") from None
 
+    def _close_live(self) -> None:
+        """Write the last chunk and the end record, flush to disk; raise the failure that ended it early."""
+        self.flush()
+        if self._fd is not None:
+            fd = self._fd
+            try:
+                os.write(fd, struct.pack("<BI", END, 0))
+                os.fsync(fd)
+            except OSError as exc:
+                self._end(f"{self.path}: cannot write: {exc.strerror or exc}; the recording ends at t = "
+                          f"{self._last_time:g} s, unfinished ({self.frames} frames kept)")  # fmt: skip
+            else:
+                self._fd = None
+                os.close(fd)
+        if self.failed is not None:
+            raise SimrunError(self.failed)
+
     def abort(self) -> None:
-        """Drop the recording: the temporary file is removed (the target is left as it was)."""
+        """Drop the recording: the temporary file is removed (the target is left as it was).
+
+        A live recording is already in place: it is finished as it is (:meth:`close`), never removed.
+        """
+        if self.live:
+            with contextlib.suppress(SimrunError):
+                self._close_live()
+            return
         self._file.abort()
         if self in self.world.controllers:
             self.world.controllers.remove(self)
+
+
+def _create_in_place(path: Path, head: bytes) -> int:
+    """A new file holding ``head``, renamed over ``path``; its descriptor, open for appending.
+
+    It is made under a unique temporary name beside ``path`` (``O_EXCL``: never another file's name).
+
+    Raises:
+        SimrunError: The folder cannot be written.
+    """
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    except (OSError, ValueError) as exc:
+        raise SimrunError(f"{path}: cannot write: {getattr(exc, 'strerror', None) or exc}") from None
+    try:
+        view = memoryview(head)
+        while view:
+            view = view[os.write(fd, view) :]
+        os.fchmod(fd, 0o644)
+        os.replace(tmp, path)
+    except OSError as exc:
+        os.close(fd)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise SimrunError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    return fd
 
 
 def _relative(target: Path, recording: Path) -> str:
@@ -296,10 +438,15 @@ class Simlog:
         self.header: dict[str, Any] = header
         self.minor = minor
         self._start = 16 + length
+        #: What was cut from a chunked recording (killed, a full disk), as one line; ``None``: it is whole.
+        self.truncated: str | None = None
+        self._end = self._size
         self._check_header()
         self.state_size = int(header["state_size"])
         self.timestep = float(header["timestep"])
         self.frame_period = float(header["frame_period"])
+        if minor >= CHUNKED_MINOR:
+            self._scan()
 
     def _bad(self, key: str, message: str) -> SimlogError:
         return SimlogError(f"{self.path}: header: {key}: {message}")
@@ -347,6 +494,106 @@ class Simlog:
         if times != sorted(times):
             raise self._bad("commands", "not in time order")
 
+    def _chunks(self) -> Iterator[tuple[int, bytes]]:
+        """(file offset, records) of every whole chunk of a chunked recording, in order.
+
+        A chunk cut short, or failing its CRC-32, at the end of the file ends the recording there (noted
+        in :attr:`truncated` by :meth:`_scan`); anything else malformed is an error.
+        """
+        self._file.seek(self._start)
+        offset = self._start
+        while offset < self._end:
+            head = self._file.read(5)
+            if len(head) < 5:
+                return
+            kind, length = struct.unpack("<BI", head)
+            if kind == END and length == 0:
+                return
+            if kind != CHUNK or length < 4:
+                raise SimlogError(f"{self.path}: byte {offset}: corrupt chunk (kind {kind}, {length} bytes)")
+            if length > self._size - offset - 5:
+                return
+            body = self._file.read(length)
+            if len(body) != length:
+                return
+            if zlib.crc32(body[4:]) != struct.unpack("<I", body[:4])[0]:
+                if offset + 5 + length == self._size:
+                    return
+                raise SimlogError(f"{self.path}: byte {offset}: chunk fails its CRC-32 check")
+            yield offset + 9, body[4:]
+            offset += 5 + length
+
+    def _scan(self) -> None:
+        """Read a chunked recording's structure: where its whole chunks end, what was cut, its commands."""
+        good = self._start
+        for offset, body in self._chunks():
+            good = offset + len(body)
+            at = 0
+            while at + 5 <= len(body):
+                kind, length = struct.unpack("<BI", body[at : at + 5])
+                if kind == COMMAND:
+                    self._command(body[at + 5 : at + 5 + length], offset + at)
+                at += 5 + length
+            if at != len(body):
+                raise SimlogError(f"{self.path}: byte {offset + at}: a record runs past the end of its chunk")
+        self._file.seek(good)
+        tail = self._file.read(5)
+        ended = len(tail) == 5 and struct.unpack("<BI", tail) == (END, 0)
+        self._end = good
+        if not ended:
+            kept = good - self._start
+            cut = self._size - good
+            self.truncated = (
+                f"{self.path}: the recording was not finished (killed or out of disk space): read up to its "
+                f"last whole chunk (byte {good}, {kept} bytes of records"
+                + (f"; {cut} bytes after it are cut off)" if cut else ")")
+            )
+        times = [c.t for c in self._commands]
+        if times != sorted(times):
+            raise self._bad("commands", "recorded commands are not in time order")
+
+    def _command(self, body: bytes, offset: int) -> None:
+        """Check and keep one command record (a chunked recording's commands, in the order applied)."""
+        k = len(self._commands)
+        entry = self._json(body[8:], offset, "command record") if len(body) >= 8 else None
+
+        def fail(message: str, key: str | None = None) -> SimlogError:
+            return SimlogError(f"{self.path}: byte {offset}: command {k}" + (f".{key}" if key else "") + f": {message}")
+
+        if not isinstance(entry, list) or len(entry) != 5:
+            raise fail("expected [t, service, entity, call, args]")
+        table = dict(zip(("t", "service", "entity", "call", "args"), entry, strict=True))
+        self._commands.append(parse_command(table, fail, f"{self.path}: byte {offset}: command {k}"))
+
+    def _stream(self) -> Iterator[tuple[int, int, bytes]]:
+        """(offset, kind, body) of every record in order: top level (1.1), or inside whole chunks (1.2)."""
+        if self.minor >= CHUNKED_MINOR:
+            for start, body in self._chunks():
+                at = 0
+                while at + 5 <= len(body):
+                    kind, length = struct.unpack("<BI", body[at : at + 5])
+                    if at + 5 + length > len(body):
+                        raise SimlogError(f"{self.path}: byte {start + at}: a record runs past the end of its chunk")
+                    yield start + at, kind, body[at + 5 : at + 5 + length]
+                    at += 5 + length
+            return
+        self._file.seek(self._start)
+        offset = self._start
+        while True:
+            head = self._file.read(5)
+            if not head:
+                return
+            if len(head) < 5:
+                raise SimlogError(f"{self.path}: byte {offset}: truncated record")
+            kind, length = struct.unpack("<BI", head)
+            if length > self._size - offset - 5:
+                raise SimlogError(f"{self.path}: byte {offset}: record of {length} bytes runs past the end of the file")
+            body = self._file.read(length)
+            if len(body) != length:
+                raise SimlogError(f"{self.path}: byte {offset}: truncated record")
+            yield offset, kind, body
+            offset += 5 + length
+
     def scene_path(self) -> Path:
         """The recorded scene file, resolved against the recording's folder (so it works from anywhere)."""
         return self.path.parent / Path(self.header["scene"])
@@ -374,23 +621,13 @@ class Simlog:
             SimlogError: A truncated or malformed record, a non-finite state or time, or times that do not
                 advance frame by frame (naming the byte offset).
         """
-        self._file.seek(self._start)
-        offset = self._start
         frame_bytes = 8 + 8 * self.state_size
         previous: float | None = None
         step = self.frame_period + 1.5 * self.timestep + 1e-9
-        while True:
-            head = self._file.read(5)
-            if not head:
-                return
-            if len(head) < 5:
-                raise SimlogError(f"{self.path}: byte {offset}: truncated record")
-            kind, length = struct.unpack("<BI", head)
-            if length > self._size - offset - 5:
-                raise SimlogError(f"{self.path}: byte {offset}: record of {length} bytes runs past the end of the file")
-            body = self._file.read(length)
-            if len(body) != length:
-                raise SimlogError(f"{self.path}: byte {offset}: truncated record")
+        for offset, kind, body in self._stream():
+            length = len(body)
+            if kind == COMMAND and self.minor >= CHUNKED_MINOR:
+                continue  # read by _scan
             if kind == SENSORS:
                 if length < 8:
                     raise SimlogError(f"{self.path}: byte {offset}: sensor record too short")
@@ -400,7 +637,6 @@ class Simlog:
                         raise SimlogError(f"{self.path}: byte {offset}: non-finite sensor record time")
                     readings = self._json(body[8:], offset, "sensor record")
                     yield Record(kind, time, np.zeros(0), [readings])
-                offset += 5 + length
                 continue
             if kind not in (FRAME, CHECKPOINT) or length < frame_bytes:
                 raise SimlogError(f"{self.path}: byte {offset}: corrupt record (kind {kind}, {length} bytes)")
@@ -430,7 +666,6 @@ class Simlog:
                     raise SimlogError(f"{self.path}: byte {offset}: checkpoint snapshots are not a list of objects")
             if not sensors:
                 yield Record(kind, time, state, controllers)
-            offset += 5 + length
 
     def _json(self, raw: bytes, offset: int, what: str) -> Any:
         try:

@@ -59,6 +59,12 @@ SUBSCRIBER_QUEUE = 64
 CALL_TIMEOUT = 30.0
 #: Most steps one ``POST /api/step`` may ask for.
 MAX_STEPS = 100_000
+#: Physics steps a step request runs between two looks at the shutdown flag and its deadline.
+STEP_CHUNK = 50
+#: Wall seconds after its arrival at which a step request stops stepping and answers with the state it
+#: reached (``"cancelled": "deadline"``), well before the server's :data:`CALL_TIMEOUT`: a client never
+#: gets a 503 for steps that go on.
+STEP_DEADLINE = CALL_TIMEOUT - 5.0
 #: Shortest wall time between two published pose messages, seconds (a world run faster than real time
 #: publishes at most this often).
 MIN_POSE_INTERVAL = 1.0 / 120
@@ -214,8 +220,19 @@ class SimLoop:
         self._thread.start()
         self._started.result(timeout)
 
-    def stop(self, timeout: float = 30.0) -> None:
-        """Stop stepping, finish the recording, and wait for the thread."""
+    def interrupt(self) -> None:
+        """Ask the loop to stop (from a signal handler: it only sets a flag).
+
+        The loop thread finishes the physics step it is in (a step request stops at its next chunk of
+        :data:`STEP_CHUNK` steps and answers with the state reached), then finishes the recording and ends.
+        """
+        self._stop.set()
+
+    def stop(self, timeout: float | None = None) -> None:
+        """Stop stepping, finish the recording, and wait for the thread (``None``: however long that takes).
+
+        MuJoCo is never torn down under a running step: the process must not exit before the thread.
+        """
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout)
@@ -245,6 +262,8 @@ class SimLoop:
             self._run(world)
         except SimrunError as exc:
             self.error = str(exc)
+        except Exception as exc:  # a crash of the simulation thread: the recording is still finished below
+            self.error = f"the simulation thread failed ({type(exc).__name__}: {exc})"
         finally:
             self._drain(world, final=True)
             if self.recording is not None:
@@ -333,20 +352,39 @@ class SimLoop:
             except SimrunError as exc:
                 raise RequestError(422, "args", str(exc)) from None
             self.applied.append(timed)
+            if self.recording is not None:
+                self.recording.command(timed)
             return {"time": timed.t, "applied": True}
 
         return run
 
-    def step_request(self, steps: int) -> Callable[[World], Any]:
-        """The call that advances ``steps`` physics steps (lockstep or paused)."""
+    def step_request(self, steps: int, deadline: float = STEP_DEADLINE) -> Callable[[World], Any]:
+        """The call that advances ``steps`` physics steps (lockstep or paused).
+
+        The steps run in chunks of :data:`STEP_CHUNK`; between chunks the call stops when the server shuts
+        down (SIGINT/SIGTERM) or ``deadline`` wall seconds after the request arrived. Its answer is the
+        state reached, with ``"stepped"`` (steps done), ``"requested"`` and ``"cancelled"`` (``None``, or
+        ``"shutdown"``/``"deadline"`` when it stopped early): the world is exactly at that state.
+        """
+        arrived = time.monotonic()
 
         def run(world: World) -> Any:
             if not (self.options.lockstep or self.paused):
                 raise RequestError(409, "steps", "the world runs in real time; pause it (or serve --lockstep) to step")
-            world.step(steps)
-            self.steps += steps
+            done, cancelled = 0, None
+            while done < steps:
+                if self._stop.is_set():
+                    cancelled = "shutdown"
+                    break
+                if time.monotonic() - arrived >= deadline:
+                    cancelled = "deadline"
+                    break
+                n = min(STEP_CHUNK, steps - done)
+                world.step(n)
+                done += n
+                self.steps += n
             self._publish(world, poses=True)
-            return self.state(world)
+            return {**self.state(world), "stepped": done, "requested": steps, "cancelled": cancelled}
 
         return run
 

@@ -201,6 +201,15 @@ def serve(
                 on_ready(loop.foxglove.url)
 
         server.startup = startup  # type: ignore[method-assign]
+    # uvicorn's handler only sets a flag; the world thread is told at once too, so a long lockstep step stops
+    # at its next chunk and answers (never a signal inside MuJoCo, never an exit under a running step)
+    uvicorn_exit = server.handle_exit
+
+    def handle_exit(sig: int, frame: Any) -> None:
+        loop.interrupt()
+        uvicorn_exit(sig, frame)
+
+    server.handle_exit = handle_exit  # type: ignore[method-assign]
     # uvicorn catches SIGINT/SIGTERM while it runs, then raises them again under the handlers it found:
     # with Python's defaults that would kill the process (SIGTERM) or raise KeyboardInterrupt before the
     # recording is written. Handlers that only note the signal make both a clean stop.

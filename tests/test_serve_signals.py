@@ -1,0 +1,83 @@
+"""SIGINT/SIGTERM at any moment of a served lockstep session: the world thread finishes its step, the server
+finishes the recording and exits 0, and the recording re-simulates bit for bit (``simrun resim``, a separate
+process: ground truth from MuJoCo re-stepping the recorded commands, not from the server).
+
+``SIMRUN_SIGNAL_SESSIONS`` sets how many sessions get a signal at a random point (issue 39 asks for 50:
+``SIMRUN_SIGNAL_SESSIONS=50 pytest tests/test_serve_signals.py``, about 4 minutes); ``make test`` runs 4.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import threading
+import time
+from typing import Any
+
+import pytest
+from serve_helpers import SCENES, SIMRUN, serve
+
+from simrun.record.simlog import Simlog
+
+BOEBOT = SCENES / "boebot.toml"
+SESSIONS = int(os.environ.get("SIMRUN_SIGNAL_SESSIONS", "4"))
+
+
+def _resim(record: Any) -> str:
+    done = subprocess.run([SIMRUN, "resim", str(record)], capture_output=True, text=True, check=False, timeout=300)
+    assert done.returncode == 0, (done.stdout, done.stderr)
+    assert "bit-identical" in done.stdout, done.stdout
+    return done.stdout
+
+
+@pytest.mark.parametrize("session", range(SESSIONS))
+def test_a_signal_at_a_random_point_of_a_lockstep_session_keeps_a_complete_recording(tmp_path, session):
+    rng = random.Random(39_000 + session)
+    stop = signal.SIGTERM if session % 2 == 0 else signal.SIGINT
+    record = tmp_path / "run.simlog"
+    answers: list[Any] = []
+    with serve(BOEBOT, "--lockstep", "--record", str(record), stop=stop) as server:
+        server.post("/api/step", {"steps": rng.randint(1, 300)})
+        server.post("/api/services/DriveService/boebot/cmd_vel", {"args": [0.1, 0.3]})
+        # a long step (100,000 steps: tens of seconds) that the signal lands in, or a short one
+        steps = 100_000 if rng.random() < 0.7 else rng.randint(1, 2000)
+        worker = threading.Thread(target=lambda: answers.append(server.request("POST", "/api/step", {"steps": steps})))
+        worker.start()
+        time.sleep(rng.uniform(0.0, 1.5))
+    worker.join(30)
+    assert not worker.is_alive()
+    assert f"wrote {record}" in server.output[0]
+    assert not [p for p in tmp_path.iterdir() if p != record]  # no spool or temporary file left
+    status, answer = answers[0]
+    if status == 200 and isinstance(answer, dict):  # the step answered with the state it stopped at
+        assert answer["stepped"] <= answer["requested"] == steps
+        assert answer["cancelled"] in (None, "shutdown")
+        assert answer["cancelled"] is None or answer["stepped"] < steps
+    log = Simlog(record)
+    try:
+        assert log.truncated is None
+        frames = list(log.records())
+        assert [c.call for c in log.commands()] == ["cmd_vel"]
+    finally:
+        log.close()
+    if status == 200 and isinstance(answer, dict):
+        assert frames[-1].time <= answer["time"] + 1e-9
+    _resim(record)
+
+
+def test_a_step_past_its_deadline_answers_with_the_state_it_reached():
+    from simrun.serve.loop import STEP_CHUNK, ServeOptions, SimLoop
+
+    loop = SimLoop(ServeOptions(scene=BOEBOT, lockstep=True))
+    loop.start()
+    try:
+        answer = loop.call(loop.step_request(100_000, deadline=0.3)).result(60)
+        world_time = loop.call(lambda world: float(world.data.time)).result(60)
+    finally:
+        loop.stop()
+    assert answer["cancelled"] == "deadline" and 0 < answer["stepped"] < 100_000
+    assert answer["stepped"] % STEP_CHUNK == 0
+    assert answer["time"] == world_time  # the world is exactly where the answer says
+    assert answer["steps"] == answer["stepped"]
