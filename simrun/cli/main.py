@@ -407,6 +407,7 @@ def replay(
     outputs = {k: v for k, v in (("glb", glb), ("gltf", gltf), ("usd", usd), ("html", html)) if v is not None}
     if video is None and not outputs and mcap is None:
         raise click.UsageError("give --video, --glb, --gltf, --usd, --html and/or --mcap")
+    _note_truncated(log)
     if mcap is not None:
         from simrun.record.mcap_export import export_mcap
 
@@ -450,6 +451,15 @@ def replay(
     out.wrote(video, f"wrote {video}: {len(frames)} frame(s) replayed from {printable(log)}", kind="video")
 
 
+def _note_truncated(log: Path) -> None:
+    """One ``note:`` line when the recording was cut short (killed, a full disk): it is read up to its last chunk."""
+    from simrun.record.simlog import truncation_note
+
+    text = truncation_note(log)
+    if text is not None:
+        out.note(text)
+
+
 @main.command("resim")
 @click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
 @click.option(
@@ -475,6 +485,7 @@ def resim(log: Path, start: float, controller: Path | None) -> None:
     """
     from simrun.run.session import run_resim
 
+    _note_truncated(log)
     compared, mismatch = run_resim(log, start, controller)
     if mismatch is not None:
         raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")

@@ -833,3 +833,17 @@ def _misfit(template: Any, value: Any, where: str) -> str | None:
             return f"{here}: expected the keys {sorted(template)}"
         return next((p for k, t in template.items() if (p := _misfit(t, value[k], f"{where}.{k}".lstrip(".")))), None)
     return None
+
+
+def truncation_note(path: Path) -> str | None:
+    """What was cut from the recording at ``path`` (one line), or ``None``.
+
+    ``None`` also for a whole, an old (version 1.1) or an unreadable recording (the command reading it
+    reports that).
+    """
+    try:
+        log = Simlog(path)
+    except SimlogError:
+        return None
+    log.close()
+    return log.truncated

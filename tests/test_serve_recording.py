@@ -1,0 +1,120 @@
+"""A served session's ``.simlog`` cannot be lost: written in chunks as it runs (version 1.2), readable after a
+SIGKILL up to its last chunk, 2,000 commands in one session, a full disk that ends only the recording, and
+never a user's file touched. Ground truth: ``simrun resim`` (a separate process) re-steps the recorded
+commands in MuJoCo and compares every recorded state bit for bit."""
+
+from __future__ import annotations
+
+import contextlib
+import resource
+import signal
+import subprocess
+from collections.abc import Iterator
+
+import pytest
+from serve_helpers import SCENES, SIMRUN, Server, serve
+
+from simrun.record.simlog import Simlog
+
+BOEBOT = SCENES / "boebot.toml"
+
+
+def _resim(record) -> subprocess.CompletedProcess[str]:
+    done = subprocess.run([SIMRUN, "resim", str(record)], capture_output=True, text=True, check=False, timeout=300)
+    assert done.returncode == 0, (done.stdout, done.stderr)
+    assert "bit-identical" in done.stdout, done.stdout
+    return done
+
+
+def _session(server: Server, rounds: int) -> None:
+    for k in range(rounds):
+        server.post("/api/step", {"steps": 250})
+        server.post("/api/services/DriveService/boebot/cmd_vel", {"args": [0.05 * (k % 4), 0.1]})
+
+
+def test_a_sigkill_leaves_a_recording_read_up_to_its_last_chunk(tmp_path):
+    record = tmp_path / "run.simlog"
+    with pytest.raises(AssertionError) as stopped, serve(BOEBOT, "--lockstep", "--record", str(record)) as server:
+        _session(server, 12)  # 6 s simulated: a chunk at every 1 s checkpoint
+        server.process.kill()
+        server.process.wait(30)
+    assert stopped.value.args[0][0] == -signal.SIGKILL
+    log = Simlog(record)
+    try:
+        assert log.truncated is not None and "not finished" in log.truncated
+        frames = list(log.records())
+        commands = log.commands()
+    finally:
+        log.close()
+    assert frames[-1].time >= 5.0 - 1e-9 and len(frames) >= 250  # everything up to the last checkpoint
+    assert 10 <= len(commands) <= 12 and all(c.t <= frames[-1].time + 1e-9 for c in commands[:-1])
+    done = _resim(record)
+    assert done.stderr.count("note: ") == 1 and "not finished" in done.stderr
+    glb = tmp_path / "run.glb"
+    replayed = subprocess.run([SIMRUN, "replay", str(record), "--glb", str(glb)], capture_output=True, text=True,
+                              check=False, timeout=300)  # fmt: skip
+    assert replayed.returncode == 0, replayed.stderr
+    assert glb.stat().st_size > 0 and replayed.stderr.count("note: ") == 1
+
+
+def test_two_thousand_commands_leave_a_readable_recording_with_a_small_header(tmp_path):
+    record = tmp_path / "run.simlog"
+    spool = tmp_path / ".run.simlog.spool"  # a user's file named like the old spool
+    spool.write_bytes(b"mine")
+    with serve(BOEBOT, "--lockstep", "--record", str(record)) as server:
+        for k in range(2000):
+            if k % 100 == 0:
+                server.post("/api/step", {"steps": 25})
+            server.post("/api/services/DriveService/boebot/cmd_vel", {"args": [0.001 * (k % 50), 0.0]})
+        server.post("/api/step", {"steps": 25})
+        stopped = server.post("/api/recording/stop")
+        assert stopped["written"] == [str(record)]
+        log = Simlog(record)  # finished while the server runs: whole, with its end record
+        try:
+            assert log.truncated is None and len(log.commands()) == 2000
+            assert log._start < 4096  # the header does not grow with the commands
+        finally:
+            log.close()
+    assert spool.read_bytes() == b"mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".run.simlog.spool", "run.simlog"]
+    _resim(record)
+
+
+@contextlib.contextmanager
+def _file_size_limit(limit: int) -> Iterator[None]:
+    """Files written by processes started in the block stop at ``limit`` bytes (EFBIG, as a full disk)."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    previous = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # an ignored signal stays ignored across exec
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+        signal.signal(signal.SIGXFSZ, previous)
+
+
+def test_a_full_disk_ends_the_recording_with_one_error_and_keeps_what_was_written(tmp_path):
+    record = tmp_path / "run.simlog"
+    limit = 64 * 1024
+    limited = _file_size_limit(limit)
+    with (
+        pytest.raises(AssertionError) as stopped,
+        limited,
+        serve(BOEBOT, "--lockstep", "--record", str(record)) as server,
+    ):
+        _session(server, 40)  # 20 s simulated: far more than 64 KiB of frames
+        state = server.get("/api/state")
+        assert state["recording"]["error"] and not state["recording"]["active"]
+        assert state["time"] == pytest.approx(20.0)  # the world went on
+    returncode, out, err = stopped.value.args[0]
+    assert returncode == 1 and f"wrote {record}" in out
+    assert err.count("error: ") == 1 and "File too large" in err and "Traceback" not in err
+    assert record.stat().st_size <= limit
+    log = Simlog(record)
+    try:
+        assert log.truncated is not None
+        frames = list(log.records())
+    finally:
+        log.close()
+    assert frames and frames[-1].time > 1.0
+    _resim(record)
