@@ -40,7 +40,6 @@ the project reads them all itself and hands MuJoCo only bytes:
 
 from __future__ import annotations
 
-import importlib
 import math
 import os
 import re
@@ -53,18 +52,34 @@ from typing import Any
 import mujoco
 
 from meshtool.errors import ResolveError
+from meshtool.files.mjcf_xml import (
+    ASSET_FOLDER,
+    FILE_ATTRS,
+    MjcfReadError,
+    XmlNode,
+    asset_file,
+    compiler_dirs,
+    etree,
+    find_include,
+    include_candidates,
+    parse_xml,
+    pull_parser,
+    refuse_declarations,
+    root_holding,
+    splice_includes,
+    syntax_error,
+    tagged,
+    to_nodes,
+    walk,
+)
 from meshtool.files.safeopen import printable, read_beneath, read_file
 
-etree: Any = importlib.import_module("lxml.etree")  # installed with the project (pycollada, yourdfpy); no stubs
+__all__ = ["FILE_ATTRS", "Limits", "MjcfModel", "MjcfReadError", "ReadFile", "allowed_roots", "read_mjcf"]
 
 MIB = 1 << 20
 #: Environment variable of folders (``os.pathsep``-separated) MJCF files may read from besides the scene's
 #: and the model's own (``simrun check/play/test/serve/export --allow-root DIR`` sets it for its runs).
 ALLOW_ROOTS_ENV = "SIMRUN_ALLOW_ROOTS"
-#: Attributes that name a file MuJoCo opens.
-FILE_ATTRS = ("file", "fileright", "fileleft", "fileup", "filedown", "filefront", "fileback")
-#: Elements whose ``file`` is an asset, and the compiler folder it is relative to.
-_ASSET_DIR = {"mesh": "mesh", "skin": "mesh", "hfield": "mesh", "flexcomp": "mesh", "texture": "texture"}
 #: Attributes whose values are names or words, never numbers (a joint may be called ``inf``).
 _WORDS = frozenset(
     (
@@ -127,26 +142,6 @@ class Limits:
 
 
 DEFAULT_LIMITS = Limits()
-
-
-class MjcfReadError(ValueError):
-    """An MJCF model (or a file it names) is refused: one line ``PATH:LINE: <element> 'name': what; hint``.
-
-    Attributes:
-        message: What is wrong.
-        path: The XML file the element is in (as the model names it), if known.
-        line: 1-based line of the element in ``path``, if known.
-        element: The element (``mesh 'arm'``, ``<include>``, ``<option>``), if any.
-        hint: How to fix it.
-    """
-
-    def __init__(
-        self, message: str, *, path: str | None = None, line: int | None = None, element: str = "", hint: str = ""
-    ) -> None:
-        self.message, self.path, self.line, self.element, self.hint = message, path, line, element, hint
-        where = f"{path}:{line}" if path and line else path or ""
-        text = ": ".join(x for x in (where, element, message) if x)
-        super().__init__((text + (f"; {hint}" if hint else "")).replace("\n", " "))
 
 
 @dataclass(frozen=True, slots=True)
@@ -251,18 +246,6 @@ def read_mjcf(
 # -- the reader ------------------------------------------------------------------------------------------------
 
 
-@dataclass(slots=True, eq=False)
-class _Node:
-    """An XML element of the spliced model: its file (index into the reader's XML files) and line."""
-
-    tag: str
-    attrib: dict[str, str]
-    children: list[_Node]
-    file: int
-    line: int
-    include_dir: Path | None  # folder of the included file it came from (None: the main file)
-
-
 class _Reader:
     def __init__(self, path: Path, roots: Sequence[Path], prefix: str, limits: Limits, assets: bool) -> None:
         self.path = path
@@ -299,30 +282,25 @@ class _Reader:
         xml, origins = self._serialise(root)
         return MjcfModel(self.path, xml, self.files, self.read, dict(self.counts), origins)
 
-    def _where(self, node: _Node) -> dict[str, Any]:
+    def _where(self, node: XmlNode) -> dict[str, Any]:
         return {"path": printable(self.xml_files[node.file]), "line": node.line}
 
     # -- XML -----------------------------------------------------------------------------------------------
 
-    def _parse(self, data: bytes, path: Path, depth: int, include_dir: Path | None) -> _Node:
+    def _parse(self, data: bytes, path: Path, depth: int, include_dir: Path | None) -> XmlNode:
         """Count, then parse one XML file into nodes (``depth``: nesting of the element it goes into)."""
         shown = printable(path)
         index = len(self.xml_files)
         self.xml_files.append(path)
         if not data.strip():
             raise MjcfReadError("the file is empty", path=shown, hint="an MJCF file holds a <mujoco> element")
-        if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
-            raise MjcfReadError(_DTD, path=shown, hint="remove the declaration; MJCF needs none")
+        refuse_declarations(data, shown)
         self._count_stream(data, shown, depth)
-        root = self._tree(data, shown)
-        docinfo = root.getroottree().docinfo
-        if docinfo.doctype or docinfo.internalDTD is not None:  # in a UTF-16 file the byte check above missed
-            raise MjcfReadError(_DTD, path=shown, hint="remove the declaration; MJCF needs none")
-        return self._nodes(root, index, include_dir, shown)
+        return to_nodes(parse_xml(data, shown), index, include_dir, shown)
 
     def _count_stream(self, data: bytes, shown: str, depth: int) -> None:
         """Count elements by kind and their nesting while streaming, keeping no tree (bounded memory)."""
-        parser = _pull_parser(("start", "end"))
+        parser = pull_parser(("start", "end"))
         counts = self.counts
         tally = {"body": 0, "geom": 0, "mesh": 0, "key": 0}
         names = {"body": "bodies", "geom": "geoms", "mesh": "meshes", "key": "keyframes"}
@@ -382,7 +360,7 @@ class _Reader:
                             first_over[tag] = element.sourceline or 0
             parser.close()
         except etree.XMLSyntaxError as exc:
-            raise _syntax(exc, shown) from None
+            raise syntax_error(exc, shown) from None
         for tag, line in first_over.items():
             total = counts[names[tag]] + tally[tag]
             raise MjcfReadError(
@@ -395,66 +373,25 @@ class _Reader:
         for tag, n in tally.items():
             counts[names[tag]] += n
 
-    def _tree(self, data: bytes, shown: str) -> Any:
-        try:
-            return etree.fromstring(data, parser=etree.XMLParser(**_PARSER))
-        except etree.XMLSyntaxError as exc:
-            raise _syntax(exc, shown) from None
-
-    def _nodes(self, root: Any, index: int, include_dir: Path | None, shown: str) -> _Node:
-        """The lxml tree as nodes (iteratively); namespaces and text are not MJCF."""
-
-        def node(element: Any) -> _Node:
-            tag = element.tag
-            if not isinstance(tag, str) or tag.startswith("{") or any(a.startswith("{") for a in element.attrib):
-                raise MjcfReadError(
-                    "XML namespaces are not MJCF",
-                    path=shown,
-                    line=element.sourceline,
-                    element=f"<{etree.QName(element).localname}>",
-                    hint="remove the namespace prefix",
-                )
-            return _Node(tag, dict(element.attrib), [], index, element.sourceline or 0, include_dir)
-
-        top = node(root)
-        stack = [(root, top)]
-        while stack:
-            element, mine = stack.pop()
-            for child in element:
-                if not isinstance(child.tag, str):  # an entity reference left unresolved
-                    raise MjcfReadError(_DTD, path=shown, line=child.sourceline, hint="write the text itself")
-                made = node(child)
-                mine.children.append(made)
-                stack.append((child, made))
-        return top
-
     # -- includes ------------------------------------------------------------------------------------------
 
-    def _splice(self, root: _Node, main_real: Path) -> None:
+    def _splice(self, root: XmlNode, main_real: Path) -> None:
         """Replace every ``<include>`` by the children of its file's root, in MuJoCo's reading order."""
         seen = {main_real}
-        stack: list[tuple[_Node, int, int]] = [(root, 0, 1)]  # parent, next child index, depth of parent
-        while stack:
-            parent, k, depth = stack.pop()
-            if k >= len(parent.children):
-                continue
-            child = parent.children[k]
-            if child.tag.lower() == "include" and child.tag != "include":
+
+        def include(child: XmlNode, depth: int) -> list[XmlNode]:
+            if child.tag != "include":
                 raise MjcfReadError(
                     "MuJoCo reads an include written this way but then refuses it",
                     element=f"<{child.tag}>",
                     hint="write <include>",
                     **self._where(child),
                 )
-            if child.tag != "include":
-                stack.append((parent, k + 1, depth))
-                stack.append((child, 0, depth + 1))
-                continue
-            included = self._include(child, depth, seen)
-            parent.children[k : k + 1] = included  # then the spliced children are looked at from index k
-            stack.append((parent, k, depth))
+            return self._include(child, depth, seen)
 
-    def _include(self, node: _Node, depth: int, seen: set[Path]) -> list[_Node]:
+        splice_includes(root, include)
+
+    def _include(self, node: XmlNode, depth: int, seen: set[Path]) -> list[XmlNode]:
         where = self._where(node)
         name = node.attrib.get("file")
         if node.children:
@@ -471,10 +408,9 @@ class _Reader:
                 **where,
             )
         including_dir = self.xml_files[node.file].parent
-        candidates = [Path(name)] if Path(name).is_absolute() else [self.model_dir / name, including_dir / name]
-        target = next((c for c in candidates if _exists(c)), None)
+        target = find_include(self.model_dir, including_dir, name)
         if target is None:
-            tried = " or ".join(printable(c) for c in candidates)
+            tried = " or ".join(printable(c) for c in include_candidates(self.model_dir, including_dir, name))
             raise MjcfReadError(f"{tried} does not exist", element=element, hint="check the file name", **where)
         target = Path(os.path.abspath(target))
         real, data = self._read_confined(target, "include", self.limits.xml_bytes, element, where)
@@ -509,13 +445,13 @@ class _Reader:
 
     # -- counting ------------------------------------------------------------------------------------------
 
-    def _count_tree(self, root: _Node) -> None:
+    def _count_tree(self, root: XmlNode) -> None:
         """Bodies and geoms with ``<replicate>``/``<composite>``/``<flexcomp>`` multiplied in; sizes."""
         limits = self.limits
         bodies = geoms = meshes = keys = 0
         depth = 0
-        over: dict[str, tuple[_Node, int]] = {}
-        stack: list[tuple[_Node, int, int]] = [(root, 1, 1)]
+        over: dict[str, tuple[XmlNode, int]] = {}
+        stack: list[tuple[XmlNode, int, int]] = [(root, 1, 1)]
         while stack:
             node, times, level = stack.pop()
             depth = max(depth, level)
@@ -563,12 +499,12 @@ class _Reader:
                 hint="split the model or use fewer of them",
                 **self._where(node),
             )
-        sizes = [_int(n.attrib.get("nkey"), 0) for n in _all(root, "size")]
+        sizes = [_int(n.attrib.get("nkey"), 0) for n in tagged(root, "size")]
         self.counts["keyframes"] = max([self.counts["keyframes"], *sizes])
 
-    def _check_numbers(self, root: _Node) -> None:
+    def _check_numbers(self, root: XmlNode) -> None:
         """A NaN or infinity in any numeric attribute is refused, with the element and the attribute."""
-        for node in _walk(root):
+        for node in walk(root):
             for key, value in node.attrib.items():
                 if key in _WORDS or key.startswith("file") or (key == "data" and node.tag == "text"):
                     continue
@@ -587,19 +523,10 @@ class _Reader:
 
     # -- assets --------------------------------------------------------------------------------------------
 
-    def _resolve_assets(self, root: _Node) -> None:
+    def _resolve_assets(self, root: XmlNode) -> None:
         """Find, check and read every asset file; point the elements at their in-memory names."""
-        dirs = {"mesh": "", "texture": ""}
-        strip = False
-        compilers = list(_all(root, "compiler"))
-        for node in compilers:  # per element: assetdir sets both, then meshdir / texturedir (MuJoCo's rule)
-            if "assetdir" in node.attrib:
-                dirs["mesh"] = dirs["texture"] = node.attrib["assetdir"]
-            dirs["mesh"] = node.attrib.get("meshdir", dirs["mesh"])
-            dirs["texture"] = node.attrib.get("texturedir", dirs["texture"])
-            if "strippath" in node.attrib:
-                strip = node.attrib["strippath"].strip().lower() == "true"
-        for node in _walk(root):
+        dirs = compiler_dirs(root)  # MuJoCo's rule, meshtool.files.mjcf_xml
+        for node in walk(root):
             named = [a for a in FILE_ATTRS if a in node.attrib]
             if not named:
                 continue
@@ -610,8 +537,7 @@ class _Reader:
                     hint="attach that model as its own MjcfRobot entity",
                     **self._where(node),
                 )
-            kind = _ASSET_DIR.get(node.tag)
-            if kind is None or (node.tag != "texture" and named != ["file"]):
+            if node.tag not in ASSET_FOLDER or (node.tag != "texture" and named != ["file"]):
                 raise MjcfReadError(
                     f"attribute {named[0]!r} names a file, which MJCF reads only for meshes, textures, height "
                     "fields, skins and flexcomps",
@@ -621,24 +547,19 @@ class _Reader:
                 )
             for attr in named:
                 face = None if attr == "file" else FILE_ATTRS.index(attr) - 1
-                node.attrib[attr] = self._asset(node, attr, dirs[kind], strip, face)
-        for node in compilers:  # the in-memory names have no folder
+                node.attrib[attr] = self._asset(node, attr, dirs.folder(node.tag), dirs.strip, face)
+        for node in tagged(root, "compiler"):  # the in-memory names have no folder
             for key in ("meshdir", "texturedir", "assetdir"):
                 node.attrib.pop(key, None)
 
-    def _asset(self, node: _Node, attr: str, folder: str, strip: bool, face: int | None) -> str:
+    def _asset(self, node: XmlNode, attr: str, folder: str, strip: bool, face: int | None) -> str:
         value = node.attrib[attr]
         where = self._where(node)
         name = node.attrib.get("name", "")
         if not name and attr == "file":  # MuJoCo names it after the file; the in-memory name must not rename it
             name = node.attrib["name"] = re.split(r"[/\\]", value)[-1].rsplit(".", 1)[0]
         element = f"{node.tag} {name!r}" if name else f"<{node.tag}>"
-        beside = node.include_dir is not None and not Path(value).is_absolute()
-        if beside and node.include_dir and not _exists(self.model_dir / folder / value):
-            value = str(node.include_dir / value)  # MuJoCo then reads it beside the included file
-        if strip:
-            value = re.split(r"[/\\]", value)[-1]
-        path = Path(os.path.abspath(self.model_dir / folder / value))
+        path = Path(os.path.abspath(asset_file(self.model_dir, folder, value, node.include_dir, strip)))
         if node.tag == "flexcomp" or self.assets:
             limit = self.limits.for_asset(node.tag)
             real, data = self._read_confined(path, node.tag, limit, element, where, shown=node.attrib[attr])
@@ -680,7 +601,7 @@ class _Reader:
     def _confined(self, path: Path, element: str, where: dict[str, Any], written: str) -> Path:
         """The real path of ``path`` and the root holding it, or the one-line refusal (nothing opened)."""
         real = Path(os.path.realpath(path))
-        if not any(real == r or r in real.parents for r in self.roots):
+        if root_holding(real, self.roots) is None:
             shown = printable(path) if printable(real) == printable(path) else f"{printable(path)} ({real})"
             roots = ", ".join(printable(r) for r in self.roots)
             raise MjcfReadError(
@@ -696,7 +617,8 @@ class _Reader:
     ) -> tuple[Path, bytes]:
         """Read ``path`` walking down from its root without following links (regular files, bounded)."""
         real = self._confined(path, element, where, shown if shown is not None else printable(path))
-        root = next(r for r in self.roots if real == r or r in real.parents)
+        root = root_holding(real, self.roots)
+        assert root is not None  # _confined refused it otherwise
         try:
             return real, read_beneath(root, real.relative_to(root).parts, limit, printable(path))
         except ResolveError as exc:
@@ -708,11 +630,11 @@ class _Reader:
 
     # -- writing -------------------------------------------------------------------------------------------
 
-    def _serialise(self, root: _Node) -> tuple[str, list[tuple[Path, int]]]:
+    def _serialise(self, root: XmlNode) -> tuple[str, list[tuple[Path, int]]]:
         """The model as one document, each element's start tag on its own line (``origins``: where it came from)."""
         out: list[str] = []
         origins: list[tuple[Path, int]] = []
-        stack: list[_Node | str] = [root]
+        stack: list[XmlNode | str] = [root]
         while stack:
             item = stack.pop()
             if isinstance(item, str):
@@ -731,52 +653,9 @@ class _Reader:
         return "".join(out), origins
 
 
-_DTD = "a DOCTYPE or ENTITY declaration is not read (entities could read or expand files)"
-
-
-#: lxml's settings: no DTD, entities or network; long attribute values (inline vertices) are genuine, the
-#: depth is bounded while counting.
-_PARSER = {
-    "huge_tree": True,
-    "resolve_entities": False,
-    "no_network": True,
-    "load_dtd": False,
-    "remove_comments": True,
-    "remove_pis": True,
-}
-
-
-def _pull_parser(events: tuple[str, ...]) -> Any:
-    return etree.XMLPullParser(events=events, **_PARSER)
-
-
-def _syntax(exc: Any, shown: str) -> MjcfReadError:
-    """The parser's syntax error as one line; a tag mismatch in tinyxml2's words (MuJoCo's reader says it so)."""
-    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-    mismatch = re.match(r"Opening and ending tag mismatch: (\S+)", text)
-    hint = "fix that element (the XML is not well-formed)"
-    if mismatch:
-        return MjcfReadError(
-            "XML_ERROR_MISMATCHED_ELEMENT", path=shown, line=exc.lineno, element=f"<{mismatch[1]}>", hint=hint
-        )
-    if "Excessive depth" in text:
-        text = "elements nested more than 2,048 deep"
-    text = re.sub(r", line \d+, column \d+$", "", text)
-    return MjcfReadError(f"not well-formed XML: {text}", path=shown, line=exc.lineno, hint=hint)
-
-
 def _so_far(tally: dict[str, int], names: dict[str, str]) -> str:
     found = ", ".join(f"{n:,} {names[t]}" for t, n in tally.items() if n)
     return f"; in this file so far: {found}" if found else ""
-
-
-def _exists(path: Path) -> bool:
-    """Whether MuJoCo would find something at ``path`` (a ``stat``: nothing is opened)."""
-    try:
-        os.stat(path)
-    except (OSError, ValueError):
-        return False
-    return True
 
 
 def _non_finite(token: str) -> bool:
@@ -811,16 +690,3 @@ def _escape(value: str) -> str:
         .replace("\r", "&#13;")
         .replace("\t", "&#9;")
     )
-
-
-def _walk(root: _Node) -> Iterable[_Node]:
-    """Every node in document order (iteratively)."""
-    stack = [root]
-    while stack:
-        node = stack.pop()
-        yield node
-        stack.extend(reversed(node.children))
-
-
-def _all(root: _Node, tag: str) -> Iterable[_Node]:
-    return (n for n in _walk(root) if n.tag == tag)
