@@ -67,15 +67,33 @@ def _force(force: bool | None) -> bool:
 
 def same_file(a: Path, b: Path) -> bool:
     """Whether ``a`` and ``b`` name the same file: same inode (links, case-insensitive aliases) or real path."""
+    return how_same(a, b) is not None
+
+
+def how_same(a: Path, b: Path) -> str | None:
+    """How ``a`` names the file ``b``, ``None`` when they are different files (the rule of :func:`same_file`).
+
+    ``"the same path"`` (equal once made absolute), ``"a symbolic link to it"`` (equal real paths),
+    ``"a case alias of it"`` (real paths equal but for case: a case-insensitive system or file system),
+    ``"a hard link to it"`` (same device and inode under other real paths).
+    """
     try:
-        if os.path.samefile(a, b):
-            return True
+        same_inode = os.path.samefile(a, b)
     except OSError:
-        pass
+        same_inode = False
     try:
-        return os.path.normcase(os.path.realpath(a)) == os.path.normcase(os.path.realpath(b))
+        real_a, real_b = os.path.realpath(a), os.path.realpath(b)
+        if not same_inode and os.path.normcase(real_a) != os.path.normcase(real_b):
+            return None
+        if os.path.abspath(a) == os.path.abspath(b):
+            return "the same path"
     except (OSError, ValueError):
-        return False
+        return "the same file" if same_inode else None
+    if real_a == real_b:
+        return "a symbolic link to it"
+    if os.path.normcase(real_a) == os.path.normcase(real_b) or real_a.casefold() == real_b.casefold():
+        return "a case alias of it"
+    return "a hard link to it"
 
 
 def is_within(path: Path, folder: Path) -> bool:
@@ -94,9 +112,10 @@ def refuse_inputs(out: Path, inputs: Iterable[Path]) -> None:
         OutputError: ``out`` is an input.
     """
     for source in inputs:
-        if same_file(out, source):
+        how = how_same(out, source)
+        if how is not None:
             raise OutputError(
-                f"is an input ({source}); refusing to overwrite it",
+                f"is an input ({source}; {how}); refusing to overwrite it",
                 path=str(out),
                 hint="choose another output path (--force does not override this)",
             )

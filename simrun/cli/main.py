@@ -20,7 +20,7 @@ from simrun.cli.scenetest import test_command
 from simrun.cli.serve import serve_command
 from simrun.cli.types import FPS, OUT, SECONDS, Number
 from simrun.errors import SimrunError
-from simrun.outfile import output_policy, write_bytes
+from simrun.outfile import check_output, output_policy, reading, refuse_inputs, scene_files, write_bytes
 
 # Before anything imports numpy: single-threaded OpenBLAS (its idle threads spin; see meshtool/cli/main.py).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -187,8 +187,9 @@ def export(
     from simrun.scene.scene_file import load_scene
 
     with output_policy(force, [scene]):
-        world = load_scene(scene)
+        world = reading(load_scene(scene), scene=scene)
         world.compile()
+        refuse_inputs([mjcf, mjz, usd, glb])  # before the first is written: never over a file the scene reads
         if mjcf is not None:
             from simrun.export.mjcf_builder import export_world_mjcf
 
@@ -327,8 +328,7 @@ def play_command(
 
         written = []
         if watchable is not None:
-            from simrun.outfile import check_output
-
+            options.also = tuple(watchable.values())  # checked against the scene's files with --record
             for target in watchable.values():
                 check_output(target)  # refused before simulating, like --video and --record
         with subject(scene.name):
@@ -408,6 +408,8 @@ def replay(
     if video is None and not outputs and mcap is None:
         raise click.UsageError("give --video, --glb, --gltf, --usd, --html and/or --mcap")
     _note_truncated(log)
+    with output_policy(force, [log]):  # every output, before the first is written or any is otherwise checked
+        _refuse_replay_inputs(log, [video, mcap, *outputs.values()])
     if mcap is not None:
         from simrun.record.mcap_export import export_mcap
 
@@ -435,8 +437,10 @@ def replay(
         recording = Simlog(log)
         scene = recording.scene_path()
         check_scene(recording, scene)
-        world = load_scene(scene)
+        world = reading(load_scene(scene), scene=scene)
         check_model(recording, world)
+        refuse_inputs([video])  # the .mp4 writer does not go through write_bytes: checked before rendering
+        check_output(video)
         renderer = FrameRenderer(world.model, width, height, render_mode, camera, world.data)
         frames, next_frame = [], 0.0
         for t in replay_states(world, recording):
@@ -449,6 +453,22 @@ def replay(
         else:
             encode_mp4(frames, fps, video)
     out.wrote(video, f"wrote {video}: {len(frames)} frame(s) replayed from {printable(log)}", kind="video")
+
+
+def _refuse_replay_inputs(log: Path, targets: list[Path | None]) -> None:
+    """Refuse any of ``targets`` that is the recording, its scene or a file the scene's world reads."""
+    from simrun.record.simlog import Simlog, check_scene
+    from simrun.scene.scene_file import load_scene
+
+    recording = Simlog(log)
+    try:
+        scene = recording.scene_path()
+        check_scene(recording, scene)
+    finally:
+        recording.close()
+    world = load_scene(scene)
+    world.compile()
+    refuse_inputs(targets, inputs=scene_files(scene), world=world)
 
 
 def _note_truncated(log: Path) -> None:
@@ -534,12 +554,15 @@ def snapshot(scene: Path, output: Path, render_mode: str, camera: str | None, si
     from simrun.scene.scene_file import load_scene
 
     width, height = _size(size)
-    world = load_scene(scene)
-    world.run(at_time)
-    renderer = FrameRenderer(world.model, width, height, render_mode, camera, world.data)
-    buffer = io.BytesIO()
-    Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")
-    write_bytes(output, buffer.getvalue())
+    with output_policy(False, [scene]):
+        world = reading(load_scene(scene), scene=scene)
+        world.compile()
+        refuse_inputs([output])  # before simulating: never over the scene or a file it reads
+        world.run(at_time)
+        renderer = FrameRenderer(world.model, width, height, render_mode, camera, world.data)
+        buffer = io.BytesIO()
+        Image.fromarray(renderer.render(world.data)).save(buffer, format="PNG")
+        write_bytes(output, buffer.getvalue())
     out.wrote(output, f"wrote {output} ({width}x{height}, {render_mode})", kind="png")
 
 

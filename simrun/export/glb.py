@@ -108,4 +108,4 @@ def export_world_glb(world: World, out: Path, collision: bool = False) -> None:
     wrong = check_suffix(out, "glb")
     if wrong is not None:
         raise SimrunError(f"{out}: {wrong}")
-    write_bytes(out, world_to_glb(world, collision))
+    write_bytes(out, world_to_glb(world, collision), world=world)

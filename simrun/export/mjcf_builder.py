@@ -33,7 +33,7 @@ import numpy as np
 from meshtool.formats import check_suffix, mesh_suffixes, output_named, suffix
 from meshtool.mjcf.model_desc import MAX_BODY_DEPTH, GeomDesc, ModelDesc, ModelError, stamp_text
 from simrun.errors import SimrunError
-from simrun.outfile import GENERATOR, write_bytes
+from simrun.outfile import GENERATOR, check_output, refuse_inputs, write_bytes
 
 _ELEMENT = re.compile(r"Element name '([^']*)'(?:, id (\d+))?")
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.-]")
@@ -507,9 +507,10 @@ def export_world_mjcf(world: Any, out: Path) -> list[Path]:
         files = folder_files(world.spec, out.name, base_dir=world.base_dir, compiled_inertials=True)
     except ModelError as exc:
         raise SimrunError(f"{out}: {exc.one_line()}") from None
-    written = []
-    for name in sorted(files, key=lambda n: (n == out.name, n)):
-        target = out.parent / name
-        write_bytes(target, files[name])
-        written.append(target)
-    return written
+    targets = {out.parent / name: files[name] for name in sorted(files, key=lambda n: (n == out.name, n))}
+    refuse_inputs(targets, world=world)  # every file checked before the first is written
+    for target, data in targets.items():
+        check_output(target, data=data, world=world)
+    for target, data in targets.items():
+        write_bytes(target, data, world=world)
+    return list(targets)

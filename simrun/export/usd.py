@@ -114,7 +114,7 @@ def export_world_usd(
             saved = usd.finish()
         except OutputError as exc:
             raise SimrunError(f"{out}: {exc.message}") from None
-    write_bytes(out, saved)
+    write_bytes(out, saved, world=world)
     return unmapped
 
 

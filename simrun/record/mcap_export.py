@@ -35,7 +35,7 @@ import numpy as np
 
 from meshtool.formats import check_suffix
 from simrun.errors import SimrunError
-from simrun.outfile import check_output
+from simrun.outfile import check_output, scene_files
 from simrun.record.simlog import CHECKPOINT, Simlog, check_model, check_scene, replay_states
 from simrun.run.session import prepare
 from simrun.scene.scene_file import load_scene
@@ -76,6 +76,7 @@ def export_mcap(log_path: Path, out: Path) -> McapSummary:
         world = load_scene(scene)
         check_model(log, world)
         prepare(world)
+        check_output(out, inputs=[log_path, *scene_files(scene)], world=world)  # nor a file the scene reads
         return _write(world, log, out)
     finally:
         log.close()

@@ -14,7 +14,7 @@ from pathlib import Path
 from meshtool.files.safeopen import printable
 from meshtool.formats import check_suffix, output_named
 from simrun.errors import SimrunError
-from simrun.outfile import write_bytes, write_text
+from simrun.outfile import refuse_inputs, scene_files, write_bytes, write_text
 from simrun.record.replay_glb import recording_gltf
 from simrun.record.replay_html import recording_html, viewer_bundle
 from simrun.record.replay_tracks import animation_keys, read_tracks
@@ -88,6 +88,7 @@ def export_recording(
         world = load_scene(scene)
         world.compile()
         check_model(recording, world)
+        refuse_inputs(outputs.values(), inputs=[log_path, *scene_files(scene)], world=world)  # before any is written
         tracks = read_tracks(world, recording)
     finally:
         recording.close()

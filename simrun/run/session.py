@@ -25,7 +25,7 @@ from PIL import Image
 
 from meshtool.formats import output_for, suffix
 from simrun.errors import SimrunError, UsageError
-from simrun.outfile import check_output, write_bytes
+from simrun.outfile import check_output, reading, refuse_inputs, write_bytes
 from simrun.record.simlog import Recorder, Simlog, check_model, check_scene, resimulate
 from simrun.run.commands import Command
 from simrun.run.play import PlayResult, PythonController, encode_gif, encode_mp4, load_commands, play
@@ -94,6 +94,7 @@ class PlayOptions:
         record: ``.simlog`` output.
         seed: Sensor noise seed.
         record_sensors: Sensor names whose readings the recording keeps.
+        also: Outputs the caller writes after the run (``--record-as``), checked with the others before it.
     """
 
     duration: float = 5.0
@@ -108,6 +109,7 @@ class PlayOptions:
     record: Path | None = None
     seed: int | None = None
     record_sensors: tuple[str, ...] = ()
+    also: tuple[Path, ...] = ()
 
 
 def run_play(scene: Path, options: PlayOptions, progress: Any = None) -> PlayResult:
@@ -127,13 +129,15 @@ def run_play(scene: Path, options: PlayOptions, progress: Any = None) -> PlayRes
     Raises:
         SimrunError: Any bad input or output, with its file (and line where it has one).
     """
+    world = reading(load_scene(scene), options.commands, scene=scene)
+    world.compile()  # every file the scene reads is known: no output may be one of them
+    refuse_inputs([options.video, options.record, *options.also])
     for target in (options.video, options.record):  # the .mp4 and .simlog writers do not go through write_bytes
         if target is not None:
             check_output(target)
     if options.video is not None and video_kind(options.video) is None:
         kinds = " or ".join(suffix(kind) for kind in VIDEO_KINDS)
         raise UsageError(f"{options.video}: video must end in {kinds}")
-    world = load_scene(scene)
     python = options.commands is not None and options.commands.suffix == ".py"
     commands: list[Command] = load_commands(options.commands) if options.commands and not python else []
     mode = options.render_mode or ("visual" if options.video or options.frames_dir else "none")

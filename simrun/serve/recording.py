@@ -17,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from simrun.outfile import check_output
+from simrun.outfile import check_output, scene_files
 from simrun.record.simlog import Recorder
 from simrun.run.commands import Command
 from simrun.world.world import World
@@ -52,9 +52,9 @@ class LiveRecording:
         seed: int = 0,
         mcap: Path | None = None,
     ) -> None:
-        check_output(path, inputs=[scene])
+        check_output(path, inputs=scene_files(scene), world=world)
         if mcap is not None:
-            check_output(mcap, inputs=[scene, path])
+            check_output(mcap, inputs=[*scene_files(scene), path], world=world)
         self.path, self.mcap, self.loop = path, mcap, loop
         self.start = float(world.time)
         self.recorder = Recorder(world, path, scene, [], seed=seed, sensors=sensors, live=True)

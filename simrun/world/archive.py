@@ -35,7 +35,7 @@ def mjz_bytes(world: World) -> bytes:
 
 def save_mjz(world: World, path: Path) -> None:
     """Write :func:`mjz_bytes` atomically."""
-    write_bytes(path, mjz_bytes(world))
+    write_bytes(path, mjz_bytes(world), world=world)
 
 
 def load_mjz(path: Path) -> mujoco.MjModel:
