@@ -23,7 +23,7 @@ from conftest import FIXTURES
 from meshtool.cli.main import main as meshtool_main
 from meshtool.cli.main import obj2bin
 from meshtool.findings import Severity
-from meshtool.frame import consumers
+from meshtool.frame import consumer_index, consumers
 from meshtool.frame.consumers import ConsumerIndex, find_consumers, find_index_root
 from meshtool.packfile.read import parse
 from meshtool.repair.normalise import NormaliseOptions, prepare
@@ -255,7 +255,7 @@ def test_a_package_reference_names_its_own_package_only(tmp_path: Path) -> None:
 def test_an_index_stopped_by_a_limit_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     vendor, _ = _vendor(tmp_path, "repository")
     (vendor / "a_first.xml").write_text("<mujoco/>\n")  # read before robots/gripper/robot.xml
-    monkeypatch.setattr(consumers, "MAX_FILES", 1)
+    monkeypatch.setattr(consumer_index, "MAX_FILES", 1)  # the index reads its bounds from its own module
     consumers.INDEX.clear()
     asset = prepare(vendor / MESHES[0], NormaliseOptions())
     (limit,) = [f for f in asset.findings if f.code == "consumer-index-limit"]
