@@ -17,6 +17,58 @@ from serve_helpers import SCENES, SIMRUN, Server, serve
 from simrun.record.simlog import Simlog
 
 BOEBOT = SCENES / "boebot.toml"
+#: A Boe-Bot with a 100 Hz IMU, a 10 Hz laser and a 320x240 webcam at 15 Hz.
+SENSOR_SCENE = """
+[world]
+timestep = 0.002
+
+[[entities]]
+type = "Ground"
+name = "ground"
+
+[[entities]]
+type = "BoeBot"
+name = "boebot"
+pose = { position = [1.0, 1.0, 0.001] }
+
+[[entities]]
+type = "Box"
+name = "box"
+dimensions = [0.2, 0.2, 0.2]
+pose = { position = [1.6, 1.0, 0.1] }
+
+[[services]]
+type = "DriveService"
+entity = "boebot"
+
+[[entities]]
+type = "Camera"
+name = "view"
+eye = [1.4, 0.58, 1.09]
+target = [1.4, 1.09, 0.0]
+main = true
+
+[[sensors]]
+type = "LaserRangeFinder"
+name = "laser"
+entity = "boebot"
+rays = 91
+rate = 10.0
+
+[[sensors]]
+type = "IMU"
+name = "imu"
+entity = "boebot"
+rate = 100.0
+
+[[sensors]]
+type = "Webcam"
+name = "view_cam"
+camera = "view"
+width = 320
+height = 240
+rate = 15.0
+"""
 
 
 def _resim(record) -> subprocess.CompletedProcess[str]:
@@ -117,4 +169,35 @@ def test_a_full_disk_ends_the_recording_with_one_error_and_keeps_what_was_writte
     finally:
         log.close()
     assert frames and frames[-1].time > 1.0
+    _resim(record)
+
+
+def test_sensors_are_recorded_at_their_own_rate_and_images_once_per_rendered_frame(tmp_path):
+    text = SENSOR_SCENE
+    scene = tmp_path / "robot.toml"
+    scene.write_text(text)
+    record = tmp_path / "run.simlog"
+    with serve(scene, "--lockstep", "--record", str(record), "--record-sensors", "imu,view_cam,laser") as server:
+        for _ in range(5):
+            server.post("/api/step", {"steps": 500})  # 5 s simulated
+        assert server.get("/api/state")["time"] == pytest.approx(5.0)
+    log = Simlog(record)
+    try:
+        counts = log.counts()
+        images = list(log.images())
+    finally:
+        log.close()
+    duration = 5.0
+    assert abs(counts["frames"] - duration * 50) <= 1  # the 50 Hz frame grid
+    assert abs(counts["images.view_cam"] - duration * 15) <= 1  # once per rendered frame, not per 20 ms frame
+    assert abs(counts["sensor_samples.imu"] - duration * 100) <= 1  # every 100 Hz sample, not one per frame
+    assert abs(counts["sensor_samples.laser"] - duration * 10) <= 1
+    times = [t for t, name, _, _ in images]
+    assert times == sorted(times) and len(set(times)) == len(times)
+    from io import BytesIO
+
+    from PIL import Image
+
+    first = Image.open(BytesIO(images[0][3]))
+    assert first.format == "PNG" and first.size == (320, 240)
     _resim(record)

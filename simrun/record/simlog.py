@@ -14,7 +14,11 @@ Version 1.2 (``Recorder(live=True)``, the recordings of ``simrun serve``) is wri
 lost: the file is made under a unique temporary name (``O_EXCL``) with its header, renamed over the target
 at once, and then grows in chunks: kind 4, u32 length, u32 CRC-32 of the records that follow, the records
 (kinds 1-3, and kind 5: a command applied, f64 time and the JSON ``[t, service, entity, call, args]``, so
-the header never grows with the commands). A chunk goes to the operating system at every checkpoint, every
+the header never grows with the commands). In 1.2 a sensor record holds one new sample of one sensor
+(``{name: reading}``), written when the sensor samples (the recorder ticks at the fastest recorded sensor's
+rate, so a 100 Hz IMU keeps all its samples); a camera's image is stored once per rendered frame as kind 7:
+f64 time, u32 JSON length, JSON ``{"name", "format": "png", "width", "height"}``, the PNG bytes. A chunk
+goes to the operating system at every checkpoint, every
 :data:`CHUNK_BYTES` and every :data:`CHUNK_WALL` wall seconds; finishing writes the last chunk and an end
 record (kind 6, length 0), with no second copy of the file. A recording cut short (SIGKILL, a full disk, a
 power cut) reads up to its last whole chunk; :attr:`Simlog.truncated` says what was cut.
@@ -58,7 +62,7 @@ MAGIC = output_named("simlog").magic[0]  # the formats registry's row
 MAJOR, MINOR = 1, 1
 #: The minor version of chunked recordings (``Recorder(live=True)``).
 CHUNKED_MINOR = 2
-FRAME, CHECKPOINT, SENSORS, CHUNK, COMMAND, END = 1, 2, 3, 4, 5, 6
+FRAME, CHECKPOINT, SENSORS, CHUNK, COMMAND, END, IMAGE = 1, 2, 3, 4, 5, 6, 7
 #: Bytes of records gathered before a chunk is written (live recordings).
 CHUNK_BYTES = 1 << 20
 #: Longest wall time records wait before their chunk is written, seconds (live recordings).
@@ -147,6 +151,14 @@ class Recorder:
             raise SimrunError(f"no sensor named {', '.join(unknown)} (known: {known})")
         self.sensors = sensors
         self.next_time = world.time
+        self.frame_period = period
+        self._next_frame = world.time
+        self._samples = {n: int(world.sensors[n].samples) for n in sensors}
+        if live and sensors:  # tick as often as the fastest recorded sensor samples (every step for rate 0)
+            rates = [float(world.sensors[n].period) for n in sensors]
+            self.period = min([period, *(r if r > 0 else model.opt.timestep for r in rates)])
+        #: Records written by kind (live recordings: sensor samples and images counted apiece).
+        self.counts: dict[str, int] = {"frames": 0, "sensor_samples": 0, "images": 0}
         self._next_checkpoint = world.time
         if not (math.isfinite(period) and MIN_FRAME_PERIOD <= period <= MAX_FRAME_PERIOD):
             raise SimrunError(f"frame period must be in [{MIN_FRAME_PERIOD:g}, {MAX_FRAME_PERIOD:g}] s, got {period}")
@@ -246,7 +258,55 @@ class Recorder:
         self._write(struct.pack("<BI", COMMAND, len(body)) + body)
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """Write a frame, or a checkpoint when one is due."""
+        """Write a frame, or a checkpoint when one is due (live: and each recorded sensor's new samples)."""
+        if self.live:
+            self._tick_live(model, data)
+            return
+        self._frame(model, data)
+        if self.sensors:
+            readings = {n: _plain(self.world.sensors[n].reading) for n in self.sensors}
+            extra = struct.pack("<d", float(data.time)) + json.dumps(readings).encode("utf-8")
+            self._write(struct.pack("<BI", SENSORS, len(extra)) + extra)
+
+    def _tick_live(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        kind = FRAME
+        if data.time + 0.5 * model.opt.timestep >= self._next_frame:
+            kind = self._frame(model, data)
+            while self._next_frame <= data.time + 0.5 * model.opt.timestep:
+                self._next_frame += self.frame_period
+        for name in self.sensors:
+            sensor = self.world.sensors[name]
+            samples = int(sensor.samples)
+            if samples == self._samples[name] or sensor.reading is None:
+                continue
+            self._samples[name] = samples
+            self._sample(name, sensor.reading, float(getattr(sensor.reading, "time", data.time)))
+        self._last_time = float(data.time)
+        if (
+            kind == CHECKPOINT
+            or len(self._buffer) >= CHUNK_BYTES
+            or wallclock.monotonic() - self._last_flush >= CHUNK_WALL
+        ):
+            self.flush()
+
+    def _sample(self, name: str, reading: Any, time: float) -> None:
+        """One new sample of a sensor: a camera's image as PNG (once per rendered frame), else as JSON."""
+        rgb = getattr(reading, "rgb", None)
+        if rgb is None and getattr(reading, "left", None) is not None:
+            rgb = reading.left.rgb
+        if isinstance(rgb, np.ndarray) and rgb.ndim == 3:
+            meta = json.dumps({"name": name, "format": "png", "width": int(rgb.shape[1]), "height": int(rgb.shape[0])})
+            raw = meta.encode("utf-8")
+            body = struct.pack("<dI", time, len(raw)) + raw + _png(rgb)
+            self._write(struct.pack("<BI", IMAGE, len(body)) + body)
+            self.counts["images"] += 1
+            return
+        extra = struct.pack("<d", time) + json.dumps({name: _plain(reading)}).encode("utf-8")
+        self._write(struct.pack("<BI", SENSORS, len(extra)) + extra)
+        self.counts["sensor_samples"] += 1
+
+    def _frame(self, model: mujoco.MjModel, data: mujoco.MjData) -> int:
+        """Write a frame, or a checkpoint when one is due; its kind."""
         state = state_of(model, data)
         body = struct.pack("<d", float(data.time)) + state.tobytes()
         kind = FRAME
@@ -258,18 +318,8 @@ class Recorder:
             self._next_checkpoint += self.checkpoint_every
         self._write(struct.pack("<BI", kind, len(body)) + body)
         self.frames += 1
-        if self.sensors:
-            readings = {n: _plain(self.world.sensors[n].reading) for n in self.sensors}
-            extra = struct.pack("<d", float(data.time)) + json.dumps(readings).encode("utf-8")
-            self._write(struct.pack("<BI", SENSORS, len(extra)) + extra)
-        if self.live:
-            self._last_time = float(data.time)
-            if (
-                kind == CHECKPOINT
-                or len(self._buffer) >= CHUNK_BYTES
-                or wallclock.monotonic() - self._last_flush >= CHUNK_WALL
-            ):
-                self.flush()
+        self.counts["frames"] += 1
+        return kind
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Recording continues across resets."""
@@ -363,6 +413,17 @@ def _create_in_place(path: Path, head: bytes) -> int:
             os.unlink(tmp)
         raise SimrunError(f"{path}: cannot write: {exc.strerror or exc}") from None
     return fd
+
+
+def _png(rgb: npt.NDArray[Any]) -> bytes:
+    """An RGB image (H, W, 3) u8 as PNG bytes (compression level 1: fast, lossless; the same bytes every run)."""
+    import io
+
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(rgb)).save(buffer, format="PNG", compress_level=1)
+    return buffer.getvalue()
 
 
 def _relative(target: Path, recording: Path) -> str:
@@ -614,6 +675,46 @@ class Simlog:
         for record in self.records(sensors=True):
             yield record.time, (record.controllers or [{}])[0]
 
+    def images(self) -> Iterator[tuple[float, str, str, bytes]]:
+        """The recorded camera images (version 1.2): (time, sensor name, format ``"png"``, the encoded bytes).
+
+        Raises:
+            SimlogError: A malformed image record (naming the byte offset).
+        """
+        for offset, kind, body in self._stream():
+            if kind != IMAGE:
+                continue
+            if len(body) < 12:
+                raise SimlogError(f"{self.path}: byte {offset}: image record too short")
+            time, n = struct.unpack("<dI", body[:12])
+            if not math.isfinite(time) or 12 + n > len(body):
+                raise SimlogError(f"{self.path}: byte {offset}: corrupt image record")
+            meta = self._json(body[12 : 12 + n], offset, "image record")
+            if not isinstance(meta, dict) or not isinstance(meta.get("name"), str) or meta.get("format") != "png":
+                raise SimlogError(f"{self.path}: byte {offset}: image record without a sensor name and PNG format")
+            yield time, meta["name"], "png", body[12 + n :]
+
+    def counts(self) -> dict[str, int]:
+        """Records by kind.
+
+        ``frames`` (checkpoints included), ``checkpoints``, ``sensor_samples`` (per sensor in 1.2:
+        ``sensor_samples.NAME``), ``images`` (and ``images.NAME``), ``commands``.
+        """
+        counts = {"frames": 0, "checkpoints": 0, "sensor_samples": 0, "images": 0, "commands": len(self._commands)}
+        for offset, kind, body in self._stream():
+            if kind in (FRAME, CHECKPOINT):
+                counts["frames"] += 1
+                counts["checkpoints"] += kind == CHECKPOINT
+            elif kind == SENSORS:
+                counts["sensor_samples"] += 1
+                if self.minor >= CHUNKED_MINOR:
+                    for name in self._json(body[8:], offset, "sensor record"):
+                        counts[f"sensor_samples.{name}"] = counts.get(f"sensor_samples.{name}", 0) + 1
+        for _, name, _, _ in self.images():
+            counts["images"] += 1
+            counts[f"images.{name}"] = counts.get(f"images.{name}", 0) + 1
+        return counts
+
     def records(self, sensors: bool = False) -> Iterator[Record]:
         """Every frame and checkpoint record in order (or, with ``sensors``, the sensor records).
 
@@ -626,8 +727,8 @@ class Simlog:
         step = self.frame_period + 1.5 * self.timestep + 1e-9
         for offset, kind, body in self._stream():
             length = len(body)
-            if kind == COMMAND and self.minor >= CHUNKED_MINOR:
-                continue  # read by _scan
+            if kind in (COMMAND, IMAGE) and self.minor >= CHUNKED_MINOR:
+                continue  # read by _scan and images()
             if kind == SENSORS:
                 if length < 8:
                     raise SimlogError(f"{self.path}: byte {offset}: sensor record too short")
