@@ -5,7 +5,7 @@
 read by the world (``World.files_read``), so ``simrun test`` bundles exactly them; anything else that needs a
 model's files asks here. How the files are found (MuJoCo's rules, ``src/xml/xml.cc`` ``mjIncludeXML`` and
 ``src/xml/xml_util.cc`` ``ResolveFilePath``, checked against MuJoCo's own load in ``tests/test_mjcf_files.py``)
-is told in :mod:`simrun.robots.mjcf_read`:
+is told in :mod:`simrun.robots.mjcf_read` and kept once, MuJoCo-free, in :mod:`meshtool.files.mjcf_xml`:
 
 - ``<include file>``: an absolute name as given; a relative one first relative to the main model's folder,
   then relative to the folder of the file that holds the ``<include>`` (nested includes too). Included files
@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from meshtool.files.mjcf_xml import asset_file
 from simrun.robots.mjcf_read import ReadFile, read_mjcf
 
 #: One file an MJCF model reads (kind, name, path as MuJoCo builds it, real path read, in-memory name, cube face).
@@ -34,7 +35,7 @@ def resolve(model_dir: Path, folder: str, file: str) -> Path:
 
     ``folder`` is relative to the model's folder ``model_dir`` unless absolute.
     """
-    return Path(model_dir) / folder / file
+    return asset_file(Path(model_dir), folder, file, None, False)
 
 
 def model_files(path: Path, roots: Sequence[Path] | None = None) -> list[ModelFile]:
