@@ -201,3 +201,44 @@ def test_sensors_are_recorded_at_their_own_rate_and_images_once_per_rendered_fra
     first = Image.open(BytesIO(images[0][3]))
     assert first.format == "PNG" and first.size == (320, 240)
     _resim(record)
+
+
+class _Crash:
+    """A controller that fails at t >= 0.5 s (a bug in the simulation thread)."""
+
+    period, next_time = 0.01, 0.0
+
+    def tick(self, model, data) -> None:
+        if data.time >= 0.5:
+            raise RuntimeError("a bug at 0.5 s")
+
+    def reset(self, model, data) -> None: ...
+
+    def snapshot(self) -> dict:
+        return {}
+
+    def restore(self, state) -> None: ...
+
+
+def test_a_crash_of_the_simulation_thread_still_finishes_the_recording(tmp_path):
+    import time
+
+    from simrun.serve.loop import ServeOptions, SimLoop
+    from simrun.serve.recording import LiveRecording
+
+    record = tmp_path / "run.simlog"
+    options = ServeOptions(scene=BOEBOT, rate=10.0, record=record)
+    loop = SimLoop(options, lambda world, loop: LiveRecording(world, loop, record, BOEBOT))
+    loop.start()
+    loop.call(lambda world: world.controllers.insert(0, _Crash())).result(30)
+    deadline = time.monotonic() + 60
+    while loop.running and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not loop.running and loop.error is not None and "a bug at 0.5 s" in loop.error
+    log = Simlog(record)
+    try:
+        assert log.truncated is None  # finished: its end record written
+        frames = list(log.records())
+    finally:
+        log.close()
+    assert frames[-1].time == pytest.approx(0.5, abs=0.021)
