@@ -77,6 +77,11 @@ def test_demo_mcap_has_every_channel_schema_and_count(demo):
         "/tf": ("foxglove.FrameTransforms", "protobuf", frames),
         "/boebot/pose": ("foxglove.PoseInFrame", "protobuf", frames),
         "/boebot/odometry": ("foxglove.PoseInFrame", "protobuf", checkpoints),
+        # the live Foxglove stream's channels too (simrun.record.foxglove_channels): clock, wheel joints, scene
+        "/clock": ("simrun.Clock", "json", frames),
+        "/boebot/joint_states": ("foxglove.JointStates", "protobuf", frames),
+        "/scene": ("foxglove.SceneUpdate", "protobuf", 40),  # the first frame and every simulated second after
+        "/tf_static": ("foxglove.FrameTransforms", "protobuf", 40),  # boebot/odom, with the scene
     }
     assert frames == 2000 and checkpoints == 40  # 40 s: a frame every 0.02 s and a checkpoint every 1 s from t = 0
 

@@ -34,8 +34,10 @@ from simrun.outfile import output_policy
 @click.option("--token", envvar="SIMRUN_TOKEN", default=None, help="Bearer token every request must carry.")
 @click.option(
     "--foxglove-port", type=click.IntRange(0, 65535), default=None,
-    help="Also stream /tf and laser scans in the Foxglove WebSocket protocol on 127.0.0.1 (0: any free port).",
+    help="Also stream the world (poses, joints, sensors, clock, scene) in the Foxglove WebSocket protocol on "
+    "127.0.0.1 (0: any free port).",
 )  # fmt: skip
+@click.option("--foxglove-mcap", type=OUT, default=None, help="Also write the Foxglove stream to this MCAP as it runs.")
 @click.option(
     "--allow-origin", "allow_origins", multiple=True, metavar="ORIGIN",
     help="Let pages of this web origin (scheme://host[:port]) use the server, besides its own; repeatable.",
@@ -55,6 +57,7 @@ def serve_command(
     token: str | None,
     force: bool,
     foxglove_port: int | None = None,
+    foxglove_mcap: Path | None = None,
     allow_origins: tuple[str, ...] = (),
 ) -> None:
     """Run SCENE and serve it: HTTP/JSON services and sensors, a WebSocket stream, a dashboard at /.
@@ -76,6 +79,7 @@ def serve_command(
             token,
             on_ready=lambda url: say(f"{'foxglove' if url.startswith('ws:') else 'serving'} {url}"),
             foxglove_port=foxglove_port,
+            foxglove_mcap=foxglove_mcap,
             allow_origins=allow_origins,
         )
     for path in served.written:

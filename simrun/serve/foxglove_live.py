@@ -1,11 +1,16 @@
 """The live world in the Foxglove WebSocket protocol (``simrun serve --foxglove-port N``), through foxglove-sdk.
 
-Foxglove (the app, or any client of its protocol) connects to ``ws://127.0.0.1:N`` and subscribes to:
+Foxglove (the app, or any client of its protocol, ``foxglove.websocket.v1`` or the SDK's ``foxglove.sdk.v1``)
+connects to ``ws://127.0.0.1:N`` and subscribes to the channels of
+:class:`simrun.record.foxglove_channels.FoxgloveChannels`, the ones an MCAP export has: ``/clock``, ``/tf``,
+``/scene``, ``/NAME/pose`` and ``/NAME/joint_states`` per robot, ``/NAME/odometry`` per drive service, all
+logged whenever the loop publishes poses (``pose_rate`` per simulated second, after every step request), and
+``/sensors/NAME`` (``/sensors/NAME/compressed`` for a webcam's JPEG) for every sensor, at each new reading
+the loop publishes (at most :data:`simrun.serve.loop.MIN_SENSOR_INTERVAL` apart in wall time).
 
-* ``/tf``: ``foxglove.FrameTransforms``, each body's pose from ``world`` (Z up, metres), whenever the loop
-  publishes poses (30 per simulated second, after every step request);
-* ``/sensors/NAME``: ``foxglove.LaserScan`` for each laser, at its own rate (its robot's body frame, the scan
-  origin ``height`` above it).
+With ``mcap``, every message the server logs is also written to that MCAP file as it happens (foxglove-sdk's
+writer, a sink of the same context: the same channels and the same messages as the live stream;
+``simrun serve --foxglove-mcap``), finished by :meth:`FoxgloveLive.close`.
 
 Log times are nanoseconds of simulated time, as in the MCAP export (:mod:`simrun.record.mcap_export`). The SDK's
 server keeps at most :data:`BACKLOG` messages per client and drops the oldest, so a slow client never
@@ -13,12 +18,17 @@ slows the simulation. The server listens on the loopback address only (use an SS
 machine). The protocol has no authentication and the SDK's server checks no handshake, so the port is a
 :class:`simrun.serve.gate.Gate` that applies the rules of the HTTP server (:mod:`simrun.serve.access`:
 ``Host``, ``Origin``, the token as ``?token=``) before it relays a connection to the SDK's server, which
-listens on a port browsers may not open.
+listens on a port browsers may not open; the gate also lets a client offer the standard subprotocol.
 """
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import os
+import tempfile
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 #: Messages the Foxglove server buffers per client before it drops the oldest.
@@ -33,19 +43,30 @@ class FoxgloveLive:
         catalogue: The served world's catalogue (:func:`simrun.serve.catalogue.build_catalogue`).
         token: The server's token (clients give it as ``?token=`` or ``Authorization: Bearer``), or ``None``.
         origins: Web origins allowed besides the port's own (``--allow-origin``).
+        world: The served world (read in the loop thread, when the loop publishes).
+        mcap: Also write every message to this MCAP file (beside it until :meth:`close`, then renamed).
 
     Attributes:
         port: The port it listens on.
+        channels: The channels and their message counts.
     """
 
     def __init__(
-        self, port: int, catalogue: dict[str, Any], token: str | None = None, origins: Iterable[str] = ()
+        self,
+        port: int,
+        catalogue: dict[str, Any],
+        token: str | None = None,
+        origins: Iterable[str] = (),
+        *,
+        world: Any,
+        mcap: Path | None = None,
     ) -> None:
         import foxglove
-        from foxglove import channels
 
+        from simrun.record.foxglove_channels import FoxgloveChannels
         from simrun.serve.access import Access
         from simrun.serve.gate import BROWSER_BLOCKED_PORTS, Gate
+        from simrun.services.drive_service import DriveService
 
         self._context = foxglove.Context()
         self._server: Any = None
@@ -66,12 +87,21 @@ class FoxgloveLive:
             self._server.stop()
             raise
         self.port = self._gate.port
-        self._tf = channels.FrameTransformsChannel("/tf", context=self._context)
-        self._lasers = {
-            s["name"]: (s, channels.LaserScanChannel(f"/sensors/{s['name']}", context=self._context))
-            for s in catalogue["sensors"]
-            if "height" in s
-        }
+        self.mcap = mcap
+        self._writer: Any = None
+        self._tmp: str | None = None
+        try:
+            if mcap is not None:
+                fd, self._tmp = tempfile.mkstemp(prefix=f".{mcap.name}.", suffix=".tmp", dir=mcap.parent)
+                os.close(fd)
+                options = foxglove.mcap.MCAPWriteOptions(compression=foxglove.mcap.MCAPCompression.Zstd)
+                self._writer = foxglove.open_mcap(self._tmp, allow_overwrite=True, context=self._context,
+                                                  writer_options=options)  # fmt: skip
+            self.channels = FoxgloveChannels(world, self._context)
+        except BaseException:
+            self.close()
+            raise
+        self._drives = [c for c in world.controllers if isinstance(c, DriveService)]
 
     @property
     def url(self) -> str:
@@ -79,52 +109,35 @@ class FoxgloveLive:
         return f"ws://127.0.0.1:{self.port}"
 
     def poses(self, time: float, poses: dict[str, list[float]]) -> None:
-        """Publish body poses (``[x, y, z, qw, qx, qy, qz]`` by body name) at simulated ``time`` seconds."""
-        from foxglove import messages as fm
+        """Log the world's frame at simulated ``time`` s (loop thread; ``poses`` are the published body poses).
 
-        stamp = _stamp(time)
-        transforms = [
-            fm.FrameTransform(
-                timestamp=stamp,
-                parent_frame_id="world",
-                child_frame_id=name,
-                translation=fm.Vector3(x=p[0], y=p[1], z=p[2]),
-                rotation=fm.Quaternion(x=p[4], y=p[5], z=p[6], w=p[3]),
-            )
-            for name, p in poses.items()
-        ]
-        self._tf.log(fm.FrameTransforms(transforms=transforms), log_time=round(time * 1e9))
+        The messages come from the world's state (:meth:`FoxgloveChannels.frame`), the same state as ``poses``;
+        each drive's odometry is its current estimate.
+        """
+        self.channels.frame()
+        for drive in self._drives:
+            self.channels.odometry(drive.name, time, dataclasses.astuple(drive.odometry()))
 
     def sensor(self, name: str, time: float, reading: Any) -> None:
-        """Publish a laser's scan (other sensors are not in this stream)."""
-        from foxglove import messages as fm
-
-        if name not in self._lasers or reading is None:
-            return
-        info, channel = self._lasers[name]
-        angles = [float(a) for a in reading.angles]
-        scan = fm.LaserScan(
-            timestamp=_stamp(time),
-            frame_id=info["entity"],
-            pose=fm.Pose(
-                position=fm.Vector3(x=0.0, y=0.0, z=float(info["height"])),
-                orientation=fm.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
-            ),
-            start_angle=angles[0],
-            end_angle=angles[-1],
-            ranges=[float(r) for r in reading.ranges],
-            intensities=[],
-        )
-        channel.log(scan, log_time=round(time * 1e9))
+        """Log a sensor's reading taken at simulated ``time`` s."""
+        self.channels.sensor(name, time, reading)
 
     def close(self) -> None:
-        """Stop the gate and the server."""
-        self._gate.close()
-        self._server.stop()
-
-
-def _stamp(time: float) -> Any:
-    from foxglove import messages as fm
-
-    ns = round(time * 1e9)
-    return fm.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+        """Stop the gate and the server, and finish the MCAP (renamed over ``mcap``)."""
+        gate = getattr(self, "_gate", None)
+        if gate is not None:
+            gate.close()
+        if self._server is not None:
+            self._server.stop()
+            self._server = None
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+            assert self._tmp is not None and self.mcap is not None
+            os.chmod(self._tmp, 0o644)
+            os.replace(self._tmp, self.mcap)
+            self._tmp = None
+        if self._tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(self._tmp)
+            self._tmp = None

@@ -12,6 +12,11 @@ The SDK's server listens on one of the ports that the Fetch standard forbids bro
 (:data:`BROWSER_BLOCKED_PORTS`: fetch and WebSocket both refuse them, ``ERR_UNSAFE_PORT``), so a page cannot go
 round the gate to it; programs on this machine can, as they can reach everything on the loopback.
 Everything runs on one asyncio loop in its own thread.
+
+The SDK's server speaks the Foxglove WebSocket protocol but accepts only its own subprotocol name,
+``foxglove.sdk.v1`` (a handshake offering only the standard ``foxglove.websocket.v1`` gets ``HTTP 400``). When a
+client offers the standard name and not the SDK's, the gate offers the SDK's upstream and answers the client
+with the name it offered (:data:`STANDARD`): the messages of both are the same protocol (ws-protocol's v1).
 """
 
 from __future__ import annotations
@@ -36,6 +41,8 @@ MAX_CONNECTIONS = 64
 #: behind the gate listens on the first free one.
 BROWSER_BLOCKED_PORTS = (6665, 6666, 6667, 6668, 6669, 6697, 10080, 6566, 4045, 3659, 2049, 1723, 1720, 1719,
                          5060, 5061, 6000)  # fmt: skip
+#: The standard subprotocol of the Foxglove WebSocket protocol, and the name foxglove-sdk's server accepts.
+STANDARD, SDK = "foxglove.websocket.v1", "foxglove.sdk.v1"
 _REASONS = {401: "Unauthorized", 403: "Forbidden", 400: "Bad Request", 431: "Request Header Fields Too Large",
             503: "Service Unavailable"}  # fmt: skip
 
@@ -68,6 +75,18 @@ def parse_head(head: bytes) -> tuple[str, dict[str, str]] | None:
         key = name.lower()
         headers[key] = f"{headers[key]}, {value.strip()}" if key in headers else value.strip()
     return parts[1], headers
+
+
+def rename_protocol(head: bytes, old: str, new: str) -> bytes:
+    """An HTTP head with ``Sec-WebSocket-Protocol``: ``old`` (one name of its list) replaced by ``new``."""
+    lines = head.split(b"\r\n")
+    for k, line in enumerate(lines):
+        name, colon, value = line.partition(b":")
+        if colon and name.strip().lower() == b"sec-websocket-protocol":
+            names = [v.strip() for v in value.decode("latin-1").split(",")]
+            value_out = ", ".join(new if v == old else v for v in names)
+            lines[k] = name + b": " + value_out.encode("latin-1")
+    return b"\r\n".join(lines)
 
 
 class Gate:
@@ -150,8 +169,18 @@ class Gate:
         if problem is not None:
             await self._refuse(writer, problem.status, problem.field, problem.message)
             return
+        offered = [p.strip() for p in headers.get("sec-websocket-protocol", "").split(",") if p.strip()]
+        renamed = STANDARD in offered and SDK not in offered
         up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.upstream)
-        up_writer.write(head)
+        up_writer.write(rename_protocol(head, STANDARD, SDK) if renamed else head)
+        if renamed:  # the upstream answer names the SDK's subprotocol: name the one the client offered
+            try:
+                answer = await asyncio.wait_for(up_reader.readuntil(b"\r\n\r\n"), HEAD_TIMEOUT)
+            except (asyncio.LimitOverrunError, ValueError):
+                up_writer.close()
+                await self._refuse(writer, 400, "", "the Foxglove server's answer could not be read")
+                return
+            writer.write(rename_protocol(answer, SDK, STANDARD))
         pumps = [asyncio.ensure_future(_pump(reader, up_writer)), asyncio.ensure_future(_pump(up_reader, writer))]
         try:
             await asyncio.wait(pumps, return_when=asyncio.FIRST_COMPLETED)

@@ -70,6 +70,22 @@ class Served:
     error: str | None
 
 
+def check_foxglove_mcap(path: Path, options: ServeOptions, world: Any) -> None:
+    """Refuse a ``--foxglove-mcap`` target that is not ``.mcap``, is an input or a recording of the session.
+
+    Raises:
+        SimrunError: The target is refused (the message says why).
+    """
+    from meshtool.formats import check_suffix
+    from simrun.outfile import check_output, scene_files
+
+    wrong = check_suffix(path, "mcap")
+    if wrong is not None:
+        raise SimrunError(wrong, path=str(path))
+    taken = [p for p in (options.record, options.record_mcap) if p is not None]
+    check_output(path, inputs=[*scene_files(options.scene), *taken], world=world)
+
+
 def bind(host: str, port: int) -> socket.socket:
     """A listening TCP socket on ``host:port`` (0: a free port).
 
@@ -96,6 +112,7 @@ def serve(
     token: str | None = None,
     on_ready: Callable[[str], None] | None = None,
     foxglove_port: int | None = None,
+    foxglove_mcap: Path | None = None,
     allow_origins: tuple[str, ...] = (),
 ) -> Served:
     """Serve ``options.scene`` until SIGINT or SIGTERM.
@@ -107,6 +124,7 @@ def serve(
         token: Bearer token every request must carry.
         on_ready: Called with the URL once the server listens (and with the Foxglove server's ``ws://`` URL).
         foxglove_port: Also serve the Foxglove WebSocket protocol on 127.0.0.1 at this port (0: a free one).
+        foxglove_mcap: With ``foxglove_port``, also write what that server logs to this MCAP as it happens.
         allow_origins: Web origins (``https://app.example``) whose pages may use the server besides its own.
 
     Returns:
@@ -162,8 +180,15 @@ def serve(
         if foxglove_port is not None:
             from simrun.serve.foxglove_live import FoxgloveLive
 
+            if foxglove_mcap is not None:
+                try:
+                    check_foxglove_mcap(foxglove_mcap, options, loop._world)
+                except SimrunError:
+                    sock.close()
+                    raise
             try:
-                loop.foxglove = FoxgloveLive(foxglove_port, loop.catalogue, token, allow_origins)
+                loop.foxglove = FoxgloveLive(foxglove_port, loop.catalogue, token, allow_origins, world=loop._world,
+                                             mcap=foxglove_mcap)  # fmt: skip
             except Exception as exc:  # the SDK's own error (a port in use): one line
                 sock.close()
                 raise SimrunError(f"cannot start the Foxglove server on 127.0.0.1:{foxglove_port}: {exc}") from None
@@ -224,6 +249,8 @@ def serve(
         loop.stop()
         if loop.foxglove is not None:
             loop.foxglove.close()
+            if foxglove_mcap is not None:
+                written.append(foxglove_mcap)
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if loop.recording is not None:
