@@ -171,3 +171,20 @@ def test_a_standard_foxglove_client_decodes_every_channel_and_the_session_mcap_a
     recorded, recorded_counts, _ = _mcap(record.with_suffix(".mcap"))
     assert recorded == EXPECTED
     assert recorded_counts["/tf"] > counts["/tf"]  # a frame every 0.02 s; the live stream once per step request
+
+
+def test_foxglove_mcap_refuses_another_suffix_and_the_recording_path(tmp_path):
+    import subprocess
+
+    from serve_helpers import SIMRUN
+
+    bad = tmp_path / "x.bag"
+    done = subprocess.run([SIMRUN, "serve", str(SCENE), "--port", "0", "--lockstep", "--foxglove-port", "0",
+                           "--foxglove-mcap", str(bad)], capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 1 and "must end in .mcap" in done.stderr and not bad.exists()
+    record = tmp_path / "run.simlog"
+    clash = record.with_suffix(".mcap")
+    args = ["--record", str(record), "--record-as", "mcap", "--foxglove-mcap", str(clash)]
+    done = subprocess.run([SIMRUN, "serve", str(SCENE), "--port", "0", "--lockstep", "--foxglove-port", "0", *args],
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 1 and str(clash) in done.stderr, done.stderr
