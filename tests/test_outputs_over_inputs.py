@@ -255,3 +255,15 @@ def test_how_same_names_each_kind(tmp_path: Path) -> None:
     assert how_same(tmp_path / "hard.png", a) == "a hard link to it"
     assert how_same(tmp_path / "other.png", a) is None
     assert how_same(tmp_path / "missing.png", a) is None
+
+
+def test_play_frames_over_an_input_are_refused(tmp_path: Path) -> None:
+    """``play --frames DIR`` writes ``frame_00000.png``...: a texture of that name in DIR is refused before frame 0."""
+    shutil.copy(FIXTURES / "scenes" / "globe.png", tmp_path / "frame_00001.png")
+    (tmp_path / "s.toml").write_text(
+        '[[entities]]\ntype = "Sphere"\nname = "globe"\nradius = 0.15\ntexture = "frame_00001.png"\n'
+    )
+    before = _state(tmp_path)
+    result = _simrun(tmp_path, ["play", "s.toml", "--duration", "0.2", "--frames", ".", "--render-mode", "visual"])
+    _refused(result, "frame_00001.png", tmp_path / "frame_00001.png", "the same path")
+    assert _state(tmp_path) == before

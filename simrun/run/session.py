@@ -16,6 +16,7 @@ frames and recording; :func:`run_resim` is ``simrun resim``.
 from __future__ import annotations
 
 import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,7 @@ from PIL import Image
 
 from meshtool.formats import output_for, suffix
 from simrun.errors import SimrunError, UsageError
-from simrun.outfile import check_output, reading, refuse_inputs, write_bytes
+from simrun.outfile import check_output, reading, refuse_inputs, world_inputs, write_bytes
 from simrun.record.simlog import Recorder, Simlog, check_model, check_scene, resimulate
 from simrun.run.commands import Command
 from simrun.run.play import PlayResult, PythonController, encode_gif, encode_mp4, load_commands, play
@@ -131,7 +132,7 @@ def run_play(scene: Path, options: PlayOptions, progress: Any = None) -> PlayRes
     """
     world = reading(load_scene(scene), options.commands, scene=scene)
     world.compile()  # every file the scene reads is known: no output may be one of them
-    refuse_inputs([options.video, options.record, *options.also])
+    refuse_inputs([options.video, options.record, *options.also, *_frames_over_inputs(scene, options, world)])
     for target in (options.video, options.record):  # the .mp4 and .simlog writers do not go through write_bytes
         if target is not None:
             check_output(target)
@@ -178,6 +179,17 @@ def run_play(scene: Path, options: PlayOptions, progress: Any = None) -> PlayRes
             Image.fromarray(np.asarray(frame)).save(buffer, format="PNG")
             write_bytes(options.frames_dir / f"frame_{k:05d}{suffix('png')}", buffer.getvalue())
     return result
+
+
+def _frames_over_inputs(scene: Path, options: PlayOptions, world: World) -> list[Path]:
+    """The ``--frames`` files (``frame_NNNNN.png``) that would have the name of an input: the check decides."""
+    if options.frames_dir is None:
+        return []
+    named = [scene, options.commands, *world_inputs(world)]
+    return [options.frames_dir / p.name for p in named if p is not None and _FRAME.fullmatch(p.name)]
+
+
+_FRAME = re.compile(r"frame_\d{5,}\.png", re.IGNORECASE)
 
 
 def run_resim(log: Path, start: float = 0.0, controller: Path | None = None) -> tuple[int, float | None]:
