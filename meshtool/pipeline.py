@@ -1,8 +1,8 @@
 """The one composer of meshtool's stages, and mesh to ``.mbin`` conversion (one file, or a folder tree).
 
 The stages run in sequence here and nowhere else (``tests/test_layering.py`` checks it; a file converted enters
-each stage's entry once, ``tests/test_pipeline_stages.py``): read, repair's mesh building, frame and repair's
-conversion (:func:`repaired_asset`: a :class:`~meshtool.stages.NormalisedAsset`), hulls
+each stage's entry once, ``tests/test_pipeline_stages.py``): read, frame and repair (:func:`repaired_asset`: a
+:class:`~meshtool.stages.NormalisedAsset`), hulls
 (:func:`asset_hulls`: a :class:`~meshtool.hulls.compute.HullSet`), pack (:func:`pack_asset`: ``.mbin``
 bytes whose META is a :class:`~meshtool.packfile.meta.PackMeta`). ``obj2bin`` FILE and DIR, ``meshtool
 hulls``, ``meshtool mjcf``, URDF meshes (:mod:`meshtool.urdf.meshes`), ``meshtool validate``
@@ -34,7 +34,7 @@ from meshtool.hulls.compute import Hull, HullOptions, HullSet, compute_hulls, qu
 from meshtool.packfile import PackMeta, SourceEntry, load, pack
 from meshtool.packfile.meta import source_entries, source_files, source_path
 from meshtool.read.source_asset import read_source_asset
-from meshtool.repair.convert import build_asset_mesh, convert_asset
+from meshtool.repair.convert import convert_asset
 from meshtool.repair.mesh import TriMesh
 from meshtool.repair.normalmaps import mujoco_findings
 from meshtool.repair.options import NormaliseOptions, safe_file_stem
@@ -154,14 +154,14 @@ def pack_file(src: Path, options: ConvertOptions | None = None) -> Packed:
 
 
 def repaired_asset(src: Path, options: NormaliseOptions, *, data: bytes | None = None) -> NormalisedAsset:
-    """Stages read, repair (mesh), frame, repair (conversion): ``src`` in metres, Z-up, PNG textures, its record.
+    """Stages read, frame, repair: ``src`` in metres, Z-up, PNG textures, its record.
 
     Every caller goes through here (``obj2bin``, ``meshtool normalize``, ``meshtool hulls``, ``meshtool mjcf``,
     URDF meshes, ``validate``, simrun's mesh assets). Each stage's entry takes the record the one before it
-    returned (:mod:`meshtool.stages`): the file -> :class:`~meshtool.stages.SourceAsset` (read, with its MTLs)
-    -> :class:`~meshtool.stages.MeshedAsset` (repair: triangles in source units; the frame's geometry rules need
-    them) -> :class:`~meshtool.stages.FramedAsset` (frame: unit, scale, up axis) ->
-    :class:`~meshtool.stages.NormalisedAsset` (repair: metres, Z-up, materials, PNG textures, ``asset.json``).
+    returned (:mod:`meshtool.stages`): the file -> :class:`~meshtool.stages.SourceAsset` (read, with its MTLs and
+    its polygons as triangles, the vertices the output keeps marked) -> :class:`~meshtool.stages.FramedAsset`
+    (frame: unit, scale, up axis, decided on the kept vertices) -> :class:`~meshtool.stages.NormalisedAsset`
+    (repair: the triangles cleaned, in metres, Z-up, materials, PNG textures, ``asset.json``).
 
     Args:
         src: The mesh file. Its folder is the asset root: references never resolve outside it except into
@@ -177,9 +177,10 @@ def repaired_asset(src: Path, options: NormaliseOptions, *, data: bytes | None =
     resolver, root_findings = model_root_resolver(
         src, options.search_paths, confine=options.confine, model_root=options.model_root
     )
-    source = read_source_asset(src, resolver, data=data, up=options.up, notes=root_findings)
-    meshed = build_asset_mesh(source, options)
-    framed = decide_asset_frame(meshed, units=options.units, scale=options.scale, up=options.up)
+    source = read_source_asset(
+        src, resolver, data=data, up=options.up, units=options.units, scale=options.scale, notes=root_findings
+    )
+    framed = decide_asset_frame(source, units=options.units, scale=options.scale, up=options.up)
     return convert_asset(framed, options)
 
 

@@ -5,17 +5,16 @@ each entry taking the record before it and returning the next, so no stage impor
 know what it receives:
 
 1. read (:func:`meshtool.read.source_asset.read_source_asset`): the file's bytes -> :class:`SourceAsset` (the
-   :class:`SourceMesh`, every format's in-memory model with :class:`SourceFrame`, what the format declares; and
-   the materials its MTL files or the format itself define);
-2. repair, mesh building (:func:`meshtool.repair.convert.build_asset_mesh`) -> :class:`MeshedAsset` (triangles in
-   source units and axes);
-3. frame (:func:`meshtool.frame.declared.decide_asset_frame`) -> :class:`FramedAsset` (the unit and up-axis
-   decision, :class:`meshtool.frame.decide.Frame`, made on the built mesh's vertices; ``Frame`` lives with the
+   :class:`SourceMesh`, every format's in-memory model with :class:`SourceFrame`, what the format declares; its
+   polygons as :class:`SourceTriangles`, with the vertices the output keeps; and the materials its MTL files or
+   the format itself define);
+2. frame (:func:`meshtool.frame.declared.decide_asset_frame`) -> :class:`FramedAsset` (the unit and up-axis
+   decision, :class:`meshtool.frame.decide.Frame`, made on the kept vertices; ``Frame`` lives with the
    decision, whose consumer index it reads);
-4. repair, conversion (:func:`meshtool.repair.convert.convert_asset`) -> :class:`NormalisedAsset` (triangles in
+3. repair (:func:`meshtool.repair.convert.convert_asset`) -> :class:`NormalisedAsset` (a clean triangle mesh in
    metres, Z-up, PNG textures, the ``asset.json`` record);
-5. hulls: :class:`HullSet`;
-6. pack: :class:`PackMeta` (the ``.mbin`` META section, typed; :class:`SourceEntry` per file it was made from).
+4. hulls: :class:`HullSet`;
+5. pack: :class:`PackMeta` (the ``.mbin`` META section, typed; :class:`SourceEntry` per file it was made from).
 
 At run time this module imports only numpy and :mod:`meshtool.findings`; the element types the records hold
 (materials, triangle meshes, hulls) are named for type checkers only.
@@ -40,10 +39,12 @@ if TYPE_CHECKING:
     from meshtool.hulls.compute import Hull
     from meshtool.read.obj.mtl import Material
     from meshtool.read.obj.parse import MtllibRef
+    from meshtool.read.obj.triangulate import Triangulation
     from meshtool.repair.mesh import TriMesh
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
 
 
 @dataclass(frozen=True, slots=True)
@@ -140,6 +141,28 @@ class SourceMesh:
 
 
 @dataclass(slots=True)
+class SourceTriangles:
+    """The read stage's triangles: a :class:`SourceMesh`'s polygons triangulated, nothing dropped yet.
+
+    Shapes: ``M`` triangles, ``V`` vertices (:func:`meshtool.read.triangles.read_triangles` makes it).
+
+    Attributes:
+        tri: Which polygon corners make each triangle (``corners``, ``face``, ``lost``, ``identity``...).
+        faces: (M, 3) vertex indices of every triangle (a view of ``corner_v`` when every polygon was one).
+        degenerate: (M,) triangles with a repeated vertex or zero area: repair drops them.
+        kept: (V,) the vertices that reach the output (:func:`meshtool.read.triangles.kept_vertices`: used by a
+            triangle of non-zero area, else every finite one); the frame decides on ``positions[kept]``.
+        findings: What triangulating noticed (``polygon-fanned``, ``polygon-budget``).
+    """
+
+    tri: Triangulation
+    faces: IntArray
+    degenerate: BoolArray
+    kept: BoolArray
+    findings: list[Finding]
+
+
+@dataclass(slots=True)
 class SourceAsset:
     r"""The read stage's record: one mesh file as read, with the material definitions it names.
 
@@ -155,6 +178,7 @@ class SourceAsset:
         sources: ``asset.json`` source entries of the files read (the mesh, its buffers, its MTLs).
         source_paths: Each source's shown path -> the file actually read (:attr:`NormalisedAsset.source_paths`).
         resolutions: Every MTL lookup, in order.
+        triangles: The polygons as triangles, with the vertices the output keeps.
     """
 
     src: Path
@@ -167,34 +191,20 @@ class SourceAsset:
     sources: list[dict[str, str]]
     source_paths: dict[str, Path]
     resolutions: list[Resolution]
-
-
-@dataclass(slots=True)
-class MeshedAsset:
-    """Repair's mesh building: the read asset as a clean triangle mesh, still in source units and axes.
-
-    Attributes:
-        source: The read stage's record.
-        mesh: The triangle mesh (:func:`meshtool.repair.mesh.build_mesh`): (V, 3) positions in source units.
-        findings: ``source.findings`` and what building the mesh noticed.
-    """
-
-    source: SourceAsset
-    mesh: TriMesh
-    findings: list[Finding]
+    triangles: SourceTriangles
 
 
 @dataclass(slots=True)
 class FramedAsset:
-    """The frame stage's record: the meshed asset with its decided unit, scale and up axis.
+    """The frame stage's record: the read asset with its decided unit, scale and up axis.
 
     Attributes:
-        meshed: Repair's mesh-building record.
+        source: The read stage's record.
         frame: The decision and its evidence (units, scale, up, consumers).
-        findings: ``meshed.findings`` and the decision's findings.
+        findings: ``source.findings`` and the decision's findings (``frame.findings``).
     """
 
-    meshed: MeshedAsset
+    source: SourceAsset
     frame: Frame
     findings: list[Finding]
 

@@ -541,26 +541,26 @@ def test_every_meshtool_folder_says_what_it_holds(folder):
 
 
 #: Each stage's entry (module, function): only meshtool/pipeline.py calls them in sequence (issue 38). The
-#: composer's order: read -> repair (mesh building) -> frame -> repair (conversion) -> hulls -> packfile; the
-#: entries each stage's own entry reaches (read_mesh, build_mesh, source_frame, decide_frame) are listed too, so
-#: nothing outside the stage's folder calls them either. tests/test_pipeline_stages.py counts each once per file.
+#: composer's order: read -> frame -> repair -> hulls -> packfile; the entries each stage's own entry reaches
+#: (read_mesh, read_triangles, source_frame, decide_frame, build_mesh) are listed too, so nothing outside the
+#: stage's folder calls them either. tests/test_pipeline_stages.py counts each once per file.
 STAGE_ENTRIES = {
     ("meshtool.read.source_asset", "read_source_asset"): "read",
     ("meshtool.read", "read_mesh"): "read",
-    ("meshtool.repair.convert", "build_asset_mesh"): "repair",
-    ("meshtool.repair.mesh", "build_mesh"): "repair",
+    ("meshtool.read.triangles", "read_triangles"): "read",
     ("meshtool.frame.declared", "decide_asset_frame"): "frame",
     ("meshtool.frame.declared", "source_frame"): "frame",
     ("meshtool.frame.decide", "decide_frame"): "frame",
     ("meshtool.repair.convert", "convert_asset"): "repair",
+    ("meshtool.repair.mesh", "build_mesh"): "repair",
     ("meshtool.hulls.compute", "compute_hulls"): "hulls",
     ("meshtool.packfile", "pack"): "packfile",
     ("meshtool.packfile.write", "pack"): "packfile",
 }
-#: Callers of a stage entry besides the composer and the stage's own folder, each with why. None: the read stage
-#: no longer hands its frame to the decision (the frame stage weighs the format's declaration itself), repair no
-#: longer runs read -> frame inside itself, and the public API's ``pack`` is a type-checking import (no call).
-STAGE_ENTRY_EXCEPTIONS: set[tuple[str, str]] = set()
+#: Callers of a stage entry besides the composer and the stage's own folder, each with why. ``build_mesh(obj)``
+#: without the read stage's triangles (tests, bench/parse.py) triangulates the polygons itself; the composer
+#: passes the read stage's (tests/test_pipeline_stages.py: read_triangles entered once per file, in read).
+STAGE_ENTRY_EXCEPTIONS: set[tuple[str, str]] = {("meshtool/repair/mesh.py", "read_triangles")}
 
 
 def stage_entry_uses(source: str, module: str) -> list[tuple[str, str]]:

@@ -28,30 +28,31 @@ from meshtool.hulls.compute import compute_hulls
 from meshtool.packfile.write import pack
 from meshtool.read import read_mesh
 from meshtool.read.source_asset import read_source_asset
-from meshtool.repair.convert import build_asset_mesh, convert_asset
+from meshtool.read.triangles import read_triangles
+from meshtool.repair.convert import convert_asset
 from meshtool.repair.mesh import build_mesh
 
-#: The entries in the order the composer enters them for one file (each stage's inner entry right after it).
+#: The entries in the order the composer enters them for one file (each stage's inner entries right after it).
 READ_TO_REPAIR: tuple[Callable[..., Any], ...] = (
     read_source_asset,
     read_mesh,
-    build_asset_mesh,
-    build_mesh,
+    read_triangles,
     decide_asset_frame,
     source_frame,
     decide_frame,
     convert_asset,
+    build_mesh,
 )
 WHOLE = (*READ_TO_REPAIR, compute_hulls, pack)
 STAGE = {
     read_source_asset: "read",
     read_mesh: "read",
-    build_asset_mesh: "repair",
-    build_mesh: "repair",
+    read_triangles: "read",
     decide_asset_frame: "frame",
     source_frame: "frame",
     decide_frame: "frame",
     convert_asset: "repair",
+    build_mesh: "repair",
     compute_hulls: "hulls",
     pack: "packfile",
 }
@@ -130,8 +131,8 @@ def test_obj2bin_file_enters_each_stage_once(assets: Path, tmp_path: Path):
     by_name = {f.__qualname__: STAGE[f] for f in WHOLE}
     stages = [by_name[c] for c in counter.calls]
     runs = [s for k, s in enumerate(stages) if k == 0 or stages[k - 1] != s]
-    # repair's two entries straddle the frame decision, which needs the built mesh's vertices
-    assert runs == ["read", "repair", "frame", "repair", "hulls", "packfile"]
+    # the frame decides on the vertices the read stage marked kept: repair is entered once, after it
+    assert runs == ["read", "frame", "repair", "hulls", "packfile"]
 
 
 def test_obj2bin_dir_enters_each_stage_once_per_file(assets: Path, tmp_path: Path):
@@ -183,7 +184,7 @@ def test_the_counter_sees_an_entry_entered_twice(assets: Path):
         first = read_source_asset(src, resolver)
         read_source_asset(src, resolver)
     assert counter.counts()[read_source_asset.__qualname__] == 2
-    assert counter.calls == names((read_source_asset, read_mesh)) * 2
+    assert counter.calls == names((read_source_asset, read_mesh, read_triangles)) * 2
     assert first.library and first.sources[0]["role"] == "obj"
 
 

@@ -1,10 +1,11 @@
 """The frame stage's entry: the unit and up axis of a mesh, with what its format declares.
 
-:func:`decide_asset_frame` takes repair's mesh-building record (:class:`~meshtool.stages.MeshedAsset`: the geometry
-rules read the built mesh's vertices) and returns the :class:`~meshtool.stages.FramedAsset`. An OBJ's frame is
-:func:`meshtool.frame.decide.decide_frame`'s alone; other formats' declarations (COLLADA ``<unit>``/``<up_axis>``,
-glTF metres Y-up) are weighed first (:func:`source_frame`); STL and PLY declare neither and are treated like OBJ
-(options, consumer files, geometry), with a unit suggestion for STL.
+:func:`decide_asset_frame` takes the read stage's record (:class:`~meshtool.stages.SourceAsset`: the geometry
+rules read the vertices the output keeps, ``triangles.kept``) and returns the
+:class:`~meshtool.stages.FramedAsset`. An OBJ's frame is :func:`meshtool.frame.decide.decide_frame`'s alone;
+other formats' declarations (COLLADA ``<unit>``/``<up_axis>``, glTF metres Y-up) are weighed first
+(:func:`source_frame`); STL and PLY declare neither and are treated like OBJ (options, consumer files,
+geometry), with a unit suggestion for STL.
 """
 
 from __future__ import annotations
@@ -20,33 +21,36 @@ from meshtool.frame.decide import Frame, decide_frame
 from meshtool.frame.modelroot import ModelRoot
 from meshtool.frame.units import MAX_PLAUSIBLE_M, PLAUSIBLE_OBJECT_M, UNIT_FACTORS, UnitEvidence, unit_scale
 from meshtool.frame.upaxis import FloatArray, UpDecision
-from meshtool.stages import FramedAsset, MeshedAsset, SourceMesh
+from meshtool.stages import FramedAsset, SourceAsset, SourceMesh
 
 
-def decide_asset_frame(meshed: MeshedAsset, *, units: str | None, scale: float, up: str | None) -> FramedAsset:
-    """Decide the source unit, extra scale and up axis of a meshed asset.
+def decide_asset_frame(source: SourceAsset, *, units: str | None, scale: float, up: str | None) -> FramedAsset:
+    """Decide the source unit, extra scale and up axis of a read asset.
 
     Args:
-        meshed: Repair's mesh-building record; its (V, 3) positions are in source units and axes.
+        source: The read stage's record; the decision reads the (V, 3) positions of the vertices the output
+            keeps (``source.triangles.kept``: :func:`meshtool.read.triangles.kept_vertices`), in source units
+            and axes.
         units: ``--units`` (a unit, ``auto`` or ``None``).
         scale: ``--scale``.
         up: ``--up`` (``y``, ``z``, ``auto`` or ``None``).
 
     Returns:
-        The record with the decision; its findings are the meshed asset's, then the decision's.
+        The record with the decision; its findings are the read asset's, then the decision's.
     """
-    source = meshed.source
+    kept = source.triangles.kept
+    positions = source.mesh.positions
     frame = source_frame(
         source.mesh,
         source.src,
-        meshed.mesh.positions,
+        positions if kept.all() else positions[kept],
         units,
         scale,
         up,
         source.resolver.model_root,
         source.normalised_before,
     )
-    return FramedAsset(meshed, frame, [*meshed.findings, *frame.findings])
+    return FramedAsset(source, frame, [*source.findings, *frame.findings])
 
 
 def source_frame(

@@ -2,8 +2,10 @@
 
 :func:`read_source_asset` reads the file with the reader of its format (:func:`meshtool.read.read_mesh`), then
 resolves and parses every ``mtllib`` through the asset's resolver, and collects the material definitions the
-later stages use (an OBJ's from its MTL files, other formats' from the file itself). Nothing is triangulated,
-scaled or turned here; the composer (:mod:`meshtool.pipeline`) hands the record to repair's mesh building.
+later stages use (an OBJ's from its MTL files, other formats' from the file itself), then refuses absurd
+coordinates and triangulates the polygons as read (:func:`meshtool.read.triangles.read_triangles`: the triangles,
+which have zero area, the vertices the output keeps). Nothing is dropped, scaled or turned here; the composer
+(:mod:`meshtool.pipeline`) hands the record to the frame stage, which decides on the kept vertices.
 """
 
 from __future__ import annotations
@@ -15,10 +17,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from meshtool.errors import ObjParseError
 from meshtool.files.resolve import Resolution, printable
 from meshtool.findings import Finding, info
+from meshtool.frame.units import UNIT_FACTORS
 from meshtool.read import material_library, read_mesh, source_entries
 from meshtool.read.obj.mtl import Material, parse_mtl
+from meshtool.read.triangles import check_coordinate_range, read_triangles
 from meshtool.stages import SourceAsset
 
 if TYPE_CHECKING:
@@ -34,6 +39,8 @@ def read_source_asset(
     *,
     data: bytes | None = None,
     up: str | None = None,
+    units: str | None = None,
+    scale: float = 1.0,
     notes: Sequence[Finding] = (),
 ) -> SourceAsset:
     """Read ``src`` (OBJ, STL, PLY, glTF/GLB, COLLADA) and the MTL files it names.
@@ -45,15 +52,19 @@ def read_source_asset(
             read here through ``resolver``.
         up: ``--up``: a file meshtool wrote is noted (``already-normalized``) as read in metres, Z-up unless
             ``up`` names an axis.
+        units: ``--units``: a named unit bounds the coordinates (:func:`meshtool.read.triangles.check_coordinate_range`;
+            ``auto`` or ``None`` refuses only coordinates beyond the limit in every unit).
+        scale: ``--scale``, for the same bound.
         notes: Findings about the asset made before reading (the ``model-root`` finding), recorded after the
             reader's own.
 
     Returns:
-        The record: the mesh in the file's units and axes, its material library, sources and findings.
+        The record: the mesh in the file's units and axes, its triangles, material library, sources and findings.
 
     Raises:
         MeshtoolError: The file cannot be read (``ObjParseError``/``FormatError`` naming file and line or
-            offset; ``ResolveError`` for a file that cannot be opened).
+            offset; ``ResolveError`` for a file that cannot be opened), a coordinate is out of range or a face
+            uses a non-finite vertex, or no vertex is usable (``ObjParseError``).
     """
     name = printable(src.name)
     data = resolver.read_source(src) if data is None else data
@@ -84,8 +95,13 @@ def read_source_asset(
         for material in mtl.materials:
             library.setdefault(material.name, (material, res.found))
     library.update(material_library(obj, src))  # materials of formats other than OBJ
+    check_coordinate_range(obj, units if units in UNIT_FACTORS else None, scale)  # before any arithmetic on them
+    triangles = read_triangles(obj)
+    findings.extend(triangles.findings)
+    if not triangles.kept.any():
+        raise ObjParseError("no geometry: the file defines no usable vertices", path=name, hint="export the mesh again")
     return SourceAsset(
-        src, name, obj, library, resolver, normalised_before, findings, sources, source_paths, resolutions
+        src, name, obj, library, resolver, normalised_before, findings, sources, source_paths, resolutions, triangles
     )
 
 

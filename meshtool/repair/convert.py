@@ -1,12 +1,9 @@
-"""Repair's two entries: a read asset as a clean triangle mesh, then in metres, Z-up, with PNG textures and its record.
+"""Repair's entry: a framed asset as a clean triangle mesh in metres, Z-up, with PNG textures and its record.
 
-The composer (:mod:`meshtool.pipeline`) runs them around the frame decision, which reads the built mesh's vertices:
-
-1. :func:`build_asset_mesh`: :class:`~meshtool.stages.SourceAsset` -> :class:`~meshtool.stages.MeshedAsset`
-   (polygons triangulated and cleaned, :func:`meshtool.repair.mesh.build_mesh`; absurd coordinates refused);
-2. :func:`convert_asset`: :class:`~meshtool.stages.FramedAsset` -> :class:`~meshtool.stages.NormalisedAsset`
-   (the decided unit, scale and up axis applied, small parts fixed, materials made safe, textures converted to
-   PNG, the ``asset.json`` manifest). Nothing here prints or writes.
+:func:`convert_asset`: :class:`~meshtool.stages.FramedAsset` -> :class:`~meshtool.stages.NormalisedAsset`: the
+triangles as read cleaned (:func:`meshtool.repair.mesh.build_mesh`), the decided unit, scale and up axis applied,
+small parts fixed, materials made safe, textures converted to PNG, the ``asset.json`` manifest. Nothing here
+prints or writes.
 """
 
 from __future__ import annotations
@@ -19,67 +16,31 @@ import numpy as np
 
 from meshtool import __version__
 from meshtool.changes import changes_data
-from meshtool.errors import MeshtoolError, ObjParseError, OptionsError, StrictModeError
+from meshtool.errors import MeshtoolError, OptionsError, StrictModeError
 from meshtool.files.resolve import Resolution, Resolver
 from meshtool.findings import Finding, info, warning
 from meshtool.formats import suffix
 from meshtool.frame.units import UNIT_FACTORS, apply_scale, rotation_matrix, scale_findings, to_z_up, unit_scale
 from meshtool.read.obj.mtl import Material, TextureMap, opaque_if_invisible
+from meshtool.read.triangles import MAX_COORDINATE_M as MAX_COORDINATE_M
+from meshtool.read.triangles import check_coordinate_range as check_coordinate_range
 from meshtool.repair.mesh import DEFAULT_MATERIAL, TriMesh, build_mesh, unique_names
 from meshtool.repair.options import NormaliseOptions, safe_file_stem
 from meshtool.repair.smallparts import fix_small_parts
 from meshtool.repair.texroles import tag_textures
 from meshtool.repair.textures import to_png
-from meshtool.stages import FramedAsset, MeshedAsset, NormalisedAsset, SourceAsset, SourceMesh
+from meshtool.stages import FramedAsset, NormalisedAsset
 
-#: Largest vertex coordinate magnitude, metres, after ``--units`` and ``--scale`` (1000 km). Beyond it the
-#: file is refused: such coordinates are a wrong unit or corrupt data, qhull cannot hull them, and float32
-#: (the ``.mbin`` positions) keeps less than a decimetre of precision there and overflows past 3.4e38.
-MAX_COORDINATE_M = 1e6
 #: Smallest extent (largest bounding-box side) a mesh may have after --units and --scale, metres.
 MIN_EXTENT_M = 1e-9
-
-
-def build_asset_mesh(source: SourceAsset, options: NormaliseOptions) -> MeshedAsset:
-    """Repair's mesh building: the read asset's polygons as a clean triangle mesh, in source units and axes.
-
-    Args:
-        source: The read stage's record.
-        options: ``units`` and ``scale`` bound the coordinates (:func:`check_coordinate_range`; an ``auto`` or
-            missing unit refuses only coordinates beyond the limit in every unit).
-
-    Returns:
-        The record: the :class:`~meshtool.repair.mesh.TriMesh` and the findings so far.
-
-    Raises:
-        ObjParseError: A coordinate out of range, a non-finite coordinate, or no usable vertex at all.
-    """
-    obj = source.mesh
-    given = options.units if options.units in UNIT_FACTORS else None
-    check_coordinate_range(obj, given, options.scale)  # before any arithmetic on absurd values
-    mesh, mesh_findings = build_mesh(obj)
-    findings = [*source.findings, *mesh_findings]
-    if mesh.positions.shape[0] == 0:
-        raise ObjParseError(
-            "no geometry: the file defines no usable vertices", path=source.name, hint="export the mesh again"
-        )
-    if mesh.faces.shape[0] == 0:
-        findings.append(
-            warning(
-                "no-faces",
-                f"no faces: {mesh.positions.shape[0]} points kept (usable for a convex hull only)",
-                source.name,
-            )
-        )
-    return MeshedAsset(source, mesh, findings)
 
 
 def convert_asset(framed: FramedAsset, options: NormaliseOptions) -> NormalisedAsset:
     """Repair's conversion: the framed asset in metres, Z-up, with safe materials, PNG textures and its record.
 
     Args:
-        framed: The frame stage's record (its mesh is converted in place: positions and normals turned to
-            metres, Z-up).
+        framed: The frame stage's record: the read asset (its triangles are cleaned here, as
+            :func:`meshtool.repair.mesh.build_mesh` does) and the decision.
         options: ``units`` (whether a unit was given, for the size findings), ``name`` (the output stem;
             ``None``: the source's) and ``strict`` (warnings refuse the asset).
 
@@ -87,16 +48,26 @@ def convert_asset(framed: FramedAsset, options: NormaliseOptions) -> NormalisedA
         The normalised asset: mesh, materials, PNG textures (also in ``files``), manifest and every finding.
 
     Raises:
-        MeshtoolError: A coordinate beyond the limit in the decided unit (``ObjParseError``), units or scale
+        MeshtoolError: A coordinate beyond the limit in the decided unit (``ObjParseError``,
+            :func:`meshtool.read.triangles.check_coordinate_range`), units or scale
             that collapse the mesh (``OptionsError``), or warnings in strict mode (``StrictModeError``).
     """
-    meshed = framed.meshed
-    source = meshed.source
+    source = framed.source
     obj, src, resolver, source_name = source.mesh, source.src, source.resolver, source.name
-    mesh, frame, library = meshed.mesh, framed.frame, source.library
+    frame, library = framed.frame, source.library
+    mesh, mesh_findings = build_mesh(obj, source.triangles)
+    if mesh.faces.shape[0] == 0:
+        mesh_findings.append(
+            warning(
+                "no-faces",
+                f"no faces: {mesh.positions.shape[0]} points kept (usable for a convex hull only)",
+                source_name,
+            )
+        )
+    # the file's findings, the mesh's, then the frame's: the order ``asset.json`` has always recorded
+    findings = [*source.findings, *mesh_findings, *frame.findings]
     units, up = frame.units, frame.up
     check_coordinate_range(obj, units, frame.scale)
-    findings = list(framed.findings)
     sources = [*source.sources, *frame.sources(src.parent)]
     source_paths = dict(source.source_paths)
     resolutions = list(source.resolutions)
@@ -195,52 +166,6 @@ def check_extent(source: float, scaled: float, units: str, scale: float, path: s
             path=path,
             hint="pass a larger --scale or the right --units",
         )
-
-
-def check_coordinate_range(obj: SourceMesh, units: str | None, scale: float) -> None:
-    """Refuse vertex coordinates beyond :data:`MAX_COORDINATE_M` once converted to metres.
-
-    Only vertices that reach the output are checked (those faces use, or all of them when there are no
-    faces); non-finite ones are left to :func:`meshtool.repair.mesh.build_mesh`, which names them.
-
-    Args:
-        obj: The parsed OBJ (coordinates in ``units``).
-        units: Unit of the coordinates (a key of :data:`meshtool.frame.units.UNIT_FACTORS`), or ``None`` when it
-            is not decided yet: then only coordinates beyond the limit in every unit are refused.
-        scale: The extra uniform scale.
-
-    Raises:
-        ObjParseError: Naming the line of the first vertex out of range.
-    """
-    positions = obj.positions
-    if positions.shape[0] == 0:
-        return
-    factor = (unit_scale(units) if units else min(unit_scale(u) for u in UNIT_FACTORS)) * scale
-    with np.errstate(over="ignore", invalid="ignore"):
-        metres = np.abs(positions) * factor
-        beyond = (metres > MAX_COORDINATE_M) & np.isfinite(positions)
-    rows = beyond.any(axis=1)
-    if obj.corner_v.size:
-        used = np.zeros(positions.shape[0], dtype=bool)
-        used[obj.corner_v] = True
-        rows &= used
-    if not rows.any():
-        return
-    k = int(np.flatnonzero(rows)[0])
-    value = float(positions[k][beyond[k]][0])
-    if units is None:
-        shown = " in any unit"
-    elif units != "m" or scale != 1.0:
-        shown = f" ({float(metres[k][beyond[k]][0]):.4g} m in {units}, scale {scale:g})"
-    else:
-        shown = ""
-    raise ObjParseError(
-        f"vertex {k + 1} has the coordinate {value:.6g}{shown}, beyond the limit of +-{MAX_COORDINATE_M:g} m",
-        path=obj.path,
-        line=int(obj.vertex_lines[k]),
-        hint="pass the right --units or a smaller --scale, or fix the coordinate; recentre georeferenced models",
-        code="coordinate-range",
-    )
 
 
 def _materials(

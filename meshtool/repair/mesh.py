@@ -1,8 +1,9 @@
-"""Triangle meshes built from parsed OBJ data: triangulated, cleaned, compacted and ordered.
+"""Triangle meshes built from parsed mesh data: cleaned, compacted and ordered.
 
-:func:`build_mesh` turns a :class:`~meshtool.read.source_mesh.SourceMesh` into a :class:`TriMesh`: polygons are
-triangulated, degenerate triangles dropped, unused vertices/texcoords/normals removed (order kept), and
-triangles ordered by material (first use) and then part name, so each material is one contiguous run.
+:func:`build_mesh` turns a :class:`~meshtool.read.source_mesh.SourceMesh` and its triangles as read
+(:func:`meshtool.read.triangles.read_triangles`) into a :class:`TriMesh`: degenerate triangles dropped, unused
+vertices (:func:`meshtool.read.triangles.kept_vertices`), texcoords and normals removed (order kept), and triangles
+ordered by material (first use) and then part name, so each material is one contiguous run.
 Coordinates stay in the source's units and axes; see :mod:`meshtool.frame.units` for conversion.
 """
 
@@ -14,10 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from meshtool.errors import ObjParseError
 from meshtool.findings import Finding, info, warning
-from meshtool.read.obj.triangulate import EARCUT_BUDGET, EARCUT_FREE, EARCUT_SMALL, triangulate_polygons
 from meshtool.read.source_mesh import SourceMesh
+from meshtool.read.triangles import read_triangles, used_mask
+from meshtool.stages import SourceTriangles
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -88,73 +89,39 @@ def unique_names(names: list[str], fallback: str) -> list[str]:
     return out
 
 
-def build_mesh(obj: SourceMesh) -> tuple[TriMesh, list[Finding]]:
-    """Triangulate and clean parsed OBJ data.
+def build_mesh(obj: SourceMesh, triangles: SourceTriangles | None = None) -> tuple[TriMesh, list[Finding]]:
+    """Clean the triangles of parsed mesh data.
 
     Args:
-        obj: Parsed OBJ.
+        obj: Parsed mesh (any format).
+        triangles: ``obj``'s polygons as the read stage triangulated them
+            (:func:`meshtool.read.triangles.read_triangles`); ``None``: triangulated here, and the
+            triangulation's findings are returned too.
 
     Returns:
         The mesh and findings (degenerate faces, dropped attributes, unused non-finite vertices).
 
     Raises:
-        ObjParseError: When a face uses a vertex with a non-finite coordinate.
+        ObjParseError: When a face uses a vertex with a non-finite coordinate (``triangles`` not given).
     """
     findings: list[Finding] = []
     path = obj.path
-    tri = triangulate_polygons(obj.positions, obj.face_sizes, obj.corner_v)
-    if tri.fanned.size:
-        findings.append(
-            warning(
-                "polygon-fanned",
-                f"{tri.fanned.size} face(s) of more than {EARCUT_FREE} corners overlap themselves (a corner "
-                "visited twice, or edges that cross): fan-triangulated, repeated triangles dropped; "
-                "the triangles may overlap",
-                path,
-                int(obj.face_lines[tri.fanned[0]]),
-            )
-        )
-    if tri.over_budget.size:
-        findings.append(
-            warning(
-                "polygon-budget",
-                f"{tri.over_budget.size} large concave face(s) fan-triangulated: ear clipping all of them would take "
-                f"too long (more than {EARCUT_BUDGET:,} squared corners in faces of over {EARCUT_SMALL} corners); "
-                "the triangles may overlap",
-                path,
-                int(obj.face_lines[tri.over_budget[0]]),
-            )
-        )
+    if triangles is None:
+        triangles = read_triangles(obj)
+        findings.extend(triangles.findings)
+    tri, faces = triangles.tri, triangles.faces
     if tri.identity:  # all triangles: views instead of gathers
-        faces = obj.corner_v.reshape(-1, 3)
         uv = obj.corner_vt.reshape(-1, 3).copy()
         nrm = obj.corner_vn.reshape(-1, 3).copy()
         lines, material, part = obj.face_lines, obj.face_material, obj.face_part
     else:
-        faces = obj.corner_v[tri.corners]
         uv = obj.corner_vt[tri.corners]
         nrm = obj.corner_vn[tri.corners]
         lines = obj.face_lines[tri.face]
         material = obj.face_material[tri.face]
         part = obj.face_part[tri.face]
 
-    if faces.size:
-        bad_vertex = np.logical_not(np.isfinite(obj.positions).all(axis=1))
-        if bad_vertex.any():
-            bad_vertex &= _used_mask(faces, obj.positions.shape[0])
-        if bad_vertex.any():
-            vertex = int(np.flatnonzero(bad_vertex)[0])
-            user = int(lines[np.flatnonzero((faces == vertex).any(axis=1))[0]])
-            raise ObjParseError(
-                f"vertex {vertex + 1} has a non-finite coordinate {obj.positions[vertex].tolist()} and is used by "
-                f"the face on line {user}",
-                path=path,
-                line=int(obj.vertex_lines[vertex]),
-                hint="fix the coordinate or delete the faces that use it",
-                code="non-finite",
-            )
-
-    degenerate = _degenerate(obj.positions, faces)
+    degenerate = triangles.degenerate
     dropped = int(degenerate.sum()) + tri.lost
     if dropped:
         first = int(lines[np.flatnonzero(degenerate)[0]]) if degenerate.any() else None
@@ -170,20 +137,20 @@ def build_mesh(obj: SourceMesh) -> tuple[TriMesh, list[Finding]]:
     if normals.shape[0]:
         normals, nrm = _fill_normals(obj.positions, faces, normals, nrm, path, findings)
 
+    kept = triangles.kept  # the one rule of which vertices stay (kept_vertices); the frame decided on them too
     if faces.size:
-        positions, colors, faces = _compact_vertices(obj, faces)
+        positions, colors, faces = _compact_vertices(obj, faces, kept)
     else:
-        finite = np.isfinite(obj.positions).all(axis=1)
-        if not finite.all():
+        if not kept.all():
             findings.append(
                 warning(
                     "non-finite-vertices",
-                    f"{int((~finite).sum())} vertices with non-finite coordinates dropped",
+                    f"{int((~kept).sum())} vertices with non-finite coordinates dropped",
                     path,
                 )
             )
-        positions = obj.positions[finite]
-        colors = obj.colors[finite] if obj.colors is not None else None
+        positions = obj.positions[kept]
+        colors = obj.colors[kept] if obj.colors is not None else None
     texcoords, uv = _compact(obj.texcoords, uv)
     with_uv = uv[:, 0] >= 0
     if with_uv.any() and not with_uv.all():
@@ -261,19 +228,6 @@ def _fill_normals(
     return np.concatenate([normals, _face_normals(positions, faces[missing])]), nrm
 
 
-def _degenerate(positions: FloatArray, faces: IntArray) -> npt.NDArray[np.bool_]:
-    """Triangles with a repeated vertex or exactly zero area."""
-    if faces.size == 0:
-        return np.zeros(0, dtype=bool)
-    a, b, c = faces[:, 0], faces[:, 1], faces[:, 2]
-    result: npt.NDArray[np.bool_] = (a == b) | (b == c) | (a == c)
-    x, y, z = (np.ascontiguousarray(positions[:, k]) for k in range(3))
-    ux, uy, uz = x[b] - x[a], y[b] - y[a], z[b] - z[a]
-    vx, vy, vz = x[c] - x[a], y[c] - y[a], z[c] - z[a]
-    result |= (uy * vz == uz * vy) & (uz * vx == ux * vz) & (ux * vy == uy * vx)
-    return result
-
-
 def _face_normals(positions: FloatArray, faces: IntArray) -> FloatArray:
     p = positions[faces]
     n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
@@ -282,19 +236,15 @@ def _face_normals(positions: FloatArray, faces: IntArray) -> FloatArray:
     return result
 
 
-def _used_mask(index: IntArray, size: int) -> npt.NDArray[np.bool_]:
-    used = np.zeros(size, dtype=bool)
-    used[index[index >= 0]] = True
-    return used
-
-
-def _compact_vertices(obj: SourceMesh, faces: IntArray) -> tuple[FloatArray, FloatArray | None, IntArray]:
-    used = _used_mask(faces, obj.positions.shape[0])
+def _compact_vertices(
+    obj: SourceMesh, faces: IntArray, kept: npt.NDArray[np.bool_]
+) -> tuple[FloatArray, FloatArray | None, IntArray]:
+    """The ``kept`` vertices (order kept) and ``faces`` renumbered to them."""
     colors = obj.colors
-    if used.all():
+    if kept.all():
         return obj.positions, colors, faces
-    remap = np.cumsum(used) - 1
-    return obj.positions[used], colors[used] if colors is not None else None, remap[faces]
+    remap = np.cumsum(kept) - 1
+    return obj.positions[kept], colors[kept] if colors is not None else None, remap[faces]
 
 
 def _compact(values: FloatArray, index: IntArray) -> tuple[FloatArray, IntArray]:
@@ -302,7 +252,7 @@ def _compact(values: FloatArray, index: IntArray) -> tuple[FloatArray, IntArray]
     present = index >= 0
     if not present.any():
         return values[:0], index
-    used = _used_mask(index, values.shape[0])
+    used = used_mask(index, values.shape[0])
     if used.all():
         return values, index
     remap = np.cumsum(used) - 1
