@@ -18,6 +18,7 @@ from typing import Any
 
 import pytest
 from serve_helpers import SCENES, SIMRUN, serve
+from test_serve_recording import SENSOR_SCENE
 
 from simrun.record.simlog import Simlog
 
@@ -45,12 +46,18 @@ def test_a_signal_at_a_random_point_of_a_lockstep_session_keeps_a_complete_recor
         steps = 100_000 if rng.random() < 0.7 else rng.randint(1, 2000)
         worker = threading.Thread(target=lambda: answers.append(server.request("POST", "/api/step", {"steps": steps})))
         worker.start()
-        time.sleep(rng.uniform(0.0, 1.5))
+        # a long step (boebot: >= 4 s of wall time) is running when the signal comes 0.5-1.5 s later
+        time.sleep(rng.uniform(0.5, 1.5) if steps == 100_000 else rng.uniform(0.0, 1.5))
+        signalled = time.monotonic()
+    stopped_after = time.monotonic() - signalled
     worker.join(30)
     assert not worker.is_alive()
     assert f"wrote {record}" in server.output[0]
     assert not [p for p in tmp_path.iterdir() if p != record]  # no spool or temporary file left
     status, answer = answers[0]
+    assert stopped_after < 30  # the step stopped at its next 50 steps (before: it ran on, answered 500)
+    if steps == 100_000:
+        assert status == 200 and answer["cancelled"] == "shutdown", (status, answer)
     if status == 200 and isinstance(answer, dict):  # the step answered with the state it stopped at
         assert answer["stepped"] <= answer["requested"] == steps
         assert answer["cancelled"] in (None, "shutdown")
@@ -81,3 +88,33 @@ def test_a_step_past_its_deadline_answers_with_the_state_it_reached():
     assert answer["stepped"] % STEP_CHUNK == 0
     assert answer["time"] == world_time  # the world is exactly where the answer says
     assert answer["steps"] == answer["stepped"]
+
+
+def test_sigterm_during_a_long_step_with_a_webcam_exits_0_with_the_recording(tmp_path):
+    """The issue's case: a step of 100,000 steps with a camera rendering (longer than the 30 s the server
+    used to wait for its world thread before exiting under it: exit 139, no recording)."""
+    scene = tmp_path / "robot.toml"
+    scene.write_text(SENSOR_SCENE)
+    record = tmp_path / "run.simlog"
+    answers: list[Any] = []
+    with serve(
+        scene, "--lockstep", "--record", str(record), "--record-sensors", "view_cam,imu", stop=signal.SIGTERM
+    ) as server:
+        worker = threading.Thread(
+            target=lambda: answers.append(server.request("POST", "/api/step", {"steps": 100_000}))
+        )
+        worker.start()
+        time.sleep(1.5)
+        signalled = time.monotonic()
+    assert time.monotonic() - signalled < 30
+    worker.join(30)
+    status, answer = answers[0]
+    assert status == 200 and answer["cancelled"] == "shutdown" and 0 < answer["stepped"] < 100_000
+    log = Simlog(record)
+    try:
+        assert log.truncated is None
+        counts = log.counts()
+    finally:
+        log.close()
+    assert abs(counts["images.view_cam"] - answer["time"] * 15) <= 2
+    _resim(record)
