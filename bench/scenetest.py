@@ -11,7 +11,11 @@ once and kept). Every round's JSON report must be byte-identical across the conf
 benchmark stops. Memory: the peak RSS of the process (-j 1), of the largest worker process (-j 2), and the
 RSS of each Dask worker after the last round.
 
-Usage: python bench/scenetest.py [--seeds 200] [--rounds 4] [--out docs/benchmarks.md] [--json FILE]
+The anchor (issue 41) is a plain ``mj_step`` loop over the same simulated seconds of the same model, run in
+the same rotation; the CPU ratio of each configuration to it is reported with the goal (1.5x) met or short
+by a factor, and a cProfile of a few -j 1 runs says where the rest goes.
+
+Usage: python bench/scenetest.py [--seeds 200] [--rounds 4] [--profile 4] [--out docs/benchmarks.md] [--json FILE]
 """
 
 from __future__ import annotations
@@ -39,7 +43,10 @@ CONFIGS = {
     "j1": "in one process (-j 1)",
     "j2": "2 worker processes (-j 2)",
     "dask": "Dask LocalCluster, 2 workers",
+    "mjstep": "anchor: a plain `mj_step` loop",
 }
+#: Goal of issue 41: ``simrun test`` CPU per run within this factor of the plain ``mj_step`` loop's.
+GOAL = 1.5
 
 
 def _cpu(who: int) -> float:
@@ -47,8 +54,96 @@ def _cpu(who: int) -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def anchor(first: int, last: int) -> None:
+    """The anchor over seeds first..last-1: what a user would write instead of ``simrun test``.
+
+    The scene's model (compiled once, by simrun, as the test compiles it) stepped by a plain Python loop of
+    ``mujoco.mj_step`` for the same simulated seconds per seed, from a fresh ``MjData``; no controls, no
+    checks. Prints one JSON line like :func:`child` (no report: ``sha`` is ``None``).
+    """
+    import mujoco
+
+    from simrun.scene.scene_file import load_scene
+    from simrun.scenetest.spec import load_case
+
+    cpu = _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN)  # after the imports
+    started = time.perf_counter()
+    duration = load_case(SCENE).duration
+    model = load_scene(SCENE).model
+    steps = round(duration / model.opt.timestep)
+    step = mujoco.mj_step
+    for _ in range(first, last):
+        data = mujoco.MjData(model)
+        for _ in range(steps):
+            step(model, data)
+    result: dict[str, Any] = {
+        "seconds": time.perf_counter() - started,
+        "runs": last - first,
+        "cpu": _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN) - cpu,
+        "memory": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "sha": None,
+        "report": [],
+    }
+    print(json.dumps(result))
+
+
+def profile(seeds: int, top: int) -> list[str]:
+    """The ``top`` entries (by own CPU time) of cProfile over ``seeds`` runs at -j 1 in this process, as lines."""
+    import cProfile
+    import io
+    import pstats
+
+    from simrun.scenetest import TestOptions, run_tests
+
+    run_tests([SCENE], TestOptions(seeds=[0]))  # imports and first-use costs are not the runs'
+    profiler = cProfile.Profile(time.process_time)
+    profiler.enable()
+    run_tests([SCENE], TestOptions(seeds=list(range(seeds))))
+    profiler.disable()
+    stats = pstats.Stats(profiler, stream=io.StringIO())
+    total = stats.total_tt  # type: ignore[attr-defined]
+    import simrun
+
+    roots = sorted(
+        {str(Path(simrun.__file__).resolve().parent.parent) + "/", *(p + "/" for p in sys.path if p)}, key=len
+    )
+    rows = []
+    for (file, line, name), (_, calls, own, cumulative, _) in sorted(
+        stats.stats.items(),  # type: ignore[attr-defined]
+        key=lambda item: -item[1][2],
+    )[:top]:
+        short = next((file[len(r) :] for r in reversed(roots) if file.startswith(r)), file)
+        where = f"{short}:{line}({name})" if file != "~" else name
+        rows.append(f"| `{where}` | {calls} | {own:.3f} | {100 * own / total:.1f} % | {cumulative:.3f} |")
+    return [
+        f"cProfile of {seeds} runs at -j 1 in one process (CPU clock; {total:.2f} s in all), top {top} by own time:",
+        "",
+        "| function | calls | own s | own share | cumulative s |",
+        "|---|---:|---:|---:|---:|",
+        *rows,
+    ]
+
+
+def _bytecode() -> str:
+    """Whether the project's modules ran from ``.pyc`` files (as installed users have them)."""
+    import importlib.util
+
+    import simrun.scenetest.expect
+    import simrun.world.world
+
+    present = all(
+        Path(importlib.util.cache_from_source(m.__file__ or "")).exists()
+        for m in (simrun.scenetest.expect, simrun.world.world)
+    )
+    writes = "not written (PYTHONDONTWRITEBYTECODE)" if sys.dont_write_bytecode else "written when missing"
+    return f"`.pyc` {'present' if present else 'missing'} for the project's modules, {writes}"
+
+
 def child(config: str, first: int, last: int, scheduler: str | None) -> None:
     """One configuration over seeds first..last-1 in this process: prints one JSON line of measurements."""
+    if config == "mjstep":
+        anchor(first, last)
+        return
     from simrun.scenetest import TestOptions, run_tests
     from simrun.scenetest.reports import render
 
@@ -90,6 +185,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=4)
     parser.add_argument("--out", type=Path, default=Path("docs/benchmarks.md"))
     parser.add_argument("--json", type=Path, default=None, help="also write every run of the report here")
+    parser.add_argument("--profile", type=int, default=4, help="seeds of the cProfile run (0: none)")
     parser.add_argument("--child", nargs=4, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -110,7 +206,7 @@ def main() -> None:
         Client(cluster) as client,
     ):
         for r in range(args.rounds):
-            order = list(CONFIGS)[r % 3 :] + list(CONFIGS)[: r % 3]
+            order = list(CONFIGS)[r % len(CONFIGS) :] + list(CONFIGS)[: r % len(CONFIGS)]
             shas = set()
             for config in order:
                 before = sum(c for _, c in client.run(_worker_stats).values()) if config == "dask" else 0.0
@@ -127,11 +223,14 @@ def main() -> None:
                 total["load"].append(load)
                 if config == "dask":
                     stats = list(client.run(_worker_stats).values())
+                    result["cpu"] += sum(c for _, c in stats) - before
                     total["cpu"] += sum(c for _, c in stats) - before
                     total["memory"] = [m for m, _ in sorted(stats)]
                 else:
                     total["memory"] = max(total["memory"], result["memory"])
-                shas.add(result["sha"])
+                total.setdefault("rounds", []).append(result["cpu"] / result["runs"])
+                if result["sha"] is not None:
+                    shas.add(result["sha"])
                 if config == "j1":
                     runs.extend(result["report"])
             assert len(shas) == 1, f"round {r}: reports differ between executors"
@@ -142,9 +241,11 @@ def main() -> None:
         BEGIN,
         "## Scene tests: `simrun test` on the Boe-Bot square",
         "",
-        f"`python bench/scenetest.py --seeds {args.seeds} --rounds {args.rounds}`: fixtures/scenes/boebot_square.toml "
+        f"`python bench/scenetest.py --seeds {args.seeds} --rounds {args.rounds} --profile {args.profile}`: "
+        "fixtures/scenes/boebot_square.toml "
         f"(40 s simulated, 8 expectations, start jitter per seed) over {args.seeds} seeds per configuration, in "
-        f"{args.rounds} rounds that run the three configurations in turn (rotating order, each a fresh process; the "
+        f"{args.rounds} rounds that run the three configurations and the anchor in turn (rotating order, each a fresh "
+        "process; the "
         "pool's start-up is paid every round, the Dask cluster is started once). Every round's JSON report was "
         "byte-identical across the three. Wall s: from the scene check to the last result, summed over the rounds. "
         "Scaling efficiency: runs/s over (2 x runs/s of -j 1). CPU s per run: user + system time of every process "
@@ -159,15 +260,40 @@ def main() -> None:
     for config, label in CONFIGS.items():
         t = totals[config]
         rate = t["runs"] / t["seconds"]
-        efficiency = "1.00 (base)" if config == "j1" else f"{rate / (2 * base):.2f}"
+        efficiency = "1.00 (base)" if config == "j1" else "" if config == "mjstep" else f"{rate / (2 * base):.2f}"
         memory = t["memory"] if isinstance(t["memory"], list) else [t["memory"]]
         lines.append(
-            f"| {label} | {t['runs']} | {t['seconds']:.1f} | {rate:.2f} | {efficiency} | {t['cpu'] / t['runs']:.2f} "
+            f"| {label} | {t['runs']} | {t['seconds']:.1f} | {rate:.2f} | {efficiency} | {t['cpu'] / t['runs']:.3f} "
             f"| {', '.join(f'{m:.0f}' for m in memory)} | {', '.join(f'{x:.1f}' for x in t['load'])} |"
         )
+    anchor_cpu = totals["mjstep"]["cpu"] / totals["mjstep"]["runs"]
     lines += [
         "",
-        f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}.",
+        f"Against the anchor (issue 41: CPU per run within {GOAL:g}x of a plain `mj_step` loop over the same 40 "
+        "simulated seconds of the same compiled model, from a fresh `MjData` per run, no controls and no checks; "
+        "ratio of the CPU sums, and each round's ratio):",
+        "",
+        "| configuration | CPU s per run / anchor's | per round | goal |",
+        "|---|---:|---|---|",
+    ]
+    for config in ("j1", "j2", "dask"):
+        t = totals[config]
+        ratio = t["cpu"] / t["runs"] / anchor_cpu
+        rounds = ", ".join(f"{a / b:.2f}" for a, b in zip(t["rounds"], totals["mjstep"]["rounds"], strict=True))
+        verdict = f"met (<= {GOAL:g}x)" if ratio <= GOAL else f"short by {ratio / GOAL:.2f}x"
+        lines.append(f"| {CONFIGS[config]} | {ratio:.2f}x | {rounds} | {verdict} |")
+    lines += [
+        "",
+        "-j 2 starts its two worker processes (each imports MuJoCo and simrun) in every round, and the Dask "
+        "configuration pays its scheduler and workers' own CPU: with few runs per round both weigh on their ratio.",
+    ]
+    if args.profile:
+        lines += ["", *profile(args.profile, 12)]
+    bytecode = _bytecode()
+    lines += [
+        "",
+        f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
+        f"Python bytecode: {bytecode}.",
         END,
     ]
     write_section(args.out, "\n".join(lines), BEGIN, END)

@@ -350,8 +350,16 @@ class _Probe:
         except (EntityError, KeyError) as exc:
             reason = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
             raise SceneError(str(reason), e.file, "expect", e.line, e.id) from None
+        if e.kind == "no_contact":
+            a, b = self.groups
+            #: pair[g1, g2]: a contact of geoms g1 and g2 is one between the two entities (either order).
+            self.pair = np.outer(a, b) | np.outer(b, a) if a.size <= _PAIR_MATRIX_GEOMS else None
+        if e.kind == "region":
+            self.low, self.high = np.array(p["min"]), np.array(p["max"])
+        self._data: mujoco.MjData | None = None
         checks: dict[str, Callable[[mujoco.MjData], tuple[bool, float]]] = {
             "position": self._check_position,
+            "region": self._check_region,
             "no_contact": self._check_no_contact,
             "finite": self._check_finite,
             "no_warnings": self._check_no_warnings,
@@ -363,32 +371,58 @@ class _Probe:
         ok, _, miss = self.measure()
         return ok, miss
 
+    def _bind(self, data: mujoco.MjData) -> None:
+        """Views of ``data``'s fixed-size arrays, taken once per ``MjData`` (they follow its values)."""
+        self._data = data
+        self._xpos, self._warnings = data.xpos, data.warning.number
+        self._state = (data.qpos, data.qvel, data.qacc)
+
     def _check_position(self, data: mujoco.MjData) -> tuple[bool, float]:
         """The distance as :meth:`measure` computes it (``numpy.linalg.norm`` of a vector is ``sqrt(x . x)``)."""
-        offset = data.xpos[self.body_id, : len(self.point)] - self.point
+        if data is not self._data:
+            self._bind(data)
+        offset = self._xpos[self.body_id, : len(self.point)] - self.point
         distance = math.sqrt(float(offset.dot(offset)))
         within: float = self.e.params["within"]
         return distance <= within, distance - within
+
+    def _check_region(self, data: mujoco.MjData) -> tuple[bool, float]:
+        """The distance outside the box as :meth:`measure` computes it."""
+        if data is not self._data:
+            self._bind(data)
+        here = self._xpos[self.body_id, : len(self.low)]
+        outside = np.maximum(self.low - here, 0) + np.maximum(here - self.high, 0)
+        miss = math.sqrt(float(outside.dot(outside)))
+        return miss == 0, miss
 
     def _check_no_contact(self, data: mujoco.MjData) -> tuple[bool, float]:
         """No contact of the pair: geom-pair masks over the contact arrays (a contact found: :meth:`measure`)."""
         if data.ncon:
             contacts = data.contact
             g1, g2 = contacts.geom1, contacts.geom2
-            a, b = self.groups
-            if ((a[g1] & b[g2]) | (a[g2] & b[g1])).any():
+            if self.pair is not None:
+                found = self.pair[g1, g2].any()
+            else:
+                a, b = self.groups
+                found = ((a[g1] & b[g2]) | (a[g2] & b[g1])).any()
+            if found:
                 return self._check_measured(data)
         return True, 0.0
 
     def _check_finite(self, data: mujoco.MjData) -> tuple[bool, float]:
         """Finite: a sum is finite when every term is (a non-finite sum, even an overflow: :meth:`measure`)."""
-        if math.isfinite(float(data.qpos.sum()) + float(data.qvel.sum()) + float(data.qacc.sum())):
+        if data is not self._data:
+            self._bind(data)
+        qpos, qvel, qacc = self._state
+        if math.isfinite(float(qpos.sum()) + float(qvel.sum()) + float(qacc.sum())):
             return True, 0.0
         return self._check_measured(data)
 
     def _check_no_warnings(self, data: mujoco.MjData) -> tuple[bool, float]:
         """No warning: MuJoCo's counters (``data.warning.number``) are all zero (else :meth:`measure`)."""
-        if data.warning.number.any():
+        if data is not self._data:
+            self._bind(data)
+        if self._warnings.any():
             return self._check_measured(data)
         return True, 0.0
 
@@ -490,6 +524,10 @@ class _Probe:
                 )
             flat = flat[p["index"] : p["index"] + 1]
         return [float(v) for v in flat], f"{what} ="
+
+
+#: Most geoms for which ``no_contact`` keeps a geom x geom pair matrix (1 MiB); above, two geom masks.
+_PAIR_MATRIX_GEOMS = 1024
 
 
 def _owned(body: str, entity: str) -> bool:
