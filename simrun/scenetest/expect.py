@@ -332,6 +332,7 @@ class _Probe:
             if "body" in p:
                 self.body = world.body(p["body"])
                 self.body_id = int(self.body.id)
+                self._xpos = world.data.xpos  # the MjData self.body views (measure reads it too)
             self.point = np.array(self.body.xpos) if p.get("point") == "start" else np.array(p.get("point", ()))
             if e.kind == "joint":
                 self.joint = world.joint(p["joint"])
@@ -374,13 +375,12 @@ class _Probe:
     def _bind(self, data: mujoco.MjData) -> None:
         """Views of ``data``'s fixed-size arrays, taken once per ``MjData`` (they follow its values)."""
         self._data = data
-        self._xpos, self._warnings = data.xpos, data.warning.number
+        self._warnings = data.warning.number
+        self._no_warnings = bytes(self._warnings.nbytes)
         self._state = (data.qpos, data.qvel, data.qacc)
 
     def _check_position(self, data: mujoco.MjData) -> tuple[bool, float]:
         """The distance as :meth:`measure` computes it (``numpy.linalg.norm`` of a vector is ``sqrt(x . x)``)."""
-        if data is not self._data:
-            self._bind(data)
         offset = self._xpos[self.body_id, : len(self.point)] - self.point
         distance = math.sqrt(float(offset.dot(offset)))
         within: float = self.e.params["within"]
@@ -388,8 +388,6 @@ class _Probe:
 
     def _check_region(self, data: mujoco.MjData) -> tuple[bool, float]:
         """The distance outside the box as :meth:`measure` computes it."""
-        if data is not self._data:
-            self._bind(data)
         here = self._xpos[self.body_id, : len(self.low)]
         outside = np.maximum(self.low - here, 0) + np.maximum(here - self.high, 0)
         miss = math.sqrt(float(outside.dot(outside)))
@@ -401,7 +399,7 @@ class _Probe:
             contacts = data.contact
             g1, g2 = contacts.geom1, contacts.geom2
             if self.pair is not None:
-                found = self.pair[g1, g2].any()
+                found = np.count_nonzero(self.pair[g1, g2]) > 0
             else:
                 a, b = self.groups
                 found = ((a[g1] & b[g2]) | (a[g2] & b[g1])).any()
@@ -410,11 +408,14 @@ class _Probe:
         return True, 0.0
 
     def _check_finite(self, data: mujoco.MjData) -> tuple[bool, float]:
-        """Finite: a sum is finite when every term is (a non-finite sum, even an overflow: :meth:`measure`)."""
+        """Finite: a sum of squares is finite when every term is (not finite, even by overflow: :meth:`measure`).
+
+        Squares overflow only beyond 1e154 (MuJoCo resets a state past 1e10 with a warning); numpy then warns.
+        """
         if data is not self._data:
             self._bind(data)
         qpos, qvel, qacc = self._state
-        if math.isfinite(float(qpos.sum()) + float(qvel.sum()) + float(qacc.sum())):
+        if math.isfinite(float(qpos.dot(qpos)) + float(qvel.dot(qvel)) + float(qacc.dot(qacc))):
             return True, 0.0
         return self._check_measured(data)
 
@@ -422,7 +423,7 @@ class _Probe:
         """No warning: MuJoCo's counters (``data.warning.number``) are all zero (else :meth:`measure`)."""
         if data is not self._data:
             self._bind(data)
-        if self._warnings.any():
+        if self._warnings.tobytes() != self._no_warnings:  # a counter is not zero
             return self._check_measured(data)
         return True, 0.0
 
