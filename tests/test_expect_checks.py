@@ -162,3 +162,87 @@ def test_checks_follow_a_new_mjdata(tmp_path: Path) -> None:
     world.data.qvel[0] = math.nan  # only the new MjData is not finite
     assert ("stable", False) in _agree(observer)
     assert np.isfinite(before.qvel).all()
+
+
+class _Reference(Observer):
+    """The observer as it was before the bulk checks: every live expectation measured, words and all."""
+
+    def observe(self) -> None:
+        now, half = self.world.time, 0.5 * self.dt
+        for probe, state in zip(self.probes, self.state, strict=True):
+            e = probe.e
+            if state.decided or e.mode == "end" or now < e.start - half:
+                continue
+            if e.stop is not None and now > e.stop + half:
+                self._close(probe, state)
+                continue
+            ok, text, miss = probe.measure()
+            state.count += 1
+            state.first = now if state.first is None else state.first
+            state.last = now
+            if e.mode == "at":
+                state.keep(ok, text, now, miss)
+                state.decided = True
+            elif e.mode == "always":
+                if not ok:
+                    state.keep(False, text, now, miss)
+                    state.decided = True
+                elif state.time is None or miss > state.miss:
+                    state.keep(True, text, now, miss)
+            elif ok:
+                state.keep(True, text, now, miss)
+                state.decided = True
+            elif state.time is None or miss < state.miss:
+                state.keep(False, text, now, miss)
+
+
+WINDOWS = """
+[[expect]]
+id = "settles"
+kind = "position"
+body = "crate"
+point = "start"
+within = 0.01
+always = [0.0, 0.4]
+
+[[expect]]
+id = "early"
+kind = "position"
+body = "ball"
+point = [0.0, 0.0, 0.6]
+within = 0.05
+always = [0.0, 0.1]
+
+[[expect]]
+id = "lands"
+kind = "position"
+body = "ball"
+point = [0.0, 0.0, 0.3]
+within = 0.002
+sometime = [0.0, "end"]
+
+[[expect]]
+id = "at"
+kind = "heading"
+body = "crate"
+yaw = 0.0
+within = 1.0
+at = 0.25
+"""
+
+
+def test_outcomes_equal_the_reference_observer(tmp_path: Path) -> None:
+    """Same outcomes, words included, as measuring everything at every observation (a landing, 0.6 s)."""
+    results = []
+    for cls in (Observer, _Reference):
+        observer = _observer(tmp_path, SCENE + WINDOWS)
+        found = [p.e for p in observer.probes]
+        observer = cls(found, observer.world)
+        observer.observe()
+        for _ in range(60):
+            observer.world.step(5)
+            observer.observe()
+        results.append(observer.finish(0.6, 1.0))
+    assert results[0] == results[1]
+    assert {o.id for o in results[0] if not o.passed} >= {"apart", "near"}
+    assert any("closest" in o.detail for o in results[0])

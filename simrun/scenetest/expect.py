@@ -433,8 +433,7 @@ class _Probe:
         if kind == "position":
             here = np.array(self.body.xpos)[: len(self.point)]
             distance = float(np.linalg.norm(here - self.point))
-            text = f"{p['body']} at {_fmt_vec(here)}, {distance:.4f} m from {_fmt_vec(self.point)}"
-            return distance <= p["within"], text, distance - p["within"]
+            return distance <= p["within"], self.position_text(here), distance - p["within"]
         if kind == "region":
             here = np.array(self.body.xpos)[: len(p["min"])]
             outside = np.maximum(np.array(p["min"]) - here, 0) + np.maximum(here - np.array(p["max"]), 0)
@@ -481,6 +480,15 @@ class _Probe:
                 return False, f"MuJoCo warning(s) {text}", float(sum(raised.values()))
             return True, "no warnings", 0.0
         raise AssertionError(kind)  # realtime is judged from the run's summary
+
+    def position_text(self, here: np.ndarray) -> str:
+        """What a ``position`` expectation measured with the body at ``here`` (its first 2 or 3 coordinates)."""
+        distance = float(np.linalg.norm(here - self.point))
+        return f"{self.e.params['body']} at {_fmt_vec(here)}, {distance:.4f} m from {_fmt_vec(self.point)}"
+
+    def position_now(self) -> np.ndarray:
+        """A copy of the body's position now, as :meth:`measure` reads it (the first 2 or 3 coordinates)."""
+        return np.array(self._xpos[self.body_id, : len(self.point)])
 
     def _reading(self) -> tuple[list[float], str]:
         p = self.e.params
@@ -552,9 +560,10 @@ class _State:
     count: int = 0
     first: float | None = None
     last: float | None = None
+    here: np.ndarray | None = None  # a kept position whose text is written when the run ends
 
     def keep(self, passed: bool, text: str, time: float | None, miss: float) -> None:
-        self.passed, self.text, self.time, self.miss = passed, text, time, miss
+        self.passed, self.text, self.time, self.miss, self.here = passed, text, time, miss, None
 
 
 #: Kinds whose closest call is worth reporting when they hold (the others hold with nothing to measure).
@@ -612,7 +621,11 @@ class Observer:
                     self._keep(probe, state, now)
                     state.decided = closed = True
                 elif state.time is None or miss > state.miss:  # keep the closest call
-                    self._keep(probe, state, now)
+                    if e.kind == "position":  # the position now; its words when the run ends
+                        state.keep(True, "", now, miss)
+                        state.here = probe.position_now()
+                    else:
+                        self._keep(probe, state, now)
             elif ok:  # sometime
                 self._keep(probe, state, now)
                 state.decided = closed = True
@@ -657,6 +670,8 @@ class Observer:
                 state.count, state.decided = 1, True
             elif not state.decided:
                 self._close(probe, state)
+            if state.here is not None:
+                state.text = probe.position_text(state.here)
             outcomes[e.id] = _outcome(e, state)
         for e in self.realtime:
             factor = simulated_s / wall_s if wall_s > 0 else math.inf
