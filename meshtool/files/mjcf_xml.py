@@ -162,7 +162,7 @@ def syntax_error(exc: Any, shown: str) -> MjcfReadError:
     return MjcfReadError(f"not well-formed XML: {text}", path=shown, line=exc.lineno, hint=hint)
 
 
-def to_nodes(root: Any, file: int, include_dir: Path | None, shown: str) -> XmlNode:
+def to_nodes(root: Any, file: int, include_dir: Path | None, shown: str, keep: frozenset[str] | None = None) -> XmlNode:
     """The lxml tree ``root`` as :class:`XmlNode` (iteratively); text is dropped.
 
     Args:
@@ -170,6 +170,8 @@ def to_nodes(root: Any, file: int, include_dir: Path | None, shown: str) -> XmlN
         file: The index its nodes carry.
         include_dir: The folder of the included file it is (``None``: the main file).
         shown: The file as messages name it.
+        keep: Only the root's children with these tags (lower case) and their subtrees (``None``: all): a reader
+            that needs the assets only skips the bodies, keyframes and actuators of a large model.
 
     Raises:
         MjcfReadError: An XML namespace (not MJCF) or an entity reference left unresolved.
@@ -194,6 +196,8 @@ def to_nodes(root: Any, file: int, include_dir: Path | None, shown: str) -> XmlN
         for child in element:
             if not isinstance(child.tag, str):  # an entity reference left unresolved
                 raise MjcfReadError(DTD_REFUSED, path=shown, line=child.sourceline, hint="write the text itself")
+            if keep is not None and mine is top and child.tag.lower() not in keep:
+                continue
             made = node(child)
             mine.children.append(made)
             stack.append((child, made))

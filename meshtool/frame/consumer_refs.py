@@ -97,10 +97,16 @@ def description_uses(tree: Any, path: Path, top: Path, read: ReadXml) -> list[Us
     return []
 
 
+#: The top-level MJCF sections that say which mesh files a model reads and at what scale (``<asset>`` and
+#: ``<compiler>`` stand only at the top; ``<default>`` gives mesh scales; ``<include>`` brings more of them):
+#: bodies, keyframes and actuators of a large model are never converted.
+ASSET_SECTIONS = frozenset({"asset", "compiler", "default", "include"})
+
+
 def _mjcf_uses(tree: Any, path: Path, read: ReadXml) -> list[Use]:
     """MuJoCo's reading: includes spliced in, each ``<asset><mesh file>`` where MuJoCo reads it, its scale."""
     try:
-        root = to_nodes(tree, 0, None, str(path))
+        root = to_nodes(tree, 0, None, str(path), ASSET_SECTIONS)
     except MjcfReadError:  # a namespace: not MJCF (MuJoCo refuses it)
         return []
     main = _real(path)
@@ -123,7 +129,7 @@ def _mjcf_uses(tree: Any, path: Path, read: ReadXml) -> list[Use]:
         if included is None:
             return []
         try:
-            return to_nodes(included, 0, real.parent, str(real)).children
+            return to_nodes(included, 0, real.parent, str(real), ASSET_SECTIONS).children
         except MjcfReadError:
             return []
 
