@@ -9,8 +9,10 @@ and a :class:`Work` to :func:`run_batch` with an :class:`Executor` saying where 
 - ``local`` otherwise: ``jobs`` worker processes (:mod:`meshtool.work.workpool`: spawned, dying with this process,
   killed and replaced at the deadline or when they crash);
 - ``dask``: a Dask cluster (``scheduler`` address, or a local cluster of ``jobs`` single-threaded worker
-  processes). A task past its deadline on a worker is answered as lost at the deadline (the worker's thread
-  cannot be killed; the worker goes on with the next task).
+  processes). A task past its deadline on a worker is answered as lost at the deadline and its thread is
+  stopped by an exception raised in it at its next Python instruction (a sleep or one native call in progress
+  ends first), so an abandoned task does not go on taking the worker's CPU; the worker goes on with the next
+  task.
 
 Results come as tasks finish, each with the index of its task, so a caller that needs the input order sorts by
 it: what a task computes never depends on where it ran, so outputs are byte-identical whatever the executor
@@ -370,11 +372,29 @@ def _remote(work: Any, task: Task, timeout: float | None, shared: Any = NOT_SHAR
     thread = threading.Thread(target=run, daemon=True, name="meshtool-batch-task")
     thread.start()
     thread.join(timeout)
+    if thread.is_alive():  # past the deadline: answered as lost, and the thread stopped (see the module)
+        _abandon(thread)
+        return False, None, where
     if failure:
         raise failure[0]
     if not box:
         return False, None, where
     return True, box[0], where
+
+
+class Abandoned(BaseException):
+    """Raised in a Dask task's thread once its deadline has passed.
+
+    A BaseException: ``except Exception`` in the task's code does not absorb it; ``finally`` clauses run.
+    """
+
+
+def _abandon(thread: threading.Thread) -> None:
+    """Raise :class:`Abandoned` in ``thread`` at its next Python instruction (nothing if it has just ended)."""
+    import ctypes
+
+    if thread.ident is not None:
+        ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread.ident), ctypes.py_object(Abandoned))
 
 
 def _run_dask(
