@@ -196,6 +196,28 @@ class World:
             del self._entities[n]
         self._invalidate()
 
+    def set_entities(self, entities: dict[str, Entity]) -> None:
+        """Replace the whole entity table (full name to entity, in this order); the model is built again.
+
+        A hook for :mod:`simrun.world.edit`, which checks the table and compiles it itself before it keeps it.
+        """
+        self._entities = dict(entities)
+        self._invalidate()
+
+    def adopt(self, spec: mujoco.MjSpec | None, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Take a model compiled from the current entities, and its state, without restarting anything.
+
+        A hook for :mod:`simrun.world.edit` (an edit of the running world): unlike :meth:`compile`, every
+        controller keeps its clock and state; the caller has set ``data`` (time, positions...). ``spec``
+        ``None``: built again when asked for.
+        """
+        main = [full for full, e in self._entities.items() if isinstance(e, Camera) and e.main]
+        if main:
+            model.vis.global_.cameraid = model.camera(main[0]).id
+        self._spec, self._model, self._data = spec, model, data
+        self.reschedule()
+        self._hooked = [e for e in self._entities.values() if type(e).before_step is not Entity.before_step]
+
     def full_name(self, entity: Entity) -> str:
         """``parent/name`` for children, ``name`` for top-level entities."""
         return f"{entity.parent}/{entity.name}" if entity.parent else entity.name
