@@ -150,6 +150,34 @@ CASES: list[tuple[str, Callable[[Path], str], list[str], list[str]]] = [
     ("zero_mesh_allowed", lambda out: _mesh_model("/dev/zero"), ["--allow-root", "/dev"], ["character device"]),
     ("zero_texture_allowed", lambda out: _texture_model("/dev/zero"), ["--allow-root", "/dev"], ["character device"]),
     ("zero_hfield_allowed", lambda out: _hfield_model("/dev/zero"), ["--allow-root", "/dev"], ["character device"]),
+    # found by make fuzz (target mjcf): MuJoCo allocates what these ask for (65536²: a segmentation fault)
+    (
+        "hfield_rows_65536",
+        lambda out: (
+            "<mujoco><asset><hfield name='h' nrow='65536' ncol='65536' size='1 1 .1 .1'/></asset>"
+            "<worldbody><geom type='hfield' hfield='h'/></worldbody></mujoco>"
+        ),
+        [],
+        ["<hfield> 'h'", "65,536 x 65,536", "4,294,967,296 pixels, more than the limit of 67,108,864"],
+    ),
+    (
+        "texture_builtin_1e5",
+        lambda out: (
+            "<mujoco><asset><texture name='t' type='2d' builtin='checker' width='100000' height='100000'/>"
+            "<material name='mat' texture='t'/></asset><worldbody><geom size='.1' material='mat'/></worldbody></mujoco>"
+        ),
+        [],
+        ["<texture> 't'", "100,000 x 100,000", "more than the limit of 67,108,864"],
+    ),
+    (
+        "skybox_builtin_2e4",
+        lambda out: (
+            "<mujoco><asset><texture name='s' type='skybox' builtin='gradient' width='20000'/></asset>"
+            "<worldbody/></mujoco>"
+        ),
+        [],
+        ["<texture> 's'", "6 faces of width 20,000", "more than the limit of 67,108,864"],
+    ),
     (
         "bodies_2e4",
         lambda out: _bodies(20_000),

@@ -205,6 +205,45 @@ def test_file_sizes_and_images_are_bounded_before_reading(tmp_path: Path) -> Non
         read_mjcf(tmp_path / "t.xml")
 
 
+@pytest.mark.parametrize(
+    ("element", "pixels"),
+    [
+        ("<hfield name='x' nrow='10' ncol='7' size='1 1 .1 .1'/>", 70),  # nrow x ncol height samples
+        ("<texture name='x' type='2d' builtin='checker' width='10' height='7'/>", 70),  # width x height
+        ("<texture name='x' type='cube' builtin='checker' width='10' height='1'/>", 600),  # 6 faces of width²
+        ("<texture name='x' type='skybox' builtin='flat' width='10'/>", 600),
+    ],
+)
+def test_what_an_element_asks_mujoco_to_allocate_is_bounded(tmp_path: Path, element: str, pixels: int) -> None:
+    """Height-field rows x columns and a file-less texture's size are pixels under the image limit, counted as
+    MuJoCo allocates them (its own load is the ground truth); at the limit it loads, one under it is refused.
+
+    Found by ``make fuzz`` (target ``mjcf``): an hfield of 65536 x 65536 killed the process (segmentation fault),
+    100000 x 100000 raised ``RuntimeError: Caught an unknown exception!`` out of ``MjSpec.from_string``.
+    """
+    use = "<geom type='hfield' hfield='x'/>" if "hfield" in element else "<geom size='.1'/>"
+    path = _write(tmp_path / "m.xml", f"<mujoco><asset>{element}</asset><worldbody>{use}</worldbody></mujoco>")
+    reference = mujoco.MjModel.from_xml_path(str(path))
+    if reference.nhfield:
+        assert int(reference.hfield_nrow[0] * reference.hfield_ncol[0]) == pixels
+    else:
+        assert int(reference.tex_width[0] * reference.tex_height[0]) == pixels
+    assert read_mjcf(path, limits=Limits(image_pixels=pixels)).spec().compile().ntexdata == reference.ntexdata
+    with pytest.raises(MjcfReadError) as info:
+        read_mjcf(path, limits=Limits(image_pixels=pixels - 1))
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(f"{path}:1: <"), message
+    assert " 'x': " in message and f"{pixels:,} pixels, more than the limit of {pixels - 1:,}" in message, message
+
+
+def test_a_texture_files_size_is_its_own(tmp_path: Path) -> None:
+    """A texture read from a file: its ``width``/``height`` attributes ask for nothing (the PNG's header counts)."""
+    _png(tmp_path / "t.png", 9)
+    textured = "<texture name='x' type='2d' file='t.png' width='100000' height='100000'/>"
+    _write(tmp_path / "f.xml", f"<mujoco><asset>{textured}</asset><worldbody/></mujoco>")
+    assert read_mjcf(tmp_path / "f.xml", limits=Limits(image_pixels=4)).spec().compile().tex_width[0] == 2
+
+
 def test_options_only_read_reads_no_asset(tmp_path: Path) -> None:
     shutil.copytree(INCLUDED, tmp_path / "arm")
     model = read_mjcf(tmp_path / "arm" / "robot.xml", assets=False)

@@ -113,7 +113,9 @@ class Limits:
         asset_bytes: Largest asset file, bytes, by kind (``mesh``, ``skin``, ``flexcomp``, ``texture``,
             ``hfield``).
         total_asset_bytes: All asset files of one model together, bytes.
-        image_pixels: Pixels of a PNG texture or height field, from its header (decoded by MuJoCo).
+        image_pixels: Pixels of a PNG texture or height field, from its header (decoded by MuJoCo), and
+            what an element asks MuJoCo to allocate: a height field's ``nrow`` x ``ncol``, a texture's
+            ``width`` x ``height`` without a file (6 x ``width``² for a ``cube`` or ``skybox``).
     """
 
     xml_bytes: int = 64 * MIB
@@ -468,6 +470,8 @@ class _Reader:
                 meshes += 1
             elif tag == "key":
                 keys += 1
+            elif tag in ("hfield", "texture"):
+                self._check_pixels(node)
             elif tag in ("composite", "flexcomp"):
                 made = math.prod(max(v, 1) for v in _ints(node.attrib.get("count", "1")) or [1]) * times
                 bodies, geoms = bodies + made, geoms + made
@@ -501,6 +505,32 @@ class _Reader:
             )
         sizes = [_int(n.attrib.get("nkey"), 0) for n in tagged(root, "size")]
         self.counts["keyframes"] = max([self.counts["keyframes"], *sizes])
+
+    def _check_pixels(self, node: XmlNode) -> None:
+        """Refuse a height field's ``nrow`` x ``ncol`` or a file-less texture's size over the pixel limit.
+
+        MuJoCo allocates what they ask for while compiling: an hfield of 65536² crashed it (segmentation fault),
+        100000² raised ``RuntimeError`` (``bad_alloc``), 20000² ran past the fuzzer's 10 s (``make fuzz``).
+        """
+        at = node.attrib
+        if node.tag == "hfield":
+            rows, cols = max(_int(at.get("nrow"), 0), 0), max(_int(at.get("ncol"), 0), 0)
+            pixels, size = rows * cols, f"nrow x ncol = {rows:,} x {cols:,}"
+        elif any(a.startswith("file") for a in at):
+            return
+        else:
+            width, height = max(_int(at.get("width"), 0), 0), max(_int(at.get("height"), 0), 0)
+            cube = at.get("type", "").strip() in ("cube", "skybox")
+            pixels = 6 * width * width if cube else width * height
+            size = f"6 faces of width {width:,}" if cube else f"width x height = {width:,} x {height:,}"
+        if pixels > self.limits.image_pixels:
+            name = at.get("name")
+            raise MjcfReadError(
+                f"{size}, {pixels:,} pixels, more than the limit of {self.limits.image_pixels:,} (docs/limits.md)",
+                element=f"<{node.tag}>" + (f" {name!r}" if name else ""),
+                hint="ask for fewer rows and columns" if node.tag == "hfield" else "ask for a smaller texture",
+                **self._where(node),
+            )
 
     def _check_numbers(self, root: XmlNode) -> None:
         """A NaN or infinity in any numeric attribute is refused, with the element and the attribute."""
