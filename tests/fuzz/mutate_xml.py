@@ -1,7 +1,8 @@
-"""Mutators for XML mesh and robot formats (COLLADA, URDF), built on the generic machinery of :mod:`mutate`.
+"""Mutators for XML mesh and robot formats (COLLADA, URDF, MJCF), built on the generic machinery of :mod:`mutate`.
 
-COLLADA and URDF are parsed as XML trees (attributes and number lists set to extremes, elements duplicated,
-dropped or moved, ``instance_node`` cycles, deep chains, missing links, mimic cycles, ``package://`` variants).
+COLLADA, URDF and MJCF are parsed as XML trees (attributes and number lists set to extremes, elements duplicated,
+dropped or moved, ``instance_node`` cycles, deep chains, missing links, mimic cycles, ``package://`` variants;
+MJCF's own operations: :mod:`mutate_mjcf`).
 """
 
 from __future__ import annotations
@@ -26,9 +27,17 @@ def local_name(tag: Any) -> str:
 
 
 @st.composite
-def mutated_xml(draw: Any, seed: bytes, attributes: dict[str, list[str]], special: Any = None) -> bytes:
+def mutated_xml(
+    draw: Any,
+    seed: bytes,
+    attributes: dict[str, list[str]],
+    special: Any = None,
+    tokens: list[bytes] | None = None,
+    special_weight: int = 1,
+) -> bytes:
     """An XML document changed as a tree (attributes, number lists, elements duplicated, dropped or moved, and
-    ``special(draw, root)`` format operations), or as bytes (1 in 5: token inserts, truncation).
+    ``special(draw, root)`` format operations, ``special_weight`` in 7 + ``special_weight`` of the changes), or
+    as bytes (1 in 5: token inserts from ``tokens``, default :data:`XML_TOKENS`, truncation).
     """
     import xml.etree.ElementTree as ET
 
@@ -37,7 +46,7 @@ def mutated_xml(draw: Any, seed: bytes, attributes: dict[str, list[str]], specia
     except ET.ParseError:
         root = None
     if root is None or draw(st.integers(0, 4)) == 0:
-        return bytes(draw(mutated_bytes(seed, XML_TOKENS)))
+        return bytes(draw(mutated_bytes(seed, tokens or XML_TOKENS)))
     if root.tag.startswith("{"):  # plain tags and an xmlns attribute: written back as the file had them
         namespace = root.tag[1:].split("}")[0]
         for element in root.iter():
@@ -46,12 +55,12 @@ def mutated_xml(draw: Any, seed: bytes, attributes: dict[str, list[str]], specia
     limit = sys.getrecursionlimit()
     sys.setrecursionlimit(max(limit, 20000))  # deep chains are copied and written (recursively) here
     try:
-        return _mutated_tree(draw, root, attributes, special)
+        return _mutated_tree(draw, root, attributes, special, special_weight)
     finally:
         sys.setrecursionlimit(limit)
 
 
-def _mutated_tree(draw: Any, root: Any, attributes: dict[str, list[str]], special: Any) -> bytes:
+def _mutated_tree(draw: Any, root: Any, attributes: dict[str, list[str]], special: Any, weight: int = 1) -> bytes:
     import copy
     import xml.etree.ElementTree as ET
 
@@ -59,7 +68,8 @@ def _mutated_tree(draw: Any, root: Any, attributes: dict[str, list[str]], specia
         elements = list(root.iter())
         parents = {child: parent for parent in elements for child in parent}
         element = draw(st.sampled_from(elements))
-        op = draw(st.sampled_from(["attribute", "attribute", "text", "text", "duplicate", "drop", "move", "special"]))
+        ops = ["attribute", "attribute", "text", "text", "duplicate", "drop", "move"] + ["special"] * weight
+        op = draw(st.sampled_from(ops))
         if op == "attribute" and element.attrib:
             name = draw(st.sampled_from(sorted(element.attrib)))
             ids = sorted({"#" + e.get("id", "") for e in elements if e.get("id")})

@@ -15,9 +15,16 @@ type and place is recorded once. A summary (inputs tried, refusals, crashes per 
 and each distinct crash with the inputs that hit it and where it was raised. Exit status 1 when anything
 crashed or hung.
 
+``--seed S`` (``FUZZ_SEED``) makes a run repeatable: hypothesis round ``k`` of a child is seeded ``S + k``
+instead of at random; ``--max-inputs N`` (``FUZZ_MAX_INPUTS``) stops each target after N inputs (a quick
+check: ``tests/test_fuzz_mjcf.py``).
+
 Usage::
 
     python tests/fuzz/run.py [--seconds 600 | --seconds-per-target 600] [--targets stl,ply] [--out out/fuzz]
+        [--seed S] [--max-inputs N]
+
+    make fuzz FUZZ_TARGETS=mjcf FUZZ_SECONDS=300     # one target (FUZZ_TARGETS: comma-separated)
 """
 
 from __future__ import annotations
@@ -87,8 +94,17 @@ def save_crash(out: Path, target: str, sig: str, files: dict[str, bytes], text: 
 # -- child: one target under hypothesis ------------------------------------------------------------------
 
 
-def child(target_name: str, seconds: float, out: Path, input_timeout: float, memory_mb: int = 0) -> None:
-    """Fuzz one target until the deadline; progress in ``out/state-<target>.json``."""
+def child(
+    target_name: str,
+    seconds: float,
+    out: Path,
+    input_timeout: float,
+    memory_mb: int = 0,
+    fixed_seed: int | None = None,
+    max_inputs: int = 0,
+) -> None:
+    """Fuzz one target until the deadline (or ``max_inputs`` inputs, 0: no limit); progress in
+    ``out/state-<target>.json``; ``fixed_seed``: hypothesis round ``k`` seeded ``fixed_seed + k``."""
     from hypothesis import HealthCheck, Phase, given, settings
     from hypothesis import seed as hseed
     from hypothesis import strategies as st
@@ -133,8 +149,9 @@ def child(target_name: str, seconds: float, out: Path, input_timeout: float, mem
     )
     @given(st.data())
     def fuzz_one(data: Any) -> None:
+        inflight.write_bytes(pickle.dumps(None))  # drawing: a watchdog kill now is the generator's, no input's
         files = data.draw(strategy)  # always drawn: hypothesis needs the same draws when it replays
-        if time.monotonic() > deadline:
+        if time.monotonic() > deadline or done():
             return
         counter[0] += 1
         folder = scratch / f"in{counter[0]}"
@@ -168,10 +185,16 @@ def child(target_name: str, seconds: float, out: Path, input_timeout: float, mem
             signal.setitimer(signal.ITIMER_REAL, 0)
             shutil.rmtree(folder, ignore_errors=True)
 
-    while time.monotonic() < deadline:
+    def done() -> bool:
+        return bool(max_inputs) and stats["tried"] >= max_inputs
+
+    rounds = 0
+    while time.monotonic() < deadline and not done():
         failures.clear()
+        round_seed = int.from_bytes(os.urandom(4), "little") if fixed_seed is None else fixed_seed + rounds
+        rounds += 1
         try:
-            hseed(int.from_bytes(os.urandom(4), "little"))(fuzz_one)()
+            hseed(round_seed)(fuzz_one)()
         except Exception as exc:
             if not failures:  # the harness itself failed (hypothesis said why): record it once
                 failures[signature(exc)] = ({}, "".join(traceback.format_exception(exc)))
@@ -188,8 +211,11 @@ def child(target_name: str, seconds: float, out: Path, input_timeout: float, mem
 # -- parent: time budget, watchdog, summary ----------------------------------------------------------------
 
 
-def fuzz_target(name: str, seconds: float, out: Path, input_timeout: float, memory_mb: int = 0) -> dict[str, Any]:
-    """Run one target's child processes until its time is used (restarting after a native hang)."""
+def fuzz_target(
+    name: str, seconds: float, out: Path, input_timeout: float, memory_mb: int = 0, extra: tuple[str, ...] = ()
+) -> dict[str, Any]:
+    """Run one target's child processes until its time is used (restarting after a native hang or crash);
+    ``extra``: more child arguments (``--seed``, ``--max-inputs``)."""
     state_file = out / f"state-{name}.json"
     state_file.unlink(missing_ok=True)
     inflight = out / f"inflight-{name}.pickle"
@@ -199,8 +225,8 @@ def fuzz_target(name: str, seconds: float, out: Path, input_timeout: float, memo
         remaining = end - time.monotonic()
         inflight.unlink(missing_ok=True)
         command = [sys.executable, __file__, "--child", name, "--seconds", f"{remaining:.1f}", "--out", str(out)]
-        command += ["--input-timeout", str(input_timeout), "--memory-mb", str(memory_mb)]
-        proc = subprocess.Popen(command, start_new_session=True)
+        command += ["--input-timeout", str(input_timeout), "--memory-mb", str(memory_mb), *extra]
+        proc = subprocess.Popen(command, start_new_session=True, stdin=subprocess.DEVNULL)
         while proc.poll() is None:
             time.sleep(1)
             stale = inflight.is_file() and time.time() - inflight.stat().st_mtime > 3 * input_timeout + 30
@@ -209,15 +235,20 @@ def fuzz_target(name: str, seconds: float, out: Path, input_timeout: float, memo
                 proc.wait()
                 if stale:
                     files = pickle.loads(inflight.read_bytes())
-                    saved = save_crash(out, name, f"native-hang-{len(native_hangs)}", files, "killed by the watchdog\n")
+                    what = "native-hang" if files is not None else "generator-hang"  # None: while drawing an input
+                    text = "killed by the watchdog" + ("" if files is not None else " while drawing an input")
+                    saved = save_crash(out, name, f"{what}-{len(native_hangs)}", files or {}, text + "\n")
                     native_hangs.append(str(saved))
-                    print(f"[{name}] NATIVE HANG -> {saved}", flush=True)
+                    print(f"[{name}] {what.upper().replace('-', ' ')} -> {saved}", flush=True)
                 break
-        if proc.returncode not in (0, -signal.SIGKILL, None):
+        if proc.returncode == 0:  # its time used or its inputs run
+            break
+        if proc.returncode not in (-signal.SIGKILL, None):
             print(f"[{name}] child exited with {proc.returncode}", flush=True)
             if proc.returncode < 0:  # a native crash (segfault): the in-flight input is the culprit
                 files = pickle.loads(inflight.read_bytes()) if inflight.is_file() else {}
-                saved = save_crash(out, name, f"signal-{-proc.returncode}", files, "child died of a signal\n")
+                sig = f"signal-{-proc.returncode}-{len(native_hangs)}"
+                saved = save_crash(out, name, sig, files or {}, "child died of a signal\n")
                 native_hangs.append(str(saved))
             else:
                 break
@@ -246,11 +277,13 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=Path(env("FUZZ_OUT", "out/fuzz")))
     parser.add_argument("--input-timeout", type=float, default=float(env("FUZZ_INPUT_TIMEOUT", 10)))
     parser.add_argument("--memory-mb", type=int, default=int(env("FUZZ_MEMORY_MB", 4096)), help="0: no cap")
+    parser.add_argument("--seed", type=int, default=int(env("FUZZ_SEED")) if env("FUZZ_SEED") else None)
+    parser.add_argument("--max-inputs", type=int, default=int(env("FUZZ_MAX_INPUTS") or 0), help="per target")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     if args.child:
-        child(args.child, args.seconds, args.out, args.input_timeout, args.memory_mb)
+        child(args.child, args.seconds, args.out, args.input_timeout, args.memory_mb, args.seed, args.max_inputs)
         return 0
     names = [n.strip() for n in args.targets.split(",") if n.strip()]
     unknown = [n for n in names if n not in known]
@@ -264,10 +297,13 @@ def main() -> int:
         "memory_mb": args.memory_mb,
         "targets": {},
     }
+    extra = ("--seed", str(args.seed)) if args.seed is not None else ()
+    extra += ("--max-inputs", str(args.max_inputs)) if args.max_inputs else ()
+    summary |= {"seed": args.seed, "max_inputs": args.max_inputs}
     started = time.monotonic()
     for name in names:
         print(f"fuzzing {name} for {share:.0f} s", flush=True)
-        summary["targets"][name] = fuzz_target(name, share, args.out, args.input_timeout, args.memory_mb)
+        summary["targets"][name] = fuzz_target(name, share, args.out, args.input_timeout, args.memory_mb, extra)
     summary["wall_seconds"] = round(time.monotonic() - started, 1)
     for s in summary["targets"].values():
         s["accepted"] = s.get("tried", 0) - s.get("refused", 0) - s.get("crashed", 0)

@@ -22,6 +22,8 @@ Targets:
     commands: ``simrun.run.commands.load_commands`` then, against the fixture scene it names
         (``SCENE.commands.toml``), the service bindings, ``check_commands`` and each command applied in
         time order (what ``simrun play SCENE --commands FILE`` does).
+    mjcf: an ``MjcfRobot`` of a mutated MJCF model in a ``World``, compiled and stepped (what ``simrun check``
+        does with a scene naming it; the model read by ``simrun/robots/mjcf_read.py``): :mod:`target_mjcf`.
 """
 
 from __future__ import annotations
@@ -66,6 +68,7 @@ from mutate_mesh import (
     reencode_ply,
 )
 from mutate_xml import COLLADA_ATTRIBUTES, URDF_ATTRIBUTES, collada_special, mutated_xml, urdf_special
+from target_mjcf import mjcf_seeds, mjcf_strategy, run_mjcf
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures"
@@ -551,4 +554,5 @@ def targets() -> dict[str, Target]:
         "collada": Target("collada", _collada_seeds, _collada_strategy, _run_obj, _meshtool_errors),
         "urdf": Target("urdf", _urdf_seeds, _urdf_strategy, _run_urdf, _meshtool_errors),
         "commands": Target("commands", _commands_seeds, _commands_strategy, _run_commands, _simrun_errors),
+        "mjcf": Target("mjcf", mjcf_seeds, mjcf_strategy, run_mjcf, _simrun_errors),
     }
