@@ -106,6 +106,14 @@ class Client:
         """``POST path`` with a JSON body, as JSON."""
         return json.loads(self._request("POST", path, body if body is not None else {}))
 
+    def patch(self, path: str, body: Any) -> Any:
+        """``PATCH path`` with a JSON body, as JSON."""
+        return json.loads(self._request("PATCH", path, body))
+
+    def delete(self, path: str) -> Any:
+        """``DELETE path`` (an empty JSON body), as JSON."""
+        return json.loads(self._request("DELETE", path, {}))
+
     # -- the world -----------------------------------------------------------------------------------------
 
     def world(self) -> dict[str, Any]:
@@ -179,6 +187,113 @@ class Client:
     def stop_recording(self) -> dict[str, Any]:
         """Finish the recording; ``{"written": [paths]}``."""
         return dict(self.post("/api/recording/stop"))
+
+    # -- editing (simrun serve --edit; docs/serve.md "Editing the world") -----------------------------------
+
+    def entities(self) -> list[dict[str, Any]]:
+        """Every entity: ``name``, ``type``, ``parent``, ``values`` (its scene table), ``pose`` (world, now)..."""
+        return list(self.get("/api/entities"))
+
+    def entity(self, name: str) -> dict[str, Any]:
+        """One entity, with ``schema``: its type's keys (type, unit, default, description)."""
+        return dict(self.get(f"/api/entities/{quote(name)}"))
+
+    def edit_info(self) -> dict[str, Any]:
+        """Whether edits are allowed, the limits, and every registered type's schema (``types``)."""
+        return dict(self.get("/api/edit"))
+
+    def insert(self, table: dict[str, Any] | list[dict[str, Any]], parent: str | None = None) -> list[str]:
+        """Insert an entity from its scene table (or a list of them); returns the full names inserted."""
+        body: dict[str, Any] = {"entity" if isinstance(table, dict) else "entities": table}
+        if parent is not None:
+            body["parent"] = parent
+        return list(self.post("/api/entities", body)["inserted"])
+
+    def change(self, name: str, changes: dict[str, Any] | None = None, **keys: Any) -> dict[str, Any]:
+        """Change an entity's keys (``change("box", mass=2.0)``, ``change("floor", {"material": {...}})``)."""
+        return dict(self.patch(f"/api/entities/{quote(name)}", {**(changes or {}), **keys})["entity"])
+
+    def remove(self, name: str) -> dict[str, list[str]]:
+        """Remove an entity, its children and their services and sensors; returns what went."""
+        return dict(self.delete(f"/api/entities/{quote(name)}")["removed"])
+
+    def teleport(
+        self, name: str, position: Any, orientation: Any = None, keep_velocity: bool = False
+    ) -> dict[str, Any]:
+        """Move an entity to a pose relative to its parent (m, unit quaternion w, x, y, z)."""
+        body: dict[str, Any] = {"position": list(position), "keep_velocity": keep_velocity}
+        if orientation is not None:
+            body["orientation"] = list(orientation)
+        return dict(self.post(f"/api/entities/{quote(name)}/teleport", body))
+
+    def apply_force(
+        self, name: str, force: Any = (0.0, 0.0, 0.0), torque: Any = (0.0, 0.0, 0.0), duration: float = 0.1,
+        body: str | None = None,
+    ) -> dict[str, Any]:  # fmt: skip
+        """Push a body: force (N) and torque (N m), world frame, for ``duration`` simulated seconds."""
+        payload: dict[str, Any] = {"force": list(force), "torque": list(torque), "duration": duration}
+        if body is not None:
+            payload["body"] = body
+        return dict(self.post(f"/api/entities/{quote(name)}/force", payload))
+
+    def set_gravity(self, gravity: Any) -> dict[str, Any]:
+        """Change the world's gravity (m/s^2)."""
+        return dict(self.post("/api/edit/world", {"gravity": list(gravity)}))
+
+    def change_service(self, kind: str, entity: str, **settings: Any) -> dict[str, Any]:
+        """Change a bound service's settings (``rate``, ``limits``...)."""
+        return dict(self.patch(f"/api/edit/services/{quote(kind)}/{quote(entity)}", settings))
+
+    def add_service(self, table: dict[str, Any]) -> dict[str, Any]:
+        """Bind a service from a ``[[services]]`` table."""
+        return dict(self.post("/api/edit/services", {"service": table}))
+
+    def remove_service(self, kind: str, entity: str) -> dict[str, Any]:
+        """Unbind a service."""
+        return dict(self.delete(f"/api/edit/services/{quote(kind)}/{quote(entity)}"))
+
+    def change_sensor(self, name: str, **settings: Any) -> dict[str, Any]:
+        """Change a sensor's settings (``rate``, ``noise``, ``seed``...)."""
+        return dict(self.patch(f"/api/edit/sensors/{quote(name)}", settings))
+
+    def add_sensor(self, table: dict[str, Any]) -> dict[str, Any]:
+        """Add a sensor from a ``[[sensors]]`` table."""
+        return dict(self.post("/api/edit/sensors", {"sensor": table}))
+
+    def remove_sensor(self, name: str) -> dict[str, Any]:
+        """Remove a sensor."""
+        return dict(self.delete(f"/api/edit/sensors/{quote(name)}"))
+
+    def save_scene(self, path: str | None = None, state: str = "initial") -> str:
+        """The world as scene TOML (entities at their current poses); written to ``path`` when given.
+
+        Relative paths in the text are rewritten for ``path``'s folder (the server's machine must see it:
+        a client on another machine saves the text as it comes, relative to the served scene's folder).
+        """
+        return self._saved("/api/edit/save", {"state": state}, path)
+
+    def save_entities(self, names: list[str], path: str | None = None) -> str:
+        """The named entities (and those below them) as an entities file's text; written to ``path`` when given."""
+        return self._saved("/api/edit/save-entities", {"names": list(names)}, path)
+
+    def _saved(self, route: str, body: dict[str, Any], path: str | None) -> str:
+        from pathlib import Path
+
+        if path is not None:
+            body["folder"] = str(Path(path).resolve().parent)
+        text = str(self.post(route, body)["toml"])
+        if path is not None:
+            from simrun.outfile import write_text
+
+            write_text(Path(path), text)
+        return text
+
+    def load_entities(self, text: str, parent: str | None = None) -> dict[str, list[str]]:
+        """Insert the entities of an entities file's text (its paths relative to the served scene's folder)."""
+        body: dict[str, Any] = {"toml": text}
+        if parent is not None:
+            body["parent"] = parent
+        return dict(self.post("/api/edit/load-entities", body)["added"])
 
     # -- the stream ----------------------------------------------------------------------------------------
 

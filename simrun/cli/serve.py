@@ -42,6 +42,10 @@ from simrun.outfile import output_policy
     "--allow-origin", "allow_origins", multiple=True, metavar="ORIGIN",
     help="Let pages of this web origin (scheme://host[:port]) use the server, besides its own; repeatable.",
 )  # fmt: skip
+@click.option(
+    "--edit", is_flag=True,
+    help="Allow edits of the running world over the API (insert, change, remove, move, push entities; docs/serve.md).",
+)  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
 def serve_command(
     scene: Path,
@@ -59,6 +63,7 @@ def serve_command(
     foxglove_port: int | None = None,
     foxglove_mcap: Path | None = None,
     allow_origins: tuple[str, ...] = (),
+    edit: bool = False,
 ) -> None:
     """Run SCENE and serve it: HTTP/JSON services and sensors, a WebSocket stream, a dashboard at /.
 
@@ -70,7 +75,7 @@ def serve_command(
     sensors = tuple(n.strip() for n in record_sensors.split(",") if n.strip()) if record_sensors else ()
     mcap = record.with_suffix(suffix("mcap")) if record is not None and record_as == "mcap" else None
     options = ServeOptions(scene, not realtime, rate, record=record, record_sensors=sensors, record_mcap=mcap,
-                           seed=seed, paused=paused)  # fmt: skip
+                           seed=seed, paused=paused, extra={"edit": edit})  # fmt: skip
     with output_policy(force, [scene]):
         served = serve(
             options,

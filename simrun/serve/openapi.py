@@ -90,7 +90,6 @@ def openapi_document(catalogue: dict[str, Any]) -> dict[str, Any]:
     paths: dict[str, Any] = {
         "/api": {"get": _op("Interface version and links.")},
         "/api/world": {"get": _op("Entities, bound services (commands, queries) and sensors.")},
-        "/api/entities": {"get": _op("The entities: name, type, robot.")},
         "/api/services": {"get": _op("The bound services with their commands' argument schemas.")},
         "/api/sensors": {"get": _op("The sensors: name, type, entity, rate (Hz), whether they give images.")},
         "/api/state": {"get": _op("Time, mode, rates, recording and every body's pose.", result=state)},
@@ -140,6 +139,7 @@ def openapi_document(catalogue: dict[str, Any]) -> dict[str, Any]:
             }
         },
     }
+    paths.update(edit_paths())
     for service in catalogue["services"]:
         for call, info in service["commands"].items():
             properties = {p["name"]: bounded(p["schema"]) for p in info["parameters"]}
@@ -165,5 +165,137 @@ def openapi_document(catalogue: dict[str, Any]) -> dict[str, Any]:
         "components": {
             "schemas": {"Error": _ERROR, "State": _STATE},
             "securitySchemes": {"token": {"type": "http", "scheme": "bearer"}},
+        },
+    }
+
+
+# --- the editor's routes (simrun/serve/edit_routes.py, issue 40) -------------------------------------------------
+
+_VEC3 = {"type": "array", "items": {"type": "number", "minimum": -MAX_ARGUMENT, "maximum": MAX_ARGUMENT}}
+_TABLE = {
+    "type": "object",
+    "description": "An entity's scene table: type, name, parent, pose {position, orientation}, free, kinematic and "
+    "the type's keys (GET /api/edit lists them with units and defaults).",
+}
+_SEED = {"type": "integer", "minimum": 0, "maximum": 2**63}
+
+
+def edit_request_schemas() -> dict[str, dict[str, Any]]:
+    """The request body schema of each edit route, by the name :mod:`simrun.serve.edit_routes` gives it.
+
+    Numbers are within +-:data:`MAX_ARGUMENT` unless given here (a push's ``duration``, a sensor's ``seed``).
+    """
+    from simrun.world.edit import MAX_BATCH
+    from simrun.world.edit_push import MAX_PUSH_SECONDS
+
+    sensor = {"type": "object", "properties": {"seed": _SEED}, "description": "A [[sensors]] table's keys."}
+    return {
+        "insert": {
+            "type": "object",
+            "additionalProperties": False,
+            "properties": {
+                "entity": _TABLE,
+                "entities": {"type": "array", "items": _TABLE, "maxItems": MAX_BATCH},
+                "parent": {"type": "string", "description": "Full name of the entity they go under."},
+            },
+        },
+        "change": {"type": "object", "description": "The keys to change, as a scene table writes them."},
+        "remove": _empty(),
+        "teleport": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["position"],
+            "properties": {
+                "position": {**_VEC3, "description": "m, relative to the parent (the world at the top)."},
+                "orientation": {
+                    "type": "array",
+                    "items": {"type": "number", "minimum": -MAX_ARGUMENT, "maximum": MAX_ARGUMENT},
+                    "description": "Unit quaternion (w, x, y, z).",
+                },
+                "keep_velocity": {"type": "boolean"},
+            },
+        },
+        "force": {
+            "type": "object",
+            "additionalProperties": False,
+            "properties": {
+                "force": {**_VEC3, "description": "N, world frame, at the body's centre of mass."},
+                "torque": {**_VEC3, "description": "N m, world frame."},
+                "duration": {"type": "number", "minimum": 0, "maximum": MAX_PUSH_SECONDS, "description": "s."},
+                "body": {"type": "string", "description": "A body of the entity (NAME/link); default its own."},
+            },
+        },
+        "world": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["gravity"],
+            "properties": {"gravity": {**_VEC3, "description": "m/s^2."}},
+        },
+        "service": {"type": "object", "description": "The [[services]] keys to change (rate, limits, gain...)."},
+        "service-add": {"type": "object", "required": ["service"], "properties": {"service": {"type": "object"}}},
+        "sensor": sensor,
+        "sensor-add": {"type": "object", "required": ["sensor"], "properties": {"sensor": sensor}},
+        "save": {
+            "type": "object",
+            "additionalProperties": False,
+            "properties": {
+                "state": {"enum": ["initial", "current"]},
+                "folder": {"type": "string", "description": "Absolute folder the text will be saved in."},
+            },
+        },
+        "save-entities": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["names"],
+            "properties": {"names": {"type": "array", "items": {"type": "string"}}, "folder": {"type": "string"}},
+        },
+        "load-entities": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["toml"],
+            "properties": {"toml": {"type": "string"}, "parent": {"type": "string"}},
+        },
+    }
+
+
+def edit_paths() -> dict[str, Any]:
+    """The editor's paths of the document (reading always; changing with ``simrun serve --edit``)."""
+    body = edit_request_schemas()
+    name = "/api/entities/{name}"
+    changed = {"type": "object", "properties": {"time": {"type": "number", "description": "Simulated time, s."}}}
+
+    def op(summary: str, key: str, method_body: bool = True) -> dict[str, Any]:
+        out = _op(summary + " (needs --edit; 403 without, 409 while recording, 429 over the rate).", body[key], changed)
+        out["requestBody"]["required"] = method_body
+        return out
+
+    return {
+        "/api/entities": {
+            "get": _op("Every entity: name, type, parent, values (its table), pose (world, now), services, sensors."),
+            "post": op("Insert an entity ({entity: table}) or a list ({entities: [...]}), under parent.", "insert"),
+        },
+        name: {
+            "get": _op("One entity, with its type's schema (keys, types, units, defaults, descriptions)."),
+            "patch": op("Change an entity's keys (pose, mass, dimensions, color, material...).", "change"),
+            "delete": op("Remove an entity, its children and the services and sensors bound to them.", "remove"),
+        },
+        name + "/teleport": {"post": op("Move an entity (free and kinematic bodies at once).", "teleport")},
+        name + "/force": {"post": op("Push a body with a force and torque for a duration.", "force")},
+        "/api/edit": {"get": _op("Whether edits are allowed, the limits and every registered type's schema.")},
+        "/api/edit/world": {"post": op("Change the world's gravity.", "world")},
+        "/api/edit/save": {"post": _op("The world as scene TOML ({toml}), at current poses.", body["save"])},
+        "/api/edit/save-entities": {
+            "post": _op("The named entities and those below as an entities file ({toml}).", body["save-entities"])
+        },
+        "/api/edit/load-entities": {"post": op("Insert the entities of an entities file's text.", "load-entities")},
+        "/api/edit/services": {"post": op("Bind a service from a [[services]] table.", "service-add")},
+        "/api/edit/services/{service}/{entity}": {
+            "patch": op("Change a bound service's settings.", "service"),
+            "delete": op("Unbind a service.", "remove"),
+        },
+        "/api/edit/sensors": {"post": op("Add a sensor from a [[sensors]] table.", "sensor-add")},
+        "/api/edit/sensors/{name}": {
+            "patch": op("Change a sensor's settings (rate, noise, seed...).", "sensor"),
+            "delete": op("Remove a sensor.", "remove"),
         },
     }

@@ -1,0 +1,341 @@
+"""The editor's routes of ``simrun serve``: list, insert, change, remove, move and push entities; save and load.
+
+Reading is always allowed: ``GET /api/entities`` (every entity with its current values and world pose),
+``GET /api/entities/NAME`` (one, with its type's schema), ``GET /api/edit`` (whether edits are allowed, the
+limits, and the schema of every registered type for a "new entity" dialog), ``POST /api/edit/save`` and
+``/api/edit/save-entities`` (scene text). Every other route changes the world and is refused (403) unless the
+server runs with ``--edit``, refused (409) while a recording runs (edits are not part of a recording yet), and
+limited to :data:`MAX_EDITS_PER_SECOND` (429 beyond). Each edit runs on the world's loop thread between
+steps (as a service command does) through :mod:`simrun.world.edit`; an edit refused there leaves the world
+exactly as it was and is answered 404 (no such entity, service or sensor), 409 (a name taken) or 422, naming
+the request field (``entity.mass``, ``entities[3].pose.position[1]``, ``force``). Request and answer schemas
+are in ``/openapi.json`` (:func:`simrun.serve.openapi.edit_paths`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Awaitable, Callable
+from pathlib import Path
+from typing import Any
+
+from starlette.requests import Request
+from starlette.responses import JSONResponse, Response
+from starlette.routing import Route
+
+from simrun.serve.catalogue import RequestError, build_catalogue
+from simrun.serve.loop import SimLoop
+from simrun.serve.openapi import edit_request_schemas
+from simrun.world import edit, edit_bindings, edit_push, edit_save
+from simrun.world.edit import EditError
+from simrun.world.world import World
+
+#: Most edits accepted per wall second (a burst of as many is allowed); beyond, 429.
+MAX_EDITS_PER_SECOND = 50.0
+_STATUS = {"invalid": 422, "missing": 404, "conflict": 409}
+
+Run = Callable[[Callable[[Any], Any]], Awaitable[Any]]
+Body = Callable[..., Awaitable[Any]]
+
+
+class Budget:
+    """A token bucket: :data:`MAX_EDITS_PER_SECOND` edits per wall second, as many in a burst (thread-safe)."""
+
+    def __init__(self, rate: float = MAX_EDITS_PER_SECOND) -> None:
+        self.rate, self.tokens, self.last = rate, rate, time.monotonic()
+        self._lock = threading.Lock()
+
+    def take(self) -> None:
+        """Spend one edit.
+
+        Raises:
+            RequestError: 429 when none is left this second.
+        """
+        with self._lock:
+            now = time.monotonic()
+            self.tokens = min(self.rate, self.tokens + (now - self.last) * self.rate)
+            self.last = now
+            if self.tokens < 1.0:
+                raise RequestError(429, "", f"more than {self.rate:g} edits a second; slow down")
+            self.tokens -= 1.0
+
+
+def refusal(exc: EditError) -> RequestError:
+    """An :class:`EditError` as the 4xx answer naming its field."""
+    return RequestError(_STATUS.get(exc.reason, 422), exc.key or "", exc.message or str(exc))
+
+
+def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
+    """The routes (for :func:`simrun.serve.app.create_app`, listed before its own ``/api/entities``).
+
+    Args:
+        loop: The served world's loop; ``loop.options.extra["edit"]`` allows edits (``simrun serve --edit``).
+        run: Runs a call on the loop thread and awaits its answer (the app's).
+        body: Reads a request's JSON body checked against a schema (the app's ``_body``).
+    """
+    allowed = bool(loop.options.extra.get("edit", False))
+    budget = Budget()
+    schemas = edit_request_schemas()
+
+    def refresh(world: World) -> None:
+        # the catalogue is shared by reference (the app's listings, the pose stream): updated in place
+        loop.catalogue.update(build_catalogue(world))
+        loop._publish(world, poses=True)
+
+    async def mutate(request: Request, name: str, fn: Callable[[World, Any], Any]) -> Response:
+        payload = await body(request, schemas.get(name, {}))  # a malformed body is answered as on every route
+        if not allowed:
+            raise RequestError(403, "", "edits are off; start the server with simrun serve --edit")
+        budget.take()
+
+        def call(world: World) -> Any:
+            if loop.recording is not None and loop.recording.active:
+                raise RequestError(409, "", "edits are not recorded yet; stop the recording to edit")
+            try:
+                result = fn(world, payload)
+            except EditError as exc:
+                raise refusal(exc) from None
+            refresh(world)
+            return {"time": float(world.data.time), **(result or {})}
+
+        return JSONResponse(await run(call))
+
+    def fields(payload: Any, known: tuple[str, ...], required: tuple[str, ...] = ()) -> dict[str, Any]:
+        if payload is None:
+            payload = {}
+        if not isinstance(payload, dict):
+            raise RequestError(422, "body", f"expected a JSON object, got {type(payload).__name__}")
+        for key in payload:
+            if key not in known:
+                raise RequestError(422, str(key), f"unknown field (known: {', '.join(known)})")
+        for key in required:
+            if key not in payload:
+                raise RequestError(422, key, "missing")
+        return payload
+
+    def path_name(request: Request) -> str:
+        return str(request.path_params["name"])
+
+    # -- reading ---------------------------------------------------------------------------------------------
+
+    async def listing(request: Request) -> Response:
+        def read(world: World) -> Any:
+            robots = {e["name"]: e for e in loop.catalogue["entities"]}
+            out = []
+            for item in edit.describe_all(world):
+                known = robots.get(item["name"], {})
+                root = {"root": known["root"]} if "root" in known else {}
+                out.append({**item, "robot": known.get("robot", False), **root})
+            return out
+
+        return JSONResponse(await run(read))
+
+    async def one(request: Request) -> Response:
+        name = path_name(request)
+
+        def read(world: World) -> Any:
+            try:
+                edit._entity(world, name)
+            except EditError as exc:
+                raise refusal(exc) from None
+            item = edit.describe(world, name)
+            return {**item, "schema": edit.type_schema("entities", item["type"])}
+
+        return JSONResponse(await run(read))
+
+    async def about(request: Request) -> Response:
+        return JSONResponse(
+            {
+                "allowed": allowed,
+                "edits_per_second": MAX_EDITS_PER_SECOND,
+                "max_batch": edit.MAX_BATCH,
+                "max_push_seconds": edit_push.MAX_PUSH_SECONDS,
+                "types": edit.types_schema(),
+            }
+        )
+
+    async def save(request: Request) -> Response:
+        payload = fields(await body(request, schemas.get("save", {})), ("state", "folder"))
+        state = payload.get("state", "initial")
+        if state not in ("initial", "current"):
+            raise RequestError(422, "state", f"expected initial or current, got {state!r}"[:200])
+        folder = _folder(payload)
+
+        def read(world: World) -> Any:
+            return {"toml": edit_save.current_scene_text(world, state, folder or world.base_dir)}
+
+        return JSONResponse(await run(read))
+
+    async def save_entities(request: Request) -> Response:
+        payload = fields(await body(request, schemas.get("save-entities", {})), ("names", "folder"), ("names",))
+        folder = _folder(payload)
+
+        def read(world: World) -> Any:
+            try:
+                return {"toml": edit_save.entities_text(world, payload["names"], folder or world.base_dir)}
+            except EditError as exc:
+                raise refusal(exc) from None
+
+        return JSONResponse(await run(read))
+
+    # -- changing --------------------------------------------------------------------------------------------
+
+    async def insert(request: Request) -> Response:
+        def fn(world: World, payload: Any) -> Any:
+            p = fields(payload, ("entity", "entities", "parent"))
+            if ("entity" in p) == ("entities" in p):
+                raise RequestError(422, "entity", "give entity (a table) or entities (a list of tables)")
+            parent = p.get("parent")
+            if parent is not None and not isinstance(parent, str):
+                raise RequestError(422, "parent", "expected the full name of an entity")
+            tables = p["entity"] if "entity" in p else p["entities"]
+            return {"inserted": edit.insert(world, tables, parent)}
+
+        return await mutate(request, "insert", fn)
+
+    async def change(request: Request) -> Response:
+        name = path_name(request)
+
+        def fn(world: World, payload: Any) -> Any:
+            if not isinstance(payload, dict) or not payload:
+                raise RequestError(422, "body", "expected a JSON object of the keys to change")
+            edit.change(world, name, payload)
+            return {"entity": edit.describe(world, name)}
+
+        return await mutate(request, "change", fn)
+
+    async def remove(request: Request) -> Response:
+        name = path_name(request)
+        return await mutate(request, "remove", lambda world, payload: {"removed": edit.remove(world, name)})
+
+    async def teleport(request: Request) -> Response:
+        name = path_name(request)
+
+        def fn(world: World, payload: Any) -> Any:
+            p = fields(payload, ("position", "orientation", "keep_velocity"), ("position",))
+            keep = p.get("keep_velocity", False)
+            if not isinstance(keep, bool):
+                raise RequestError(422, "keep_velocity", "expected true or false")
+            return edit.teleport(world, name, p["position"], p.get("orientation"), keep)
+
+        return await mutate(request, "teleport", fn)
+
+    async def force(request: Request) -> Response:
+        name = path_name(request)
+
+        def fn(world: World, payload: Any) -> Any:
+            p = fields(payload, ("force", "torque", "duration", "body"))
+            return edit_push.apply_force(
+                world,
+                name,
+                p.get("force", (0.0, 0.0, 0.0)),
+                p.get("torque", (0.0, 0.0, 0.0)),
+                p.get("duration", 0.1),
+                p.get("body"),
+            )
+
+        return await mutate(request, "force", fn)
+
+    async def world_options(request: Request) -> Response:
+        def fn(world: World, payload: Any) -> Any:
+            p = fields(payload, ("gravity",), ("gravity",))
+            edit.set_gravity(world, p["gravity"])
+            return {"gravity": [float(g) for g in world.model.opt.gravity]}
+
+        return await mutate(request, "world", fn)
+
+    async def service_change(request: Request) -> Response:
+        kind, entity = request.path_params["service"], request.path_params["entity"]
+
+        def fn(world: World, payload: Any) -> Any:
+            edit_bindings.change_service(world, kind, entity, payload)
+            return {"service": next(s for s in world.services if s["type"] == kind and s["entity"] == entity)}
+
+        return await mutate(request, "service", fn)
+
+    async def service_add(request: Request) -> Response:
+        def fn(world: World, payload: Any) -> Any:
+            p = fields(payload, ("service",), ("service",))
+            edit_bindings.add_service(world, p["service"])
+            return {"service": p["service"]}
+
+        return await mutate(request, "service-add", fn)
+
+    async def service_remove(request: Request) -> Response:
+        kind, entity = request.path_params["service"], request.path_params["entity"]
+
+        def fn(world: World, payload: Any) -> Any:
+            edit_bindings.remove_service(world, kind, entity)
+            return {"removed": f"{kind}:{entity}"}
+
+        return await mutate(request, "remove", fn)
+
+    async def sensor_change(request: Request) -> Response:
+        name = path_name(request)
+
+        def fn(world: World, payload: Any) -> Any:
+            edit_bindings.change_sensor(world, name, payload)
+            return {"sensor": next(s for s in world.sensor_specs if s["name"] == name)}
+
+        return await mutate(request, "sensor", fn)
+
+    async def sensor_add(request: Request) -> Response:
+        def fn(world: World, payload: Any) -> Any:
+            p = fields(payload, ("sensor",), ("sensor",))
+            edit_bindings.add_sensor(world, p["sensor"])
+            return {"sensor": p["sensor"]}
+
+        return await mutate(request, "sensor-add", fn)
+
+    async def sensor_remove(request: Request) -> Response:
+        name = path_name(request)
+
+        def fn(world: World, payload: Any) -> Any:
+            edit_bindings.remove_sensor(world, name)
+            return {"removed": name}
+
+        return await mutate(request, "remove", fn)
+
+    async def load_entities(request: Request) -> Response:
+        def fn(world: World, payload: Any) -> Any:
+            p = fields(payload, ("toml", "parent"), ("toml",))
+            if not isinstance(p["toml"], str):
+                raise RequestError(422, "toml", "expected the text of an entities file")
+            parent = p.get("parent")
+            if parent is not None and not isinstance(parent, str):
+                raise RequestError(422, "parent", "expected the full name of an entity")
+            return {"added": edit_save.load_entities_text(world, p["toml"], parent)}
+
+        return await mutate(request, "load-entities", fn)
+
+    return [
+        Route("/api/entities", listing, methods=["GET"]),
+        Route("/api/entities", insert, methods=["POST"]),
+        Route("/api/entities/{name:path}/teleport", teleport, methods=["POST"]),
+        Route("/api/entities/{name:path}/force", force, methods=["POST"]),
+        Route("/api/entities/{name:path}", one, methods=["GET"]),
+        Route("/api/entities/{name:path}", change, methods=["PATCH"]),
+        Route("/api/entities/{name:path}", remove, methods=["DELETE"]),
+        Route("/api/edit", about, methods=["GET"]),
+        Route("/api/edit/world", world_options, methods=["POST"]),
+        Route("/api/edit/save", save, methods=["POST"]),
+        Route("/api/edit/save-entities", save_entities, methods=["POST"]),
+        Route("/api/edit/load-entities", load_entities, methods=["POST"]),
+        Route("/api/edit/services", service_add, methods=["POST"]),
+        Route("/api/edit/services/{service}/{entity:path}", service_change, methods=["PATCH"]),
+        Route("/api/edit/services/{service}/{entity:path}", service_remove, methods=["DELETE"]),
+        Route("/api/edit/sensors", sensor_add, methods=["POST"]),
+        Route("/api/edit/sensors/{name}", sensor_change, methods=["PATCH"]),
+        Route("/api/edit/sensors/{name}", sensor_remove, methods=["DELETE"]),
+    ]
+
+
+def _folder(payload: dict[str, Any]) -> Path | None:
+    """The ``folder`` a saved text is for (an absolute path; relative paths are rewritten for it)."""
+    folder = payload.get("folder")
+    if folder is None:
+        return None
+    if not isinstance(folder, str) or not Path(folder).is_absolute() or "\x00" in folder:
+        raise RequestError(422, "folder", "expected an absolute folder path (where the text will be saved)")
+    return Path(folder)
