@@ -25,7 +25,7 @@ from typing import Any
 
 from starlette.applications import Starlette
 from starlette.exceptions import HTTPException
-from starlette.requests import Request
+from starlette.requests import ClientDisconnect, Request
 from starlette.responses import HTMLResponse, JSONResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.types import ASGIApp, Receive, Scope, Send
@@ -34,11 +34,14 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from simrun.errors import SimrunError
 from simrun.serve.access import Access
 from simrun.serve.catalogue import RequestError, command_from_request, plain, service_queries
+from simrun.serve.edit_routes import edit_routes
 from simrun.serve.loop import CALL_TIMEOUT, MAX_RATE, MAX_STEPS, MIN_RATE, SimLoop, Subscriber, encode_png
 from simrun.serve.openapi import API_VERSION, MAX_ARGUMENT, openapi_document
 
 #: Largest request body, bytes.
 MAX_BODY = 64 * 1024
+#: Wall seconds a request body may take to arrive, from the handler's first read.
+BODY_TIMEOUT = 10.0
 #: Most WebSocket clients at once.
 MAX_STREAMS = 64
 
@@ -106,18 +109,26 @@ async def _body(request: Request, schema: dict[str, Any] | None = None) -> Any:
     ``text/plain`` or a form without asking, never ``application/json``.
 
     Raises:
-        RequestError: 413 too large, 415 not JSON, 400 malformed (NaN and Infinity refused) or nested deeper
-            than :data:`MAX_DEPTH`, 422 a number out of its range (:func:`check_numbers`).
+        RequestError: 413 too large, 408 not all there within :data:`BODY_TIMEOUT`, 415 not JSON, 400 malformed
+            (NaN and Infinity refused) or nested deeper than :data:`MAX_DEPTH`, 422 a number out of its range
+            (:func:`check_numbers`), 400 the client left before its body arrived.
     """
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind != "application/json":
         raise RequestError(415, "content-type", f"send the body as application/json, not {kind or 'nothing'!r}")
-    chunks, size = [], 0
-    async for chunk in request.stream():
-        size += len(chunk)
-        if size > MAX_BODY:
-            raise RequestError(413, "body", f"larger than {MAX_BODY} bytes")
-        chunks.append(chunk)
+    chunks: list[bytes] = []
+    try:
+        async with asyncio.timeout(BODY_TIMEOUT):
+            size = 0
+            async for chunk in request.stream():
+                size += len(chunk)
+                if size > MAX_BODY:
+                    raise RequestError(413, "body", f"larger than {MAX_BODY} bytes")
+                chunks.append(chunk)
+    except TimeoutError:
+        raise RequestError(408, "body", f"the body did not arrive within {BODY_TIMEOUT:g} s") from None
+    except ClientDisconnect:  # nobody is left to answer; no traceback in the log
+        raise RequestError(400, "body", "the client closed the connection before its body arrived") from None
     raw = b"".join(chunks)
     if not raw.strip():
         return None
@@ -446,6 +457,7 @@ def create_app(
         return JSONResponse({"error": f"internal error: {type(exc).__name__}", "field": "", "status": 500}, 500)
 
     routes = [
+        *edit_routes(loop, run, _body),  # the editor (issue 40): before /api/entities, which it extends
         Route("/", index),
         Route("/openapi.json", openapi),
         Route("/api", api),

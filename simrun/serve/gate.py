@@ -17,6 +17,13 @@ The SDK's server speaks the Foxglove WebSocket protocol but accepts only its own
 ``foxglove.sdk.v1`` (a handshake offering only the standard ``foxglove.websocket.v1`` gets ``HTTP 400``). When a
 client offers the standard name and not the SDK's, the gate offers the SDK's upstream and answers the client
 with the name it offered (:data:`STANDARD`): the messages of both are the same protocol (ws-protocol's v1).
+
+Limits (docs/limits.md, "Server"): at most :data:`MAX_CONNECTIONS` connections, relayed or still sending their
+handshake; a new one beyond closes the handshake that has waited longest (a slowloris client never keeps a
+Foxglove client out), and is answered 503 only when every connection is relayed. The gate reads the frames a
+client sends (RFC 6455 framing, not their content): a message over :data:`MAX_MESSAGE` bytes, whole or in
+fragments, is never relayed; the client gets a close frame with code 1009 ("message too big") and the
+connection is closed.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import contextlib
 import json
 import socket
 import threading
+import time
 from collections.abc import Callable
 
 from simrun.serve.access import Access
@@ -34,8 +42,13 @@ from simrun.serve.access import Access
 MAX_HEAD = 16 * 1024
 #: Longest wait for the whole upgrade request, seconds (beyond: the connection is closed).
 HEAD_TIMEOUT = 10.0
-#: Most connections relayed at once (beyond: 503).
+#: Most connections at once, relayed or in their handshake (beyond: the oldest handshake is closed, or 503).
 MAX_CONNECTIONS = 64
+#: Largest WebSocket message a client may send, bytes (beyond: close code 1009). Foxglove clients send
+#: subscriptions and service calls, a few hundred bytes each.
+MAX_MESSAGE = 64 * 1024
+#: WebSocket close code for a message that is too big (RFC 6455 section 7.4.1).
+CLOSE_TOO_BIG = 1009
 #: Ports above 1023 on the Fetch standard's "bad port" list (fetch.spec.whatwg.org/#port-blocking) that
 #: Chromium 156 refuses too (``ERR_UNSAFE_PORT``; it still opens 4190 and 6679 of that list): the server
 #: behind the gate listens on the first free one.
@@ -100,6 +113,8 @@ class Gate:
     Attributes:
         port: The public port it listens on.
         refused: Handshakes refused so far.
+        evicted: Handshakes closed to make room for a new connection, so far.
+        too_big: Connections closed for a message over :data:`MAX_MESSAGE`, so far.
     """
 
     def __init__(self, port: int, upstream: int, access: Callable[[int], Access]) -> None:
@@ -114,8 +129,9 @@ class Gate:
         self.port = int(self._listener.getsockname()[1])
         self.access = access(self.port)
         self.upstream = upstream
-        self.refused = 0
+        self.refused = self.evicted = self.too_big = 0
         self._open = 0
+        self._pending: dict[asyncio.Task[None], float] = {}
         self._loop = asyncio.new_event_loop()
         self._started = threading.Event()
         self._thread = threading.Thread(target=self._main, name="simrun-serve-foxglove-gate", daemon=True)
@@ -139,15 +155,22 @@ class Gate:
             self._loop.close()
 
     async def _connection(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        task = asyncio.current_task()
+        assert task is not None
         try:
-            if self._open >= MAX_CONNECTIONS:
-                await self._refuse(writer, 503, "", f"{MAX_CONNECTIONS} connections are open; try later")
-                return
-            self._open += 1
+            if self._open + len(self._pending) >= MAX_CONNECTIONS:
+                if not self._pending:
+                    await self._refuse(writer, 503, "", f"{MAX_CONNECTIONS} connections are open; try later")
+                    return
+                oldest = min(self._pending, key=lambda t: self._pending[t])
+                del self._pending[oldest]
+                oldest.cancel()  # a handshake still arriving gives way to the new connection
+                self.evicted += 1
+            self._pending[task] = time.monotonic()
             try:
                 await self._handshake(reader, writer)
             finally:
-                self._open -= 1
+                self._pending.pop(task, None)
         except (OSError, asyncio.IncompleteReadError, TimeoutError):
             pass
         finally:
@@ -171,22 +194,28 @@ class Gate:
             return
         offered = [p.strip() for p in headers.get("sec-websocket-protocol", "").split(",") if p.strip()]
         renamed = STANDARD in offered and SDK not in offered
-        up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.upstream)
-        up_writer.write(rename_protocol(head, STANDARD, SDK) if renamed else head)
-        if renamed:  # the upstream answer names the SDK's subprotocol: name the one the client offered
+        up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.upstream, limit=MAX_HEAD)
+        try:
+            up_writer.write(rename_protocol(head, STANDARD, SDK) if renamed else head)
             try:
                 answer = await asyncio.wait_for(up_reader.readuntil(b"\r\n\r\n"), HEAD_TIMEOUT)
             except (asyncio.LimitOverrunError, ValueError):
-                up_writer.close()
                 await self._refuse(writer, 400, "", "the Foxglove server's answer could not be read")
                 return
-            writer.write(rename_protocol(answer, SDK, STANDARD))
-        pumps = [asyncio.ensure_future(_pump(reader, up_writer)), asyncio.ensure_future(_pump(up_reader, writer))]
-        try:
-            await asyncio.wait(pumps, return_when=asyncio.FIRST_COMPLETED)
+            # the upstream answer names the SDK's subprotocol: name the one the client offered
+            writer.write(rename_protocol(answer, SDK, STANDARD) if renamed else answer)
+            task = asyncio.current_task()
+            assert task is not None
+            self._pending.pop(task, None)  # relayed from now on: no handshake to evict
+            self._open += 1
+            try:
+                if not answer.startswith(b"HTTP/1.1 101"):  # refused upstream: relay its answer's body as it is
+                    await _pump(up_reader, writer)
+                    return
+                await _relay(reader, writer, up_reader, up_writer)
+            finally:
+                self._open -= 1
         finally:
-            for pump in pumps:
-                pump.cancel()
             with contextlib.suppress(Exception):
                 up_writer.close()
 
@@ -212,3 +241,80 @@ async def _pump(source: asyncio.StreamReader, sink: asyncio.StreamWriter) -> Non
             await sink.drain()
         if sink.can_write_eof():
             sink.write_eof()
+
+
+async def _relay(
+    client: asyncio.StreamReader,
+    client_out: asyncio.StreamWriter,
+    upstream: asyncio.StreamReader,
+    upstream_out: asyncio.StreamWriter,
+) -> None:
+    """Relay WebSocket frames both ways until either side ends; a client message over :data:`MAX_MESSAGE` ends it.
+
+    Frames towards the client are written whole under a lock, so the gate's own close frame (1009) never
+    lands inside one of the server's frames.
+    """
+    lock = asyncio.Lock()
+    too_big = asyncio.Event()
+
+    async def to_client() -> None:
+        while True:
+            head, size = await _frame_head(upstream)
+            async with lock:
+                client_out.write(head)
+                await _copy(upstream, client_out, size)
+
+    async def to_server() -> None:
+        message = 0  # bytes of the message being received, over its fragments
+        while True:
+            head, size = await _frame_head(client)
+            opcode = head[0] & 0x0F
+            if opcode < 8:  # text, binary or a continuation (control frames carry at most 125 bytes)
+                message = size if opcode else message + size
+                if message > MAX_MESSAGE:
+                    too_big.set()
+                    return
+                if head[0] & 0x80:
+                    message = 0
+            upstream_out.write(head)
+            await _copy(client, upstream_out, size)
+
+    pumps = [asyncio.ensure_future(to_client()), asyncio.ensure_future(to_server())]
+    try:
+        with contextlib.suppress(OSError, asyncio.IncompleteReadError):
+            await asyncio.wait(pumps, return_when=asyncio.FIRST_COMPLETED)
+            if too_big.is_set():
+                reason = f"a message over {MAX_MESSAGE} bytes".encode()
+                async with lock:
+                    pumps[0].cancel()
+                    payload = CLOSE_TOO_BIG.to_bytes(2, "big") + reason
+                    client_out.write(bytes([0x88, len(payload)]) + payload)
+                    await asyncio.wait_for(client_out.drain(), 5.0)
+    finally:
+        for pump in pumps:
+            pump.cancel()
+        await asyncio.gather(*pumps, return_exceptions=True)
+
+
+async def _frame_head(source: asyncio.StreamReader) -> tuple[bytes, int]:
+    """The next WebSocket frame's header bytes (masking key included) and its payload length."""
+    head = await source.readexactly(2)
+    size = head[1] & 0x7F
+    if size >= 126:
+        extra = await source.readexactly(2 if size == 126 else 8)
+        head += extra
+        size = int.from_bytes(extra, "big")
+    if head[1] & 0x80:
+        head += await source.readexactly(4)
+    return head, size
+
+
+async def _copy(source: asyncio.StreamReader, sink: asyncio.StreamWriter, size: int) -> None:
+    """Copy ``size`` bytes from ``source`` to ``sink``."""
+    while size > 0:
+        chunk = await source.read(min(size, 65536))
+        if not chunk:
+            raise asyncio.IncompleteReadError(b"", size)
+        sink.write(chunk)
+        size -= len(chunk)
+        await sink.drain()

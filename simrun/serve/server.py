@@ -26,6 +26,17 @@ from simrun.world.world import World
 MIN_TOKEN = 16
 _LOOPBACK_NAMES = ("localhost",)
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: Largest WebSocket message a stream client may send, bytes (beyond: closed with code 1009); the stream
+#: reads and ignores what clients send.
+MAX_WS_MESSAGE = 64 * 1024
+#: Messages of a stream client buffered before its reader takes them (the stream takes them at once).
+WS_QUEUE = 4
+#: Wall seconds a silent keep-alive connection stays open after a response (uvicorn's timer).
+KEEP_ALIVE = 5
+#: Largest request head (request line and headers), bytes (beyond: 400).
+MAX_HEAD = 16 * 1024
+#: Connections the kernel queues before the server accepts them.
+BACKLOG = 1024
 
 
 def is_loopback(host: str) -> bool:
@@ -97,7 +108,7 @@ def bind(host: str, port: int) -> socket.socket:
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind((host, port))
-        sock.listen(128)
+        sock.listen(BACKLOG)
     except OSError as exc:
         sock.close()
         raise SimrunError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
@@ -137,6 +148,7 @@ def serve(
 
     from simrun.serve.access import Access
     from simrun.serve.app import create_app
+    from simrun.serve.connections import ConnectionTable, protocol_class
     from simrun.serve.page import dashboard_html
 
     check_access(host, token, allow_origins)
@@ -204,14 +216,21 @@ def serve(
         page=lambda: dashboard_html(loop.catalogue, token is not None, options.record is not None),
         recording=new_recording if options.record is not None else None,
     )
+    # h11 (not httptools, whatever is installed: nicegui brings uvicorn[standard]) under the connection limits
+    # of simrun.serve.connections, on asyncio: the limits in docs/limits.md ("Server") are these, measured so
     config = uvicorn.Config(
         app,
         log_level="warning",
         access_log=False,
-        http="h11",  # not httptools, whatever is installed (nicegui brings uvicorn[standard]): the limits in
-        loop="asyncio",  # docs/limits.md are h11's and asyncio's, measured with these
+        http=protocol_class(ConnectionTable()),
+        loop="asyncio",
         ws="websockets",
         ws_per_message_deflate=False,
+        ws_max_size=MAX_WS_MESSAGE,
+        ws_max_queue=WS_QUEUE,
+        timeout_keep_alive=KEEP_ALIVE,
+        h11_max_incomplete_event_size=MAX_HEAD,
+        backlog=BACKLOG,
         timeout_graceful_shutdown=3,
         lifespan="off",
     )
