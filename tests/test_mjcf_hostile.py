@@ -30,6 +30,7 @@ import pytest
 
 from simrun.errors import EntityError
 from simrun.robots.mjcf_read import ALLOW_ROOTS_ENV
+from simrun.robots.mjcf_robot import MAX_MJCF_BYTES
 from simrun.scene.scene_file import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -195,6 +196,16 @@ CASES: list[tuple[str, Callable[[Path], str], list[str], list[str]]] = [
     ),
     ("keyframes_1e5", lambda out: _keyframes(100_000), [], ["<key>", "keyframes", "limit of 10,000"]),
     (
+        "meshes_10001",
+        lambda out: (
+            "<mujoco><asset>"
+            + "".join(f"<mesh name='m{k}' vertex='0 0 0 1 0 0 0 1 0 0 0 1'/>" for k in range(10_001))
+            + "</asset></mujoco>"
+        ),
+        [],
+        ["<mesh>", "10,001 meshes", "limit of 10,000", "docs/limits.md"],
+    ),
+    (
         "nkey_1e9",
         lambda out: "<mujoco><size nkey='1000000000'/><worldbody/></mujoco>",
         [],
@@ -307,6 +318,24 @@ def test_allowed_roots_load_what_they_allow(tmp_path: Path) -> None:
     world.compile()
     assert outside / "secret.obj" in world.files_read()
     assert world.model.mesh_vertnum[0] == 8  # the paddle's vertices, as MuJoCo reads the file itself
+
+
+@pytest.mark.parametrize("which", ["model", "include"])
+def test_an_xml_file_over_the_size_limit_is_not_read(tmp_path: Path, benign_seconds: float, which: str) -> None:
+    """A 64 MiB + 1 model or included file (sparse: nothing to read) is refused from its size, quickly."""
+    scene = _layout(tmp_path, "<mujoco><include file='big.xml'/></mujoco>")
+    big = scene.parent / ("m.xml" if which == "model" else "big.xml")
+    with big.open("ab") as handle:
+        handle.write(b"<mujoco>")
+        handle.truncate(MAX_MJCF_BYTES + 1)
+    code, output, seconds = _check(scene)
+    lines = [line for line in output.splitlines() if line.strip()]
+    assert code == 1 and len(lines) == 1 and lines[0].startswith("error: "), output
+    if which == "model":  # MjcfRobot's own check, before the reader
+        assert f"m.xml: {MAX_MJCF_BYTES + 1} bytes, over {MAX_MJCF_BYTES}" in lines[0], lines[0]
+    else:  # the reader's bounded read (meshtool/files/safeopen.py rounds both sizes to MiB)
+        assert "<include file='big.xml'>: cannot read" in lines[0] and "over the 64 MiB limit" in lines[0], lines[0]
+    assert seconds < benign_seconds + SLACK_S, (seconds, benign_seconds)
 
 
 def test_cli_names_the_readers_variable() -> None:

@@ -244,6 +244,73 @@ def test_a_texture_files_size_is_its_own(tmp_path: Path) -> None:
     assert read_mjcf(tmp_path / "f.xml", limits=Limits(image_pixels=4)).spec().compile().tex_width[0] == 2
 
 
+_TETRA = "vertex='0 0 0 1 0 0 0 1 0 0 0 1'"
+
+
+@pytest.mark.parametrize(
+    ("limits", "main", "included", "expected"),
+    [
+        (  # <mesh> assets: counted while the file streams, before any tree is kept
+            Limits(meshes=3),
+            "<mujoco><asset>" + "".join(f"<mesh name='m{k}' {_TETRA}/>" for k in range(4)) + "</asset></mujoco>",
+            "",
+            "<mesh>: 4 meshes (<mesh>), more than the limit of 3 (docs/limits.md)",
+        ),
+        (  # meshes of an included file add to the model's
+            Limits(meshes=3),
+            f"<mujoco><asset><mesh name='a' {_TETRA}/><mesh name='b' {_TETRA}/></asset>"
+            "<include file='i.xml'/></mujoco>",
+            f"<mujoco><asset><mesh name='c' {_TETRA}/><mesh name='d' {_TETRA}/></asset></mujoco>",
+            "i.xml:1: <mesh>: 4 meshes (<mesh>), more than the limit of 3",
+        ),
+        (  # the model file's own size
+            Limits(xml_bytes=100),
+            "<mujoco>" + " " * 200 + "</mujoco>",
+            "",
+            "cannot read the MJCF file: is 217 bytes, over the 100",
+        ),
+        (  # an included file's size
+            Limits(xml_bytes=100),
+            "<mujoco><include file='i.xml'/></mujoco>",
+            "<mujoco>" + " " * 200 + "<worldbody/></mujoco>",
+            "<include file='i.xml'>: cannot read",
+        ),
+        (  # all XML files together
+            Limits(total_xml_bytes=100),
+            "<mujoco><include file='i.xml'/>" + " " * 40 + "</mujoco>",
+            "<mujoco>" + " " * 40 + "<worldbody/></mujoco>",
+            "the model's XML files hold 149 bytes, more than the limit of 100 (docs/limits.md)",
+        ),
+        (  # included files followed
+            Limits(includes=1),
+            "<mujoco><include file='i.xml'/><include file='j.xml'/></mujoco>",
+            "<mujoco><worldbody/></mujoco>",
+            "<include file='j.xml'>: more than 1 included files (the limit; docs/limits.md)",
+        ),
+        (  # XML elements of the model
+            Limits(elements=5),
+            "<mujoco><worldbody>" + "<site/>" * 5 + "</worldbody></mujoco>",
+            "",
+            "more than 5 XML elements in the model (the limit; docs/limits.md)",
+        ),
+    ],
+    ids=["meshes", "meshes_included", "model_bytes", "include_bytes", "total_xml_bytes", "includes", "elements"],
+)
+def test_counts_and_sizes_over_the_limits_name_both(
+    tmp_path: Path, limits: Limits, main: str, included: str, expected: str
+) -> None:
+    """Issue 42 item 2: each bound of :class:`Limits` refuses with one line naming the count and the limit; the
+    same model loads under the default limits (MuJoCo compiles it)."""
+    _write(tmp_path / "m.xml", main)
+    _write(tmp_path / "i.xml", included or "<mujoco/>")
+    _write(tmp_path / "j.xml", "<mujoco><worldbody/></mujoco>")
+    with pytest.raises(MjcfReadError) as info:
+        read_mjcf(tmp_path / "m.xml", limits=limits)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(str(tmp_path)) and expected in message, message
+    read_mjcf(tmp_path / "m.xml").spec().compile()
+
+
 def test_options_only_read_reads_no_asset(tmp_path: Path) -> None:
     shutil.copytree(INCLUDED, tmp_path / "arm")
     model = read_mjcf(tmp_path / "arm" / "robot.xml", assets=False)
