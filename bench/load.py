@@ -16,6 +16,7 @@ max(2, --repeat // 3) rounds. Tables go into docs/benchmarks.md between ``<!-- l
 
 from __future__ import annotations
 
+import dataclasses
 import platform
 import sys
 import tempfile
@@ -34,6 +35,7 @@ from meshtool.packfile.export import to_glb, to_msh
 from meshtool.packfile.read import forget_checks
 from meshtool.packfile.write import StoredSection, assemble
 from meshtool.repair.normalise import NormaliseOptions
+from simrun.world.assets import AssetLibrary
 
 MESHES = [
     ("fuze, textured (1k tri)", "src/mikedh__trimesh/models/fuze.obj"),
@@ -42,6 +44,8 @@ MESHES = [
     ("bunny subdivided (1.11M tri)", "derived/stanford-bunny-subdiv2/stanford-bunny-subdiv2.obj"),
 ]
 BEGIN, END = "<!-- load:begin -->", "<!-- load:end -->"
+#: Most triangles MuJoCo reads from an STL file.
+STL_MAX_FACES = 200_000
 
 
 def read_msh(path: Path) -> tuple[np.ndarray, ...]:
@@ -93,17 +97,24 @@ def as_version_1_0(data: bytes) -> bytes:
 
 
 def mujoco_from_mbin(path: Path) -> None:
-    with load(path) as p:
-        spec = mujoco.MjSpec()
-        spec.add_mesh(name="m", uservert=p.positions.ravel(), userface=p.indices.astype(np.int32).ravel())
-        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname="m", contype=0, conaffinity=0)
-        spec.compile()
-
-
-def mujoco_from_obj(paths: list[Path]) -> None:
-    """Compile from an OBJ MuJoCo has not seen yet (its mesh cache is keyed by file name)."""
+    """What a world does with an ``.mbin`` (simrun's :class:`~simrun.world.assets.AssetLibrary`): load it, hand its
+    arrays to an ``MjSpec`` (in-memory ``.msh``), compile. MuJoCo's mesh cache is emptied first, as for every
+    MuJoCo contender (the library names a mesh by its content, which would hit the cache from the last round)."""
+    mujoco.mj_clearCache(mujoco.mj_getCache())
     spec = mujoco.MjSpec()
-    spec.add_mesh(name="m", file=str(paths.pop()))
+    library = AssetLibrary(spec)
+    asset = library.mesh(path, 1.0)
+    for mesh, _ in asset.visual:
+        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh, contype=0, conaffinity=0)
+    spec.assets = library.vfs
+    spec.compile()
+
+
+def mujoco_from_file(paths: list[Path]) -> None:
+    """Compile from a mesh file (OBJ, STL, MSH) MuJoCo has not seen yet (its mesh cache is keyed by file name)."""
+    mujoco.mj_clearCache(mujoco.mj_getCache())
+    spec = mujoco.MjSpec()
+    spec.add_mesh(name="m", file=str(paths.pop()), inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL)  # as simrun's
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname="m", contype=0, conaffinity=0)
     spec.compile()
 
@@ -123,21 +134,26 @@ def measure(src: Path, work: Path, repeat: int) -> tuple[dict[str, float], dict[
         "raw": work / "m.raw",
     }
     paths["mbin"].write_bytes(lossless)
+    # the mesh alone for the MjSpec contender: the MuJoCo peers read geometry (and uvs), no image
+    bare = [dataclasses.replace(m, maps={}) for m in asset.materials]
+    (work / "geometry.mbin").write_bytes(pack(dataclasses.replace(asset, textures={}, materials=bare)))
     paths["mbinq"].write_bytes(quantized)
     paths["mbin10"].write_bytes(as_version_1_0(lossless))
     packed = parse(lossless)
     paths["glb"].write_bytes(to_glb(packed))
     paths["msh"].write_bytes(to_msh(packed))
-    nv = packed.positions.shape[0]
+    nv, nf = packed.positions.shape[0], packed.indices.shape[0]
     paths["raw"].write_bytes(
         np.asarray(packed.positions, "<f4").tobytes() + np.asarray(packed.indices, "<u4").tobytes()
     )
+    trimesh.Trimesh(np.asarray(packed.positions), np.asarray(packed.indices), process=False).export(work / "m.stl")
     slow_rounds = max(2, repeat // 3)
-    fresh = []
-    for k in range(slow_rounds):
-        copy = work / f"fresh_{k}.obj"
-        copy.write_bytes(obj.read_bytes())
-        fresh.append(copy)
+    fresh: dict[str, list[Path]] = {"obj": [], "stl": [], "msh": []}
+    for kind, source in (("obj", obj), ("stl", work / "m.stl"), ("msh", paths["msh"])):
+        for k in range(slow_rounds):
+            copy = work / f"fresh_{k}.{kind}"
+            copy.write_bytes(source.read_bytes())
+            fresh[kind].append(copy)
     sizes = {
         "triangles": float(packed.indices.shape[0]),
         **{f"size_{k}": float(p.stat().st_size) for k, p in paths.items()},
@@ -158,15 +174,17 @@ def measure(src: Path, work: Path, repeat: int) -> tuple[dict[str, float], dict[
         },
         repeat,
     )
-    slow = interleave(
-        {
-            "obj trimesh": timed(lambda: trimesh.load(obj, force="mesh")),
-            "glb trimesh": timed(lambda: trimesh.load(paths["glb"], force="mesh")),
-            "mujoco obj": timed(lambda: mujoco_from_obj(fresh)),
-            "mujoco mbin": timed(lambda: mujoco_from_mbin(paths["mbin"])),
-        },
-        slow_rounds,
-    )
+    slow_contenders = {
+        "obj trimesh": timed(lambda: trimesh.load(obj, force="mesh")),
+        "glb trimesh": timed(lambda: trimesh.load(paths["glb"], force="mesh")),
+        "mujoco obj": timed(lambda: mujoco_from_file(fresh["obj"])),
+        "mujoco stl": timed(lambda: mujoco_from_file(fresh["stl"])),
+        "mujoco msh": timed(lambda: mujoco_from_file(fresh["msh"])),
+        "mujoco mbin": timed(lambda: mujoco_from_mbin(work / "geometry.mbin")),
+    }
+    if nf > STL_MAX_FACES:  # MuJoCo's STL reader refuses more
+        del slow_contenders["mujoco stl"]
+    slow = interleave(slow_contenders, slow_rounds)
     return sizes, {**fast, **slow}
 
 
@@ -207,11 +225,14 @@ def table(rows: list[tuple[str, dict[str, float], dict[str, Timing]]], repeat: i
         ("obj trimesh", "OBJ via trimesh.load"),
         ("glb trimesh", "GLB via trimesh.load"),
         ("mujoco obj", "MuJoCo compiling the OBJ"),
-        ("mujoco mbin", ".mbin load + MjSpec compile"),
+        ("mujoco stl", "MuJoCo compiling the STL"),
+        ("mujoco msh", "MuJoCo compiling the MSH"),
+        ("mujoco mbin", ".mbin load + MjSpec compile (simrun's AssetLibrary)"),
     ]
     for name, _, t in rows:
         for key, label in labels:
-            lines.append(f"| {name} | {label} | {pair(t[key])} |")
+            if key in t:
+                lines.append(f"| {name} | {label} | {pair(t[key])} |")
     lines += [
         "",
         "Ratios (medians). Goals of issue 28: a small asset (<= 10k triangles) loads verified in <= 0.1 ms CPU, "
@@ -235,6 +256,31 @@ def table(rows: list[tuple[str, dict[str, float], dict[str, Timing]]], repeat: i
             f"{v.cpu_median / t['same bytes'].cpu_median:.2f}x | {t['quantised'].cpu_median / v.cpu_median:.2f}x | "
             f"{t['1.0 verify'].cpu_median / v.cpu_median:.2f}x | {t['obj trimesh'].cpu_median / v.cpu_median:.0f}x | "
             f"{t['mujoco obj'].cpu_median / t['mujoco mbin'].cpu_median:.2f}x |"
+        )
+    lines += [
+        "",
+        "Into MuJoCo (issue 41 item 6): `.mbin` load + `MjSpec` compile through simrun's `AssetLibrary` (the arrays "
+        "cast once into an in-memory `.msh`, MuJoCo's binary mesh format, no per-element conversion) against "
+        "MuJoCo compiling the same mesh from an OBJ, a binary STL (trimesh's export of the same arrays) and an "
+        "MSH file it has not seen (fresh names; MuJoCo's mesh cache emptied before every contender), each with "
+        "the inertia simrun gives a visual mesh (`shell`); the `.mbin` "
+        "is the same mesh without its texture, as the others hold none. Median ms "
+        "of process CPU; goal: the binary format loads faster than the text one, <= 1x of every MuJoCo path.",
+        "",
+        "| mesh | triangles | .mbin -> MjSpec ms | OBJ ms | STL ms | MSH ms | / OBJ | / STL | / MSH | goal <= 1x |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, info, t in rows:
+        ours = t["mujoco mbin"].cpu_median
+        peers = [t[f"mujoco {k}"].cpu_median if f"mujoco {k}" in t else None for k in ("obj", "stl", "msh")]
+        worst = max(ours / p for p in peers if p is not None)
+        goal = "met" if worst <= 1.0 else f"short by {worst:.2f}x"
+        lines.append(
+            f"| {name} | {int(info['triangles'])} | {ours * 1e3:.3f} | "
+            + " | ".join(f"{p * 1e3:.3f}" if p is not None else "n/a" for p in peers)
+            + " | "
+            + " | ".join(f"{ours / p:.2f}x" if p is not None else "n/a (> 200,000 faces)" for p in peers)
+            + f" | {goal} |"
         )
     for name, info, t in rows:
         v, touch, bare = t["verify"].cpu_median, t["fromfile"].cpu_median, t["no verify"].cpu_median

@@ -179,16 +179,27 @@ def asset_view(packed: PackedMesh) -> AssetView:
     uvs = np.asarray(packed.uvs, dtype=np.float64) if packed.uvs is not None else None
     parts = []
     for k, (first, count, material, _) in enumerate(np.asarray(packed.submeshes, dtype=np.int64).tolist()):
-        used, inverse = np.unique(indices[first : first + count], return_inverse=True)
+        corners = indices[first : first + count]
+        seen = np.zeros(len(positions), dtype=bool)
+        seen[corners] = True  # the vertices the part uses, ascending, and their ranks (np.unique's, in O(n))
+        if seen.all():  # every vertex: the pack's arrays as they are
+            used, faces = np.arange(len(positions)), corners
+            part_positions, part_normals, part_uvs = positions, normals, uvs
+        else:
+            used = np.flatnonzero(seen)
+            faces = (np.cumsum(seen) - 1)[corners]
+            part_positions = positions[used]
+            part_normals = normals[used] if normals is not None else None
+            part_uvs = uvs[used] if uvs is not None else None
         parts.append(
             Part(
                 index=k,
                 material=int(material) if materials else -1,
                 vertices=used,
-                positions=positions[used],
-                faces=inverse.reshape(-1, 3).astype(np.int64),
-                normals=normals[used] if normals is not None else None,
-                uvs=uvs[used] if uvs is not None else None,
+                positions=part_positions,
+                faces=faces,
+                normals=part_normals,
+                uvs=part_uvs,
             )
         )
     hulls = [(np.asarray(v, np.float64), np.asarray(f, np.int64)) for v, f in packed.hulls]
