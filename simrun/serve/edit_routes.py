@@ -5,11 +5,13 @@ Reading is always allowed: ``GET /api/entities`` (every entity with its current 
 limits, and the schema of every registered type for a "new entity" dialog), ``POST /api/edit/save`` and
 ``/api/edit/save-entities`` (scene text). Every other route changes the world and is refused (403) unless the
 server runs with ``--edit``, refused (409) while a recording runs (edits are not part of a recording yet), and
-limited to :data:`MAX_EDITS_PER_SECOND` (429 beyond). Each edit runs on the world's loop thread between
-steps (as a service command does) through :mod:`simrun.world.edit`; an edit refused there leaves the world
-exactly as it was and is answered 404 (no such entity, service or sensor), 409 (a name taken) or 422, naming
-the request field (``entity.mass``, ``entities[3].pose.position[1]``, ``force``). Request and answer schemas
-are in ``/openapi.json`` (:func:`simrun.serve.openapi.edit_paths`).
+limited to :data:`MAX_EDITS_PER_SECOND` and :data:`EDIT_SHARE` of the loop thread's time (429 beyond).
+
+Each edit runs on the world's loop thread between steps (as a service command does) through
+:mod:`simrun.world.edit`; an edit refused there leaves the world exactly as it was and is answered 404 (no
+such entity, service or sensor), 409 (a name taken) or 422, naming the request field (``entity.mass``,
+``entities[3].pose.position[1]``, ``force``). Request and answer schemas are in ``/openapi.json``
+(:func:`simrun.serve.openapi.edit_paths`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ from simrun.world.world import World
 
 #: Most edits accepted per wall second (a burst of as many is allowed); beyond, 429.
 MAX_EDITS_PER_SECOND = 50.0
+#: Largest share of the loop thread's wall time edits may take (a burst of that many seconds); beyond, 429.
+EDIT_SHARE = 0.2
 _STATUS = {"invalid": 422, "missing": 404, "conflict": 409}
 
 Run = Callable[[Callable[[Any], Any]], Awaitable[Any]]
@@ -40,10 +44,18 @@ Body = Callable[..., Awaitable[Any]]
 
 
 class Budget:
-    """A token bucket: :data:`MAX_EDITS_PER_SECOND` edits per wall second, as many in a burst (thread-safe)."""
+    """Edits' share of the loop thread: :data:`MAX_EDITS_PER_SECOND` a wall second and :data:`EDIT_SHARE` of its time.
 
-    def __init__(self, rate: float = MAX_EDITS_PER_SECOND) -> None:
-        self.rate, self.tokens, self.last = rate, rate, time.monotonic()
+    Two token buckets (thread-safe): a count refilled at :data:`MAX_EDITS_PER_SECOND` (as many in a burst), and
+    loop-thread seconds refilled at :data:`EDIT_SHARE` per wall second (as much in a burst), which each edit
+    pays for after it ran (a recompile of a large world costs more than a teleport); one edit at a time. An edit
+    is refused while either is spent or another runs, so edits never take more than that share from the physics.
+    """
+
+    def __init__(self, rate: float = MAX_EDITS_PER_SECOND, share: float = EDIT_SHARE) -> None:
+        self.rate, self.share = rate, share
+        self.tokens, self.seconds, self.last = rate, share, time.monotonic()
+        self.running = 0
         self._lock = threading.Lock()
 
     def take(self) -> None:
@@ -55,10 +67,22 @@ class Budget:
         with self._lock:
             now = time.monotonic()
             self.tokens = min(self.rate, self.tokens + (now - self.last) * self.rate)
+            self.seconds = min(self.share, self.seconds + (now - self.last) * self.share)
             self.last = now
             if self.tokens < 1.0:
                 raise RequestError(429, "", f"more than {self.rate:g} edits a second; slow down")
+            if self.seconds <= 0.0:
+                raise RequestError(429, "", f"edits took {self.share:.0%} of the simulation's time; slow down")
+            if self.running:
+                raise RequestError(429, "", "another edit is running; send the next when it is answered")
             self.tokens -= 1.0
+            self.running += 1
+
+    def spent(self, seconds: float) -> None:
+        """Charge the loop-thread time an edit took (it has ended)."""
+        with self._lock:
+            self.seconds -= seconds
+            self.running = max(0, self.running - 1)
 
 
 def refusal(exc: EditError) -> RequestError:
@@ -78,28 +102,31 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
     budget = Budget()
     schemas = edit_request_schemas()
 
-    def refresh(world: World) -> None:
-        # the catalogue is shared by reference (the app's listings, the pose stream): updated in place
-        loop.catalogue.update(build_catalogue(world))
-        loop._publish(world, poses=True)
-
     async def mutate(request: Request, name: str, fn: Callable[[World, Any], Any]) -> Response:
         payload = await body(request, schemas.get(name, {}))  # a malformed body is answered as on every route
         if not allowed:
             raise RequestError(403, "", "edits are off; start the server with simrun serve --edit")
         budget.take()
+        began = [0.0]
 
         def call(world: World) -> Any:
+            began[0] = time.perf_counter()
             if loop.recording is not None and loop.recording.active:
                 raise RequestError(409, "", "edits are not recorded yet; stop the recording to edit")
+            model = world.model
             try:
                 result = fn(world, payload)
             except EditError as exc:
                 raise refusal(exc) from None
-            refresh(world)
+            if world.model is not model:  # a recompile: new bodies, new names
+                loop.catalogue.update(build_catalogue(world))
+            loop._publish(world, poses=True)
             return {"time": float(world.data.time), **(result or {})}
 
-        return JSONResponse(await run(call))
+        try:
+            return JSONResponse(await run(call))
+        finally:
+            budget.spent(time.perf_counter() - began[0] if began[0] else 0.0)
 
     def fields(payload: Any, known: tuple[str, ...], required: tuple[str, ...] = ()) -> dict[str, Any]:
         if payload is None:

@@ -323,33 +323,17 @@ class Edit:
 
 
 def trial(world: World, field: str | None = None) -> None:
-    """Create every bound service and take one trial reading of every sensor but cameras, leaving no trace.
+    """Create every bound service and take one trial reading of every sensor, leaving no trace.
 
-    What :meth:`World.check_bindings` does, less the cameras' renderings (an offscreen GL context each, most
-    of a second): a camera sensor's camera must be in the model. Each sensor's snapshot is restored.
+    :meth:`World.check_bindings`, its refusal as an :class:`EditError`. A camera's trial frame makes its
+    renderer for the new model (most of a second for a GL context) now, inside the edit, where the server's
+    edit budget counts it, rather than at its next sample; the sample then reuses it.
 
     Raises:
         EditError: A binding that does not fit the edited world.
     """
-    model, data = world.model, world.data
     try:
-        for binding in world.services:
-            world.service(binding["type"], binding["entity"])
-        for name, sensor in world.sensors.items():
-            eyes = [getattr(sensor, k) for k in ("eye", "left", "right") if hasattr(getattr(sensor, k, None), "camera")]
-            if eyes:
-                for eye in eyes:
-                    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, eye.camera) < 0:
-                        raise EntityError(f"sensor {name!r}: no camera {eye.camera!r}")
-                continue
-            state, reading = sensor.snapshot(), sensor.reading
-            try:
-                sensor.sample(model, data)
-            except (KeyError, IndexError, ValueError) as exc:
-                raise EntityError(f"sensor {name!r} cannot read {sensor.entity!r}: {exc}") from None
-            finally:
-                sensor.restore(state)
-                sensor.reading = reading
+        world.check_bindings()
     except SimrunError as exc:
         raise EditError(f"a binding does not fit the edited world: {exc.message or exc}", key=field) from None
     world.reschedule()
