@@ -43,11 +43,13 @@ def test_locked_free_spring_and_limits():
     service = ArmService(world, "arm")
     assert service.joints == ["arm/passive", "arm/limited"]
     assert world.model.nu == 1  # only the limited joint has a servo
-    service.set_joint_targets([0.0, 1.0])  # beyond the limit
+    with pytest.raises(EntityError, match=r"joint 'limited' target 1 rad is outside \[-0.2, 0.2\] rad"):
+        service.set_joint_targets([0.0, 1.0])  # beyond the limit: refused (issue 42)
+    service.set_joint_targets([0.0, 0.2])  # at the limit
     world.run(3.0)
     passive, limited = service.joint_states().positions
     assert passive == pytest.approx(0.3, abs=0.02)  # the spring pulls it to its rest angle
-    assert limited == pytest.approx(0.2, abs=0.01)  # clamped by the joint limit
+    assert limited == pytest.approx(0.2, abs=0.01)  # at the joint limit
     with pytest.raises(EntityError, match="has 2 joints, got 3"):
         service.set_joint_targets([0, 0, 0])
 
@@ -275,10 +277,12 @@ def test_six_dof_joint_axes_are_locked_free_or_limited_with_drives_and_springs()
     assert service.joints == ["six/link/x", "six/link/z", "six/link/ry", "six/link/rz"]
     model = world.model
     assert model.njnt == 4 and model.nu == 2  # y and rx locked; two servos
-    service.set_joint_targets([0.2, 0.0, 0.0, 0.5])  # x beyond its limit
+    with pytest.raises(EntityError, match=r"joint 'link/x' target 0.2 m is outside \[-0.05, 0.05\] m"):
+        service.set_joint_targets([0.2, 0.0, 0.0, 0.5])  # x beyond its limit: refused (issue 42)
+    service.set_joint_targets([0.05, 0.0, 0.0, 0.5])  # x at its limit
     world.run(3.0)
     x, z, ry, rz = service.joint_states().positions
-    assert x == pytest.approx(0.05, abs=0.002)  # clamped by its limit
+    assert x == pytest.approx(0.05, abs=0.002)  # at its limit
     assert z == pytest.approx(0.02, abs=0.001)  # the spring's rest position
     assert rz == pytest.approx(0.5, abs=0.01)
     assert abs(ry) < 0.01  # passive, nothing drives it (no gravity)

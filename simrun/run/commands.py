@@ -11,23 +11,31 @@ from __future__ import annotations
 
 import inspect
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from simrun.errors import SceneError, SimrunError, did_you_mean
+from simrun.safeio import FileReadError, read_regular
 from simrun.scene.tomlpos import line_of, read_toml
 from simrun.world.registry import REGISTRY, names
 from simrun.world.world import World
 
 #: Largest commands file read, bytes.
 MAX_COMMANDS_BYTES = 16 * 1024 * 1024
+#: Most values in a commands file's arrays (docs/limits.md), counted on its bytes before the TOML is parsed:
+#: parsing costs about 10 us a value, and a trajectory of 1M points took 20 s to parse before it was refused.
+#: A trajectory of the JointService's 100,000 points (its limit) on 8 joints is 900,000 values.
+MAX_COMMAND_VALUES = 1_000_000
+#: What is not between a TOML array's values: strings (a comma inside one separates nothing) and comments.
+_NOT_VALUES = re.compile(rb'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'|#[^\n]*')
 #: Latest command time accepted, simulated seconds (one week).
 MAX_COMMAND_TIME = 7 * 24 * 3600.0
 _KEYS = ("t", "service", "entity", "call", "args")
 #: Methods every controller has that the world calls, never a command (``tick(model, data)`` from a
 #: commands file reached MuJoCo with a float for the model).
-LIFECYCLE = ("tick", "reset", "snapshot", "restore")
+LIFECYCLE = ("tick", "reset", "snapshot", "restore", "check_command")
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,6 +91,17 @@ def load_commands(path: Path) -> list[Command]:
         SceneError: Unreadable file, bad TOML, or a bad command, naming the file, line and key.
     """
     name = str(path)
+    try:
+        raw = read_regular(path, "commands file", MAX_COMMANDS_BYTES)
+    except FileReadError as exc:
+        raise SceneError(str(exc)) from None
+    separators = _NOT_VALUES.sub(b"", raw).count(b",")  # one fewer than the values, per array
+    if separators >= MAX_COMMAND_VALUES:
+        raise SceneError(
+            f"more than {MAX_COMMAND_VALUES} values in its arrays ({separators} commas outside strings and "
+            "comments; docs/limits.md): split long trajectories into shorter ones",
+            name,
+        )
     doc, lines = read_toml(path, "commands file", MAX_COMMANDS_BYTES)
     unknown = [k for k in doc if k not in ("commands", "expect")]  # [[expect]]: read by simrun test
     if unknown:
@@ -167,10 +186,17 @@ def _bad_argument(value: Any) -> str | None:
 
 
 def check_commands(world: World, commands: list[Command]) -> None:
-    """Refuse commands whose service is not bound in ``world`` (before the run starts).
+    """Refuse commands that cannot run in ``world``, before the run starts.
+
+    A command's service must be bound; a service the world has created (:meth:`World.check_bindings
+    <simrun.world.world.World.check_bindings>`, as ``simrun play``, ``check`` and ``test`` do) with a
+    ``check_command(call, args)`` method (the ``JointService``: targets outside a joint's range, trajectories
+    too long or too fast for the timestep) refuses the command's arguments here, so the error is one line
+    naming the command's file and line before the first step, not half-way through the run.
 
     Raises:
-        SimrunError: A command names a service type and entity with no ``[[services]]`` binding.
+        SimrunError: A command names a service type and entity with no ``[[services]]`` binding, or its
+            service refused its arguments.
     """
     bound = {(s.get("type"), s.get("entity")) for s in world.services}
     entities = [name for name, _ in world]
@@ -186,3 +212,15 @@ def check_commands(world: World, commands: list[Command]) -> None:
                 f"{command._where()}no {command.service} is bound to {command.entity!r} in the scene; "
                 "add it under [[services]]"
             )
+        # only a service the world has already created (World.check_bindings): creating one here would start
+        # its control earlier than its first command does in a run that does not check (resim)
+        cls = REGISTRY[command.service].load()
+        live = next(
+            (c for c in world.controllers if isinstance(c, cls) and getattr(c, "name", None) == command.entity), None
+        )
+        check = getattr(live, "check_command", None)
+        if callable(check):
+            try:
+                check(command.call, command.args)
+            except SimrunError as exc:
+                raise SimrunError(f"{command._where()}{exc}") from None

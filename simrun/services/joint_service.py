@@ -48,7 +48,7 @@ the actuator (read from the compiled model, never from names):
   the current pose that touch the entity are taken as held (MuJoCo's soft constraint rows) and the inertia
   they add is added to ``S`` (capped at ``1 / (3 w h) - 1`` times ``S``, 5.6 at the defaults, so the loop
   still samples stably when the contact lets go; beyond the cap the integral is slowed by ``4.5 / k``, ``k``
-  what is left; :meth:`JointService._with_contacts`). **Filtered actuators** (``dyntype filter`` or
+  what is left; :func:`simrun.services.joint_inertia.with_contacts`). **Filtered actuators** (``dyntype filter`` or
   ``filterexact``, dm_control's dog: 50 ms): the force follows the activation, not the control, and a 4 Hz
   loop around a 50 ms lag is unstable (``tau w < 8 / 9`` is needed); the control is the one that brings the
   activation to the wanted value in one control period (``(u - d act) / (1 - d)``, ``d`` the part of the
@@ -81,7 +81,6 @@ names (``set_joint_targets``, ``move_to(joint_positions, duration)``, ``joint_st
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -90,6 +89,16 @@ import mujoco
 import numpy as np
 
 from simrun.errors import EntityError
+from simrun.services.joint_drives import (
+    Drive,
+    check_position,
+    check_speed,
+    drive_of,
+    filter_decay,
+    servo_integral_rate,
+)
+from simrun.services.joint_inertia import free_inertia, with_contacts
+from simrun.services.joint_trajectory import Trajectory, check_waypoints
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
     from simrun.world.world import World
@@ -103,12 +112,6 @@ HOLD_MODES = ("all", "commanded")
 #: ``a + (b - a) (1 - cos(pi u)) / 2`` (``cosine``: at rest at each waypoint; ``u`` the segment's time fraction).
 PROFILES = ("linear", "cosine")
 _ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-#: MuJoCo's contact constraint types (a constraint row of one of them is a contact's).
-_CONTACTS = (
-    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS),
-    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
-    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC),
-)
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,24 +132,6 @@ class JointState:
     positions: tuple[float, ...]
     velocities: tuple[float, ...]
     targets: tuple[float, ...]
-
-
-@dataclass(frozen=True, slots=True)
-class _Drive:
-    """One commandable joint: its ids and how its actuator turns a target into a control."""
-
-    kind: str  # position | velocity | intvelocity | force
-    actuator: int
-    qpos: int
-    dof: int
-    gear: float
-    gain: float
-    mass: float
-    damping: float
-    low: float
-    high: float
-    lag: float = 0.0  # time constant of a filtered force actuator's activation, s (0: the control is the force)
-    exact: bool = False  # the filter is integrated exactly (``filterexact``), else by the integrator's Euler step
 
 
 class JointService:
@@ -202,12 +187,12 @@ class JointService:
         self.period = 1.0 / rate
         self.next_time = world.time
         self._bound: mujoco.MjModel | None = None
-        self._drives: dict[str, _Drive] = {}
+        self._drives: dict[str, Drive] = {}
         self._joints: list[tuple[str, int, int]] = []  # (name, qpos, dof) of every hinge/slide joint
         self._targets: dict[str, list[float]] = {}  # joint -> [position target, velocity target]
         self.hold_mode = hold
         self._held: dict[str, float] = {}  # joint -> where it is held without a command (hold = "all")
-        self._plan: dict[str, Any] | None = None  # a trajectory: start time, times, joints, positions
+        self._plan: Trajectory | None = None  # the trajectory being followed
         self._integral: dict[str, float] = {}  # joint -> integral of the position error (force joints), rad s
         self._scratch: _Scratch | None = None  # feed-forward forces are computed here, from the state alone
         self._mass = np.zeros((0, 0))  # MuJoCo's mass matrix at the model's initial pose (nv x nv)
@@ -219,16 +204,28 @@ class JointService:
     # -- commands ------------------------------------------------------------------------------------------
 
     def set_positions(self, joints: list[str] | tuple[str, ...], positions: list[float] | tuple[float, ...]) -> None:
-        """Hold ``joints`` at ``positions`` (rad or m); cancels a trajectory on those joints."""
-        values = self._values(joints, positions, "positions")
+        """Hold ``joints`` at ``positions`` (rad or m); cancels a trajectory on those joints.
+
+        Raises:
+            EntityError: An unknown joint, or a position outside what the joint and its actuator allow
+                (:mod:`simrun.services.joint_drives`), naming the joint, the value and the range.
+        """
+        values = self._positions(joints, positions, "set_positions")
         self._cancel(joints)
         for joint, value in zip(joints, values, strict=True):
             self._targets[joint] = [value, 0.0]
             self._held.pop(joint, None)
 
     def set_velocities(self, joints: list[str] | tuple[str, ...], velocities: list[float] | tuple[float, ...]) -> None:
-        """Run ``joints`` at ``velocities`` (rad/s or m/s): their position targets move at that speed."""
-        values = self._values(joints, velocities, "velocities")
+        """Run ``joints`` at ``velocities`` (rad/s or m/s): their position targets move at that speed.
+
+        A target that reaches the end of its joint's range stops there (its velocity becomes 0).
+
+        Raises:
+            EntityError: An unknown joint, or a velocity beyond a velocity servo's ``ctrlrange / gear`` or
+                :data:`~simrun.services.joint_drives.MAX_SPEED`.
+        """
+        values = self._speeds(joints, velocities, "set_velocities")
         self._cancel(joints)
         for joint, value in zip(joints, values, strict=True):
             self._targets[joint] = [self._target_now(joint), value]
@@ -251,24 +248,20 @@ class JointService:
 
         ``positions`` is ``len(times)`` rows of ``len(joints)`` values, nested or flat (row after row; a
         commands file takes flat arrays). From now to the first time the joints move from their current
-        targets; times must increase.
+        targets.
+
+        Raises:
+            EntityError: An unknown joint; more than :data:`~simrun.services.joint_trajectory.MAX_POINTS`
+                points; times that are not increasing by at least one model timestep (the first: from now);
+                a position outside what its joint and actuator allow (:mod:`simrun.services.joint_trajectory`).
         """
-        self._lookup(self.world.model)
-        self._check_joints(joints)
-        stamps = [float(t) for t in times]
-        if not stamps or any(not math.isfinite(t) or t <= 0 for t in stamps):
-            raise EntityError("trajectory: times must be positive finite seconds, at least one")
-        if any(b <= a for a, b in itertools.pairwise(stamps)):
-            raise EntityError("trajectory: times must increase")
-        flat = np.asarray(positions, dtype=float).ravel()
-        if flat.size != len(stamps) * len(joints) or not np.all(np.isfinite(flat)):
-            raise EntityError(
-                f"trajectory: positions needs {len(stamps)} x {len(joints)} finite values, got {flat.size}"
-            )
+        self._follow_points(joints, times, positions, "trajectory")
+
+    def _follow_points(self, joints: Any, times: Any, positions: Any, what: str) -> None:
+        stamps, points = self._waypoints(joints, times, positions, what)
         self._cancel(joints)
         start = [self._target_now(j) for j in joints]
-        rows = [start, *flat.reshape(len(stamps), len(joints)).tolist()]
-        self._plan = {"t0": float(self.world.data.time), "times": [0.0, *stamps], "joints": list(joints), "rows": rows}
+        self._plan = Trajectory(float(self.world.data.time), [0.0, *stamps], list(joints), [start, *points])
         for joint, value in zip(joints, start, strict=True):
             self._targets[joint] = [value, 0.0]
             self._held.pop(joint, None)
@@ -276,8 +269,34 @@ class JointService:
     def move_to(
         self, joints: list[str] | tuple[str, ...], positions: list[float] | tuple[float, ...], duration: float
     ) -> None:
-        """Move ``joints`` to ``positions`` in a straight line over ``duration`` seconds (a one-waypoint trajectory)."""
-        self.trajectory(joints, [duration], positions)
+        """Move ``joints`` to ``positions`` in a straight line over ``duration`` seconds (a one-waypoint trajectory).
+
+        Raises:
+            EntityError: As :meth:`trajectory` (``duration`` at least one timestep).
+        """
+        self._follow_points(joints, [duration], positions, "move_to")
+
+    def check_command(self, call: str, args: tuple[Any, ...]) -> None:
+        """Refuse a command before a run starts: what ``call(*args)`` would refuse, nothing applied.
+
+        :func:`simrun.run.commands.check_commands` calls it for every command of a commands file, so a bad
+        target or trajectory is one error line with its file and line before the first step, not mid-run.
+
+        Raises:
+            EntityError: What the command itself would raise.
+        """
+        if call == "set_positions":
+            joints, values = args
+            self._positions(joints, values, call)
+        elif call == "set_velocities":
+            joints, values = args
+            self._speeds(joints, values, call)
+        elif call == "trajectory":
+            joints, times, positions = args
+            self._waypoints(joints, times, positions, call)
+        elif call == "move_to":
+            joints, positions, duration = args
+            self._waypoints(joints, [duration], positions, call)
 
     # -- state ---------------------------------------------------------------------------------------------
 
@@ -327,8 +346,10 @@ class JointService:
         for joint, target in goals.items():
             drive = self._drives[joint]
             position, velocity = target
-            if velocity and (self._plan is None or joint not in self._plan["joints"]):
-                position = target[0] = position + velocity * h
+            if velocity and (self._plan is None or joint not in self._plan.joints):
+                position = target[0] = min(drive.highest, max(drive.lowest, position + velocity * h))
+                if position in (drive.lowest, drive.highest):  # at the end of its range: it stops there
+                    velocity = target[1] = 0.0
             q, v = float(data.qpos[drive.qpos]), float(data.qvel[drive.dof])
             error = position - q
             integral = self._integral.get(joint, 0.0) + error * h if self.integral else 0.0  # rad s (m s)
@@ -336,7 +357,7 @@ class JointService:
                 drive.kind == "position"
             ):  # force = g u + b0 + b1 gear q (+ b2 speed): at rest where g u = -b0 - b1 gear q
                 bias = model.actuator_biasprm[drive.actuator]
-                shift = _servo_integral_rate(model, drive, w) * integral if self.integral else 0.0
+                shift = servo_integral_rate(model, drive, w) * integral if self.integral else 0.0
                 if bias[0] == 0 and bias[1] == -drive.gain:  # <position>: ctrl = gear q*, exactly
                     ctrl = drive.gear * (position + shift)
                 else:
@@ -354,7 +375,7 @@ class JointService:
                     self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
             elif drive.kind == "intvelocity":  # the servo's target is the activation: steer it to gear * q*
                 act = float(data.act[model.actuator_actadr[drive.actuator]])
-                shift = _servo_integral_rate(model, drive, w) * integral
+                shift = servo_integral_rate(model, drive, w) * integral
                 ctrl = drive.gear * velocity + w * (drive.gear * (position + shift) - act)
             else:
                 tau, error, integral = wanted[joint]
@@ -364,14 +385,14 @@ class JointService:
                 if drive.lag > 0:  # a filtered actuator: the control that brings the activation there in one hold
                     self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
                     act = float(data.act[model.actuator_actadr[drive.actuator]])
-                    decay = _filter_decay(model, drive, h)
+                    decay = filter_decay(model, drive, h)
                     data.ctrl[drive.actuator] = min(drive.high, max(drive.low, (ctrl - decay * act) / (1.0 - decay)))
                     continue
             if drive.kind != "velocity":
                 self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
             data.ctrl[drive.actuator] = min(drive.high, max(drive.low, ctrl))
 
-    def _keep_integral(self, joint: str, drive: _Drive, ctrl: float, push: float, integral: float) -> None:
+    def _keep_integral(self, joint: str, drive: Drive, ctrl: float, push: float, integral: float) -> None:
         """Store the new error integral unless the control is clipped in the direction it pushes (no wind-up)."""
         if self.integral and not ((ctrl > drive.high and push > 0) or (ctrl < drive.low and push < 0)):
             self._integral[joint] = integral
@@ -385,7 +406,7 @@ class JointService:
 
     def snapshot(self) -> dict[str, Any]:
         """Targets, trajectory and clock, JSON-ready (for checkpoints)."""
-        plan = None if self._plan is None else dict(self._plan)
+        plan = None if self._plan is None else self._plan.state()
         return {
             "targets": {k: list(v) for k, v in self._targets.items()},
             "plan": plan,
@@ -397,7 +418,7 @@ class JointService:
     def restore(self, state: dict[str, Any]) -> None:
         """Inverse of :meth:`snapshot`."""
         self._targets = {str(k): [float(v[0]), float(v[1])] for k, v in state["targets"].items()}
-        self._plan = None if state["plan"] is None else dict(state["plan"])
+        self._plan = None if state["plan"] is None else Trajectory.from_state(state["plan"])
         self._integral = {str(k): float(v) for k, v in state.get("integral", {}).items()}
         self._held = {str(k): float(v) for k, v in state.get("held", {}).items()}
         self.next_time = float(state["next_time"])
@@ -415,7 +436,9 @@ class JointService:
         w, h = self.bandwidth, self.period
         dofs = [self._drives[j].dof for j in joints]
         feed = self._feed_forward(model, data)[dofs]
-        inertia, slower = self._with_contacts(model, dofs, self._joint_inertia(tuple(joints), dofs))
+        free = self._joint_inertia(tuple(joints), dofs)
+        work = None if self._scratch is None else self._scratch.data
+        inertia, slower = with_contacts(model, work, self._tree, dofs, free, self.bandwidth, self.period)
         rates, damped, errors, integrals = [], [], [], []
         for joint in joints:
             drive, (position, velocity) = self._drives[joint], goals[joint]
@@ -433,104 +456,24 @@ class JointService:
         torque = inertia @ np.asarray(rates) + np.asarray(damped) + feed
         return {j: (float(torque[k]), errors[k], integrals[k]) for k, j in enumerate(joints)}
 
-    def _with_contacts(
-        self, model: mujoco.MjModel, dofs: list[int], free: np.ndarray[Any, np.dtype[np.float64]]
-    ) -> tuple[np.ndarray[Any, np.dtype[np.float64]], float]:
-        """``free`` (the force joints' inertia ``F``, every other dof free) plus what the entity's contacts add now.
-
-        The contacts of the current pose (MuJoCo's collision and constraint rows, computed in the scratch data
-        :meth:`_feed_forward` has just posed) that move any of the entity's dofs are taken as held, as MuJoCo's
-        soft constraints hold them (regulariser ``efc_R``). With ``X = J M^-1`` (their Jacobian ``J``, the mass
-        matrix ``M`` now), ``C`` its columns of the joints' dofs and ``G = J X' + R`` (the contacts' inverse
-        inertia), the joints' inverse inertia becomes ``F^-1 - C' G^-1 C``, whose inverse is ``F + D``,
-        ``D = F C' H^-1 C F``, ``H = G - C F C'`` (Woodbury; ``H``: the contacts' inverse inertia with the joints
-        locked). A ball rolling on the ground moves the whole body with it: its roll joint sees 31 times its own
-        inertia, and a loop designed for its own rang ever wider (``(s + w)^3`` stays stable up to 9 times the
-        design). ``D`` is added scaled down to at most ``1 / (3 w h) - 1`` times ``F`` (its largest eigenvalue
-        relative to ``F``, that of ``H^-1 C F C'``; ``h`` the control hold): a loop that much stiffer than the
-        free limb still samples stably when the contact lets go. What the cap leaves out, ``k`` times the
-        design's inertia, slows the integral by ``min(1, 4.5 / k)`` (the second value returned), so the loop
-        keeps half the Routh margin (``(s + w)^3``'s gains are stable while ``k < 9``). No contact on the
-        entity: ``(free, 1.0)``.
-        """
-        hold = max(self.period, float(model.opt.timestep))
-        room = 1.0 / (3.0 * self.bandwidth * hold) - 1.0
-        scratch = self._scratch
-        if room <= 0 or scratch is None or not self._tree.size:
-            return free, 1.0
-        work = scratch.data
-        mujoco.mj_collision(model, work)
-        if not work.ncon:
-            return free, 1.0
-        mujoco.mj_makeConstraint(model, work)
-        rows = int(work.nefc)
-        nv = model.nv
-        jac = np.zeros((rows, nv))
-        if mujoco.mj_isSparse(model):
-            mujoco.mju_sparse2dense(jac, work.efc_J, work.efc_J_rownnz, work.efc_J_rowadr, work.efc_J_colind)
-        else:
-            jac[:] = work.efc_J[: rows * nv].reshape(rows, nv)
-        touching = np.isin(work.efc_type[:rows], _CONTACTS) & (jac[:, self._tree] != 0).any(axis=1)
-        if not touching.any():
-            return free, 1.0
-        jac = np.ascontiguousarray(jac[touching])
-        mujoco.mj_crb(model, work)
-        mujoco.mj_factorM(model, work)
-        solved = np.empty_like(jac)
-        mujoco.mj_solveM(model, work, solved, jac)  # rows: M^-1 j
-        coupling = solved[:, dofs] @ free  # C F
-        through = coupling @ solved[:, dofs].T  # C F C'
-        locked = jac @ solved.T + np.diag(work.efc_R[:rows][touching]) - through  # H
-        try:
-            lower = np.linalg.cholesky(0.5 * (locked + locked.T))
-        except np.linalg.LinAlgError:
-            return free, 1.0
-        scaled = np.linalg.solve(lower, coupling)  # L^-1 C F: D = scaled' scaled
-        largest = float(np.linalg.eigvalsh(np.linalg.solve(lower, np.linalg.solve(lower, through).T)).max())
-        if not largest > 0:
-            return free, 1.0
-        result: np.ndarray[Any, np.dtype[np.float64]] = free + (scaled.T @ scaled) * min(1.0, room / largest)
-        left = (1.0 + largest) / (1.0 + min(largest, room))  # k: the inertia beyond the design, in its direction
-        return result, min(1.0, 4.5 / left)
-
     def _joint_inertia(self, joints: tuple[str, ...], dofs: list[int]) -> np.ndarray[Any, np.dtype[np.float64]]:
         """The inertia matrix the force joints ``joints`` (dofs ``dofs``) see with every other dof free."""
         found = self._inertia.get(joints)
         if found is None:
-            mass, mine = self._mass, np.asarray(dofs, dtype=np.intp)
-            rest = np.setdiff1d(np.arange(mass.shape[0]), mine)
-            found = mass[np.ix_(mine, mine)]
-            if rest.size:
-                found = found - mass[np.ix_(mine, rest)] @ np.linalg.solve(
-                    mass[np.ix_(rest, rest)], mass[np.ix_(rest, mine)]
-                )
-            self._inertia[joints] = found
+            found = self._inertia[joints] = free_inertia(self._mass, dofs)
         return found
 
     def _follow(self, now: float) -> None:
         plan = self._plan
         assert plan is not None
-        t0, times, rows = plan["t0"], plan["times"], plan["rows"]
-        if now < t0:  # the world was rebuilt (time 0 again): the trajectory starts over on the new clock
-            plan["t0"] = t0 = now
-        s = now - t0
-        if s >= times[-1]:
-            for joint, value in zip(plan["joints"], rows[-1], strict=True):
+        targets = plan.targets(now, self.profile)
+        if targets is None:  # at its last point: held there
+            for joint, value in zip(plan.joints, plan.rows[-1], strict=True):
                 self._targets[joint] = [float(value), 0.0]
             self._plan = None
             return
-        k = max(i for i, t in enumerate(times) if t <= s)
-        span = times[k + 1] - times[k]
-        u = (s - times[k]) / span
-        if self.profile == "cosine":  # blend (1 - cos(pi u)) / 2, its slope pi sin(pi u) / (2 span)
-            blend, slope = 0.5 - 0.5 * math.cos(math.pi * u), 0.5 * math.pi * math.sin(math.pi * u) / span
-            for j, joint in enumerate(plan["joints"]):
-                a, b = rows[k][j], rows[k + 1][j]
-                self._targets[joint] = [a + (b - a) * blend, (b - a) * slope]
-            return
-        for j, joint in enumerate(plan["joints"]):
-            a, b = rows[k][j], rows[k + 1][j]
-            self._targets[joint] = [a + (b - a) * u, (b - a) / span]
+        for joint, (position, velocity) in zip(plan.joints, targets, strict=True):
+            self._targets[joint] = [position, velocity]
 
     def _feed_forward(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray[Any, np.dtype[np.float64]]:
         """``qfrc_bias - qfrc_spring - qfrc_gravcomp`` (per dof) at the current ``qpos``, ``qvel``.
@@ -567,13 +510,14 @@ class JointService:
 
         Joints running at a velocity target (:meth:`set_velocities`) outside the trajectory keep running.
         """
-        if self._plan is not None and set(joints) & set(self._plan["joints"]):
-            for joint in self._plan["joints"]:
+        if self._plan is not None and set(joints) & set(self._plan.joints):
+            for joint in self._plan.joints:
                 if joint in self._targets:
                     self._targets[joint][1] = 0.0
             self._plan = None
 
-    def _values(self, joints: list[str] | tuple[str, ...], values: Any, what: str) -> list[float]:
+    def _values(self, joints: Any, values: Any, what: str) -> list[float]:
+        """One finite number per joint of ``joints`` (known, each named once)."""
         self._lookup(self.world.model)
         self._check_joints(joints)
         if isinstance(values, str) or not hasattr(values, "__len__") or len(values) != len(joints):
@@ -584,6 +528,27 @@ class JointService:
                 raise EntityError(f"{what}: {value!r} is not a finite number")
             out.append(float(value))
         return out
+
+    def _positions(self, joints: Any, positions: Any, what: str) -> list[float]:
+        """Position targets (rad or m), each within its joint's range (:func:`~.joint_drives.check_position`)."""
+        values = self._values(joints, positions, what)
+        for joint, value in zip(joints, values, strict=True):
+            check_position(joint, self._drives[joint], value, what)
+        return values
+
+    def _speeds(self, joints: Any, velocities: Any, what: str) -> list[float]:
+        """Velocity targets (rad/s or m/s), each within its drive's speeds (:func:`~.joint_drives.check_speed`)."""
+        values = self._values(joints, velocities, what)
+        for joint, value in zip(joints, values, strict=True):
+            check_speed(joint, self._drives[joint], value, what)
+        return values
+
+    def _waypoints(self, joints: Any, times: Any, positions: Any, what: str) -> tuple[list[float], list[list[float]]]:
+        """Checked times and rows of a trajectory (:func:`~.joint_trajectory.check_waypoints`)."""
+        model = self.world.model
+        self._lookup(model)
+        self._check_joints(joints)
+        return check_waypoints(joints, self._drives, times, positions, float(model.opt.timestep), what)
 
     def _check_joints(self, joints: Any) -> None:
         if isinstance(joints, str) or not isinstance(joints, list | tuple) or not joints:
@@ -610,7 +575,7 @@ class JointService:
             if name.startswith(prefix) and int(model.jnt_type[j]) in _ONE_DOF:
                 joints.append((name[len(prefix) :], int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])))
         by_id = {int(model.joint(prefix + n).id): (n, q, d) for n, q, d in joints}
-        drives: dict[str, _Drive] = {}
+        drives: dict[str, Drive] = {}
         for a in range(model.nu):
             joint = int(model.actuator_trnid[a, 0])
             if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT) or joint not in by_id:
@@ -618,22 +583,9 @@ class JointService:
             name, qpos, dof = by_id[joint]
             if name in drives:
                 continue  # the first actuator of a joint commands it
-            gear, gain = float(model.actuator_gear[a, 0]), float(model.actuator_gainprm[a, 0])
-            kind = _kind(model, a)
-            if gear == 0 or kind is None:
-                continue
-            drives[name] = _Drive(
-                kind,
-                a,
-                qpos,
-                dof,
-                gear,
-                gain,
-                float(full[dof, dof]),
-                float(model.dof_damping[dof]),
-                *_ctrl_range(model, a),
-                *_lag(model, a, kind),
-            )
+            drive = drive_of(model, a, joint, qpos, dof, full)
+            if drive is not None:
+                drives[name] = drive
         self._joints, self._drives, self._bound = joints, drives, model
         self._mass, self._inertia = full, {}
         self._targets = {k: v for k, v in self._targets.items() if k in drives}
@@ -665,74 +617,3 @@ class _Scratch:
         self.model = model
         self.data = mujoco.MjData(model)
         self.bias = np.zeros(model.nv)
-
-
-def _kind(model: mujoco.MjModel, a: int) -> str | None:
-    """What the actuator's gain, bias and dynamics make it (see the module), or ``None``: not commandable."""
-    gain, bias = model.actuator_gainprm[a], model.actuator_biasprm[a]
-    biastype, dyntype = int(model.actuator_biastype[a]), int(model.actuator_dyntype[a])
-    if int(model.actuator_gaintype[a]) != int(mujoco.mjtGain.mjGAIN_FIXED) or gain[0] == 0:
-        return None  # muscles, user gains: the control is not a force, a position or a speed
-    if biastype not in (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE)):
-        return None
-    affine = biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
-    servo = affine and bias[1] < 0 and gain[0] > 0  # a spring towards a point the control sets
-    if dyntype == int(mujoco.mjtDyn.mjDYN_INTEGRATOR):
-        return "intvelocity" if servo and model.actuator_actadr[a] >= 0 else None
-    if dyntype not in (
-        int(mujoco.mjtDyn.mjDYN_NONE),
-        int(mujoco.mjtDyn.mjDYN_FILTER),
-        int(mujoco.mjtDyn.mjDYN_FILTEREXACT),
-    ):
-        return None
-    if servo:
-        return "position"
-    if affine and bias[0] == 0 and bias[1] == 0 and bias[2] == -gain[0] and gain[0] > 0:
-        return "velocity"
-    return "force"
-
-
-def _servo_integral_rate(model: mujoco.MjModel, drive: _Drive, w: float) -> float:
-    """How fast (1/s) a position servo's target is shifted by the integral of its error (see the module).
-
-    The servo (joint stiffness ``kp = -b1 gear^2``, damping ``kv = -b2 gear^2``) with the joint's damping
-    ``b`` and inertia ``m`` closes ``m s^3 + (kv + b) s^2 + kp s + kp r`` around the integral's rate ``r``,
-    stable while ``r < (kv + b) / m`` (Routh): half that, and at most ``w / 3``. A servo with no damping at
-    all gets none (its own loop would ring).
-    """
-    bias = model.actuator_biasprm[drive.actuator]
-    damping = -float(bias[2]) * drive.gear * drive.gear + drive.damping
-    if damping <= 0 or drive.mass <= 0:
-        return 0.0
-    return min(w / 3.0, 0.5 * damping / drive.mass)
-
-
-def _lag(model: mujoco.MjModel, a: int, kind: str) -> tuple[float, bool]:
-    """A force actuator's filter time constant (s, 0 without a filter) and whether it is ``filterexact``."""
-    dyntype = int(model.actuator_dyntype[a])
-    filters = (int(mujoco.mjtDyn.mjDYN_FILTER), int(mujoco.mjtDyn.mjDYN_FILTEREXACT))
-    if kind != "force" or dyntype not in filters or model.actuator_actadr[a] < 0:
-        return 0.0, False
-    lag = float(model.actuator_dynprm[a, 0])
-    return (lag, dyntype == filters[1]) if lag > 0 else (0.0, False)
-
-
-def _filter_decay(model: mujoco.MjModel, drive: _Drive, hold: float) -> float:
-    """How much of a filtered actuator's activation is left after a control held ``hold`` s (0 to 1).
-
-    MuJoCo's ``filter`` is ``act' = (ctrl - act) / lag``: one Euler step of ``dt`` keeps ``1 - dt / lag``
-    (``filterexact``, or the RK4 integrator: ``exp(-dt / lag)``); a control is held for
-    ``max(1, round(hold / dt))`` steps.
-    """
-    dt = float(model.opt.timestep)
-    steps = max(1, round(hold / dt))
-    if drive.exact or int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
-        return math.exp(-steps * dt / drive.lag)
-    return max(0.0, 1.0 - dt / drive.lag) ** steps
-
-
-def _ctrl_range(model: mujoco.MjModel, a: int) -> tuple[float, float]:
-    if model.actuator_ctrllimited[a]:
-        low, high = model.actuator_ctrlrange[a]
-        return float(low), float(high)
-    return -math.inf, math.inf
