@@ -29,8 +29,9 @@ from starlette.routing import Route
 from simrun.serve.catalogue import RequestError, build_catalogue
 from simrun.serve.loop import SimLoop
 from simrun.serve.openapi import edit_request_schemas
-from simrun.world import edit, edit_bindings, edit_push, edit_save
+from simrun.world import edit, edit_push, edit_save
 from simrun.world.edit import EditError
+from simrun.world.edit_apply import EditRecord, apply_edit
 from simrun.world.world import World
 
 #: Most edits accepted per wall second (a burst of as many is allowed); beyond, 429.
@@ -101,6 +102,15 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
     allowed = bool(loop.options.extra.get("edit", False))
     budget = Budget()
     schemas = edit_request_schemas()
+
+    log: list[EditRecord] = []
+
+    def apply(world: World, kind: str, args: dict[str, Any]) -> Any:
+        """One edit through the one dispatcher (:func:`apply_edit`), kept in the session's log."""
+        t = float(world.data.time)
+        result = apply_edit(world, kind, args)
+        log.append(EditRecord(t, kind, args))
+        return result
 
     async def mutate(request: Request, name: str, fn: Callable[[World, Any], Any]) -> Response:
         payload = await body(request, schemas.get(name, {}))  # a malformed body is answered as on every route
@@ -178,9 +188,13 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
                 "edits_per_second": MAX_EDITS_PER_SECOND,
                 "max_batch": edit.MAX_BATCH,
                 "max_push_seconds": edit_push.MAX_PUSH_SECONDS,
+                "applied": len(log),
                 "types": edit.types_schema(),
             }
         )
+
+    async def edit_log(request: Request) -> Response:
+        return JSONResponse({"edits": [{"t": r.t, "kind": r.kind, "args": r.args} for r in log]})
 
     async def save(request: Request) -> Response:
         payload = fields(await body(request, schemas.get("save", {})), ("state", "folder"))
@@ -217,7 +231,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
             if parent is not None and not isinstance(parent, str):
                 raise RequestError(422, "parent", "expected the full name of an entity")
             tables = p["entity"] if "entity" in p else p["entities"]
-            return {"inserted": edit.insert(world, tables, parent)}
+            return {"inserted": apply(world, "insert", {"tables": tables, "parent": parent})}
 
         return await mutate(request, "insert", fn)
 
@@ -227,14 +241,14 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         def fn(world: World, payload: Any) -> Any:
             if not isinstance(payload, dict) or not payload:
                 raise RequestError(422, "body", "expected a JSON object of the keys to change")
-            edit.change(world, name, payload)
+            apply(world, "change", {"name": name, "changes": payload})
             return {"entity": edit.describe(world, name)}
 
         return await mutate(request, "change", fn)
 
     async def remove(request: Request) -> Response:
         name = path_name(request)
-        return await mutate(request, "remove", lambda world, payload: {"removed": edit.remove(world, name)})
+        return await mutate(request, "remove", lambda world, _: {"removed": apply(world, "remove", {"name": name})})
 
     async def teleport(request: Request) -> Response:
         name = path_name(request)
@@ -244,7 +258,8 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
             keep = p.get("keep_velocity", False)
             if not isinstance(keep, bool):
                 raise RequestError(422, "keep_velocity", "expected true or false")
-            return edit.teleport(world, name, p["position"], p.get("orientation"), keep)
+            args = {"name": name, "position": p["position"], "orientation": p.get("orientation"), "keep_velocity": keep}
+            return apply(world, "teleport", args)
 
         return await mutate(request, "teleport", fn)
 
@@ -253,21 +268,14 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
 
         def fn(world: World, payload: Any) -> Any:
             p = fields(payload, ("force", "torque", "duration", "body"))
-            return edit_push.apply_force(
-                world,
-                name,
-                p.get("force", (0.0, 0.0, 0.0)),
-                p.get("torque", (0.0, 0.0, 0.0)),
-                p.get("duration", 0.1),
-                p.get("body"),
-            )
+            return apply(world, "apply_force", {"name": name, **p})
 
         return await mutate(request, "force", fn)
 
     async def world_options(request: Request) -> Response:
         def fn(world: World, payload: Any) -> Any:
             p = fields(payload, ("gravity",), ("gravity",))
-            edit.set_gravity(world, p["gravity"])
+            apply(world, "set_gravity", {"gravity": p["gravity"]})
             return {"gravity": [float(g) for g in world.model.opt.gravity]}
 
         return await mutate(request, "world", fn)
@@ -276,7 +284,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         kind, entity = request.path_params["service"], request.path_params["entity"]
 
         def fn(world: World, payload: Any) -> Any:
-            edit_bindings.change_service(world, kind, entity, payload)
+            apply(world, "change_service", {"kind": kind, "entity": entity, "settings": payload})
             return {"service": next(s for s in world.services if s["type"] == kind and s["entity"] == entity)}
 
         return await mutate(request, "service", fn)
@@ -284,7 +292,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
     async def service_add(request: Request) -> Response:
         def fn(world: World, payload: Any) -> Any:
             p = fields(payload, ("service",), ("service",))
-            edit_bindings.add_service(world, p["service"])
+            apply(world, "add_service", {"table": p["service"]})
             return {"service": p["service"]}
 
         return await mutate(request, "service-add", fn)
@@ -293,7 +301,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         kind, entity = request.path_params["service"], request.path_params["entity"]
 
         def fn(world: World, payload: Any) -> Any:
-            edit_bindings.remove_service(world, kind, entity)
+            apply(world, "remove_service", {"kind": kind, "entity": entity})
             return {"removed": f"{kind}:{entity}"}
 
         return await mutate(request, "remove", fn)
@@ -302,7 +310,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         name = path_name(request)
 
         def fn(world: World, payload: Any) -> Any:
-            edit_bindings.change_sensor(world, name, payload)
+            apply(world, "change_sensor", {"name": name, "settings": payload})
             return {"sensor": next(s for s in world.sensor_specs if s["name"] == name)}
 
         return await mutate(request, "sensor", fn)
@@ -310,7 +318,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
     async def sensor_add(request: Request) -> Response:
         def fn(world: World, payload: Any) -> Any:
             p = fields(payload, ("sensor",), ("sensor",))
-            edit_bindings.add_sensor(world, p["sensor"])
+            apply(world, "add_sensor", {"table": p["sensor"]})
             return {"sensor": p["sensor"]}
 
         return await mutate(request, "sensor-add", fn)
@@ -319,7 +327,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         name = path_name(request)
 
         def fn(world: World, payload: Any) -> Any:
-            edit_bindings.remove_sensor(world, name)
+            apply(world, "remove_sensor", {"name": name})
             return {"removed": name}
 
         return await mutate(request, "remove", fn)
@@ -332,7 +340,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
             parent = p.get("parent")
             if parent is not None and not isinstance(parent, str):
                 raise RequestError(422, "parent", "expected the full name of an entity")
-            return {"added": edit_save.load_entities_text(world, p["toml"], parent)}
+            return {"added": apply(world, "load_entities", {"text": p["toml"], "parent": parent})}
 
         return await mutate(request, "load-entities", fn)
 
@@ -345,6 +353,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         Route("/api/entities/{name:path}", change, methods=["PATCH"]),
         Route("/api/entities/{name:path}", remove, methods=["DELETE"]),
         Route("/api/edit", about, methods=["GET"]),
+        Route("/api/edit/log", edit_log, methods=["GET"]),
         Route("/api/edit/world", world_options, methods=["POST"]),
         Route("/api/edit/save", save, methods=["POST"]),
         Route("/api/edit/save-entities", save_entities, methods=["POST"]),
