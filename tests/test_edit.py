@@ -243,3 +243,19 @@ def test_schemas_come_from_the_registry():
     assert [e["name"] for e in listed] == [n for n, _ in world]
     box_now = next(e for e in listed if e["name"] == "box")
     assert box_now["values"]["mass"] == 5.0 and len(box_now["pose"]) == 7
+
+
+def test_only_the_files_an_edit_names_must_be_inside_the_scene_folder(tmp_path):
+    import shutil
+
+    shutil.copy(SCENES / "globe.png", tmp_path / "globe.png")
+    (tmp_path / "scene").mkdir()
+    scene = tmp_path / "scene" / "outside.toml"
+    scene.write_text('[[entities]]\ntype = "Ground"\nname = "ground"\ntexture = "../globe.png"\n')
+    world = load_scene(scene)
+    world.run(0.01)
+    edit.change(world, "ground", {"size": 5.0})  # the scene's own file stays the scene's business
+    assert world.model.geom("ground/plane").size[0] == 5.0
+    with pytest.raises(EditError) as refused:
+        edit.change(world, "ground", {"texture": "../globe.png"})
+    assert refused.value.key == "texture" and "outside the scene's folder" in str(refused.value)

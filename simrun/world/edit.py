@@ -429,15 +429,19 @@ def make_entity(table: Any, prefix: str = "entity") -> Entity:
     return entity
 
 
-def check_files(world: World, entity: Entity, prefix: str = "entity") -> None:
-    """Refuse file parameters that leave the world's folder (the scene root) or name no regular file."""
+def check_files(world: World, entity: Entity, prefix: str = "entity", keys: Iterable[str] | None = None) -> None:
+    """Refuse file parameters that leave the world's folder (the scene root) or name no regular file.
+
+    ``keys``: only these (the keys an edit gives; a file the scene itself named is the scene's business).
+    """
     root = world.base_dir.resolve()
+    wanted = set(FILE_KEYS if keys is None else keys)
     for key in FILE_KEYS:
-        value = getattr(entity, key, None)
+        value = getattr(entity, key, None) if key in wanted else None
         if not isinstance(value, str) or not value or (key in ("asset", "visual_mesh") and value in world.assets):
             continue
         _inside(root, value, _join(prefix, (key,)), entity.name, folder=False)
-    for package, folder in (getattr(entity, "package_dirs", None) or {}).items():
+    for package, folder in (getattr(entity, "package_dirs", None) or {}).items() if "package_dirs" in wanted else ():
         _inside(root, folder, _join(prefix, ("package_dirs", package)), entity.name, folder=True)
 
 
@@ -538,7 +542,7 @@ def change(world: World, name: str, changes: dict[str, Any]) -> None:
     if entity.parent:
         table["parent"] = entity.parent
     new = make_entity(table, "")
-    check_files(world, new, "")
+    check_files(world, new, "", keys=changes)
     with Edit(world) as edit:
         before = list(edit.entities)
         index = before.index(name)
