@@ -502,3 +502,21 @@ def test_read_resolution_records_the_file_opened_or_the_refusal(arena):
     os.symlink("inside.png", tex)  # a link that stays inside: the file read is the one recorded
     res = resolver.resolve("tex.png", arena, "texture", "m.mtl", 3)
     assert resolver.read_resolution(res) == INSIDE and res.found == arena / "inside.png"
+
+
+def test_a_fifo_or_file_where_a_folder_is_expected_is_named(tmp_path):
+    os.mkfifo(tmp_path / "sub")
+    with pytest.raises(ResolveError) as caught:
+        finishes(lambda: read_beneath(tmp_path, ("sub", "mesh.obj"), 1024, "sub/mesh.obj"))
+    assert "('sub') is a FIFO" in str(caught.value) and "not a folder" in str(caught.value)
+    (tmp_path / "plain").write_bytes(b"x")
+    with pytest.raises(ResolveError, match=r"\('plain'\) is a file, not a folder"):
+        read_beneath(tmp_path, ("plain", "mesh.obj"), 1024, "plain/mesh.obj")
+
+
+def test_a_size_just_over_the_limit_is_not_shown_as_the_limit(tmp_path):
+    path = tmp_path / "big.mtl"
+    path.write_bytes(b"#" * (MIB + 1))
+    with pytest.raises(ResolveError) as caught:
+        read_file(path, MIB)
+    assert "1,048,577 bytes, over the 1 MiB limit" in str(caught.value)

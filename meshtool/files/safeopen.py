@@ -150,7 +150,10 @@ def read_beneath(root: Path, parts: Sequence[str], limit: int, shown: str) -> by
         raise error_from(exc, shown) from None
     try:
         for part in parts[:-1]:
-            next_fd = os.open(part, _DIR | os.O_NOFOLLOW, dir_fd=dir_fd)
+            try:
+                next_fd = os.open(part, _DIR | os.O_NOFOLLOW, dir_fd=dir_fd)
+            except OSError as exc:
+                raise _not_a_folder(exc, part, dir_fd, shown) from None
             os.close(dir_fd)
             dir_fd = next_fd
         before = os.stat(parts[-1], dir_fd=dir_fd, follow_symlinks=False)
@@ -281,8 +284,34 @@ def _not_regular(mode: int, shown: str) -> ResolveError:
     return ResolveError(f"is {what}, not a regular file; not read", path=shown, hint="replace it with a regular file")
 
 
+def _not_a_folder(exc: OSError, part: str, dir_fd: int, shown: str) -> OSError | ResolveError:
+    """Why the folder ``part`` (a component of ``shown``'s path, in ``dir_fd``) could not be opened.
+
+    A FIFO, device or file where a folder is expected is named as such. A symbolic link (the path was resolved
+    without one: it appeared after) or a folder by now (it changed during the read), and any other error, are
+    returned unchanged for :func:`error_from`, which says the file changed while it was read.
+    """
+    if exc.errno not in (errno.ENOTDIR, errno.ELOOP):
+        return exc
+    try:
+        mode = os.stat(part, dir_fd=dir_fd, follow_symlinks=False).st_mode
+    except OSError:
+        return exc
+    if stat.S_ISLNK(mode) or stat.S_ISDIR(mode):
+        return exc
+    what = "a file" if stat.S_ISREG(mode) else describe_mode(mode)
+    return ResolveError(
+        f"does not exist: a part of its path ({part!r}) is {what}, not a folder",
+        path=shown,
+        hint="check the path",
+    )
+
+
 def _bytes(n: int) -> str:
+    """``n`` bytes for a message, rounded to 0.1 KiB/MiB/GiB (exact bytes when rounding would hide a difference)."""
     for unit, size in (("GiB", GIB), ("MiB", MIB), ("KiB", 1024)):
         if n >= size:
+            if n % size and round(n / size, 1) * size == (n // size) * size:
+                return f"{n:,} bytes"
             return f"{n / size:.1f} {unit}".replace(".0 ", " ")
     return f"{n} bytes"
