@@ -78,3 +78,66 @@ def test_refused_records_name_the_field():
         with pytest.raises(EditError) as refused:
             EditRecord.from_json(text)
         assert refused.value.key == key
+
+
+UNDOABLE = [
+    ("insert", {"tables": CRATE}),
+    (
+        "change",
+        {"name": "box", "changes": {"mass": 2.0, "color": [1.0, 0.0, 0.0, 1.0], "pose": {"position": [2, 2, 1]}}},
+    ),
+    ("change", {"name": "ground", "changes": {"material": {"dynamic_friction": 0.3}}}),
+    ("remove", {"name": "boebot"}),
+    ("teleport", {"name": "box", "position": [0.0, 2.0, 0.5]}),
+    ("set_gravity", {"gravity": [0.0, 0.0, -1.6]}),
+    ("change_service", {"kind": "DriveService", "entity": "boebot", "settings": {"rate": 25.0}}),
+    ("remove_service", {"kind": "DriveService", "entity": "boebot"}),
+    ("add_sensor", {"table": {"type": "Bumper", "name": "bump", "entity": "boebot"}}),
+]
+
+
+@pytest.mark.parametrize(("kind", "args"), UNDOABLE, ids=[f"{k}-{i}" for i, (k, _) in enumerate(UNDOABLE)])
+def test_every_undo_brings_the_world_back(kind, args):
+    from simrun.world import edit
+    from simrun.world.edit_apply import inverse, undo_of
+
+    world = load_scene(SCENE)
+    prepare(world)
+    world.run(0.3)
+    model = world.model
+    tables = edit.entity_tables(world)
+    services, sensors = [dict(s) for s in world.services], [dict(s) for s in world.sensor_specs]
+    before = inverse(world, kind, args)
+    result = apply_edit(world, kind, args)
+    undo = undo_of(world.time, kind, args, result, before)
+    assert undo, kind
+    for record in undo:
+        record.apply(world)
+    now = edit.entity_tables(world)
+    if kind == "remove":  # loaded back where it was when removed (its pose now), at rest
+        assert now["boebot"].pop("pose") != tables["boebot"].pop("pose")
+    assert now == tables
+    if kind == "change_service":  # the old value again, written out: the binding's default
+        assert world.services == [{**services[0], "rate": 50.0}]
+        assert world.service("DriveService", "boebot").period == pytest.approx(0.02)
+    else:
+        assert world.services == services
+    assert world.sensor_specs == sensors
+    again = world.model
+    for field in ("body_mass", "geom_size", "geom_rgba", "geom_friction", "body_pos", "opt.gravity"):
+        if kind == "remove":  # the robot came back where it was when removed, last in the entity order
+            break
+        a = model.opt.gravity if field == "opt.gravity" else getattr(model, field)
+        b = again.opt.gravity if field == "opt.gravity" else getattr(again, field)
+        assert a.tobytes() == b.tobytes(), field
+    if kind == "remove":
+        masses = {model.body(b).name: model.body_mass[b] for b in range(model.nbody)}
+        assert masses == {again.body(b).name: again.body_mass[b] for b in range(again.nbody)}
+    world.run(0.1)
+
+
+def test_a_push_has_no_undo():
+    from simrun.world.edit_apply import inverse
+
+    world = load_scene(SCENE)
+    assert inverse(world, "apply_force", {"name": "box", "force": [1.0, 0.0, 0.0]}) is None

@@ -287,3 +287,23 @@ def test_the_servers_edit_log_replays_to_the_same_state_bit_for_bit(tmp_path):
     assert world.time == saved["state"]["time"]
     assert [float(v) for v in world.data.qpos] == saved["state"]["qpos"]
     assert [float(v) for v in world.data.qvel] == saved["state"]["qvel"]
+
+
+def test_undo_takes_back_the_last_edit_over_http(tmp_path):
+    with serve(_scene(tmp_path), "--lockstep", "--edit") as server:
+        sim = Client(server.url)
+        sim.step(seconds=0.1)
+        sim.insert(CRATE)
+        sim.change("crate", mass=3.0)
+        sim.apply_force("crate", force=[0.0, 0.0, 50.0], duration=0.1)
+        status, answer = server.request("POST", "/api/edit/undo", {})
+        assert status == 409 and "apply_force" in answer["error"]
+        assert server.post("/api/edit/undo", {})["undone"] == "change"
+        assert sim.entity("crate")["values"]["mass"] == 20.0
+        assert server.post("/api/edit/undo", {})["undone"] == "insert"
+        assert [e["name"] for e in sim.entities()] == ["ground", "boebot"]
+        assert "crate" not in sim.state()["poses"]
+        assert server.request("POST", "/api/edit/undo", {})[0] == 409  # nothing left
+        assert [e["kind"] for e in server.get("/api/edit/log")["edits"]] == [
+            "insert", "change", "apply_force", "change", "remove",
+        ]  # fmt: skip

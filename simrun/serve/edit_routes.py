@@ -26,18 +26,21 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
+from simrun.errors import SimrunError
 from simrun.serve.catalogue import RequestError, build_catalogue
 from simrun.serve.loop import SimLoop
 from simrun.serve.openapi import edit_request_schemas
 from simrun.world import edit, edit_push, edit_save
 from simrun.world.edit import EditError
-from simrun.world.edit_apply import EditRecord, apply_edit
+from simrun.world.edit_apply import EditRecord, apply_edit, inverse, undo_of
 from simrun.world.world import World
 
 #: Most edits accepted per wall second (a burst of as many is allowed); beyond, 429.
 MAX_EDITS_PER_SECOND = 50.0
 #: Largest share of the loop thread's wall time edits may take (a burst of that many seconds); beyond, 429.
 EDIT_SHARE = 0.2
+#: Edits the undo list remembers.
+MAX_UNDO = 100
 _STATUS = {"invalid": 422, "missing": 404, "conflict": 409}
 
 Run = Callable[[Callable[[Any], Any]], Awaitable[Any]]
@@ -105,11 +108,20 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
 
     log: list[EditRecord] = []
 
-    def apply(world: World, kind: str, args: dict[str, Any]) -> Any:
-        """One edit through the one dispatcher (:func:`apply_edit`), kept in the session's log."""
+    undo: list[tuple[str, list[EditRecord] | None]] = []  # (kind, the edits undoing it), last edit last
+
+    def apply(world: World, kind: str, args: dict[str, Any], undoable: bool = True) -> Any:
+        """One edit through the one dispatcher (:func:`apply_edit`), kept in the session's log and undo list."""
         t = float(world.data.time)
+        try:
+            before = inverse(world, kind, args) if undoable else None
+        except SimrunError:  # the edit itself names the problem
+            before = None
         result = apply_edit(world, kind, args)
         log.append(EditRecord(t, kind, args))
+        if undoable:
+            undo.append((kind, undo_of(t, kind, args, result, before)))
+            del undo[:-MAX_UNDO]
         return result
 
     async def mutate(request: Request, name: str, fn: Callable[[World, Any], Any]) -> Response:
@@ -344,7 +356,22 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
 
         return await mutate(request, "load-entities", fn)
 
+    async def undo_last(request: Request) -> Response:
+        def fn(world: World, payload: Any) -> Any:
+            fields(payload, ())
+            if not undo:
+                raise RequestError(409, "", "no edit to undo")
+            kind, records = undo.pop()
+            if records is None:
+                raise RequestError(409, "", f"the last edit ({kind}) cannot be undone; the one before it is next")
+            for record in records:
+                apply(world, record.kind, record.args, undoable=False)
+            return {"undone": kind, "edits": [{"kind": r.kind, "args": r.args} for r in records]}
+
+        return await mutate(request, "remove", fn)
+
     return [
+        Route("/api/edit/undo", undo_last, methods=["POST"]),
         Route("/api/entities", listing, methods=["GET"]),
         Route("/api/entities", insert, methods=["POST"]),
         Route("/api/entities/{name:path}/teleport", teleport, methods=["POST"]),
