@@ -35,7 +35,8 @@ from simrun.errors import SimrunError
 from simrun.serve.access import Access
 from simrun.serve.catalogue import RequestError, command_from_request, plain, service_queries
 from simrun.serve.edit_routes import edit_routes
-from simrun.serve.loop import CALL_TIMEOUT, MAX_RATE, MAX_STEPS, MIN_RATE, SimLoop, Subscriber, encode_png
+from simrun.serve.images import FORMATS, encode_jpeg_bytes, encode_png, image_of
+from simrun.serve.loop import CALL_TIMEOUT, MAX_RATE, MAX_STEPS, MIN_RATE, SimLoop, Subscriber
 from simrun.serve.openapi import API_VERSION, MAX_ARGUMENT, openapi_document
 
 #: Largest request body, bytes.
@@ -235,12 +236,21 @@ def create_app(
         body = document["paths"].get(path, {}).get("post", {}).get("requestBody")
         return dict(body["content"]["application/json"]["schema"]) if body else {}
 
-    async def run(fn: Callable[[Any], Any]) -> Any:
-        future = loop.call(fn)
+    async def run(fn: Callable[[Any], Any], read: bool = False) -> Any:
+        """``fn(world)`` run in the loop thread (``read``: it only reads, and runs during a long step too)."""
+        future = loop.call(fn, read)
+        answer = asyncio.wrap_future(future)
         try:
-            return await asyncio.wait_for(asyncio.wrap_future(future), CALL_TIMEOUT)
+            return await asyncio.wait_for(asyncio.shield(answer), CALL_TIMEOUT)
         except TimeoutError:
-            raise RequestError(503, "", f"the simulation did not answer within {CALL_TIMEOUT:g} s") from None
+            if future.cancel():  # it never started: nothing changed, and it never will
+                raise RequestError(
+                    503, "", f"the simulation was busy for {CALL_TIMEOUT:g} s; the call did not run (nothing changed)"
+                ) from None
+            return await answer  # it is running: every call ends (a step request by its deadline)
+
+    glb: dict[str, Any] = {"model": None, "bytes": b""}
+    glb_lock = asyncio.Lock()
 
     async def index(request: Request) -> Response:
         if page is None:
@@ -264,7 +274,7 @@ def create_app(
         return JSONResponse(catalogue[request.url.path.rsplit("/", 1)[1]])
 
     async def state(request: Request) -> Response:
-        return JSONResponse(await run(loop.state))
+        return JSONResponse(await run(loop.state, read=True))
 
     async def service_state(request: Request) -> Response:
         kind, entity = request.path_params["service"], request.path_params["entity"]
@@ -279,7 +289,7 @@ def create_app(
                 values[name] = plain(value() if callable(value) else value)
             return {"type": kind, "entity": entity, "time": float(w.data.time), "state": values}
 
-        return JSONResponse(await run(read))
+        return JSONResponse(await run(read, read=True))
 
     async def service_call(request: Request) -> Response:
         p = request.path_params
@@ -311,33 +321,25 @@ def create_app(
             s = w.sensors[name]
             return {"name": name, "time": float(w.data.time), "samples": int(s.samples), "reading": plain(s.reading)}
 
-        return JSONResponse(await run(read))
+        return JSONResponse(await run(read, read=True))
 
     async def sensor_image(request: Request) -> Response:
         name = sensor_name(request)
         if not next(s for s in catalogue["sensors"] if s["name"] == name)["image"]:
             raise RequestError(404, "name", f"sensor {name!r} is not a camera")
         fmt = request.query_params.get("format", "png")
-        if fmt not in ("png", "jpeg"):
+        if fmt not in FORMATS:
             raise RequestError(422, "format", f"expected png or jpeg, got {fmt!r}")
 
-        def read(w: Any) -> Any:
-            reading = w.sensors[name].reading
-            rgb = getattr(reading, "rgb", None)
-            if rgb is None and reading is not None:
-                rgb = reading.left.rgb
-            return rgb
+        def read(w: Any) -> Any:  # the loop thread only copies the pixels
+            rgb = image_of(w.sensors[name].reading)
+            return None if rgb is None else rgb.copy()
 
-        rgb = await run(read)
+        rgb = await run(read, read=True)
         if rgb is None:
             raise RequestError(409, "name", f"camera {name!r} has no frame yet; let the world run")
-        if fmt == "png":
-            return Response(encode_png(rgb), media_type="image/png")
-        import base64
-
-        from simrun.serve.loop import encode_jpeg
-
-        return Response(base64.b64decode(encode_jpeg(rgb)), media_type="image/jpeg")
+        encode = encode_png if fmt == "png" else encode_jpeg_bytes
+        return Response(await asyncio.to_thread(encode, rgb), media_type=f"image/{fmt}")
 
     async def pause(request: Request) -> Response:
         _object(await _body(request, schema("/api/pause")), ())
@@ -387,9 +389,17 @@ def create_app(
         return JSONResponse(await run(stop))
 
     async def scene_glb(request: Request) -> Response:
-        from simrun.serve.page import world_glb
+        # built once per compiled model (a new one after an edit), in a worker thread from a copy of the
+        # poses; the loop thread only copies them, and only when the model changed
+        from simrun.serve.scene_glb import glb_of, pose_copy
 
-        return Response(await run(world_glb), media_type="model/gltf-binary")
+        async with glb_lock:
+            if glb["model"] is None or glb["model"] is not loop.model:
+                model, xpos, xquat = await run(pose_copy, read=True)
+                glb["bytes"] = await asyncio.to_thread(glb_of, model, xpos, xquat)
+                glb["model"] = model
+            data = glb["bytes"]
+        return Response(data, media_type="model/gltf-binary")
 
     async def stream(ws: WebSocket) -> None:
         query = ws.query_params
@@ -406,6 +416,8 @@ def create_app(
             problem = (422, "images", f"no camera {not_cameras[0]!r} (cameras: {', '.join(sorted(cameras)) or 'none'})")
         elif query.get("poses", "1") not in ("0", "1"):
             problem = (422, "poses", "poses must be 0 or 1")
+        elif query.get("format", "jpeg") not in FORMATS:
+            problem = (422, "format", f"format must be jpeg or png, got {query.get('format')!r}"[:200])
         elif len(streams) >= MAX_STREAMS:
             problem = (503, "", f"{MAX_STREAMS} streams are open; try later")
         await ws.accept()
@@ -414,7 +426,9 @@ def create_app(
             await ws.send_text(json.dumps({"type": "error", "error": message, "field": field, "status": status}))
             await ws.close(1008)
             return
-        sub = Subscriber(asyncio.get_running_loop(), sensors, query.get("poses", "1") == "1", images)
+        sub = Subscriber(
+            asyncio.get_running_loop(), sensors, query.get("poses", "1") == "1", images, query.get("format", "jpeg")
+        )
         streams.append(sub)
         loop.broadcast.add(sub)
         try:

@@ -12,6 +12,10 @@ With ``mcap``, every message the server logs is also written to that MCAP file a
 writer, a sink of the same context: the same channels and the same messages as the live stream;
 ``simrun serve --foxglove-mcap``), finished by :meth:`FoxgloveLive.close`.
 
+Camera images are logged by a thread of their own (:class:`_ImageLogger`: the raw image and its JPEG), so the
+simulation thread never encodes one; a camera whose frames come faster than they are encoded has its older
+frames skipped (the latest is logged).
+
 Log times are nanoseconds of simulated time, as in the MCAP export (:mod:`simrun.record.mcap_export`). The SDK's
 server keeps at most :data:`BACKLOG` messages per client and drops the oldest, so a slow client never
 slows the simulation. The server listens on the loopback address only (use an SSH tunnel from another
@@ -27,6 +31,7 @@ import contextlib
 import dataclasses
 import os
 import tempfile
+import threading
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -102,6 +107,7 @@ class FoxgloveLive:
             self.close()
             raise
         self._drives = [c for c in world.controllers if isinstance(c, DriveService)]
+        self._images = _ImageLogger(self.channels)
 
     @property
     def url(self) -> str:
@@ -119,11 +125,19 @@ class FoxgloveLive:
             self.channels.odometry(drive.name, time, dataclasses.astuple(drive.odometry()))
 
     def sensor(self, name: str, time: float, reading: Any) -> None:
-        """Log a sensor's reading taken at simulated ``time`` s."""
-        self.channels.sensor(name, time, reading)
+        """Log a sensor's reading taken at simulated ``time`` s (a camera's by the image thread)."""
+        from simrun.serve.images import image_of
+
+        if image_of(reading) is not None:
+            self._images.put(name, time, reading)
+        else:
+            self.channels.sensor(name, time, reading)
 
     def close(self) -> None:
         """Stop the gate and the server, and finish the MCAP (renamed over ``mcap``)."""
+        images = getattr(self, "_images", None)
+        if images is not None:
+            images.close()  # the frames still waiting are logged first
         gate = getattr(self, "_gate", None)
         if gate is not None:
             gate.close()
@@ -141,3 +155,39 @@ class FoxgloveLive:
             with contextlib.suppress(OSError):
                 os.unlink(self._tmp)
             self._tmp = None
+
+
+class _ImageLogger:
+    """Logs camera readings through ``channels`` in its own thread (the latest frame of each camera waits)."""
+
+    def __init__(self, channels: Any) -> None:
+        self.channels = channels
+        self._waiting: dict[str, tuple[float, Any]] = {}
+        self._ready = threading.Condition()
+        self._closed = False
+        self._thread = threading.Thread(target=self._main, name="simrun-serve-foxglove-images", daemon=True)
+        self._thread.start()
+
+    def put(self, name: str, time: float, reading: Any) -> None:
+        """Queue camera ``name``'s reading taken at simulated ``time`` s (readings are not changed once taken)."""
+        with self._ready:
+            self._waiting[name] = (time, reading)
+            self._ready.notify()
+
+    def close(self) -> None:
+        """Log what waits, then stop the thread."""
+        with self._ready:
+            self._closed = True
+            self._ready.notify()
+        self._thread.join(30)
+
+    def _main(self) -> None:
+        while True:
+            with self._ready:
+                while not self._waiting and not self._closed:
+                    self._ready.wait()
+                if not self._waiting:
+                    return
+                name, (time, reading) = self._waiting.popitem()
+            with contextlib.suppress(Exception):  # a channel that cannot log (closed at shutdown) loses the frame
+                self.channels.sensor(name, time, reading)

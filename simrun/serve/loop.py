@@ -28,7 +28,6 @@ import collections
 import concurrent.futures
 import contextlib
 import contextvars
-import io
 import json
 import math
 import queue
@@ -44,6 +43,7 @@ import numpy as np
 from simrun.errors import SimrunError
 from simrun.run.commands import Command
 from simrun.serve.catalogue import RequestError, build_catalogue, plain
+from simrun.serve.images import ImageEncoder, image_of
 from simrun.world.world import World
 
 #: Longest stretch of simulated time stepped between two looks at the call queue, seconds.
@@ -72,6 +72,7 @@ MIN_POSE_INTERVAL = 1.0 / 120
 #: rate in simulated time, up to 60 messages per wall second (a world run 1000 times faster than real time
 #: would otherwise send a 10 Hz laser 10 000 times a second to every client).
 MIN_SENSOR_INTERVAL = 1.0 / 60
+_SHUTTING_DOWN = RequestError(503, "", "the server is shutting down; the call did not run")
 #: Real-time factors accepted.
 MIN_RATE, MAX_RATE = 0.01, 1000.0
 
@@ -111,13 +112,20 @@ class Subscriber:
         loop: The asyncio loop of the client's task (woken through ``call_soon_threadsafe``).
         sensors: Sensor names whose readings it wants (``None``: all but images).
         poses: Whether it wants body poses.
-        images: Camera sensors whose frames it wants (JPEG, base64 in the message).
+        images: Camera sensors whose frames it wants (base64 in the message).
+        image_format: ``"jpeg"`` (quality 80) or ``"png"``.
     """
 
     def __init__(
-        self, loop: asyncio.AbstractEventLoop, sensors: set[str] | None, poses: bool, images: set[str]
+        self,
+        loop: asyncio.AbstractEventLoop,
+        sensors: set[str] | None,
+        poses: bool,
+        images: set[str],
+        image_format: str = "jpeg",
     ) -> None:
         self.loop, self.sensors, self.poses, self.images = loop, sensors, poses, images
+        self.image_format = image_format
         self.messages: collections.deque[str] = collections.deque(maxlen=SUBSCRIBER_QUEUE)
         self.ready = asyncio.Event()
         self.dropped = 0
@@ -192,9 +200,12 @@ class SimLoop:
         self.foxglove: Any = None
         self.steps = 0
         self._factory = recording_factory
-        self._calls: queue.Queue[tuple[Callable[[World], Any], concurrent.futures.Future[Any]]] = queue.Queue(
-            MAX_PENDING_CALLS
-        )
+        self._calls: queue.Queue[_Call] = queue.Queue(MAX_PENDING_CALLS)
+        self._deferred: collections.deque[_Call] = collections.deque()  # changes that arrived during a step
+        #: The compiled model the loop thread last saw (a new object after an edit recompiles the world): the
+        #: version of what ``/api/scene.glb`` shows.
+        self.model: Any = None
+        self._images = ImageEncoder()
         self._stop = threading.Event()
         self._started: concurrent.futures.Future[None] = concurrent.futures.Future()
         context = contextvars.copy_context()  # the caller's output policy (--force) holds in the thread too
@@ -266,6 +277,7 @@ class SimLoop:
             self.error = f"the simulation thread failed ({type(exc).__name__}: {exc})"
         finally:
             self._drain(world, final=True)
+            self._images.close()
             if self.recording is not None:
                 try:
                     self.recording.finish()
@@ -278,7 +290,7 @@ class SimLoop:
         base = min([CHUNK_SECONDS, *periods])
         self._pace = (time.perf_counter(), world.time)
         while not self._stop.is_set():
-            if not self._calls.empty():
+            if self._deferred or not self._calls.empty():
                 self._drain(world)
             if self.paused or self.options.lockstep:
                 self._wait(0.05)
@@ -298,6 +310,10 @@ class SimLoop:
 
     def _wait(self, seconds: float) -> None:
         """Sleep up to ``seconds``, waking at once for a queued call (which runs then)."""
+        if self._deferred:
+            assert self._world is not None
+            self._drain(self._world)
+            return
         try:
             item = self._calls.get(timeout=seconds)
         except queue.Empty:
@@ -307,28 +323,59 @@ class SimLoop:
 
     def _drain(self, world: World, final: bool = False) -> None:
         while True:
+            if self._deferred:
+                item = self._deferred.popleft()
+            else:
+                try:
+                    item = self._calls.get_nowait()
+                except queue.Empty:
+                    return
+            if final:
+                if item.future.set_running_or_notify_cancel():
+                    item.future.set_exception(
+                        RequestError(503, "", "the server is shutting down; the call did not run")
+                    )
+            else:
+                self._run_call(world, item)
+
+    def _serve_reads(self, world: World) -> None:
+        """During a step request: run the queued reads now, keep the changes for after the step (in order)."""
+        while True:
             try:
                 item = self._calls.get_nowait()
             except queue.Empty:
                 return
-            if final:
-                item[1].set_exception(RequestError(503, "", "the server is shutting down"))
-            else:
+            if item.read:
                 self._run_call(world, item)
+            else:
+                self._deferred.append(item)
 
-    def _run_call(self, world: World, item: tuple[Callable[[World], Any], concurrent.futures.Future[Any]]) -> None:
-        fn, future = item
+    def _run_call(self, world: World, item: _Call) -> None:
+        future = item.future
         if not future.set_running_or_notify_cancel():
             return
         try:
-            future.set_result(fn(world))
+            future.set_result(item.fn(world))
         except Exception as exc:  # handed to the request that asked (a RequestError, or a bug)
             future.set_exception(exc)
+        if not item.read:
+            self._note_model(world)
+
+    def _note_model(self, world: World) -> None:
+        """Keep :attr:`model` current after a change (an edit may have rebuilt the world)."""
+        with contextlib.suppress(SimrunError):  # the next step reports it
+            self.model = world.model
 
     # -- calls (from any thread) ---------------------------------------------------------------------------
 
-    def call(self, fn: Callable[[World], Any]) -> concurrent.futures.Future[Any]:
+    def call(self, fn: Callable[[World], Any], read: bool = False) -> concurrent.futures.Future[Any]:
         """Run ``fn(world)`` in the loop thread between steps; its result (or error) in the future.
+
+        Args:
+            fn: The call.
+            read: ``fn`` only reads the world (a state, a sensor, a snapshot): it also runs between the chunks
+                of a running step request, so reads are answered at once during a long step. Other calls wait
+                for the step to end (in the order they came).
 
         Raises:
             RequestError: 503 when the loop has stopped or too many calls wait.
@@ -337,7 +384,7 @@ class SimLoop:
             raise RequestError(503, "", "the simulation is not running" + (f" ({self.error})" if self.error else ""))
         future: concurrent.futures.Future[Any] = concurrent.futures.Future()
         try:
-            self._calls.put_nowait((fn, future))
+            self._calls.put_nowait(_Call(fn, future, read))
         except queue.Full:
             raise RequestError(503, "", f"{MAX_PENDING_CALLS} calls are waiting; try again") from None
         return future
@@ -383,6 +430,7 @@ class SimLoop:
                 world.step(n)
                 done += n
                 self.steps += n
+                self._serve_reads(world)
             self._publish(world, poses=True)
             return {**self.state(world), "stepped": done, "requested": steps, "cancelled": cancelled}
 
@@ -463,6 +511,7 @@ class SimLoop:
         return {names[b]: [*map(float, xpos[b]), *map(float, xquat[b])] for b in range(1, len(names))}
 
     def _publish(self, world: World, poses: bool = False) -> None:
+        self.model = world.model
         now = time.perf_counter()
         sim = float(world.data.time)
         self._rtf_window.append((now, sim))
@@ -498,19 +547,14 @@ class SimLoop:
                 self.foxglove.sensor(name, float(getattr(sensor.reading, "time", sim)), sensor.reading)
             if not subscribers:
                 continue
-            image = _image_of(sensor.reading)
+            image = image_of(sensor.reading)
+            if image is not None:  # encoded and sent by the encoder thread: here only a copy of the pixels
+                wanting = [sub for sub in subscribers if name in sub.images]
+                if wanting:
+                    self._images.put(name, sim, np.array(image), wanting)
+                continue
             text: str | None = None
-            jpeg: str | None = None
             for sub in subscribers:
-                if image is not None:
-                    if name not in sub.images:
-                        continue
-                    if jpeg is None:
-                        jpeg = json.dumps(
-                            {"type": "image", "name": name, "time": sim, "format": "jpeg", "data": encode_jpeg(image)}
-                        )
-                    sub.push(jpeg)
-                    continue
                 if sub.sensors is not None and name not in sub.sensors:
                     continue
                 if text is None:
@@ -518,32 +562,13 @@ class SimLoop:
                 sub.push(text)
 
 
-def _image_of(reading: Any) -> np.ndarray[Any, Any] | None:
-    """The RGB image of a camera reading (a stereo pair: the left eye), else ``None``."""
-    rgb = getattr(reading, "rgb", None)
-    if rgb is None and getattr(reading, "left", None) is not None:
-        rgb = reading.left.rgb
-    return rgb if isinstance(rgb, np.ndarray) else None
+@dataclass(frozen=True)
+class _Call:
+    """A queued call: the function, the future its answer goes to, whether it only reads the world."""
 
-
-def encode_jpeg(rgb: np.ndarray[Any, Any], quality: int = 80) -> str:
-    """An RGB image (H, W, 3) u8 as base64 JPEG text."""
-    import base64
-
-    from PIL import Image
-
-    buffer = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(rgb)).save(buffer, format="JPEG", quality=quality)
-    return base64.b64encode(buffer.getvalue()).decode("ascii")
-
-
-def encode_png(rgb: np.ndarray[Any, Any]) -> bytes:
-    """An RGB image (H, W, 3) u8 as PNG bytes."""
-    from PIL import Image
-
-    buffer = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(rgb)).save(buffer, format="PNG")
-    return buffer.getvalue()
+    fn: Callable[[World], Any]
+    future: concurrent.futures.Future[Any]
+    read: bool = False
 
 
 def is_finite_number(value: Any) -> bool:
