@@ -57,7 +57,11 @@ the actuator (read from the compiled model, never from names):
 Muscles, user-defined gains or biases, integrator dynamics without a position bias and actuators on
 tendons, sites or bodies are not commanded (:meth:`JointService.joints` leaves their joints out).
 
-Controls are clipped to the actuator's ``ctrlrange``: a weak motor may not hold a pose.
+Controls are clipped to the actuator's ``ctrlrange``: a weak motor may not hold a pose. **Targets** are
+refused, with one line naming the joint, the value and the range, outside what the joint and its actuator
+allow (its ``jnt_range``, a position servo's ``ctrlrange``, an integrated-velocity servo's ``actrange``:
+:mod:`simrun.services.joint_drives`); :meth:`JointService.check_command` refuses a commands file's command
+the same way before the run starts.
 
 **Holding.** With ``hold = "all"`` (the default) the service also holds every commandable joint it has not
 been given a target for at the position it has at the service's first tick (after a :meth:`World.reset
@@ -68,7 +72,9 @@ reset: a motor limp, a position servo pulled to 0), for code that writes those c
 (a built-in drive's ``left_wheel``/``right_wheel``, the ``wheels`` an imported robot names) are never held:
 they belong to the ``DriveService``.
 
-Trajectories are time-stamped waypoints (seconds from the call), followed by linear interpolation in joint
+Trajectories are time-stamped waypoints (seconds from the call, each at least one timestep after the one before,
+at most :data:`~simrun.services.joint_trajectory.MAX_POINTS`; :mod:`simrun.services.joint_trajectory`), followed
+by linear interpolation in joint
 space with the segment's slope as velocity feed-forward (``profile = "cosine"``: the blend ``(1 - cos(pi u))
 / 2`` of each segment, at rest at every waypoint, with its slope as feed-forward); the joints not named hold
 their targets. ``integral = False`` leaves the error integrals out of every loop.
