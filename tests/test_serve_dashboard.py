@@ -109,3 +109,28 @@ def test_dashboard_shows_the_world_and_drives_the_robot(browser):
         page.wait_for_function(f"window.simrunDashboard.time > {paused['time'] + 0.01}", timeout=10_000)
         assert server.get("/api/state")["time"] == pytest.approx(paused["time"] + 0.02)
         page.close()
+
+
+#: A token with URL specials and letters beyond latin-1 (fetch cannot put those in a header as they are).
+TOKEN = 'p+a&s=s%w#o?r/d; "quoted" é€ ключ 密钥'
+
+
+def test_the_dashboard_works_with_any_printable_token(browser):
+    from urllib.parse import quote
+
+    with serve(SCENES / "boebot.toml", "--token", TOKEN) as server:
+        page = browser.new_page(viewport={"width": 900, "height": 600})
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(server.url + "?token=" + quote(TOKEN, safe=""))
+        page.wait_for_function("window.simrunDashboard && window.simrunDashboard.ready", timeout=90_000)
+        assert page.evaluate("document.documentElement.dataset.state") == "ready", errors
+        # the scene (GET /api/scene.glb with the token in Authorization) and a POST from the page
+        x, y, depth = page.evaluate("window.simrunDashboard.screen('boebot')")
+        assert 0 < x < 900 and 0 < y < 600 and depth < 1
+        page.click("#pause")
+        page.wait_for_function("document.getElementById('pause').textContent === 'Resume'", timeout=10_000)
+        status, state = server.request("GET", "/api/state", headers={"Authorization": "Bearer " + quote(TOKEN)})
+        assert status == 200 and state["paused"] is True
+        assert not errors
+        page.close()

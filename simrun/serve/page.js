@@ -24,7 +24,8 @@
   const headers = (json) => {
     const h = {};
     if (json) h["Content-Type"] = "application/json";
-    if (token) h["Authorization"] = "Bearer " + token;
+    // percent-encoded: fetch sends only latin-1 header text; the server decodes it (any printable token works)
+    if (token) h["Authorization"] = "Bearer " + encodeURIComponent(token);
     return h;
   };
   async function api(method, path, body) {
@@ -84,7 +85,7 @@
     dash.poses = poses;
     for (const [name, p] of Object.entries(poses)) {
       const node = bodies.get(name);
-      if (!node) continue;
+      if (!node || node === dash.held) continue;  // dash.held: a body edit mode is dragging
       node.position.set(p[0], p[1], p[2]);
       node.quaternion.set(p[4], p[5], p[6], p[3]);
     }
@@ -148,6 +149,8 @@
   const run = (promise) => promise.then((a) => { show(JSON.stringify(a, null, 1).slice(0, 2000)); return a; })
     .catch((e) => show(e.message, true));
 
+  // for edit mode (edit_page.js, the next script): the view and this page's requests
+  dash.view = { scene, camera, renderer, controls, bodies, api, headers, show, catalogue, element: view };
   let paused = false;
   $("pause").addEventListener("click", () => run(api("POST", paused ? "/api/resume" : "/api/pause", {})).then(state));
   $("step").addEventListener("click", () => run(api("POST", "/api/step", { seconds: 0.02 })).then(state));
