@@ -88,3 +88,32 @@ def test_commands_within_range_still_run(tmp_path: Path) -> None:
     path.write_text(JOINT.format(t=0.1, call="move_to", args='[["elbow"], [0.5], 0.5]'))
     done, _ = play(path, duration=1.0)
     assert done.returncode == 0, done.stderr
+
+
+ARM_SCENE = ROOT / "fixtures" / "scenes" / "arm_on_base.toml"  # an ArmService on base/arm (built-in LynxL6)
+ARM = '[[commands]]\nt = {t}\nservice = "ArmService"\nentity = "base/arm"\ncall = "{call}"\nargs = {args}\n'
+
+
+def test_an_arm_service_target_past_a_joint_range_is_refused_before_it_starts(tmp_path: Path) -> None:
+    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    bad = tmp_path / "arm.toml"
+    bad.write_text(ARM.format(t=30.0, call="move_to", args="[[0.0, 1e6, 0.0, 0.0, 0.0, 0.0], 1.0]"))
+    refused = subprocess.run(
+        [SIMRUN, "play", str(ARM_SCENE), "--commands", str(bad), "--duration", "60"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    line = one_error(refused)
+    assert f"{bad}:1: commands[0]: move_to: " in line and "target 1000000 rad is outside [" in line
+    good = tmp_path / "ok.toml"
+    good.write_text(ARM.format(t=0.1, call="set_joint_targets", args="[[0.0, 0.2, 0.0, 0.0, 0.0, 0.0]]"))
+    ran = subprocess.run(
+        [SIMRUN, "play", str(ARM_SCENE), "--commands", str(good), "--duration", "0.5"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert ran.returncode == 0, ran.stderr

@@ -565,6 +565,32 @@ class ArmService:
         if speeds:
             service.set_velocities(list(speeds), list(speeds.values()))
 
+    def check_command(self, call: str, args: tuple[Any, ...]) -> None:
+        """Refuse a command before a run starts: what ``call(*args)`` would refuse, nothing applied.
+
+        :func:`simrun.run.commands.check_commands` calls it for every command of a commands file; the
+        targets are checked as the JointService inside the arm checks its own (joint ranges, servo ranges).
+
+        Raises:
+            EntityError: What the command itself would raise.
+        """
+        if call not in ("set_joint_targets", "move_to"):
+            return
+        values = args[0]
+        self._check(values)
+        positions, speeds = self._split(values)
+        service = self.joint_service
+        if call == "move_to":
+            duration = float(args[1])
+            if not (math.isfinite(duration) and duration > 0):
+                raise EntityError("move duration must be a positive number of seconds")
+            if positions:
+                service.check_command("move_to", (list(positions), list(positions.values()), duration))
+        elif positions:
+            service.check_command("set_positions", (list(positions), list(positions.values())))
+        if speeds:
+            service.check_command("set_velocities", (list(speeds), list(speeds.values())))
+
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Advance the move and write the arm's controls (the JointService's tick)."""
         self.joint_service.tick(model, data)
