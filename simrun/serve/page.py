@@ -20,6 +20,7 @@ from simrun.errors import SimrunError
 from simrun.record.replay_glb import recording_gltf
 from simrun.record.replay_html import _script_safe, viewer_bundle
 from simrun.record.replay_tracks import Tracks
+from simrun.serve.edit_bundle import edit_page_script
 from simrun.serve.openapi import API_VERSION
 from simrun.world.world import World
 
@@ -51,6 +52,7 @@ def dashboard_html(catalogue: dict[str, Any], token: bool, recording: bool = Fal
         "CONFIG": json.dumps(config, sort_keys=True).replace("</", "<\\/"),
         "VIEWER": viewer_bundle(),
         "DASHBOARD": _script_safe((_HERE / "page.js").read_text(encoding="utf-8")),
+        "EDIT": edit_page_script(),  # edit mode (simrun/serve/edit_page.js), shown when the server allows edits
         "TITLE": html.escape("simrun serve"),
     }
     template = (_HERE / "page.html").read_text(encoding="utf-8")

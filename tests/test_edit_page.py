@@ -1,0 +1,218 @@
+"""The dashboard's edit mode (simrun/serve/edit_page.js) in real headless Chromium on a real ``simrun serve --edit``.
+
+Ground truth from the server, never the page: a body's pose from ``GET /api/entities`` after the page's drag of
+its move handle; ``GET /api/entities`` for inserted and deleted entities; MuJoCo's ``body_mass`` of the scene
+the page saved, compiled here. The page's own state only says what it drew (the body nodes of the scene GLB it
+loaded again). Without ``--edit`` the page shows no edit control and the server refuses the edit routes.
+
+``SIMRUN_EDIT_SHOTS=/tmp/shots`` also writes the screenshots of docs/serve.md ("Edit mode in the dashboard") there
+(a folder outside the checkout: tests leave no files in it; docs/images/edit-*.png are those, quantized to 48 colours).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from serve_helpers import SCENES, Server, serve
+from test_serve_dashboard import ARGS, _chromium, _until
+
+from simrun.record.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
+from simrun.scene.scene_file import load_scene
+
+ED = "window.simrunDashboard.edit"
+VIEWPORT = {"width": 1200, "height": 820}
+
+
+@pytest.fixture(scope="module")
+def browser():  # type: ignore[no-untyped-def]
+    if not (os.environ.get(VIEWER_VARIABLE) or Path(DEFAULT_BUNDLE).is_file()):
+        pytest.skip("the three.js viewer bundle is not installed (pip install nicegui)")
+    sync_api = pytest.importorskip("playwright.sync_api", reason="pip install playwright (no browser download needed)")
+    with sync_api.sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=_chromium(), args=ARGS, headless=True)
+        yield chromium
+        chromium.close()
+
+
+def _entity(server: Server, name: str) -> dict[str, Any] | None:
+    return next((e for e in server.get("/api/entities") if e["name"] == name), None)
+
+
+def _open(browser, server: Server):  # type: ignore[no-untyped-def]
+    page = browser.new_page(viewport=VIEWPORT)
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(server.url)
+    page.wait_for_function(f"window.simrunDashboard && {ED} && {ED}.ready", timeout=90_000)
+    return page, errors
+
+
+def _settled(page) -> None:  # type: ignore[no-untyped-def]
+    page.wait_for_function(f"{ED}.busy === 0", timeout=30_000)
+
+
+def _shot(page, name: str) -> None:  # type: ignore[no-untyped-def]
+    folder = os.environ.get("SIMRUN_EDIT_SHOTS")
+    if not folder:
+        return
+    from PIL import Image
+
+    path = Path(folder) / f"edit-{name}.png"
+    page.screenshot(path=str(path))
+    Image.open(path).convert("RGB").quantize(colors=96).save(path, optimize=True)  # small PNGs for the docs
+
+
+def test_edit_mode_selects_moves_inserts_changes_deletes_undoes_and_saves(browser, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    scene = tmp_path / "boebot.toml"
+    shutil.copyfile(SCENES / "boebot.toml", scene)
+    with serve(scene, "--edit") as server:
+        page, errors = _open(browser, server)
+        assert page.evaluate(f"{ED}.allowed") is True
+        assert page.locator("#edit-tree button").count() == len(server.get("/api/entities"))
+
+        # click the box in the view: its entity is selected, its pane built from the Box schema
+        x, y, depth = page.evaluate("window.simrunDashboard.screen('box')")
+        assert 0 < x < VIEWPORT["width"] - 340 and 0 < y < VIEWPORT["height"] and depth < 1
+        page.mouse.click(x, y)
+        page.wait_for_function(f"{ED}.item && {ED}.item.name === 'box'", timeout=20_000)
+        schema = server.get("/api/entities/box")["schema"]
+        for key in schema["keys"]:  # every key that can change has a field
+            if key["name"] in ("name", "parent", *schema["fixed"]):
+                continue
+            names = [f["name"] for f in key.get("fields", [key])]
+            for name in names:
+                assert page.locator(f"#edit-props [data-key^='{name}']").count() >= 1, name
+        assert page.locator("#edit-tree button.selected").inner_text().startswith("box")
+        _shot(page, "select")
+
+        # drag the X move handle: the server's box moves along +X, Y and Z kept
+        before = _entity(server, "box")["pose"]
+        hx, hy = page.evaluate(f"{ED}.handleAt('X')")
+        ox, oy, _ = page.evaluate("window.simrunDashboard.screen('box')")
+        ax, ay, _ = page.evaluate(f"{ED}.screenOf([{before[0] + 0.3}, {before[1]}, {before[2]}])")
+        page.mouse.move(hx, hy)
+        page.mouse.down()
+        page.mouse.move(hx + (ax - ox) * 0.6, hy + (ay - oy) * 0.6, steps=10)
+        page.mouse.up()
+        page.wait_for_function(f"{ED}.lastMove !== null", timeout=20_000)
+        _settled(page)
+        after = _entity(server, "box")["pose"]
+        assert 0.08 < after[0] - before[0] < 0.3, (before, after)
+        assert abs(after[1] - before[1]) < 1e-3 and abs(after[2] - before[2]) < 5e-3
+        sent = page.evaluate(f"{ED}.lastMove.sent.position")
+        assert abs(after[0] - sent[0]) < 1e-3  # where the handle left it
+        _shot(page, "move")
+
+        # undo: the box is back where it was
+        page.click("#edit-undo")
+        _until(lambda: _entity(server, "box")["pose"], lambda p: abs(p[0] - before[0]) < 1e-3)
+        _settled(page)
+
+        # the rotate handle: dragging the Z ring turns the server's box about its vertical axis only
+        page.check("input[name=edit-mode][value=rotate]")
+        page.wait_for_timeout(200)
+        edits = page.evaluate(f"{ED}.edits")
+        hx, hy = page.evaluate(f"{ED}.handleAt('Z')")
+        ox, oy, _ = page.evaluate("window.simrunDashboard.screen('box')")
+        page.mouse.move(hx, hy)
+        page.mouse.down()
+        page.mouse.move(hx - (hy - oy) * 2, hy + (hx - ox) * 2, steps=16)  # along the ring, away from it
+        page.mouse.up()
+        page.wait_for_function(f"{ED}.edits > {edits}", timeout=20_000)
+        _settled(page)
+        w, qx, qy, qz = _entity(server, "box")["pose"][3:]
+        assert abs(np.degrees(2 * np.arctan2(qz, w))) > 2.0 and abs(qx) < 1e-3 and abs(qy) < 1e-3, (w, qx, qy, qz)
+        _shot(page, "rotate")
+        page.click("#edit-undo")
+        _until(lambda: _entity(server, "box")["pose"][3], lambda w: w > 1 - 1e-9)
+        _settled(page)
+        page.check("input[name=edit-mode][value=translate]")
+
+        # the property pane edits the mass; MuJoCo's model of the saved scene has it
+        field = page.locator("#edit-props input[data-key='mass']")
+        field.fill("7.5")
+        field.dispatch_event("change")
+        _until(lambda: _entity(server, "box")["values"].get("mass"), lambda m: m == 7.5)
+        _settled(page)
+
+        # a sphere from the "new entity" dialog: in GET /api/entities and drawn (a body node of the new GLB)
+        loads = page.evaluate(f"{ED}.loads")
+        page.click("#edit-new")
+        page.select_option("#edit-new-type", "Sphere")
+        params = page.locator("#edit-new-params")
+        assert params.locator("input[data-key='radius']").get_attribute("placeholder") is None
+        assert params.locator("input[data-key='radius']").input_value() == "0.05"  # the registry's default
+        assert "radius (m)" in params.inner_text()  # with its unit
+        page.fill("#edit-new-name", "ball")
+        for k, value in enumerate(("1.3", "1.45", "0.3")):
+            page.fill(f"#edit-new-params input[data-key='pose.position[{k}]']", value)
+            page.dispatch_event(f"#edit-new-params input[data-key='pose.position[{k}]']", "change")
+        page.fill("#edit-new-params input[data-key='radius']", "0.08")
+        page.dispatch_event("#edit-new-params input[data-key='radius']", "change")
+        _shot(page, "new-entity")
+        page.click("#edit-new-insert")
+        page.wait_for_function(f"{ED}.loads > {loads} && {ED}.item && {ED}.item.name === 'ball'", timeout=30_000)
+        _settled(page)
+        ball = _entity(server, "ball")
+        assert ball is not None and ball["type"] == "Sphere" and ball["values"]["radius"] == 0.08
+        assert np.allclose(ball["pose"][:3], [1.3, 1.45, 0.3], atol=1e-9)
+        drawn = page.evaluate(
+            """() => { const n = window.simrunDashboard.view.bodies.get('ball'); let meshes = 0;
+                       if (n) n.traverse((o) => { if (o.isMesh) meshes += 1; }); return meshes; }"""
+        )
+        assert drawn >= 1
+        bx, by, bdepth = page.evaluate("window.simrunDashboard.screen('ball')")
+        assert 0 < bx < VIEWPORT["width"] - 340 and 0 < by < VIEWPORT["height"] and bdepth < 1
+        page.wait_for_timeout(300)
+        _shot(page, "inserted")
+
+        # delete it, undo the delete: gone, then back (same table), and drawn again
+        loads = page.evaluate(f"{ED}.loads")
+        page.click("#edit-delete")
+        page.wait_for_function(f"{ED}.loads > {loads} && !{ED}.bodyNames().includes('ball')", timeout=30_000)
+        assert _entity(server, "ball") is None
+        _settled(page)
+        page.click("#edit-undo")
+        page.wait_for_function(f"{ED}.bodyNames().includes('ball')", timeout=30_000)
+        _settled(page)
+        back = _entity(server, "ball")
+        assert back is not None and back["values"]["radius"] == 0.08
+
+        # save the scene (a download): MuJoCo's own compile of it has the edited mass and the sphere
+        with page.expect_download() as download:
+            page.click("#edit-save")
+        saved = tmp_path / "saved.toml"
+        saved.write_text(Path(download.value.path()).read_text(encoding="utf-8"), encoding="utf-8")
+        model = load_scene(saved).model
+        assert model.body("box").mass[0] == pytest.approx(7.5, abs=1e-12)
+        assert model.body("ball").mass[0] == pytest.approx(1000.0 * 4.0 / 3.0 * np.pi * 0.08**3, rel=1e-9)
+        assert not errors, errors
+        page.close()
+
+
+def test_without_edit_the_page_has_no_edit_controls_and_the_server_refuses(browser) -> None:  # type: ignore[no-untyped-def]
+    with serve(SCENES / "boebot.toml") as server:
+        page, errors = _open(browser, server)
+        assert page.evaluate(f"{ED}.allowed") is False
+        for control in ("#edit-new", "#edit-delete", "#edit-undo", "#edit-save", "#edit-tree", "#edit-props"):
+            assert page.locator(control).count() == 0, control
+        assert "simrun serve --edit" in page.inner_text("#edit")
+        assert "box (Box)" in page.inner_text("#entities")  # the plain list stays
+        x, y, _ = page.evaluate("window.simrunDashboard.screen('box')")
+        page.mouse.click(x, y)
+        page.wait_for_timeout(500)
+        assert page.evaluate(f"{ED}.selected") is None
+        # the page's own request is refused by the server, which changes nothing
+        status = page.evaluate(
+            """() => fetch('/api/entities/box', {method: 'PATCH', headers: {'Content-Type': 'application/json'},
+                                                 body: JSON.stringify({mass: 9})}).then((r) => r.status)"""
+        )
+        assert status == 403
+        assert _entity(server, "box")["values"]["mass"] == 5.0
+        assert not errors, errors
+        page.close()
