@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, ClassVar
 
 import mujoco
@@ -12,6 +11,7 @@ from simrun.errors import EntityError
 from simrun.world.entity import BuildContext, Entity, Material, check_positive
 
 COLLISION = ("hulls", "convex", "none")
+MESH = mujoco.mjtGeom.mjGEOM_MESH
 #: Largest uniform scale accepted (and smallest: its inverse).
 MAX_SCALE = 1e6
 
@@ -46,9 +46,13 @@ class MeshEntity(Entity):
             raise EntityError(f"MeshEntity {self.name!r}: scale must be in [{1 / MAX_SCALE:g}, {MAX_SCALE:g}]")
         if self.collision not in COLLISION:
             raise EntityError(f"MeshEntity {self.name!r}: collision must be one of {', '.join(COLLISION)}")
-        asset = ctx.assets.mesh(ctx.base_dir / Path(ctx.asset_paths.get(self.asset, self.asset)), self.scale)
+        path = ctx.base_dir / ctx.asset_paths.get(self.asset, self.asset)
+        asset = ctx.assets.mesh(path, self.scale)
+        prefix = ctx.full_name
         for k, (mesh, material) in enumerate(asset.visual):
-            geom = body.add_geom(name=ctx.name(f"visual{k}"), type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh)
+            # attributes set one by one: add_geom's keyword arguments cost the bindings twice as much (issue 41)
+            geom = body.add_geom()
+            geom.name, geom.type, geom.meshname = f"{prefix}/visual{k}", MESH, mesh
             geom.group, geom.contype, geom.conaffinity, geom.density = 2, 0, 0, 0.0
             if material:
                 geom.material = material
@@ -59,12 +63,11 @@ class MeshEntity(Entity):
                 f"MeshEntity {self.name!r}: {self.asset} has no collision hulls "
                 "(convert it with obj2bin --hulls convex|decompose, or use collision='convex')"
             )
-        path = ctx.base_dir / Path(ctx.asset_paths.get(self.asset, self.asset))
         meshes = asset.hulls if self.collision == "hulls" else [ctx.assets.whole(path, self.scale)]
         volumes = asset.hull_volumes if self.collision == "hulls" else [1.0]
         for k, mesh in enumerate(meshes):
-            geom = body.add_geom(name=ctx.name(f"collision{k}"), type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh)
-            geom.group = 3
+            geom = body.add_geom()
+            geom.name, geom.type, geom.meshname, geom.group = f"{prefix}/collision{k}", MESH, mesh, 3
             if self.mass is not None:
                 geom.mass = self.mass * volumes[k] / sum(volumes)
             else:
