@@ -486,9 +486,8 @@ def _note_truncated(log: Path) -> None:
     "--from",
     "start",
     type=SECONDS,
-    default=0.0,
-    show_default=True,
-    help="Re-simulate from the last checkpoint at or before this time, seconds.",
+    default=None,
+    help="Re-simulate from the last checkpoint at or before this time, seconds (default: the first checkpoint).",
 )
 @click.option(
     "--controller",
@@ -496,21 +495,26 @@ def _note_truncated(log: Path) -> None:
     default=None,
     help="The Python controller module the recorded run used (its SHA-256 must match the recorded one).",
 )
-def resim(log: Path, start: float, controller: Path | None) -> None:
+def resim(log: Path, start: float | None, controller: Path | None) -> None:
     """Re-simulate a .simlog from a checkpoint and check it matches the recording bit for bit.
 
-    A recording never names code to run: when the run used a Python controller, give the same file with
-    --controller; it runs only if its SHA-256 equals the recorded one. The recorded scene path is
-    relative to the recording, so this works from any folder.
+    It starts from the recording's first checkpoint (a recording started while a served world ran holds
+    one of that instant), streams the recording and stops at the first frame that differs, naming its
+    time and what differs. A recording never names code to run: when the run used a Python controller,
+    give the same file with --controller; it runs only if its SHA-256 equals the recorded one. The
+    recorded scene path is relative to the recording, so this works from any folder.
     """
     from simrun.run.session import run_resim
 
     _note_truncated(log)
-    compared, mismatch = run_resim(log, start, controller)
-    if mismatch is not None:
-        raise SimrunError(f"{log}: re-simulation differs from the recording at t = {mismatch:.3f} s")
-    out.stats(frames_compared=compared, from_s=start)
-    out.say(f"{printable(log)}: {compared} frame(s) re-simulated from t <= {start:g} s: bit-identical")
+    done = run_resim(log, start, controller)
+    if done.mismatch is not None:
+        raise SimrunError(
+            f"{log}: re-simulation differs from the recording at t = {done.mismatch.time:.3f} s "
+            f"({done.compared} frame(s) from t = {done.start:g} s were identical): {done.mismatch.what}"
+        )
+    out.stats(frames_compared=done.compared, from_s=done.start)
+    out.say(f"{printable(log)}: {done.compared} frame(s) re-simulated from t = {done.start:g} s: bit-identical")
 
 
 @main.command("view")

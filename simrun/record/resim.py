@@ -1,36 +1,103 @@
 """Re-simulating a ``.simlog`` from a checkpoint and comparing every recorded frame bit for bit.
 
-The layout is described in :mod:`simrun.record.simlog`.
+:func:`resimulate` streams the recording twice (one record in memory at a time): once to find the
+checkpoint (the first one by default, else the last at or before ``start``), then from it, stepping the
+world and comparing each recorded frame with the re-simulated state at the same point of the step; it stops
+at the first frame that differs and says what differs (the state component, its index and name, both
+values). Commands are applied as recorded: version 1.1's timed commands after the checkpoint's time, a
+chunked recording's command records after the checkpoint record (a command applied at the instant a
+recording started comes after its first checkpoint). The layout is described in :mod:`simrun.record.simlog`.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
+from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import mujoco
+import numpy as np
+import numpy.typing as npt
 
-from simrun.record.simlog_format import CHECKPOINT, STATE, Record, SimlogError, state_of
+from simrun.record.simlog_format import CHECKPOINT, CHUNKED_MINOR, COMMAND, FRAME, STATE, Record, SimlogError, state_of
 from simrun.record.simlog_read import Simlog, check_model
+from simrun.run.commands import Command
 from simrun.world.world import World
+
+#: The parts of ``mjSTATE_INTEGRATION`` in MuJoCo's order (``mj_getState``), for naming what differs.
+_PARTS = (
+    ("time", mujoco.mjtState.mjSTATE_TIME),
+    ("qpos", mujoco.mjtState.mjSTATE_QPOS),
+    ("qvel", mujoco.mjtState.mjSTATE_QVEL),
+    ("act", mujoco.mjtState.mjSTATE_ACT),
+    ("qacc_warmstart", mujoco.mjtState.mjSTATE_WARMSTART),
+    ("ctrl", mujoco.mjtState.mjSTATE_CTRL),
+    ("qfrc_applied", mujoco.mjtState.mjSTATE_QFRC_APPLIED),
+    ("xfrc_applied", mujoco.mjtState.mjSTATE_XFRC_APPLIED),
+    ("eq_active", mujoco.mjtState.mjSTATE_EQ_ACTIVE),
+    ("mocap_pos", mujoco.mjtState.mjSTATE_MOCAP_POS),
+    ("mocap_quat", mujoco.mjtState.mjSTATE_MOCAP_QUAT),
+    ("userdata", mujoco.mjtState.mjSTATE_USERDATA),
+    ("plugin_state", mujoco.mjtState.mjSTATE_PLUGIN),
+)
+
+
+@dataclass(frozen=True, slots=True)
+class Mismatch:
+    """The first recorded frame the re-simulation does not reproduce.
+
+    Attributes:
+        time: The frame's simulated time, seconds.
+        what: What differs, one phrase (``qpos[7] (joint 'boebot/left_wheel'): recorded 0.1, re-simulated 0.2``).
+    """
+
+    time: float
+    what: str
+
+
+@dataclass(frozen=True, slots=True)
+class Resimulation:
+    """What :func:`resimulate` did; unpacks as ``(compared, mismatch)``.
+
+    Attributes:
+        compared: Recorded frames compared (the checkpoint's own not counted).
+        mismatch: The first frame that differs, ``None``: bit-identical.
+        start: The time of the checkpoint it started from, seconds.
+    """
+
+    compared: int
+    mismatch: Mismatch | None
+    start: float
+
+    def __iter__(self) -> Iterator[Any]:
+        yield self.compared
+        yield self.mismatch
 
 
 class _Comparator:
-    """Checks, at each recorded frame time, that the re-simulated state equals the recorded one."""
+    """A controller ticking at every step: compares the state with the next recorded frame when its time comes."""
 
-    def __init__(self, frames: list[Record], period: float, start: float) -> None:
-        self.frames, self.period, self.next_time = frames, period, start + period
+    def __init__(self, frames: deque[Record], now: float) -> None:
+        self.frames, self.period, self.next_time = frames, 0.0, now
         self.compared = 0
-        self.mismatch: float | None = None
+        self.mismatch: Mismatch | None = None
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        while self.frames and self.frames[0].time < data.time - 0.5 * model.opt.timestep:
-            self.frames.pop(0)
-        if self.frames and abs(self.frames[0].time - data.time) <= 0.5 * model.opt.timestep:
-            record = self.frames.pop(0)
-            self.compared += 1
-            if self.mismatch is None and state_of(model, data).tobytes() != record.state.tobytes():
-                self.mismatch = record.time
+        half = 0.5 * model.opt.timestep
+        if self.mismatch is not None or not self.frames:
+            return
+        record = self.frames[0]
+        if record.time < data.time - half:
+            self.mismatch = Mismatch(record.time, f"no re-simulated step at the recorded time (now {data.time!r} s)")
+        elif record.time <= data.time + half:
+            self.frames.popleft()
+            state = state_of(model, data)
+            if state.tobytes() != record.state.tobytes():
+                self.mismatch = Mismatch(record.time, difference(model, record.state, state))
+            else:
+                self.compared += 1
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Nothing to reset."""
@@ -43,30 +110,65 @@ class _Comparator:
         """Nothing to restore."""
 
 
-def resimulate(world: World, log: Simlog, start: float) -> tuple[int, float | None]:
-    """Re-simulate from the last checkpoint at or before ``start`` with the recorded commands.
+def difference(model: mujoco.MjModel, recorded: npt.NDArray[np.float64], resimulated: npt.NDArray[np.float64]) -> str:
+    """The first number that differs between two integration states, named (part, index, joint), both values."""
+    index = int(np.flatnonzero(recorded.view(np.uint64) != resimulated.view(np.uint64))[0])
+    at, name = index, "state"
+    for part_name, part in _PARTS:
+        size = int(mujoco.mj_stateSize(model, part))
+        if at < size:
+            name = part_name
+            break
+        at -= size
+    where = f"{name}[{at}]" if name != "time" else "time"
+    if name in ("qpos", "qvel"):
+        address = model.jnt_qposadr if name == "qpos" else model.jnt_dofadr
+        joints = [j for j in range(model.njnt) if address[j] <= at]
+        if joints:
+            where += f" (joint {model.joint(max(joints, key=lambda j: address[j])).name!r})"
+    return f"{where}: recorded {recorded[index]!r}, re-simulated {resimulated[index]!r}"
+
+
+def _checkpoint(log: Simlog, start: float | None) -> Record:
+    """The first checkpoint (``start`` ``None``) or the last at or before ``start``; streamed."""
+    chosen: Record | None = None
+    for record in log.records():
+        if record.kind != CHECKPOINT:
+            continue
+        if start is None:
+            return record
+        if record.time > start + 1e-12:
+            break
+        chosen = record
+    if chosen is None:
+        if start is None:
+            raise SimlogError(f"{log.path}: the recording holds no checkpoint to start from")
+        raise SimlogError(f"{log.path}: no checkpoint at or before {start} s")
+    return chosen
+
+
+def resimulate(world: World, log: Simlog, start: float | None = None) -> Resimulation:
+    """Re-simulate from the recording's first checkpoint, or the last at or before ``start``, with its commands.
 
     The world's controllers must be those of the recording, in the same order (the scene's bindings and
     sensors). Each recorded frame after the checkpoint is compared with the re-simulated state at the same
-    point of the step (after the controllers' ticks).
+    point of the step (after the controllers' ticks); the run stops at the first that differs.
+
+    Args:
+        world: The recording's scene, loaded and prepared (:func:`simrun.run.session.prepare`).
+        log: The recording.
+        start: Seconds; ``None``: the first checkpoint.
 
     Returns:
-        The number of frames compared and the time of the first frame that differs (``None``: bit-identical).
+        Frames compared, the first mismatch (``None``: bit-identical) and the checkpoint's time.
+
+    Raises:
+        SimlogError: A malformed recording (as it is read), no such checkpoint, snapshots that do not fit.
     """
-    if not math.isfinite(start):
+    if start is not None and not math.isfinite(start):
         raise SimlogError(f"--from must be a finite time, got {start}")
     model, data = world.model, world.data
-    checkpoint: Record | None = None
-    later: list[Record] = []
-    last_time = 0.0
-    for record in log.records():
-        last_time = record.time
-        if record.kind == CHECKPOINT and record.time <= start + 1e-12:
-            checkpoint, later = record, []
-        elif checkpoint is not None:
-            later.append(record)
-    if checkpoint is None:
-        raise SimlogError(f"{log.path}: no checkpoint at or before {start} s")
+    checkpoint = _checkpoint(log, start)
     controllers = list(world.controllers)
     snaps = checkpoint.controllers or []
     if len(controllers) != len(snaps):
@@ -89,23 +191,41 @@ def resimulate(world: World, log: Simlog, start: float) -> tuple[int, float | No
                 f"{type(controller).__name__} ({type(exc).__name__}: {exc})"
             ) from None
     world.reschedule()
-    comparator = _Comparator(later, log.frame_period, checkpoint.time)
+    chunked = log.minor >= CHUNKED_MINOR
+    commands: deque[Command] = deque([] if chunked else [c for c in log.commands() if c.t > checkpoint.time + 1e-12])
+    events = (r for r in log.events() if r.offset > checkpoint.offset)
+    frames: deque[Record] = deque()
+
+    def fill() -> None:
+        """Read on to the next frame, keeping the commands on the way."""
+        for record in events:
+            if record.kind == COMMAND and chunked:
+                commands.append(record.command)
+            elif record.kind in (FRAME, CHECKPOINT):
+                frames.append(record)
+                return
+
+    comparator = _Comparator(frames, float(data.time))
     world.controllers.append(comparator)
-    commands = [c for c in log.commands() if c.t > checkpoint.time + 1e-12]
-    dt = model.opt.timestep
+    half = 0.5 * model.opt.timestep
     try:
-        while data.time < last_time + 0.5 * dt and comparator.frames:
-            while commands and commands[0].t <= data.time + 0.5 * dt:
-                commands.pop(0).apply(world)
+        fill()
+        while frames and comparator.mismatch is None:
+            while commands and commands[0].t <= data.time + half:
+                commands.popleft().apply(world)
             world.step(1)
+            if not frames:
+                fill()
     except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:
+        if isinstance(exc, SimlogError):
+            raise
         raise SimlogError(
             f"{log.path}: re-simulation from the checkpoint at t = {checkpoint.time:g} s failed: the recorded "
             f"controller snapshots are not usable ({type(exc).__name__}: {exc})"
         ) from None
     finally:
         world.controllers.remove(comparator)
-    return comparator.compared, comparator.mismatch
+    return Resimulation(comparator.compared, comparator.mismatch, checkpoint.time)
 
 
 def _misfit(template: Any, value: Any, where: str) -> str | None:

@@ -20,7 +20,10 @@ MAGIC = output_named("simlog").magic[0]  # the formats registry's row
 MAJOR, MINOR = 1, 1
 #: The minor version of chunked recordings (``Recorder(live=True)``).
 CHUNKED_MINOR = 2
-FRAME, CHECKPOINT, SENSORS, CHUNK, COMMAND, END, IMAGE = 1, 2, 3, 4, 5, 6, 7
+FRAME, CHECKPOINT, SENSORS, CHUNK, COMMAND, END, IMAGE, RESET = 1, 2, 3, 4, 5, 6, 7, 8
+#: The record kinds a reader knows (anything else is refused as corrupt: a new kind is a new reader).
+KINDS = {FRAME: "frame", CHECKPOINT: "checkpoint", SENSORS: "sensors", CHUNK: "chunk", COMMAND: "command",
+         END: "end", IMAGE: "image", RESET: "reset"}  # fmt: skip
 #: Bytes of records gathered before a chunk is written (live recordings).
 CHUNK_BYTES = 1 << 20
 #: Longest wall time records wait before their chunk is written, seconds (live recordings).
@@ -60,12 +63,26 @@ def state_of(model: mujoco.MjModel, data: mujoco.MjData) -> npt.NDArray[np.float
 
 @dataclass(frozen=True, slots=True)
 class Record:
-    """One frame (and, for checkpoints, the controllers' snapshots)."""
+    """One record in time order: a frame (checkpoints: and the controllers' snapshots), a command, a reset.
+
+    Attributes:
+        kind: :data:`FRAME`, :data:`CHECKPOINT`, :data:`SENSORS`, :data:`COMMAND` or :data:`RESET`.
+        time: Simulated time, seconds.
+        state: The integration state (``mjSTATE_INTEGRATION``, f64, the header's ``state_size``); empty
+            for other kinds.
+        controllers: A checkpoint's controller snapshots in world order (sensor records: ``[readings]``).
+        command: A command record's command (version 1.2).
+        info: A reset record's JSON object (``{"count": resets since the last record, "warnings": {...}}``).
+        offset: The record's byte offset in the file.
+    """
 
     kind: int
     time: float
     state: npt.NDArray[np.float64]
     controllers: list[dict[str, Any]] | None
+    command: Any = None
+    info: dict[str, Any] | None = None
+    offset: int = 0
 
 
 def _refuse_constant(name: str) -> float:

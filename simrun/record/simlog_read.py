@@ -28,12 +28,14 @@ from simrun.record.simlog_format import (
     END,
     FRAME,
     IMAGE,
+    KINDS,
     MAGIC,
     MAJOR,
     MAX_FRAME_PERIOD,
     MAX_HEADER_BYTES,
     MAX_STATE_SIZE,
     MIN_FRAME_PERIOD,
+    RESET,
     SENSORS,
     STATE,
     Record,
@@ -43,6 +45,8 @@ from simrun.record.simlog_format import (
 from simrun.run.commands import Command, parse_command
 from simrun.safeio import FileReadError, open_regular, read_regular
 from simrun.world.world import MAX_TIMESTEP, MIN_TIMESTEP, World
+
+_EMPTY = np.zeros(0)
 
 
 class Simlog:
@@ -293,11 +297,14 @@ class Simlog:
         """Records by kind.
 
         ``frames`` (checkpoints included), ``checkpoints``, ``sensor_samples`` (per sensor in 1.2:
-        ``sensor_samples.NAME``), ``images`` (and ``images.NAME``), ``commands``.
+        ``sensor_samples.NAME``), ``images`` (and ``images.NAME``), ``commands``, ``resets`` (MuJoCo's).
         """
         counts = {"frames": 0, "checkpoints": 0, "sensor_samples": 0, "images": 0, "commands": len(self._commands)}
+        counts["resets"] = 0
         for offset, kind, body in self._stream():
-            if kind in (FRAME, CHECKPOINT):
+            if kind == RESET:
+                counts["resets"] += 1
+            elif kind in (FRAME, CHECKPOINT):
                 counts["frames"] += 1
                 counts["checkpoints"] += kind == CHECKPOINT
             elif kind == SENSORS:
@@ -317,25 +324,63 @@ class Simlog:
             SimlogError: A truncated or malformed record, a non-finite state or time, or times that do not
                 advance frame by frame (naming the byte offset).
         """
+        wanted = (SENSORS,) if sensors else (FRAME, CHECKPOINT)
+        return (r for r in self.events() if r.kind in wanted)
+
+    def events(self) -> Iterator[Record]:
+        """Every record in file order, checked: frames, checkpoints, sensor readings, commands (1.2), resets.
+
+        Streamed (one record in memory at a time). Times never run backwards: frames advance by at most one
+        frame period; a command or reset is at or after the frame before it.
+
+        Raises:
+            SimlogError: A truncated or malformed record, a non-finite state or time, or times that do not
+                advance frame by frame (naming the byte offset).
+        """
         frame_bytes = 8 + 8 * self.state_size
         previous: float | None = None
         step = self.frame_period + 1.5 * self.timestep + 1e-9
+        chunked = self.minor >= CHUNKED_MINOR
+        commands = 0
         for offset, kind, body in self._stream():
             length = len(body)
-            if kind in (COMMAND, IMAGE) and self.minor >= CHUNKED_MINOR:
-                continue  # read by _scan and images()
-            if kind == SENSORS:
+            if kind == IMAGE and chunked:
+                continue  # read by images()
+            if kind in (SENSORS, RESET) or (kind == COMMAND and chunked):
+                what = KINDS[kind]
                 if length < 8:
-                    raise SimlogError(f"{self.path}: byte {offset}: sensor record too short")
-                if sensors:
-                    time = struct.unpack("<d", body[:8])[0]
-                    if not math.isfinite(time):
-                        raise SimlogError(f"{self.path}: byte {offset}: non-finite sensor record time")
+                    raise SimlogError(f"{self.path}: byte {offset}: {what} record too short")
+                time = struct.unpack("<d", body[:8])[0]
+                if not math.isfinite(time) or time < 0:
+                    raise SimlogError(f"{self.path}: byte {offset}: {what} record time {time!r} is not a time >= 0")
+                if kind == COMMAND:
+                    command = self._commands[commands]
+                    commands += 1
+                    if previous is not None and command.t < previous - 0.5 * self.timestep:
+                        raise SimlogError(
+                            f"{self.path}: byte {offset}: command {commands - 1} at t = {command.t!r} s comes after "
+                            f"the frame at {previous!r} s (the clock runs backwards)"
+                        )
+                    yield Record(kind, command.t, _EMPTY, None, command=command, offset=offset)
+                elif kind == RESET:
+                    info = self._json(body[8:], offset, "reset record")
+                    if not isinstance(info, dict):
+                        raise SimlogError(f"{self.path}: byte {offset}: reset record is not a JSON object")
+                    if previous is not None and time < previous - 0.5 * self.timestep:
+                        raise SimlogError(
+                            f"{self.path}: byte {offset}: reset at t = {time!r} s comes after the frame at "
+                            f"{previous!r} s (the clock runs backwards)"
+                        )
+                    yield Record(kind, time, _EMPTY, None, info=info, offset=offset)
+                else:
                     readings = self._json(body[8:], offset, "sensor record")
-                    yield Record(kind, time, np.zeros(0), [readings])
+                    if not isinstance(readings, dict):
+                        raise SimlogError(f"{self.path}: byte {offset}: sensor record is not a JSON object")
+                    yield Record(kind, time, _EMPTY, [readings], offset=offset)
                 continue
             if kind not in (FRAME, CHECKPOINT) or length < frame_bytes:
-                raise SimlogError(f"{self.path}: byte {offset}: corrupt record (kind {kind}, {length} bytes)")
+                name = KINDS.get(kind, "unknown")
+                raise SimlogError(f"{self.path}: byte {offset}: corrupt record (kind {kind}: {name}, {length} bytes)")
             if kind == FRAME and length != frame_bytes:
                 raise SimlogError(f"{self.path}: byte {offset}: frame of {length} bytes, expected {frame_bytes}")
             time = struct.unpack("<d", body[:8])[0]
@@ -360,8 +405,7 @@ class Simlog:
                 controllers = self._json(body[frame_bytes + 4 :], offset, "checkpoint")
                 if not isinstance(controllers, list) or not all(isinstance(c, dict) for c in controllers):
                     raise SimlogError(f"{self.path}: byte {offset}: checkpoint snapshots are not a list of objects")
-            if not sensors:
-                yield Record(kind, time, state, controllers)
+            yield Record(kind, time, state, controllers, offset=offset)
 
     def _json(self, raw: bytes, offset: int, what: str) -> Any:
         try:

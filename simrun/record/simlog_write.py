@@ -40,6 +40,7 @@ from simrun.record.simlog_format import (
     MAX_FRAME_PERIOD,
     MIN_FRAME_PERIOD,
     MINOR,
+    RESET,
     SENSORS,
     STATE,
     state_of,
@@ -143,6 +144,13 @@ class Recorder:
                 raise SimrunError(f"{path}: {exc.message}") from None
             self._write(head)
         world.controllers.append(self)
+        self._resets = world.mujoco_resets
+        if live:  # the checkpoint of this instant first: a recording started while the world runs resimulates from it
+            model, data = world.model, world.data
+            self._frame(model, data)
+            while self._next_frame <= data.time + 0.5 * model.opt.timestep:
+                self._next_frame += self.frame_period
+            self.flush()
 
     def _write(self, data: bytes) -> None:
         """Append a record (live: to the chunk being gathered).
@@ -198,6 +206,8 @@ class Recorder:
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Write a frame, or a checkpoint when one is due (live: and each recorded sensor's new samples)."""
+        if self.world.mujoco_resets != self._resets:
+            self._reset()
         if self.live:
             self._tick_live(model, data)
             return
@@ -206,6 +216,16 @@ class Recorder:
             readings = {n: _plain(self.world.sensors[n].reading) for n in self.sensors}
             extra = struct.pack("<d", float(data.time)) + json.dumps(readings).encode("utf-8")
             self._write(struct.pack("<BI", SENSORS, len(extra)) + extra)
+
+    def _reset(self) -> None:
+        """A reset record: MuJoCo reset the world (an unstable simulation) since the last tick; the clock went on."""
+        world = self.world
+        count = world.mujoco_resets - self._resets
+        self._resets = world.mujoco_resets
+        info = json.dumps({"count": count, "warnings": world.warnings()}, sort_keys=True).encode("utf-8")
+        body = struct.pack("<d", float(world.last_reset)) + info
+        self._write(struct.pack("<BI", RESET, len(body)) + body)
+        self.counts["resets"] = self.counts.get("resets", 0) + count
 
     def _tick_live(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         kind = FRAME

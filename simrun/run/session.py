@@ -27,6 +27,7 @@ from PIL import Image
 from meshtool.formats import output_for, suffix
 from simrun.errors import SimrunError, UsageError
 from simrun.outfile import check_output, reading, refuse_inputs, world_inputs, write_bytes
+from simrun.record.resim import Resimulation
 from simrun.record.simlog import Recorder, Simlog, check_model, check_scene, resimulate
 from simrun.run.commands import Command
 from simrun.run.play import PlayResult, PythonController, encode_gif, encode_mp4, load_commands, play
@@ -192,14 +193,16 @@ def _frames_over_inputs(scene: Path, options: PlayOptions, world: World) -> list
 _FRAME = re.compile(r"frame_\d{5,}\.png", re.IGNORECASE)
 
 
-def run_resim(log: Path, start: float = 0.0, controller: Path | None = None) -> tuple[int, float | None]:
-    """Re-simulate a recording from its last checkpoint at or before ``start`` (``simrun resim``).
+def run_resim(log: Path, start: float | None = None, controller: Path | None = None) -> Resimulation:
+    """Re-simulate a recording from its first checkpoint, or its last at or before ``start`` (``simrun resim``).
 
     A recording never names code to run: a run that used a Python controller needs the same file given
-    as ``controller``, which runs only if its SHA-256 equals the recorded one.
+    as ``controller``, which runs only if its SHA-256 equals the recorded one. The recording is streamed
+    and the run stops at the first frame that differs (:func:`simrun.record.resim.resimulate`).
 
     Returns:
-        The number of frames compared, and the time of the first that differs (``None``: bit-identical).
+        Frames compared, the first that differs (``None``: bit-identical) and the checkpoint's time; it
+        unpacks as ``(compared, mismatch)``.
 
     Raises:
         SimrunError: An unreadable or inconsistent recording, a changed scene, a missing or different controller.

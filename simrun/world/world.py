@@ -131,6 +131,8 @@ class World:
         self._sched_time = math.nan
         self._sched_half = self._sched_dt = 0.0
         self._sched_until = -math.inf
+        #: MuJoCo's automatic resets of an unstable simulation so far, and the time of the last (see :meth:`step`).
+        self.mujoco_resets, self.last_reset = 0, math.nan
         #: Compiled-model cache (simrun/world/model_cache.py; ``SIMRUN_MODEL_CACHE``); ``None`` compiles every time.
         self.model_cache: model_cache.ModelCache | None = model_cache.default()
         self.services: list[dict[str, Any]] = []
@@ -384,6 +386,8 @@ class World:
             ):
                 _mj_step(self._model, data)
                 self._sched_time = now + self._sched_dt  # MuJoCo's own `time += timestep`
+                if data.time < now:  # MuJoCo reset the data (an unstable simulation): the clock goes on
+                    self._clock_after_reset(now, 1)
                 return
         model = self._model
         if model is None or data is None:
@@ -415,13 +419,38 @@ class World:
                 count = min(remaining, max(1, round((upcoming - data.time) / dt)))
             else:
                 count = remaining
+            before = data.time
             mj_step(model, data, count)
+            if data.time < before + (count - 0.5) * dt:  # MuJoCo reset the data: the clock goes on
+                self._clock_after_reset(before, count)
             remaining -= count
         if hooked or n < 1:
             self.reschedule()
         else:  # single steps skip the scan while data.time + dt / 2 < upcoming and the scanned list is unchanged
             self._sched_list, self._sched_time, self._sched_until = scanned, data.time, upcoming
             self._sched_half, self._sched_dt = half, dt
+
+    def _clock_after_reset(self, before: float, steps: int) -> None:
+        """MuJoCo reset the data during the last ``steps`` steps from ``before`` s (BADQACC, BADQPOS, BADQVEL).
+
+        The state is the model's initial one, but the clock goes on: ``data.time`` is set to what ``steps``
+        steps of ``time += timestep`` from ``before`` give (bit for bit what single steps give), so
+        controllers, commands and recordings never see time run backwards. Counted in ``mujoco_resets``,
+        the time the (last) reset step began in ``last_reset``.
+        """
+        data, model = self._data, self._model
+        assert data is not None and model is not None
+        dt = model.opt.timestep
+        since = min(steps, max(1, round(data.time / dt)))  # steps since the (last) reset, its own included
+        clock = before
+        for _ in range(steps - since):
+            clock += dt
+        self.last_reset = clock
+        for _ in range(since):
+            clock += dt
+        data.time = clock
+        self.mujoco_resets += 1
+        self._sched_time = clock
 
     def reschedule(self) -> None:
         """Forget the remembered next-due time, so the next :meth:`step` scans every controller.
