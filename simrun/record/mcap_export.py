@@ -37,7 +37,7 @@ from meshtool.formats import check_suffix
 from simrun.errors import SimrunError
 from simrun.outfile import check_output, scene_files
 from simrun.record.foxglove_channels import TF_TOPIC, WORLD_FRAME, FoxgloveChannels
-from simrun.record.simlog import CHECKPOINT, Simlog, check_model, check_scene, replay_states
+from simrun.record.simlog import CHECKPOINT, Simlog, SimlogError, check_model, check_scene, replay_states
 from simrun.run.session import prepare
 from simrun.scene.scene_file import load_scene
 
@@ -116,27 +116,49 @@ def _write(world: Any, log: Simlog, out: Path) -> McapSummary:
                 if reading is None:
                     continue
                 # every frame repeats the latest reading: one message per sample, at the sample's time
-                t = float(reading["time"]) if isinstance(reading, dict) and "time" in reading else frame_time
+                t = reading["time"] if isinstance(reading, dict) and "time" in reading else frame_time
+                if isinstance(t, bool) or not isinstance(t, int | float) or not 0 <= t < 1e12:
+                    raise SimlogError(f"{log.path}: the reading of sensor {name!r} at t = {frame_time:g} s: its time "
+                                      f"{t!r} is not a time in seconds")  # fmt: skip
+                t = float(t)
                 if sampled.get(name) == t:
                     continue
                 sampled[name] = t
                 if name in cameras and not (isinstance(reading, dict) and "rgb" in reading):
                     continue  # a recording that keeps its images apart (below)
-                channels.sensor(name, t, reading)
+                _sensor(channels, log, name, t, reading)
         images = getattr(log, "images", None)  # recordings 1.2+: each rendered image once, as PNG
         for t, name, _, data in images() if images is not None else ():
             if name in cameras:
-                with Image.open(io.BytesIO(data)) as png:
-                    rgb = np.asarray(png.convert("RGB"))
-                channels.sensor(name, t, {"time": t, "rgb": rgb})
+                try:
+                    with Image.open(io.BytesIO(data)) as png:
+                        rgb = np.asarray(png.convert("RGB"))
+                except (OSError, ValueError, Image.DecompressionBombError) as exc:
+                    raise SimlogError(f"{log.path}: the image of {name!r} at t = {t:g} s: not a PNG ({exc})") from None
+                _sensor(channels, log, name, t, {"time": t, "rgb": rgb})
         writer.close()
         os.chmod(tmp, 0o644)
         os.replace(tmp, out)
         ok = True
     except OSError as exc:
         raise SimrunError(f"cannot write {out}: {exc.strerror or exc}") from None
+    except RuntimeError as exc:  # the Foxglove SDK's writer: FoxgloveError (a full disk: "I/O error from writing")
+        if "FoxgloveError" not in str(exc):
+            raise
+        raise SimrunError(f"cannot write {out}: {exc}") from None
     finally:
         if not ok:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
     return McapSummary(out, dict(channels.counts), out.stat().st_size)
+
+
+def _sensor(channels: FoxgloveChannels, log: Simlog, name: str, t: float, reading: Any) -> None:
+    """Log one recorded sensor reading; a reading of the wrong shape is the recording's error (one line)."""
+    try:
+        channels.sensor(name, t, reading)
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:
+        raise SimlogError(
+            f"{log.path}: the reading of sensor {name!r} at t = {t:g} s does not fit its sensor "
+            f"({type(exc).__name__}: {exc})"
+        ) from None
