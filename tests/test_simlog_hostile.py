@@ -28,9 +28,9 @@ from bounded import run_bounded
 from click.testing import CliRunner
 
 from simrun.cli.main import main
-from simrun.record.simlog import Recorder
+from simrun.record.simlog import Recorder, Simlog, resimulate
 from simrun.run.commands import Command
-from simrun.run.session import prepare, run_resim
+from simrun.run.session import prepare
 from simrun.scene.scene_file import load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "fixtures" / "scenes"
@@ -268,11 +268,14 @@ def test_resim_streams_the_recording(tmp_path):  # type: ignore[no-untyped-def]
     for seconds in ("3", "12"):
         folder = tmp_path / seconds
         folder.mkdir()
-        log = _play(folder, "boebot.toml", seconds, "--commands", str(SCENES / "square.commands.toml"))
+        log = Simlog(_play(folder, "boebot.toml", seconds, "--commands", str(SCENES / "square.commands.toml")))
+        world = load_scene(log.scene_path())
+        prepare(world)
         tracemalloc.start()
-        done = run_resim(log)
+        done = resimulate(world, log)
         peaks.append(tracemalloc.get_traced_memory()[1])
         tracemalloc.stop()
+        log.close()
         assert done.mismatch is None and done.compared == int(seconds) * 50 - 1
     # 450 more frames of 880 bytes (+ a Record each) held in a list would add over 400 kB
-    assert peaks[1] - peaks[0] < 150_000, peaks
+    assert peaks[1] - peaks[0] < 150_000 and peaks[1] < 1_000_000, peaks
