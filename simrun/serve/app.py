@@ -379,14 +379,22 @@ def create_app(
     async def recording_stop(request: Request) -> Response:
         _object(await _body(request, schema("/api/recording/stop")), ())
 
-        def stop(w: Any) -> Any:
+        def stop(w: Any) -> Any:  # the loop thread writes the last chunk and the end record only
             current = loop.recording
             if current is None or not current.active:
                 raise RequestError(409, "", "nothing is being recorded")
-            written = current.finish()
-            return {"written": [str(p) for p in written], "recording": current.describe()}
+            mcap, current.mcap = current.mcap, None
+            return current, mcap, list(current.finish())
 
-        return JSONResponse(await run(stop))
+        current, mcap, written = await run(stop)
+        if mcap is not None:  # converting the finished .simlog to MCAP reads files only: a worker thread
+            from simrun.record.mcap_export import export_mcap
+
+            await asyncio.to_thread(export_mcap, current.path, mcap)
+            current.mcap = mcap
+            current.written.append(mcap)
+            written.append(mcap)
+        return JSONResponse({"written": [str(p) for p in written], "recording": current.describe()})
 
     async def scene_glb(request: Request) -> Response:
         # built once per compiled model (a new one after an edit), in a worker thread from a copy of the
