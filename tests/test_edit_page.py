@@ -15,11 +15,12 @@ import os
 import shutil
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 import numpy as np
 import pytest
 from serve_helpers import SCENES, Server, serve
-from test_serve_dashboard import ARGS, _chromium, _until
+from test_serve_dashboard import ARGS, TOKEN, _chromium, _until
 
 from simrun.record.replay_html import DEFAULT_BUNDLE, VIEWER_VARIABLE
 from simrun.scene.scene_file import load_scene
@@ -39,15 +40,18 @@ def browser():  # type: ignore[no-untyped-def]
         chromium.close()
 
 
-def _entity(server: Server, name: str) -> dict[str, Any] | None:
-    return next((e for e in server.get("/api/entities") if e["name"] == name), None)
+def _entity(server: Server, name: str, token: str | None = None) -> dict[str, Any] | None:
+    sent = {"Authorization": "Bearer " + quote(token)} if token else {}
+    status, entities = server.request("GET", "/api/entities", headers=sent)
+    assert status == 200, (status, entities)
+    return next((e for e in entities if e["name"] == name), None)
 
 
-def _open(browser, server: Server):  # type: ignore[no-untyped-def]
+def _open(browser, server: Server, query: str = ""):  # type: ignore[no-untyped-def]
     page = browser.new_page(viewport=VIEWPORT)
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(server.url)
+    page.goto(server.url + query)
     page.wait_for_function(f"window.simrunDashboard && {ED} && {ED}.ready", timeout=90_000)
     return page, errors
 
@@ -215,4 +219,21 @@ def test_without_edit_the_page_has_no_edit_controls_and_the_server_refuses(brows
         assert status == 403
         assert _entity(server, "box")["values"]["mass"] == 5.0
         assert not errors, errors
+        page.close()
+
+
+def test_edit_mode_with_a_token(browser) -> None:  # type: ignore[no-untyped-def]
+    with serve(SCENES / "boebot.toml", "--edit", "--token", TOKEN) as server:
+        page, errors = _open(browser, server, "?token=" + quote(TOKEN, safe=""))
+        assert page.evaluate(f"{ED}.allowed") is True, page.inner_text("#edit")
+        page.click("#edit-tree button[data-name='box']")
+        page.wait_for_function(f"{ED}.item && {ED}.item.name === 'box'", timeout=20_000)
+        loads = page.evaluate(f"{ED}.loads")
+        field = page.locator("#edit-props input[data-key='mass']")
+        field.fill("6.25")
+        field.dispatch_event("change")
+        _until(lambda: _entity(server, "box", TOKEN)["values"].get("mass"), lambda m: m == 6.25)
+        page.wait_for_function(f"{ED}.loads > {loads}", timeout=30_000)  # the rebuilt scene, fetched with the token
+        _settled(page)
+        assert page.evaluate(f"{ED}.error") == "" and not errors, errors
         page.close()

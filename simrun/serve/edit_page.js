@@ -586,13 +586,15 @@
     if (list) { list.style.display = "none"; if (list.previousElementSibling) list.previousElementSibling.style.display = "none"; }
     refresh().catch(() => {}).finally(() => { ed.ready = true; });
   }
-  function whenReady() {
-    if (!dash.ready) { setTimeout(whenReady, 100); return; }
+  function whenReady(tries) {
+    if (!dash.ready) { setTimeout(() => whenReady(tries), 100); return; }
     v.api("GET", "/api/edit").then(start).catch((error) => {
+      if (tries > 1) { setTimeout(() => whenReady(tries - 1), 500); return; } // a dropped connection: again
       section.innerHTML = "<h2>Edit</h2>";
       section.appendChild(document.createTextNode("edit mode: " + error.message));
+      ed.error = error.message;
       ed.ready = true;
     });
   }
-  whenReady();
+  whenReady(5);
 })();
