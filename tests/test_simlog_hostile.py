@@ -184,6 +184,22 @@ def test_a_hostile_recording_is_one_error_line(recordings, tmp_path, command, ve
     assert list(out.iterdir()) == []  # nothing written, not even a temporary file
 
 
+@pytest.mark.parametrize("command", ["mcap", "html", "glb", "usd"])
+def test_a_body_flung_beyond_float32_is_refused_by_replay(recordings, tmp_path, command):  # type: ignore[no-untyped-def]
+    def far(records: Records, size: int) -> None:  # qpos[0], the Boe-Bot's x, 1e300 m: finite, but not in float32
+        k = _frames(records)[3]
+        records[k][1] = records[k][1][:16] + struct.pack("<d", 1e300) + records[k][1][24:]
+
+    path = tmp_path / "far.simlog"
+    path.write_bytes(_edit(far)(recordings["1.1"].read_bytes()))
+    shutil.copy(recordings["1.1"].parent / "boebot.toml", tmp_path / "boebot.toml")
+    out = tmp_path / "out"
+    out.mkdir()
+    done = CliRunner().invoke(main, COMMANDS[command](path, out))
+    assert "beyond 1e+30 m; the recorded state is corrupt" in _one_error(done.exit_code, done.stderr, path)
+    assert list(out.iterdir()) == []
+
+
 def test_a_command_recorded_before_the_frame_it_follows_is_refused(recordings, tmp_path):  # type: ignore[no-untyped-def]
     def back(records: Records, size: int) -> None:
         k = next(k for k, (kind, _) in enumerate(records) if kind == 5)  # the first command, at 0.45 s

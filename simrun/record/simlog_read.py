@@ -439,13 +439,29 @@ def check_model(log: Simlog, world: World) -> None:
         raise SimlogError(f"{log.path}: header: timestep is {log.timestep!r}, the scene's {world.model.opt.timestep!r}")
 
 
+#: Largest body coordinate a kinematic replay accepts, metres (the float32 of glTF and MCAP holds it).
+MAX_REPLAY_COORDINATE_M = 1e30
+
+
 def replay_states(world: World, log: Simlog) -> Iterator[float]:
-    """Set the world to each recorded frame in turn (kinematic replay); yields the frame time."""
+    """Set the world to each recorded frame in turn (kinematic replay); yields the frame time.
+
+    Raises:
+        SimlogError: A malformed record, or a frame that puts a body beyond :data:`MAX_REPLAY_COORDINATE_M`
+            (a corrupt state the watchable outputs cannot hold), naming the frame's time and the body.
+    """
     check_model(log, world)
     model, data = world.model, world.data
     for record in log.records():
         mujoco.mj_setState(model, data, record.state, STATE)
         mujoco.mj_forward(model, data)
+        far = np.abs(data.xpos).max(axis=1)
+        if not far.max(initial=0.0) <= MAX_REPLAY_COORDINATE_M:
+            body = model.body(int(np.argmax(~(far <= MAX_REPLAY_COORDINATE_M)))).name
+            raise SimlogError(
+                f"{log.path}: byte {record.offset}: the frame at t = {record.time!r} s puts body {body!r} beyond "
+                f"{MAX_REPLAY_COORDINATE_M:g} m; the recorded state is corrupt"
+            )
         yield record.time
 
 
