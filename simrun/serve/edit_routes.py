@@ -30,7 +30,7 @@ from simrun.errors import SimrunError
 from simrun.serve.catalogue import RequestError, build_catalogue
 from simrun.serve.loop import SimLoop
 from simrun.serve.openapi import edit_request_schemas
-from simrun.world import edit, edit_push, edit_save
+from simrun.world import edit, edit_push, edit_save, edit_schema
 from simrun.world.edit import EditError
 from simrun.world.edit_apply import EditRecord, apply_edit, inverse, undo_of
 from simrun.world.world import World
@@ -189,7 +189,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
             except EditError as exc:
                 raise refusal(exc) from None
             item = edit.describe(world, name)
-            return {**item, "schema": edit.type_schema("entities", item["type"])}
+            return {**item, "schema": edit_schema.type_schema("entities", item["type"])}
 
         return JSONResponse(await run(read))
 
@@ -201,7 +201,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
                 "max_batch": edit.MAX_BATCH,
                 "max_push_seconds": edit_push.MAX_PUSH_SECONDS,
                 "applied": len(log),
-                "types": edit.types_schema(),
+                "types": edit_schema.types_schema(),
             }
         )
 

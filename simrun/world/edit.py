@@ -6,10 +6,12 @@ world is built again from its entities into a new ``MjSpec`` and compiled (``spe
 running model. Only when MuJoCo and simrun accept it is the new model swapped in
 (:meth:`~simrun.world.world.World.adopt`), with the state of the running one carried over by name
 (:func:`carry_state`): simulation time, every joint's ``qpos``/``qvel``/warm start/applied force, actuators'
-``ctrl``/``act``, mocap poses, applied body wrenches, equality activations. Services and sensors are the
+``ctrl``/``act``, mocap poses, applied body wrenches, equality activations, and the bodies' derived frames
+as the last step left them (:func:`carry_kinematics`). Services and sensors are the
 same objects afterwards (their state and their noise generators' streams untouched) unless bound to an entity
-that was changed; services are built again from their bindings and restored from their own snapshots (a
-service meeting a new model would take it for a restart at time 0). A refused edit leaves the
+that was changed (then built again from their tables and restored from their own snapshots); a service is
+bound to the new model at once and restored from its snapshot (met at its next tick, a new model would be a
+restart at time 0 to it). A refused edit leaves the
 world exactly as it was (the same ``MjModel`` and ``MjData`` objects, byte for byte) and raises
 :class:`EditError` naming the field (``entity.mass``, ``pose.position[1]``).
 
@@ -25,7 +27,6 @@ Services and sensors (add, change, remove) are :mod:`simrun.world.edit_bindings`
 from __future__ import annotations
 
 import dataclasses
-import math
 import tomllib
 from collections.abc import Iterable
 from pathlib import Path
@@ -36,24 +37,17 @@ import numpy as np
 
 from simrun.errors import EntityError, SimrunError
 from simrun.safeio import FileReadError, check_regular
+from simrun.world.edit_carry import _bound_to, carry_kinematics, carry_state
 from simrun.world.entity import Entity
 from simrun.world.pose import Pose
 from simrun.world.registry import (
-    GROUPS,
     REGISTRY,
-    REQUIRED,
     Fail,
-    Group,
-    Key,
     KeyPath,
     arguments,
     convert,
-    fixed_keys,
     key_text,
-    names,
     scene_type,
-    schema,
-    table_keys,
 )
 from simrun.world.world import World
 
@@ -93,64 +87,6 @@ def edit_fail(prefix: str = "", entity: str | None = None) -> Fail:
         return EditError(message, key=_join(prefix, path) or None, entity=entity)
 
     return fail
-
-
-# --- schemas ---------------------------------------------------------------------------------------------------
-
-
-def json_value(value: Any) -> Any:
-    """A default or current value as JSON-ready data (tuples to lists, dataclasses to objects, REQUIRED to None)."""
-    if value is REQUIRED:
-        return None
-    if hasattr(value, "to_scene"):
-        return value.to_scene()
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: json_value(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, tuple | list):
-        return [json_value(v) for v in value]
-    if isinstance(value, dict):
-        return {str(k): json_value(v) for k, v in value.items()}
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
-def key_schema(key: Key) -> dict[str, Any]:
-    """One key as JSON: ``{"name", "type", "unit", "default", "required", "description"}`` (``fields`` for tables)."""
-    out: dict[str, Any] = {
-        "name": key.name,
-        "type": key.type_text,
-        "unit": key.unit,
-        "default": json_value(key.default),
-        "required": key.required,
-        "description": key.description,
-    }
-    inner = table_keys(key.hint, key.name)
-    if inner:
-        out["fields"] = [key_schema(k) for k in inner]
-    return out
-
-
-def type_schema(group: Group, kind: str) -> dict[str, Any]:
-    """A registered type's schema: ``{"type", "group", "summary", "fixed", "keys": [key_schema...]}``.
-
-    ``fixed`` are the keys besides the parameters (``type``, a sensor's ``name``, what it binds to); an
-    entity's keys start with :data:`~simrun.world.registry.ENTITY_BASE` (``name``, ``parent``, ``pose``...).
-    """
-    registered = scene_type(group, kind)
-    return {
-        "type": kind,
-        "group": group,
-        "summary": registered.summary,
-        "binds": registered.binds if group != "entities" else None,
-        "fixed": list(fixed_keys(group, kind)),
-        "keys": [key_schema(k) for k in schema(group, kind).values()],
-    }
-
-
-def types_schema() -> dict[str, list[dict[str, Any]]]:
-    """Every registered type's :func:`type_schema`, by group (``entities``, ``services``, ``sensors``)."""
-    return {group: [type_schema(group, kind) for kind in names(group)] for group in GROUPS}
 
 
 # --- what the world holds -------------------------------------------------------------------------------------
@@ -199,11 +135,6 @@ def _free_qpos(model: mujoco.MjModel, body: str) -> int | None:
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
             return int(model.jnt_qposadr[j])
     return None
-
-
-def _bound_to(target: Any, names_: set[str]) -> bool:
-    """Whether a binding's target (an entity, ``RIG/left``) is one of ``names_`` or below one."""
-    return isinstance(target, str) and any(target == n or target.startswith(n + "/") for n in names_)
 
 
 def describe(world: World, full: str) -> dict[str, Any]:
@@ -257,6 +188,8 @@ class Edit:
         self.specs = [dict(s) for s in world.sensor_specs]
         self.controllers = list(world.controllers)
         self.assets = dict(world.assets)
+        #: Every bound service's snapshot now (services restore from it after the model changes, or a rollback).
+        self.snapshots = {key: service.snapshot() for key, service in world._bound.items()}
         self.done = False
 
     def __enter__(self) -> Edit:
@@ -281,6 +214,11 @@ class Edit:
         w.controllers[:] = self.controllers
         w.assets.clear()
         w.assets.update(self.assets)
+        from simrun.world.edit_bindings import bind_now
+
+        for key, service in self.bound.items():  # bound to the old model again, as they were
+            bind_now(service, self.model)
+            service.restore(self.snapshots[key])
         w.reschedule()
 
     def commit(self, fresh: Iterable[str] = (), rebuilt: Iterable[str] = ()) -> None:
@@ -288,8 +226,8 @@ class Edit:
 
         Args:
             fresh: Entities (full names) whose bodies, and their children's, start at their pose at rest.
-            rebuilt: Entities whose bound sensors are built again (and restored from their snapshots); every
-                service is (a service takes a new model for a restart at time 0).
+            rebuilt: Entities whose bound services and sensors are built again (and restored from their
+                snapshots); every other service is bound to the new model and restored.
 
         Raises:
             EditError: simrun or MuJoCo refused the edited world (everything is rolled back).
@@ -307,13 +245,20 @@ class Edit:
         carry_state(self.model, self.data, model, data, set(fresh))
         w.adopt(spec, model, data)
         mujoco.mj_forward(model, data)
+        carry_kinematics(self.model, self.data, model, data, set(fresh))
         rebuilt = set(rebuilt)
-        from simrun.world.edit_bindings import rebuild_sensor, rebuild_service
+        from simrun.world.edit_bindings import bind_now, rebuild_sensor, rebuild_service
 
-        # every service is built again and restored: a service meeting a new model takes it for a restart at
-        # time 0 (a DriveService zeroes its odometry), which an edit is not
-        for kind, entity in list(w._bound):
-            rebuild_service(w, kind, entity)
+        # a service meeting a new model takes it for a restart at time 0 (a DriveService zeroes its odometry, a
+        # JointService forgets what it holds), which an edit is not: each is bound now and restored; one bound
+        # to a changed entity is built again (its robot's parameters may have changed)
+        for (kind, entity), service in list(w._bound.items()):
+            snapshot = self.snapshots.get((kind, entity), service.snapshot())
+            if _bound_to(entity, rebuilt):
+                rebuild_service(w, kind, entity, snapshot)
+            else:
+                bind_now(service, model)
+                service.restore(snapshot)
         if rebuilt:
             for name, spec_table in [(s["name"], s) for s in w.sensor_specs]:
                 if _bound_to(spec_table.get(REGISTRY[spec_table["type"]].binds), rebuilt):
@@ -337,68 +282,6 @@ def trial(world: World, field: str | None = None) -> None:
     except SimrunError as exc:
         raise EditError(f"a binding does not fit the edited world: {exc.message or exc}", key=field) from None
     world.reschedule()
-
-
-def carry_state(
-    old_model: mujoco.MjModel,
-    old: mujoco.MjData,
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    fresh: set[str] = frozenset(),  # type: ignore[assignment]
-) -> None:
-    """Copy the integration state of ``old`` into ``data`` by name: what ``model`` shares with ``old_model``.
-
-    Time; each joint's ``qpos``, ``qvel``, ``qacc_warmstart`` and ``qfrc_applied`` (same name and type);
-    each actuator's ``ctrl`` and ``act``; each body's ``xfrc_applied`` and, for mocap bodies, its mocap pose;
-    each equality's ``eq_active``. Joints and mocap poses of bodies named in ``fresh`` (or below them,
-    ``NAME/...``) are not copied: they keep ``model``'s initial values (``qpos0``, at rest).
-    """
-    data.time = old.time
-
-    def is_fresh(body: str) -> bool:
-        return _bound_to(body, fresh)
-
-    sizes = {0: (7, 6), 1: (4, 3), 2: (1, 1), 3: (1, 1)}
-    for j in range(model.njnt):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
-        k = mujoco.mj_name2id(old_model, mujoco.mjtObj.mjOBJ_JOINT, name) if name else -1
-        if k < 0 or old_model.jnt_type[k] != model.jnt_type[j]:
-            continue
-        if is_fresh(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.jnt_bodyid[j])) or ""):
-            continue
-        nq, nv = sizes[int(model.jnt_type[j])]
-        a, b = int(model.jnt_qposadr[j]), int(old_model.jnt_qposadr[k])
-        data.qpos[a : a + nq] = old.qpos[b : b + nq]
-        a, b = int(model.jnt_dofadr[j]), int(old_model.jnt_dofadr[k])
-        for target, source in ((data.qvel, old.qvel), (data.qacc_warmstart, old.qacc_warmstart)):
-            target[a : a + nv] = source[b : b + nv]
-        data.qfrc_applied[a : a + nv] = old.qfrc_applied[b : b + nv]
-    for i in range(model.nu):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i)
-        k = mujoco.mj_name2id(old_model, mujoco.mjtObj.mjOBJ_ACTUATOR, name) if name else -1
-        if k < 0:
-            continue
-        data.ctrl[i] = old.ctrl[k]
-        n = int(model.actuator_actnum[i])
-        if n and n == int(old_model.actuator_actnum[k]):
-            a, b = int(model.actuator_actadr[i]), int(old_model.actuator_actadr[k])
-            data.act[a : a + n] = old.act[b : b + n]
-    for i in range(1, model.nbody):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, i)
-        k = mujoco.mj_name2id(old_model, mujoco.mjtObj.mjOBJ_BODY, name) if name else -1
-        if k < 0:
-            continue
-        data.xfrc_applied[i] = old.xfrc_applied[k]
-        m, o = int(model.body_mocapid[i]), int(old_model.body_mocapid[k])
-        if m >= 0 and o >= 0 and not is_fresh(name or ""):
-            data.mocap_pos[m], data.mocap_quat[m] = old.mocap_pos[o], old.mocap_quat[o]
-    for i in range(model.neq):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i)
-        k = mujoco.mj_name2id(old_model, mujoco.mjtObj.mjOBJ_EQUALITY, name) if name else -1
-        if k >= 0:
-            data.eq_active[i] = old.eq_active[k]
-    if model.nuserdata == old_model.nuserdata:
-        data.userdata[:] = old.userdata
 
 
 # --- entities -------------------------------------------------------------------------------------------------

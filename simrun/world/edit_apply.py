@@ -112,7 +112,7 @@ class EditRecord:
 
 def _old_values(current: dict[str, Any], keys: Any, group: Group, kind: str) -> dict[str, Any]:
     """The values ``keys`` have in ``current`` (a table), or their schema defaults when it leaves them out."""
-    from simrun.world.edit import json_value
+    from simrun.world.edit_schema import json_value
     from simrun.world.registry import schema
 
     known = schema(group, kind)

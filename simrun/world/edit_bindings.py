@@ -16,8 +16,24 @@ from simrun.world.registry import REGISTRY, arguments, scene_type
 from simrun.world.world import World
 
 
-def rebuild_service(world: World, kind: str, entity: str) -> Any:
-    """Build a bound service again from its binding, in its place among the controllers, restored from its snapshot."""
+def bind_now(service: Any, model: Any) -> None:
+    """Bind a service (and the JointService an ArmService wraps) to ``model`` now, before it is restored.
+
+    A service meeting a model at its next tick takes it for a restart at time 0 (a ``DriveService`` zeroes
+    its odometry, a ``JointService`` forgets what it holds); bound now (their ``_lookup``, the services' own
+    binding step) and then restored from a snapshot, it continues as it was.
+    """
+    for target in (service, getattr(service, "joint_service", None)):
+        lookup = getattr(target, "_lookup", None)
+        if callable(lookup):
+            lookup(model)
+
+
+def rebuild_service(world: World, kind: str, entity: str, snapshot: dict[str, Any] | None = None) -> Any:
+    """Build a bound service again from its binding, in its place among the controllers, restored.
+
+    ``snapshot``: the state to restore (taken before the model changed); ``None``: the old service's now.
+    """
     old = world._bound.pop((kind, entity), None)
     if old is None:
         return world.service(kind, entity)
@@ -30,7 +46,8 @@ def rebuild_service(world: World, kind: str, entity: str) -> Any:
         raise EditError(message, key="entity") from None
     world.controllers.remove(new)
     world.controllers.insert(index, new)
-    new.restore(old.snapshot())
+    bind_now(new, world.model)
+    new.restore(old.snapshot() if snapshot is None else snapshot)
     return new
 
 

@@ -8,7 +8,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from simrun.world.edit import EditError, _bound_to, _entity, edit_fail
+from simrun.world.edit import EditError, _entity, edit_fail
+from simrun.world.edit_carry import _bound_to
 from simrun.world.registry import convert
 from simrun.world.world import World
 

@@ -33,13 +33,13 @@ from simrun.scene.tomlpos import read_toml
 from simrun.world.edit import (
     Edit,
     EditError,
-    _bound_to,
     _insert_checked,
     check_files,
     current_pose,
     make_entity,
     trial,
 )
+from simrun.world.edit_carry import _bound_to
 from simrun.world.pose import Pose
 from simrun.world.registry import REGISTRY, arguments, scene_type
 from simrun.world.world import World
