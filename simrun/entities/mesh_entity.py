@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 from typing import Any, ClassVar
 
 import mujoco
@@ -14,6 +16,16 @@ COLLISION = ("hulls", "convex", "none")
 MESH = mujoco.mjtGeom.mjGEOM_MESH
 #: Largest uniform scale accepted (and smallest: its inverse).
 MAX_SCALE = 1e6
+
+
+@lru_cache(maxsize=65536)
+def _joined(base_dir: Path, name: str) -> Path:
+    """``base_dir / name``, one ``Path`` object per pair.
+
+    The thousands of entities naming one file share it, and with it the hash the asset library's per-path
+    tables (resolution, added meshes) look it up by.
+    """
+    return base_dir / name
 
 
 @dataclass(kw_only=True)
@@ -46,7 +58,7 @@ class MeshEntity(Entity):
             raise EntityError(f"MeshEntity {self.name!r}: scale must be in [{1 / MAX_SCALE:g}, {MAX_SCALE:g}]")
         if self.collision not in COLLISION:
             raise EntityError(f"MeshEntity {self.name!r}: collision must be one of {', '.join(COLLISION)}")
-        path = ctx.base_dir / ctx.asset_paths.get(self.asset, self.asset)
+        path = _joined(ctx.base_dir, ctx.asset_paths.get(self.asset, self.asset))
         asset = ctx.assets.mesh(path, self.scale)
         prefix = ctx.full_name
         for k, (mesh, material) in enumerate(asset.visual):
