@@ -237,3 +237,36 @@ def test_edit_mode_with_a_token(browser) -> None:  # type: ignore[no-untyped-def
         _settled(page)
         assert page.evaluate(f"{ED}.error") == "" and not errors, errors
         page.close()
+
+
+def test_a_child_entity_moves_relative_to_its_parent(browser) -> None:  # type: ignore[no-untyped-def]
+    turn = [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)]  # the box turned 90 degrees about Z
+    with serve(SCENES / "boebot.toml", "--edit") as server:
+        server.post("/api/entities/box/teleport", {"position": [1.6, 1.0, 0.1], "orientation": turn})
+        lid = {"type": "Box", "name": "lid", "dimensions": [0.12, 0.12, 0.02], "pose": {"position": [0, 0, 0.11]}}
+        assert server.post("/api/entities", {"entity": lid, "parent": "box"})["inserted"] == ["box/lid"]
+        page, errors = _open(browser, server)
+        box0, lid0 = _entity(server, "box"), _entity(server, "box/lid")
+        x, y, _ = page.evaluate("window.simrunDashboard.screen('box/lid')")
+        page.mouse.click(x, y)  # the child's own body selects the child, not its parent
+        page.wait_for_function(f"{ED}.item && {ED}.item.name === 'box/lid'", timeout=20_000)
+        # its X handle (the lid's own axes: the turned box's X is the world's +Y)
+        hx, hy = page.evaluate(f"{ED}.handleAt('X')")
+        p = lid0["pose"]
+        ox, oy, _ = page.evaluate(f"{ED}.screenOf([{p[0]}, {p[1]}, {p[2]}])")
+        ax, ay, _ = page.evaluate(f"{ED}.screenOf([{p[0]}, {p[1] + 0.3}, {p[2]}])")
+        loads = page.evaluate(f"{ED}.loads")
+        page.mouse.move(hx, hy)
+        page.mouse.down()
+        page.mouse.move(hx + (ax - ox) * 0.5, hy + (ay - oy) * 0.5, steps=10)
+        page.mouse.up()
+        page.wait_for_function(f"{ED}.loads > {loads}", timeout=30_000)  # a welded child's pose: a rebuilt world
+        _settled(page)
+        box1, lid1 = _entity(server, "box"), _entity(server, "box/lid")
+        moved = np.subtract(lid1["pose"][:3], lid0["pose"][:3])
+        assert 0.05 < moved[1] < 0.3 and abs(moved[0]) < 5e-3 and abs(moved[2]) < 5e-3, moved
+        relative = np.subtract(lid1["values"]["pose"]["position"], lid0["values"]["pose"]["position"])
+        assert relative[0] == pytest.approx(moved[1], abs=5e-3) and abs(relative[1]) < 5e-3, relative
+        assert np.allclose(box1["pose"], box0["pose"], atol=1e-3)  # the parent stays
+        assert not errors, errors
+        page.close()
