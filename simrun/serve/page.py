@@ -2,8 +2,8 @@
 
 The page (``simrun/serve/page.html`` and ``page.js``) inlines the viewer bundle that ``simrun replay
 --html`` uses (:func:`simrun.record.replay_html.viewer_bundle`) and loads the world's meshes from
-``/api/scene.glb`` (:func:`world_glb`: the replay page's glTF, one node per body, without animation);
-the WebSocket stream moves the body nodes, draws the laser scans in the scene and fills the camera
+``/api/scene.glb`` (:mod:`simrun.serve.scene_glb`: the replay page's glTF, one node per body, without
+animation); the WebSocket stream moves the body nodes, draws the laser scans in the scene and fills the camera
 panels. Nothing is fetched from another host.
 """
 
@@ -14,26 +14,12 @@ import json
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from simrun.errors import SimrunError
-from simrun.record.replay_glb import recording_gltf
 from simrun.record.replay_html import _script_safe, viewer_bundle
-from simrun.record.replay_tracks import Tracks
 from simrun.serve.edit_bundle import edit_page_script
 from simrun.serve.openapi import API_VERSION
-from simrun.world.world import World
 
 _HERE = Path(__file__).resolve().parent
-
-
-def world_glb(world: World) -> bytes:
-    """The world's visual geoms as binary glTF at the current poses (Y-up root, one node per body)."""
-    data = world.data
-    tracks = Tracks(
-        np.array([float(data.time)]), np.array(data.xpos, dtype=np.float64)[None], np.array(data.xquat)[None], 0.02
-    )
-    return recording_gltf(world, tracks, {}, "live").glb()
 
 
 def dashboard_html(catalogue: dict[str, Any], token: bool, recording: bool = False) -> str:
