@@ -77,10 +77,15 @@ class Resimulation:
 
 
 class _Comparator:
-    """A controller ticking at every step: compares the state with the next recorded frame when its time comes."""
+    """A controller that compares the state with the next recorded frame at the step where its time comes.
 
-    def __init__(self, frames: deque[Record], now: float) -> None:
-        self.frames, self.period, self.next_time = frames, 0.0, now
+    It is due at that frame's time (set by :func:`resimulate` as frames are read; ``period`` infinite), so it
+    ticks once per frame, after the others' ticks.
+    """
+
+    def __init__(self, frames: deque[Record]) -> None:
+        self.frames, self.period = frames, math.inf
+        self.next_time = frames[0].time if frames else math.inf
         self.compared = 0
         self.mismatch: Mismatch | None = None
 
@@ -205,17 +210,19 @@ def resimulate(world: World, log: Simlog, start: float | None = None) -> Resimul
                 frames.append(record)
                 return
 
-    comparator = _Comparator(frames, float(data.time))
+    fill()
+    comparator = _Comparator(frames)
     world.controllers.append(comparator)
     half = 0.5 * model.opt.timestep
     try:
-        fill()
         while frames and comparator.mismatch is None:
             while commands and commands[0].t <= data.time + half:
                 commands.popleft().apply(world)
             world.step(1)
             if not frames:
                 fill()
+                comparator.next_time = frames[0].time if frames else math.inf
+                world.reschedule()
     except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:
         if isinstance(exc, SimlogError):
             raise
