@@ -11,50 +11,177 @@ rounds, process CPU and wall-clock (issue 28: every contender measured the same 
     50 Hz, GPS at 10 Hz and a 360-ray laser at 10 Hz;
   * laser only, batched: ``world.step(N)`` with just the 360-ray laser at 10 Hz.
 Each controller's own cost per tick is measured with ``timeit`` on its ``tick`` in the same run.
+
+Robots (issue 41 item 4): 1, 4 and 16 Boe-Bots, each with the full stack, ``world.step(N)`` against
+``mj_step(nstep=N)`` on the same model (goal <= 1.2x at every count), interleaved in the same rounds; the
+lasers' own ray casts (``mj_multiRay`` on the compiled model, timed with ``timeit``) give the floor no Python
+can go below.
+
+Walkers (issue 41 item 4): gymnasium's ``humanoid.xml`` and ``ant.xml`` (from the bench environment
+``.bench-mjcf/`` that ``bench/mjcf_robots.py`` installs; skipped when it is missing) as an ``MjcfRobot`` on a
+ground, the world's timestep 2 ms, 5 s in one ``world.step(N)`` with a ``JointService`` (500 Hz, holding the
+initial pose) against ``mj_step(nstep=N)`` on the same compiled model (goal <= 1.1x).
 """
 
 from __future__ import annotations
 
+import cProfile
 import platform
+import pstats
 import sys
 import time
 import timeit
 from collections.abc import Callable
+from pathlib import Path
 
 import mujoco
+import numpy as np
 from _report import Timing, arguments, interleave, load_average, write_section
 
 from simrun import Box, Ground, Pose, World
 from simrun.robots.catalogue import BoeBot
+from simrun.robots.mjcf_robot import MjcfRobot
 from simrun.sensors.laser import LaserRangeFinder
 from simrun.sensors.robot_state import GPS, Bumper, Encoders
 from simrun.services.drive_service import DriveService
+from simrun.services.joint_service import JointService
 
 BEGIN, END = "<!-- drive:begin -->", "<!-- drive:end -->"
+ROBOTS_BEGIN, ROBOTS_END = "<!-- drive-robots:begin -->", "<!-- drive-robots:end -->"
 SECONDS = 5.0
+ROBOTS = (1, 4, 16)
+#: Goal of issue 41: the full stack's CPU over raw ``mj_step(nstep)`` on the same model, at every robot count.
+ROBOTS_GOAL = 1.2
 
 
-def scene() -> World:
+def _robot(k: int) -> str:
+    return "bot" if k == 0 else f"bot{k}"
+
+
+def scene(robots: int = 1) -> World:
+    """Ground, ``robots`` Boe-Bots 0.5 m apart on a 4-wide grid (the first at (1, 1)) and a free box."""
     world = World()
     world.insert(Ground(name="ground"))
-    world.insert(BoeBot(name="bot", pose=Pose((1, 1, 0.001))))
+    for k in range(robots):
+        world.insert(BoeBot(name=_robot(k), pose=Pose((1 - 0.5 * (k // 4), 1 - 0.5 * (k % 4), 0.001))))
     world.insert(Box(name="box", dimensions=(0.2, 0.2, 0.2), mass=5.0, free=True, pose=Pose((2.5, 1, 0.1))))
     return world
 
 
-def full_stack(world: World) -> dict[str, object]:
-    """The services and sensors of the full stack, bound to ``world`` (compiled), by name."""
-    drive = DriveService(world, "bot")
+def full_stack(world: World, robot: str = "bot") -> dict[str, object]:
+    """The services and sensors of the full stack on ``robot``, bound to ``world`` (compiled), by name."""
+    drive = DriveService(world, robot)
     parts = {
         "drive service": drive,
-        "bumper": Bumper(world, "bot"),
-        "encoders 50 Hz": Encoders(world, "bot", rate=50),
-        "GPS 10 Hz": GPS(world, "bot", rate=10),
-        "360-ray laser 10 Hz": LaserRangeFinder(world, "bot", fov_deg=360, rays=360, rate=10),
+        "bumper": Bumper(world, robot),
+        "encoders 50 Hz": Encoders(world, robot, rate=50),
+        "GPS 10 Hz": GPS(world, robot, rate=10),
+        "360-ray laser 10 Hz": LaserRangeFinder(world, robot, fov_deg=360, rays=360, rate=10),
     }
     drive.limits = drive.limits.__class__(command_timeout=10.0)
     drive.cmd_vel(0.1, 0.2)
     return parts
+
+
+def robots_run(robots: int, full: bool) -> Callable[[], tuple[float, float]]:
+    """``robots`` Boe-Bots, 5 s in one ``world.step(N)`` with the full stack on each, or raw ``nstep=N``."""
+
+    def run() -> tuple[float, float]:
+        world = scene(robots)
+        model, data = world.compile()
+        if full:
+            for k in range(robots):
+                full_stack(world, _robot(k))
+        else:
+            data.ctrl[:] = 0.5
+        steps = round(SECONDS / world.options.timestep)
+        cpu, wall = time.process_time(), time.perf_counter()
+        if full:
+            world.step(steps)
+        else:
+            mujoco.mj_step(model, data, nstep=steps)
+        return time.perf_counter() - wall, time.process_time() - cpu
+
+    return run
+
+
+WALKERS_GOAL = 1.1
+GYM = Path(".bench-mjcf/lib/python3.11/site-packages/gymnasium/envs/mujoco/assets")
+WALKERS = {"humanoid": GYM / "humanoid.xml", "ant": GYM / "ant.xml"}
+
+
+def walker_world(path: Path) -> World:
+    """The model as ``robot`` (its own free root) on a ground."""
+    world = World(base_dir=path.parent)
+    world.insert(Ground(name="ground"))
+    world.insert(MjcfRobot(name="robot", file=path.name))
+    return world
+
+
+def walker_run(path: Path, service: bool) -> Callable[[], tuple[float, float]]:
+    """5 s of the walker: ``world.step(N)`` with a ``JointService`` holding its pose, or raw ``nstep=N``."""
+
+    def run() -> tuple[float, float]:
+        world = walker_world(path)
+        model, data = world.compile()
+        if service:
+            JointService(world, "robot")
+        steps = round(SECONDS / world.options.timestep)
+        cpu, wall = time.process_time(), time.perf_counter()
+        if service:
+            world.step(steps)
+        else:
+            mujoco.mj_step(model, data, nstep=steps)
+        return time.perf_counter() - wall, time.process_time() - cpu
+
+    return run
+
+
+def split_seconds(robots: int) -> tuple[float, float, float]:
+    """One more full-stack run under ``cProfile`` (process CPU): the seconds in ``mj_step`` (the physics of the
+    stack's own motion), in ``mj_multiRay`` and in everything else (Python: controllers and the step loop,
+    profiler overhead included)."""
+    world = scene(robots)
+    world.compile()
+    for k in range(robots):
+        full_stack(world, _robot(k))
+    profile = cProfile.Profile(time.process_time)
+    profile.enable()
+    world.step(round(SECONDS / world.options.timestep))
+    profile.disable()
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    total = sum(v[2] for v in stats.values())  # tottime over every function: the run's profiled CPU
+
+    def of(name: str) -> float:
+        return float(sum(v[2] for k, v in stats.items() if k[2] == f"<built-in method mujoco._functions.{name}>"))
+
+    physics, rays = of("mj_step"), of("mj_multiRay")
+    return physics, rays, float(total) - physics - rays
+
+
+def cast_seconds(robots: int) -> float:
+    """CPU seconds of the lasers' own ``mj_multiRay`` calls over the 5 s run (10 Hz each), on the compiled model."""
+    world = scene(robots)
+    model, data = world.compile()
+    lasers = [full_stack(world, _robot(k))["360-ray laser 10 Hz"] for k in range(robots)]
+    world.step(1)
+    calls = []
+    for laser in lasers:
+        assert isinstance(laser, LaserRangeFinder)
+        body = laser.caster.bind(model)
+        rotation = data.xmat[body].reshape(3, 3)
+        origin = data.xpos[body] + rotation[:, 2] * laser.mount_height(model)
+        directions = (laser._local @ rotation.T).ravel()
+        geomid, dist = np.zeros(len(laser.angles), np.int32), np.zeros(len(laser.angles))
+        calls.append((origin, directions, body, geomid, dist, laser.max_range))
+
+    def cast_all() -> None:
+        for origin, directions, body, geomid, dist, cutoff in calls:
+            mujoco.mj_multiRay(model, data, origin, directions, None, 1, body, geomid, dist, None, len(dist), cutoff)
+
+    n = 200
+    per_tick = min(timeit.repeat(cast_all, timer=time.process_time, number=n, repeat=3)) / n
+    return per_tick * round(SECONDS * 10)
 
 
 def world_run(kind: str, single: bool) -> Callable[[], tuple[float, float]]:
@@ -104,8 +231,11 @@ def tick_costs() -> dict[str, float]:
     for name, part in full_stack(world).items():
         tick = part.tick  # type: ignore[attr-defined]
         n = 2000
-        costs[name] = min(timeit.repeat(lambda tick=tick: tick(model, data), number=n, repeat=3)) / n * 1e6
-    costs["physics step (mj_step)"] = min(timeit.repeat(lambda: mujoco.mj_step(model, data), number=2000, repeat=3))
+        calls = timeit.repeat(lambda tick=tick: tick(model, data), timer=time.process_time, number=n, repeat=3)
+        costs[name] = min(calls) / n * 1e6
+    costs["physics step (mj_step)"] = min(
+        timeit.repeat(lambda: mujoco.mj_step(model, data), timer=time.process_time, number=2000, repeat=3)
+    )
     costs["physics step (mj_step)"] *= 1e6 / 2000
     return costs
 
@@ -120,13 +250,88 @@ def main() -> int:
         "full batched": world_run("full", single=False),
         "laser batched": world_run("laser", single=False),
     }
+    for n in ROBOTS:
+        contenders[f"raw {n} robots"] = robots_run(n, full=False)
+        contenders[f"full {n} robots"] = robots_run(n, full=True)
+    walkers = [name for name, path in WALKERS.items() if path.exists()]
+    for name in walkers:
+        contenders[f"raw {name}"] = walker_run(WALKERS[name], service=False)
+        contenders[f"service {name}"] = walker_run(WALKERS[name], service=True)
     results = interleave(contenders, args.repeat)
     costs = tick_costs()
+    casts = {n: cast_seconds(n) for n in ROBOTS}
+    splits = {n: split_seconds(n) for n in ROBOTS}
     steps = round(SECONDS / 0.002)
     write_section(args.out, section(results, costs, steps, args.repeat, before), BEGIN, END)
+    text = robots_section(results, casts, splits, walkers, steps, args.repeat, before)
+    write_section(args.out, text, ROBOTS_BEGIN, ROBOTS_END)
     for name, t in results.items():
         print(f"{name}: {steps / t.cpu_median:.0f} steps/s (CPU median)")
     return 0
+
+
+def robots_section(
+    results: dict[str, Timing],
+    casts: dict[int, float],
+    splits: dict[int, tuple[float, float, float]],
+    walkers: list[str],
+    steps: int,
+    repeat: int,
+    before: str,
+) -> str:
+    lines = [
+        ROBOTS_BEGIN,
+        "## Drive stack over 1, 4 and 16 robots",
+        "",
+        f"`python bench/drive.py . --repeat {repeat}` (part of `make bench`, the same rounds as the block above): "
+        f"N Boe-Bots, each with the drive service (cmd_vel, odometry), a bumper, encoders 50 Hz, GPS 10 Hz and "
+        f"a 360-ray laser 10 Hz, {SECONDS:g} simulated seconds ({steps} steps) in one `world.step(N)`, against "
+        "`mujoco.mj_step(model, data, nstep=N)` on the same model with the controls held. Process CPU, min / "
+        "median of the rounds; ratio of medians. *Cast floor*: the lasers' own `mj_multiRay` calls (one per "
+        "laser per tick, the same origins and 360 directions, timed with `timeit` on the compiled model) added "
+        "to the raw loop's time, over the raw loop: the ratio no Python could go below while the lasers see "
+        "what they see. *Where the stack's time goes*: one more run under `cProfile` (process CPU): seconds in "
+        "`mj_step` (the physics of the motion the stack commands: the raw loop holds its controls, so it drives "
+        "otherwise) and in `mj_multiRay`; the rest is the full stack's median less both (Python: controllers and "
+        f"the step loop). {before} before, {load_average()} after the run; Python bytecode: "
+        f"{'not written (PYTHONDONTWRITEBYTECODE)' if sys.flags.dont_write_bytecode else '.pyc present'}.",
+        "",
+        "| robots | raw CPU min / median s | full stack CPU min / median s | lasers' casts s | full / raw | "
+        f"cast floor | goal <= {ROBOTS_GOAL:g}x | mj_step / mj_multiRay / rest s |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for n in ROBOTS:
+        raw, full = results[f"raw {n} robots"], results[f"full {n} robots"]
+        ratio = full.cpu_median / raw.cpu_median
+        floor = (raw.cpu_median + casts[n]) / raw.cpu_median
+        met = "met" if ratio <= ROBOTS_GOAL else f"short by {ratio / ROBOTS_GOAL:.2f}x"
+        lines.append(
+            f"| {n} | {raw.cpu_min:.3f} / {raw.cpu_median:.3f} | {full.cpu_min:.3f} / {full.cpu_median:.3f} | "
+            f"{casts[n]:.3f} | {ratio:.2f}x | {floor:.2f}x | {met} | "
+            f"{splits[n][0]:.3f} / {splits[n][1]:.3f} / {full.cpu_median - splits[n][0] - splits[n][1]:.3f} |"
+        )
+    lines += [
+        "",
+        "gymnasium's walkers (`MjcfRobot` of `gymnasium/envs/mujoco/assets/*.xml`, the world's 2 ms step) with a "
+        "`JointService` at 500 Hz holding the initial pose, 5 s in one `world.step(N)`, against "
+        "`mj_step(model, data, nstep=N)` on the same compiled model (the same rounds):",
+        "",
+        "| model | raw CPU min / median s | with JointService CPU min / median s | ratio | "
+        f"goal <= {WALKERS_GOAL:g}x |",
+        "|---|---|---|---|---|",
+    ]
+    for name in walkers:
+        raw, full = results[f"raw {name}"], results[f"service {name}"]
+        ratio = full.cpu_median / raw.cpu_median
+        met = "met" if ratio <= WALKERS_GOAL else f"short by {ratio / WALKERS_GOAL:.2f}x"
+        lines.append(
+            f"| {name} | {raw.cpu_min:.3f} / {raw.cpu_median:.3f} | {full.cpu_min:.3f} / {full.cpu_median:.3f} | "
+            f"{ratio:.2f}x | {met} |"
+        )
+    if not walkers:
+        lines.append("| (skipped: `.bench-mjcf/` not installed; `python bench/mjcf_robots.py` installs it) | | | | |")
+    lines.append(ROBOTS_END)
+    return "\n".join(lines)
 
 
 def section(results: dict[str, Timing], costs: dict[str, float], steps: int, repeat: int, before: str) -> str:
@@ -169,7 +374,8 @@ def section(results: dict[str, Timing], costs: dict[str, float], steps: int, rep
         ),
         row("`world.step(N)` with the 360-ray laser 10 Hz only (vs `nstep=N`)", "laser batched", "raw batched", None),
         "",
-        "Each controller's `tick`, measured with `timeit` in the same run (best of 3 x 2,000 calls), microseconds:",
+        "Each controller's `tick`, measured with `timeit` in the same run (best of 3 x 2,000 calls, process CPU), "
+        "microseconds:",
         "",
         "| controller | us per tick |",
         "|---|---|",
