@@ -79,6 +79,7 @@ bench: $(TEST_STAMP) $(PEERS)/.installed
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python bench/recordings.py --repeat 3
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python bench/scenetest.py --seeds 50 --rounds 2
 	$(BIN)/python bench/serve.py . --repeat 3
+	$(BIN)/python bench/serve_load.py . --repeat 3
 	$(BIN)/python bench/batch_throughput.py ../shared/corpus --docs
 
 # The benchmarks' peers (obj2mjcf, the C++ tinyobjloader binding) live in their own environment inside the
