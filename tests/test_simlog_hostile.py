@@ -214,6 +214,16 @@ def test_a_command_recorded_before_the_frame_it_follows_is_refused(recordings, t
         done = CliRunner().invoke(main, COMMANDS[command](path, tmp_path))
         assert "(the clock runs backwards)" in _one_error(done.exit_code, done.stderr, path)
 
+    def before(records: Records, size: int) -> None:  # the third command earlier than the second
+        k = [k for k, (kind, _) in enumerate(records) if kind == 5][2]
+        entry = json.loads(records[k][1][8:])
+        entry[0] = 0.5
+        records[k][1] = struct.pack("<d", 0.5) + json.dumps(entry).encode()
+
+    path.write_bytes(_edit(before)(recordings["1.2"].read_bytes()))
+    done = CliRunner().invoke(main, COMMANDS["resim"](path, tmp_path))
+    assert "command 2: at t = 0.5 s, before command 1 at" in _one_error(done.exit_code, done.stderr, path)
+
 
 @pytest.mark.parametrize(
     "reading",

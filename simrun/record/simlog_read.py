@@ -25,6 +25,7 @@ from simrun.record.simlog_format import (
     CHUNK,
     CHUNKED_MINOR,
     COMMAND,
+    EDIT,
     END,
     FRAME,
     IMAGE,
@@ -208,9 +209,6 @@ class Simlog:
                 f"last whole chunk (byte {good}, {kept} bytes of records"
                 + (f"; {cut} bytes after it are cut off)" if cut else ")")
             )
-        times = [c.t for c in self._commands]
-        if times != sorted(times):
-            raise self._bad("commands", "recorded commands are not in time order")
 
     def _command(self, body: bytes, offset: int) -> None:
         """Check and keep one command record (a chunked recording's commands, in the order applied)."""
@@ -223,7 +221,11 @@ class Simlog:
         if not isinstance(entry, list) or len(entry) != 5:
             raise fail("expected [t, service, entity, call, args]")
         table = dict(zip(("t", "service", "entity", "call", "args"), entry, strict=True))
-        self._commands.append(parse_command(table, fail, f"{self.path}: byte {offset}: command {k}"))
+        command = parse_command(table, fail, f"{self.path}: byte {offset}: command {k}")
+        if self._commands and command.t < self._commands[-1].t:
+            raise fail(f"at t = {command.t!r} s, before command {k - 1} at {self._commands[-1].t!r} s (the clock runs "
+                       "backwards)")  # fmt: skip
+        self._commands.append(command)
 
     def _stream(self) -> Iterator[tuple[int, int, bytes]]:
         """(offset, kind, body) of every record in order: top level (1.1), or inside whole chunks (1.2)."""
@@ -325,7 +327,15 @@ class Simlog:
                 advance frame by frame (naming the byte offset).
         """
         wanted = (SENSORS,) if sensors else (FRAME, CHECKPOINT)
-        return (r for r in self.events() if r.kind in wanted)
+        for record in self.events():
+            if record.kind == COMMAND and not isinstance(record.command, Command):  # an edit: frames after it
+                # are of another model than the scene's
+                raise SimlogError(
+                    f"{self.path}: the world was edited at t = {record.time:g} s (simrun serve --edit): replay "
+                    "exports do not show an edited world yet; simrun resim re-simulates it"
+                )
+            if record.kind in wanted:
+                yield record
 
     def events(self) -> Iterator[Record]:
         """Every record in file order, checked: frames, checkpoints, sensor readings, commands (1.2), resets.
@@ -346,6 +356,16 @@ class Simlog:
             length = len(body)
             if kind == IMAGE and chunked:
                 continue  # read by images()
+            if kind == EDIT and chunked:  # simrun serve --edit: the frames after it have the edited model's size
+                edit, size = self._edit(body, offset)
+                if previous is not None and edit.t < previous - 0.5 * self.timestep:
+                    raise SimlogError(f"{self.path}: byte {offset}: edit at t = {edit.t!r} s comes after the frame at "
+                                      f"{previous!r} s (the clock runs backwards)")  # fmt: skip
+                frame_bytes = 8 + 8 * size
+                # yielded as a command: an EditRecord is applied as a Command is (t, apply(world)), so
+                # resimulate applies it at its step like the service commands around it
+                yield Record(COMMAND, edit.t, _EMPTY, None, command=edit, offset=offset)
+                continue
             if kind in (SENSORS, RESET) or (kind == COMMAND and chunked):
                 what = KINDS[kind]
                 if length < 8:
@@ -406,6 +426,22 @@ class Simlog:
                 if not isinstance(controllers, list) or not all(isinstance(c, dict) for c in controllers):
                     raise SimlogError(f"{self.path}: byte {offset}: checkpoint snapshots are not a list of objects")
             yield Record(kind, time, state, controllers, offset=offset)
+
+    def _edit(self, body: bytes, offset: int) -> tuple[Any, int]:
+        """An edit record's :class:`~simrun.world.edit_apply.EditRecord` and the state size after it."""
+        from simrun.world.edit import EditError
+        from simrun.world.edit_apply import EditRecord
+
+        if len(body) < 12:
+            raise SimlogError(f"{self.path}: byte {offset}: edit record too short")
+        _, size = struct.unpack("<dI", body[:12])
+        if not 1 <= size <= MAX_STATE_SIZE:
+            raise SimlogError(f"{self.path}: byte {offset}: edit record state size {size} out of range")
+        try:
+            edit = bounded(lambda: EditRecord.from_json(body[12:].decode("utf-8")))
+        except (EditError, UnicodeDecodeError, DocumentLimitError) as exc:
+            raise SimlogError(f"{self.path}: byte {offset}: corrupt edit record ({exc})") from None
+        return edit, int(size)
 
     def _json(self, raw: bytes, offset: int, what: str) -> Any:
         try:
