@@ -26,10 +26,13 @@ meshtool's per-content check caches emptied. The per-entity CPU column shows whe
 
 from __future__ import annotations
 
+import argparse
+import cProfile
 import dataclasses
 import io
 import os
 import platform
+import pstats
 import shutil
 import sys
 import tempfile
@@ -182,8 +185,10 @@ class Rounds:
 
 # ------------------------------------------------------------------------------------ growth curve (issue 28)
 
-GROWTH = (10, 100, 1000, 10000)
+GROWTH = (10, 100, 1000, 5000, 10000)
 SUZANNE = "src/alecjacobson__common-3d-test-models/data/suzanne.obj"
+#: The profiled builds of :func:`growth_split`, by ``"shared N"`` / ``"distinct N"`` (filled by :func:`growth`).
+SPLITS: dict[str, dict[str, float]] = {}
 GROWTH_BEGIN, GROWTH_END = "<!-- world-growth:begin -->", "<!-- world-growth:end -->"
 
 
@@ -295,6 +300,33 @@ class Growth:
         return run
 
 
+def growth_split(bench: Growth, count: int, shared: bool) -> dict[str, float]:
+    """One more simrun build of ``count`` entities under ``cProfile`` (process CPU), its seconds split into
+    MuJoCo's spec bindings (``add_body``, ``add_geom``, ``add_mesh``), MuJoCo's compile, meshtool's
+    ``.mbin`` reading and the rest (simrun's Python; the profiler's own overhead falls on it)."""
+    folder = bench._folder(count, shared, False)
+    forget_checks()
+    forget_mujoco_meshes()
+    profile = cProfile.Profile(time.process_time)
+    profile.enable()
+    growth_simrun(folder, count, shared)
+    profile.disable()
+    shutil.rmtree(folder)
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    split = {"bindings": 0.0, "compile": 0.0, "meshtool": 0.0, "rest": 0.0}
+    for (filename, _, name), row in stats.items():
+        own = float(row[2])  # tottime: each second counted once
+        if name == "<built-in method mujoco._specs.compile>":
+            split["compile"] += own
+        elif "mujoco._specs" in name or (filename == "~" and "mujoco" in name):
+            split["bindings"] += own
+        elif "/meshtool/" in filename:
+            split["meshtool"] += own
+        else:
+            split["rest"] += own
+    return split
+
+
 def growth(corpus: Path, work: Path, repeat: int, sizes: tuple[int, ...]) -> tuple[str, dict[str, Timing], str] | None:
     """Time every N of ``sizes``; the rounds of the largest N are ``max(2, repeat // 2)``."""
     src = corpus / SUZANNE
@@ -317,6 +349,9 @@ def growth(corpus: Path, work: Path, repeat: int, sizes: tuple[int, ...]) -> tup
             t = results[key]
             print(f"{key}: CPU {t.cpu_median:.4f} s, {t.cpu_median / n * 1e6:.1f} us per entity", flush=True)
     ready = growth_ready(work, work / "variants", max(sizes))
+    for n in sorted({min(1000, max(sizes)), max(sizes)}):
+        for kind in ("shared", "distinct"):
+            SPLITS[f"{kind} {n}"] = growth_split(bench, n, kind == "shared")
     return before, results, ready
 
 
@@ -356,7 +391,8 @@ def growth_table(before: str, r: dict[str, Timing], ready: str, repeat: int, siz
         "caches meshes by file name) and starts with meshtool's per-content check caches emptied. Interleaved, "
         f"{repeat} rounds ({max(2, repeat // 2)} at N = {big:,}); seconds of process CPU as min / median, wall "
         f"median beside it. {before} before, {load_average()} after the run (shared machine: CPU time is the "
-        "measure). Goal (issue 28): simrun's build <= MuJoCo's at every N, shared and distinct.",
+        "measure). Goal (issues 28, 41): simrun's build <= MuJoCo's at every N, shared and distinct; Python "
+        f"bytecode: {'not written (PYTHONDONTWRITEBYTECODE)' if sys.flags.dont_write_bytecode else '.pyc present'}.",
         "",
         "| meshes | N | MuJoCo CPU min / median s | simrun CPU min / median s | MuJoCo wall median s | simrun wall "
         "median s | MuJoCo us per entity | simrun us per entity | simrun / MuJoCo | goal <= 1x |",
@@ -380,6 +416,20 @@ def growth_table(before: str, r: dict[str, Timing], ready: str, repeat: int, siz
         f"{mujoco.__version__}) one `add_body` + `add_geom` on a bare spec costs {grows} (measured in the same "
         f"run){verdict}. `World.compile()` at N = {big:,} (shared; it also makes the `MjData` and runs "
         f"`mj_forward`, with the arena simrun sizes for the broadphase: `simrun.world.world.arena_bytes`) {ready}.",
+        "",
+        "Where simrun's build goes: one more build under `cProfile` (process CPU; the profiler's overhead falls on "
+        "the Python rows), seconds by what ran them: MuJoCo's spec bindings (`add_body`, `add_geom`, `add_mesh`; "
+        "setting an element's attributes counts in its caller's row), MuJoCo's compile, meshtool's `.mbin` "
+        "reading (parse, checks, mass properties), and the rest (simrun's Python: entities, poses, paths, asset "
+        "tables).",
+        "",
+        "| build | bindings s | compile s | meshtool s | rest s |",
+        "|---|---|---|---|---|",
+        *(
+            f"| {key.split()[0]} {int(key.split()[1]):,} | {v['bindings']:.4f} | {v['compile']:.4f} | "
+            f"{v['meshtool']:.4f} | {v['rest']:.4f} |"
+            for key, v in SPLITS.items()
+        ),
         GROWTH_END,
     ]
     return "\n".join(lines)
@@ -391,6 +441,8 @@ def main() -> int:
     if not src.exists():
         print(f"skip: {src} not found", file=sys.stderr)
         return 0
+    if args.growth_only:  # the growth curve alone (the 50-mesh worlds and the cache rows skipped)
+        return growth_main(args)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         folder, mbin = prepare(src, work)
@@ -421,6 +473,11 @@ def main() -> int:
     write_section(args.out, cache_table(results, entries, args.repeat), CACHE_BEGIN, CACHE_END)
     for name, t in results.items():
         print(f"{name}: wall {t.wall_min:.4f}/{t.wall_median:.4f} s, cpu {t.cpu_min:.4f}/{t.cpu_median:.4f} s")
+    return growth_main(args)
+
+
+def growth_main(args: argparse.Namespace) -> int:
+    """The growth curve up to ``--max-entities`` (0: none), its block written into ``--out``."""
     sizes = tuple(n for n in GROWTH if n <= args.max_entities)
     if not sizes:  # --max-entities 0: the 50-mesh worlds only
         return 0
