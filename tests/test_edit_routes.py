@@ -307,3 +307,36 @@ def test_undo_takes_back_the_last_edit_over_http(tmp_path):
         assert [e["kind"] for e in server.get("/api/edit/log")["edits"]] == [
             "insert", "change", "apply_force", "change", "remove",
         ]  # fmt: skip
+
+
+def test_a_recorded_session_with_five_edits_re_simulates_bit_identically(tmp_path):
+    from serve_helpers import SIMRUN
+
+    scene = _scene(tmp_path)
+    record = tmp_path / "run.simlog"
+    with serve(scene, "--lockstep", "--edit", "--record", str(record)) as server:
+        sim = Client(server.url)
+        sim.service("DriveService", "boebot").drive_distance(1.0, 0.8)
+        sim.step(seconds=0.3)
+        sim.insert(CRATE)
+        sim.step(seconds=0.4)
+        sim.change("ground", {"material": {"dynamic_friction": 0.5}})
+        sim.apply_force("crate", force=[0.0, 300.0, 0.0], duration=0.2)
+        sim.step(seconds=0.4)
+        sim.teleport("crate", [0.35, 3.0, 0.1])
+        sim.change_sensor("bump", rate=25.0)
+        sim.step(seconds=1.0)
+    env = {"MUJOCO_GL": "egl", "PATH": str(Path(sys.executable).parent)}
+    done = subprocess.run([SIMRUN, "resim", str(record)], capture_output=True, text=True, timeout=300, env=env)
+    assert done.returncode == 0 and "bit-identical" in done.stdout, done.stdout + done.stderr
+    from simrun.record.simlog import Simlog
+
+    from simrun.world.edit_apply import EditRecord
+
+    log = Simlog(record)
+    kinds = [r.command.kind for r in log.events() if isinstance(r.command, EditRecord)]
+    assert kinds == ["insert", "change", "apply_force", "teleport", "change_sensor"]
+    html = tmp_path / "run.html"
+    done = subprocess.run([SIMRUN, "replay", str(record), "--html", str(html)], capture_output=True, text=True,
+                          timeout=300, env=env)  # fmt: skip
+    assert done.returncode == 1 and "edited" in done.stderr and not html.exists(), done.stderr

@@ -216,7 +216,7 @@ def resimulate(world: World, log: Simlog, start: float | None = None) -> Resimul
     half = 0.5 * model.opt.timestep
     try:
         while frames and comparator.mismatch is None:
-            while commands and commands[0].t <= data.time + half:
+            while commands and commands[0].t <= world.data.time + half:  # an edit gives the world a new MjData
                 commands.popleft().apply(world)
             world.step(1)
             if not frames:

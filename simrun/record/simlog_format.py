@@ -20,10 +20,10 @@ MAGIC = output_named("simlog").magic[0]  # the formats registry's row
 MAJOR, MINOR = 1, 1
 #: The minor version of chunked recordings (``Recorder(live=True)``).
 CHUNKED_MINOR = 2
-FRAME, CHECKPOINT, SENSORS, CHUNK, COMMAND, END, IMAGE, RESET = 1, 2, 3, 4, 5, 6, 7, 8
+FRAME, CHECKPOINT, SENSORS, CHUNK, COMMAND, END, IMAGE, RESET, EDIT = 1, 2, 3, 4, 5, 6, 7, 8, 9
 #: The record kinds a reader knows (anything else is refused as corrupt: a new kind is a new reader).
 KINDS = {FRAME: "frame", CHECKPOINT: "checkpoint", SENSORS: "sensors", CHUNK: "chunk", COMMAND: "command",
-         END: "end", IMAGE: "image", RESET: "reset"}  # fmt: skip
+         END: "end", IMAGE: "image", RESET: "reset", EDIT: "edit"}  # fmt: skip
 #: Bytes of records gathered before a chunk is written (live recordings).
 CHUNK_BYTES = 1 << 20
 #: Longest wall time records wait before their chunk is written, seconds (live recordings).
@@ -71,7 +71,9 @@ class Record:
         state: The integration state (``mjSTATE_INTEGRATION``, f64, the header's ``state_size``); empty
             for other kinds.
         controllers: A checkpoint's controller snapshots in world order (sensor records: ``[readings]``).
-        command: A command record's command (version 1.2).
+        command: A command record's command (version 1.2). An edit record (:data:`EDIT`, ``simrun serve --edit``)
+            is read as a command record whose command is its :class:`~simrun.world.edit_apply.EditRecord`
+            (``t``, ``kind``, ``args``; applied as a command is: ``apply(world)``).
         info: A reset record's JSON object (``{"count": resets since the last record, "warnings": {...}}``).
         offset: The record's byte offset in the file.
     """

@@ -102,6 +102,7 @@ class Simlog:
         #: What was cut from a chunked recording (killed, a full disk), as one line; ``None``: it is whole.
         self.truncated: str | None = None
         self._end = self._size
+        self._recorded = 0  # command records of a chunked recording
         self._check_header()
         self.state_size = int(header["state_size"])
         self.timestep = float(header["timestep"])
@@ -185,15 +186,17 @@ class Simlog:
             offset += 5 + length
 
     def _scan(self) -> None:
-        """Read a chunked recording's structure: where its whole chunks end, what was cut, its commands."""
+        """Read a chunked recording's structure: where its whole chunks end, what was cut, how many commands.
+
+        The commands themselves are parsed as they are streamed (:meth:`events`), never all held at once.
+        """
         good = self._start
         for offset, body in self._chunks():
             good = offset + len(body)
             at = 0
             while at + 5 <= len(body):
                 kind, length = struct.unpack("<BI", body[at : at + 5])
-                if kind == COMMAND:
-                    self._command(body[at + 5 : at + 5 + length], offset + at)
+                self._recorded += kind == COMMAND
                 at += 5 + length
             if at != len(body):
                 raise SimlogError(f"{self.path}: byte {offset + at}: a record runs past the end of its chunk")
@@ -210,9 +213,8 @@ class Simlog:
                 + (f"; {cut} bytes after it are cut off)" if cut else ")")
             )
 
-    def _command(self, body: bytes, offset: int) -> None:
-        """Check and keep one command record (a chunked recording's commands, in the order applied)."""
-        k = len(self._commands)
+    def _command(self, body: bytes, offset: int, k: int, last: Command | None) -> Command:
+        """Check one command record (the ``k``-th of a chunked recording; ``last``: the one before it)."""
         entry = self._json(body[8:], offset, "command record") if len(body) >= 8 else None
 
         def fail(message: str, key: str | None = None) -> SimlogError:
@@ -222,10 +224,9 @@ class Simlog:
             raise fail("expected [t, service, entity, call, args]")
         table = dict(zip(("t", "service", "entity", "call", "args"), entry, strict=True))
         command = parse_command(table, fail, f"{self.path}: byte {offset}: command {k}")
-        if self._commands and command.t < self._commands[-1].t:
-            raise fail(f"at t = {command.t!r} s, before command {k - 1} at {self._commands[-1].t!r} s (the clock runs "
-                       "backwards)")  # fmt: skip
-        self._commands.append(command)
+        if last is not None and command.t < last.t:
+            raise fail(f"at t = {command.t!r} s, before command {k - 1} at {last.t!r} s (the clock runs backwards)")
+        return command
 
     def _stream(self) -> Iterator[tuple[int, int, bytes]]:
         """(offset, kind, body) of every record in order: top level (1.1), or inside whole chunks (1.2)."""
@@ -268,8 +269,14 @@ class Simlog:
         return digest if isinstance(digest, str) else None
 
     def commands(self) -> list[Command]:
-        """The recorded timed commands (checked when the file was opened)."""
-        return list(self._commands)
+        """The recorded commands: version 1.1's timed ones (checked at open), a chunked recording's as applied.
+
+        Raises:
+            SimlogError: A malformed command record of a chunked recording (read here, naming its byte).
+        """
+        if self.minor < CHUNKED_MINOR:
+            return list(self._commands)
+        return [r.command for r in self.events() if r.kind == COMMAND]
 
     def sensor_readings(self) -> Iterator[tuple[float, dict[str, Any]]]:
         """The recorded sensor readings: (time, {sensor name: reading as plain data})."""
@@ -302,6 +309,7 @@ class Simlog:
         ``sensor_samples.NAME``), ``images`` (and ``images.NAME``), ``commands``, ``resets`` (MuJoCo's).
         """
         counts = {"frames": 0, "checkpoints": 0, "sensor_samples": 0, "images": 0, "commands": len(self._commands)}
+        counts["commands"] += self._recorded
         counts["resets"] = 0
         for offset, kind, body in self._stream():
             if kind == RESET:
@@ -352,6 +360,7 @@ class Simlog:
         step = self.frame_period + 1.5 * self.timestep + 1e-9
         chunked = self.minor >= CHUNKED_MINOR
         commands = 0
+        last_command: Command | None = None
         for offset, kind, body in self._stream():
             length = len(body)
             if kind == IMAGE and chunked:
@@ -374,7 +383,8 @@ class Simlog:
                 if not math.isfinite(time) or time < 0:
                     raise SimlogError(f"{self.path}: byte {offset}: {what} record time {time!r} is not a time >= 0")
                 if kind == COMMAND:
-                    command = self._commands[commands]
+                    command = self._command(body, offset, commands, last_command)
+                    last_command = command
                     commands += 1
                     if previous is not None and command.t < previous - 0.5 * self.timestep:
                         raise SimlogError(

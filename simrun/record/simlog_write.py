@@ -32,6 +32,7 @@ from simrun.record.simlog_format import (
     CHUNK_WALL,
     CHUNKED_MINOR,
     COMMAND,
+    EDIT,
     END,
     FRAME,
     IMAGE,
@@ -203,6 +204,16 @@ class Recorder:
         entry = json.dumps([command.t, command.service, command.entity, command.call, list(command.args)])
         body = struct.pack("<d", float(command.t)) + entry.encode("utf-8")
         self._write(struct.pack("<BI", COMMAND, len(body)) + body)
+
+    def edit(self, t: float, text: str, state_size: int) -> None:
+        """Record an edit of the world applied at ``t`` (live recordings; ``simrun serve --edit``).
+
+        ``text``: the edit's ``EditRecord.to_json``; ``state_size``: the edited model's, which the frames after it have.
+        """
+        if not self.live:
+            raise SimrunError("edits are recorded as they happen only in live recordings")
+        body = struct.pack("<dI", float(t), int(state_size)) + text.encode("utf-8")
+        self._write(struct.pack("<BI", EDIT, len(body)) + body)
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Write a frame, or a checkpoint when one is due (live: and each recorded sensor's new samples)."""

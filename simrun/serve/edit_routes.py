@@ -4,8 +4,9 @@ Reading is always allowed: ``GET /api/entities`` (every entity with its current 
 ``GET /api/entities/NAME`` (one, with its type's schema), ``GET /api/edit`` (whether edits are allowed, the
 limits, and the schema of every registered type for a "new entity" dialog), ``POST /api/edit/save`` and
 ``/api/edit/save-entities`` (scene text). Every other route changes the world and is refused (403) unless the
-server runs with ``--edit``, refused (409) while a recording runs (edits are not part of a recording yet), and
-limited to :data:`MAX_EDITS_PER_SECOND` and :data:`EDIT_SHARE` of the loop thread's time (429 beyond).
+server runs with ``--edit``, recorded when a recording runs (an edit record of the ``.simlog``, which
+``simrun resim`` applies again at the same step), and limited to :data:`MAX_EDITS_PER_SECOND` and
+:data:`EDIT_SHARE` of the loop thread's time (429 beyond).
 
 Each edit runs on the world's loop thread between steps (as a service command does) through
 :mod:`simrun.world.edit`; an edit refused there leaves the world exactly as it was and is answered 404 (no
@@ -22,6 +23,7 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
+import mujoco
 from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
@@ -118,7 +120,12 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         except SimrunError:  # the edit itself names the problem
             before = None
         result = apply_edit(world, kind, args)
-        log.append(EditRecord(t, kind, args))
+        record = EditRecord(t, kind, args)
+        log.append(record)
+        recording = loop.recording
+        if recording is not None and recording.active:  # a .simlog edit record: simrun resim applies it again
+            size = int(mujoco.mj_stateSize(world.model, mujoco.mjtState.mjSTATE_INTEGRATION))
+            recording.recorder.edit(t, record.to_json(), size)
         if undoable:
             undo.append((kind, undo_of(t, kind, args, result, before)))
             del undo[:-MAX_UNDO]
@@ -133,8 +140,6 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
 
         def call(world: World) -> Any:
             began[0] = time.perf_counter()
-            if loop.recording is not None and loop.recording.active:
-                raise RequestError(409, "", "edits are not recorded yet; stop the recording to edit")
             model = world.model
             try:
                 result = fn(world, payload)
