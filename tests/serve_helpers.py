@@ -8,6 +8,7 @@ import select
 import signal
 import subprocess
 import sys
+import threading
 import time
 import urllib.error
 import urllib.request
@@ -86,19 +87,36 @@ def serve(scene: str | Path, *args: str, stop: int = signal.SIGINT) -> Iterator[
         out, err = process.communicate()
         raise AssertionError(f"simrun serve did not start: {line}{out}{err}")
     server = Server(line.split()[1], process)
+    # drain stderr while the server runs: a burst of tracebacks must never fill the pipe and freeze the server
+    # (stdout stays for the tests that read the lines the server prints, e.g. the Foxglove port)
+    errors: list[str] = []
+    drains = [threading.Thread(target=_drain, args=(process.stderr, errors), daemon=True)]
+    for thread in drains:
+        thread.start()
     try:
         yield server
     finally:
         if process.poll() is None:
             process.send_signal(stop)
         try:
-            out, err = process.communicate(timeout=60)
+            process.wait(timeout=60)
         except subprocess.TimeoutExpired:
             process.kill()
-            out, err = process.communicate()
-            raise AssertionError(f"simrun serve did not stop on signal {stop}: {err}") from None
+            process.wait()
+            for thread in drains:
+                thread.join(10)
+            raise AssertionError(f"simrun serve did not stop on signal {stop}: {''.join(errors)}") from None
+        for thread in drains:
+            thread.join(10)
+        out, err = process.stdout.read(), "".join(errors)
         server.output[:] = [out, err]
     assert process.returncode == 0, (process.returncode, out, err)
+
+
+def _drain(pipe: Any, into: list[str]) -> None:
+    """Read ``pipe`` to its end into ``into`` (a server test's stdout or stderr)."""
+    for chunk in iter(lambda: pipe.read(4096), ""):
+        into.append(chunk)
 
 
 def wait_idle(server: Server, kind: str, entity: str, timeout: float = 60.0) -> dict[str, Any]:
