@@ -14,7 +14,18 @@ import numpy.typing as npt
 
 from meshtool.errors import ObjParseError
 from meshtool.findings import Finding, info, warning
-from meshtool.read.obj.lines import F, IntArray, Lines, gather, numbers, strip_comment, tokens, values_per_line
+from meshtool.read.obj.decimals import tokens_per_line
+from meshtool.read.obj.lines import (
+    F,
+    IntArray,
+    Lines,
+    _blank,
+    gather,
+    numbers,
+    strip_comment,
+    tokens,
+    values_per_line,
+)
 
 #: Most corners one ``f`` statement may have (a polygon is triangulated in one piece; larger ones are refused).
 MAX_FACE_CORNERS = 65_536
@@ -32,7 +43,7 @@ def read_faces(
     empty = np.zeros(0, dtype=np.int64)
     if not block:
         return empty, empty, empty, empty, empty
-    parsed = _fast_faces(block)
+    parsed = _fast_faces(block, line_numbers.size)
     if parsed is None:
         parsed = _slow_faces(lines, line_numbers, path)
     sizes, cv, cvt, cvn = parsed
@@ -62,7 +73,7 @@ def read_faces(
     return sizes, line_numbers, cv, cvt, cvn
 
 
-def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] | None:
+def _fast_faces(block: bytes, n_lines: int) -> tuple[IntArray, IntArray, IntArray, IntArray] | None:
     if b"/" not in block:  # plain "f a b c ...": every token after the keyword is one vertex index
         values = numbers(block, b"f", np.int64)
         if values is None:
@@ -73,6 +84,9 @@ def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] |
             return None  # an explicit index 0 or a huge one: the line-by-line path reports its line
         zeros = np.zeros_like(cv)
         return sizes, cv, zeros, zeros
+    uniform = _uniform_faces(block, n_lines)
+    if uniform is not None:
+        return uniform
     a, tstart, first, counts = tokens(block)
     sizes = counts - 1
     is_kw = np.zeros(tstart.size, dtype=bool)
@@ -100,6 +114,56 @@ def _fast_faces(block: bytes) -> tuple[IntArray, IntArray, IntArray, IntArray] |
     if (cv == 0).any() or (has_vt & (cvt == 0)).any() or (has_vn & (cvn == 0)).any():
         return None  # an explicit index 0: the line-by-line path reports its line
     return sizes, cv.astype(np.int64, copy=False), cvt.astype(np.int64, copy=False), cvn.astype(np.int64, copy=False)
+
+
+def _uniform_faces(block: bytes, n_lines: int) -> tuple[IntArray, IntArray, IntArray, IntArray] | None:
+    """Faces whose every corner is written the same way (all ``v/vt/vn``, all ``v//vn`` or all ``v/vt``).
+
+    The usual exporter output, checked from the positions of the slashes alone: with ``k`` slashes per corner
+    the ``i``-th run of ``k`` slashes lies inside the ``i``-th corner, never at its ends, and the slashes of a
+    corner are all adjacent (``v//vn``) or none are. Then every field between them is one whitespace-free run,
+    which numpy's integer parser reads as exactly one number or refuses, so the block's integers are the
+    corners' fields in order. ``None`` for any other block (mixed forms, a tab, an empty field, comments).
+    """
+    if b"\t" in block or b"\v" in block or b"\f" in block or block.count(b"f") != n_lines:
+        return None
+    a = np.frombuffer(block, dtype=np.uint8)
+    ws = (a <= 32) | (a == 102)  # every "f" is a keyword (counted): blank
+    edges = np.flatnonzero(ws[1:] != ws[:-1]) + 1
+    tstart, tend = edges[0::2], edges[1::2]
+    slashes = np.flatnonzero(a == 47)
+    n = tstart.size
+    if n == 0 or slashes.size not in (n, 2 * n):
+        return None
+    per = slashes.size // n
+    first = slashes[0::per]
+    last = slashes[per - 1 :: per]
+    if not bool(((first > tstart) & (last < tend - 1)).all()):
+        return None
+    if per == 2:
+        gap = last - first
+        doubled = bool((gap == 1).all())
+        if not doubled and not bool((gap > 1).all()):
+            return None
+    else:
+        doubled = False
+    fields = 2 if per == 1 or doubled else 3
+    if b"#" in block or b"(" in block or not block.isascii():
+        return None
+    try:
+        values = np.fromstring(_blank(block, b"f", True), dtype=np.int64, sep=" ")
+    except (ValueError, TypeError):
+        return None
+    if values.size != fields * n or _out_of_range(values):
+        return None
+    table = values.reshape(n, fields)
+    cv = table[:, 0].copy()
+    zeros = np.zeros(n, dtype=np.int64)
+    cvt = table[:, 1].copy() if not doubled else zeros
+    cvn = table[:, fields - 1].copy() if per == 2 else zeros
+    if (cv == 0).any() or (not doubled and (cvt == 0).any()) or (per == 2 and (cvn == 0).any()):
+        return None  # an explicit index 0: the line-by-line path reports its line
+    return tokens_per_line(a, tstart, tend), cv, cvt, cvn
 
 
 def _out_of_range(values: npt.NDArray[Any]) -> bool:

@@ -16,12 +16,15 @@ import numpy as np
 import numpy.typing as npt
 
 from meshtool.errors import ObjParseError
+from meshtool.read.obj.decimals import decimal_numbers
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
 OTHER, V, VT, VN, F, SKIP = range(6)
+#: For each of ``V``, ``VT``, ``VN``: values, count per line, 1-based line numbers (see :func:`float_blocks`).
+FloatBlocks = dict[int, tuple[FloatArray, IntArray, IntArray]]
 _LEADING_WS = re.compile(rb"^[ \t\f\v]+", re.MULTILINE)
 _COMMENT = re.compile(r"(?:^|\s)#")
 _MSVC_SPECIAL = re.compile(r"^[+-]?1\.#(INF|IND|QNAN|SNAN)\d*$", re.IGNORECASE)
@@ -106,22 +109,62 @@ def classify(raw: bytes) -> Lines:
 
 def gather(lines: Lines, kind: int) -> tuple[bytes, IntArray]:
     """All lines of one kind joined into one block (each ending in a newline), and their line numbers."""
-    idx = np.flatnonzero(lines.kinds == kind)
+    selected = lines.kinds == kind
+    idx = np.flatnonzero(selected)
+    return gather_lines(lines, idx, selected), idx.astype(np.int64, copy=False) + 1
+
+
+def gather_lines(lines: Lines, idx: IntArray, selected: BoolArray) -> bytes:
+    """The lines ``idx`` (0-based, ascending; ``selected`` is their mask) joined into one block."""
     if idx.size == 0:
-        return b"", idx.astype(np.int64, copy=False)
+        return b""
     breaks = np.flatnonzero(np.diff(idx) != 1)
+    raw = lines.raw
+    if breaks.size >= _JOIN_RUNS:  # interleaved statements (v, vt, vn per vertex): select the bytes in one pass
+        mask = np.repeat(selected, lines.ends - lines.starts + 1)
+        return np.frombuffer(raw, dtype=np.uint8)[: mask.size][mask].tobytes()
     first = idx[np.concatenate([[0], breaks + 1])]
     last = idx[np.concatenate([breaks, [idx.size - 1]])]
-    raw = lines.raw
-    if first.size > _JOIN_RUNS:  # interleaved statements (v, vt, vn per vertex): select the bytes in one pass
-        lengths = lines.ends - lines.starts + 1
-        mask = np.repeat(lines.kinds == kind, lengths)
-        block = np.frombuffer(raw, dtype=np.uint8)[: mask.size][mask].tobytes()
-    else:
-        block = b"".join(
-            raw[s:e] for s, e in zip(lines.starts[first].tolist(), (lines.ends[last] + 1).tolist(), strict=True)
-        )
-    return block, idx.astype(np.int64, copy=False) + 1
+    return b"".join(
+        raw[s:e] for s, e in zip(lines.starts[first].tolist(), (lines.ends[last] + 1).tolist(), strict=True)
+    )
+
+
+def float_blocks(lines: Lines) -> FloatBlocks | None:
+    """``v``, ``vt`` and ``vn`` lines read together by :func:`decimal_numbers`, or ``None``.
+
+    ``None`` when they are not all plain decimals: each kind is then read by :func:`vector_block`.
+
+    One block and one parse for the three kinds: an exporter that writes ``v``/``vt``/``vn`` interleaved per
+    vertex costs one byte selection instead of three.
+
+    Returns:
+        For each of ``V``, ``VT``, ``VN``: the values, the count per line and the 1-based line numbers, as
+        :func:`vector_block` returns them.
+    """
+    kinds = lines.kinds
+    selected = (kinds == V) | (kinds == VT) | (kinds == VN)
+    idx = np.flatnonzero(selected)
+    if idx.size == 0:
+        return None
+    line_kind = kinds[idx]
+    n_vt = int(np.count_nonzero(line_kind == VT))
+    n_vn = int(np.count_nonzero(line_kind == VN))
+    parsed = decimal_numbers(gather_lines(lines, idx, selected), {118: idx.size, 116: n_vt, 110: n_vn})
+    if parsed is None:
+        return None
+    values, counts = parsed
+    if n_vt == 0 and n_vn == 0:
+        return {V: (values, counts, idx + 1), VT: _EMPTY_BLOCK, VN: _EMPTY_BLOCK}
+    value_kind = np.repeat(line_kind, counts)
+    out: FloatBlocks = {}
+    for kind in (V, VT, VN):
+        mine = line_kind == kind
+        out[kind] = (values[value_kind == kind], counts[mine], idx[mine].astype(np.int64, copy=False) + 1)
+    return out
+
+
+_EMPTY_BLOCK = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
 
 
 #: Runs of consecutive lines up to which :func:`gather` joins slices; beyond, it selects bytes with a mask.
@@ -304,11 +347,21 @@ def parse_float(word: str) -> float:
         return sign * math.inf if special.group(1).upper() == "INF" else math.nan
 
 
-def vector_block(lines: Lines, kind: int, keyword: str, path: str) -> tuple[FloatArray, IntArray, IntArray]:
-    """Values, per-line value counts and line numbers of all statements of one kind."""
+def vector_block(
+    lines: Lines, kind: int, keyword: str, path: str, read: FloatBlocks | None = None
+) -> tuple[FloatArray, IntArray, IntArray]:
+    """Values, per-line value counts and line numbers of all statements of one kind.
+
+    ``read``: what :func:`float_blocks` read, when it could.
+    """
+    if read is not None:
+        return read[kind]
     block, line_numbers = gather(lines, kind)
     if not block:
         return np.zeros(0), np.zeros(0, dtype=np.int64), line_numbers
+    fast = decimal_numbers(block, dict.fromkeys(keyword.encode(), line_numbers.size))
+    if fast is not None:  # the usual case: plain decimals, read as integers and scaled exactly
+        return fast[0], fast[1], line_numbers
     table = float_table(block, keyword.encode(), line_numbers.size)
     if table is not None:  # the usual case: the same number of values on every line
         return table.ravel(), np.full(table.shape[0], table.shape[1], dtype=np.int64), line_numbers

@@ -31,11 +31,13 @@ from meshtool.read.obj.lines import (
     VT,
     F,
     FloatArray,
+    FloatBlocks,
     IntArray,
     Lines,
     V,
     classify,
     columns,
+    float_blocks,
     reject_control_bytes,
     vector_block,
 )
@@ -131,9 +133,10 @@ def parse_obj(data: bytes | str, path: str = "<obj>") -> SourceMesh:
             )
         raise ObjParseError("empty OBJ file, no geometry: no statements", path=path, hint="export the mesh again")
 
-    positions, colors, vertex_lines = _read_vertices(lines, path, findings)
-    texcoords, _ = _read_vectors(lines, VT, "vt", 1, 3, path)
-    normals, _ = _read_vectors(lines, VN, "vn", 3, 3, path)
+    read = float_blocks(lines)
+    positions, colors, vertex_lines = _read_vertices(lines, path, findings, read)
+    texcoords, _ = _read_vectors(lines, VT, "vt", 1, 3, path, read)
+    normals, _ = _read_vectors(lines, VN, "vn", 3, 3, path, read)
     faces = read_faces(lines, path, findings)
     face_sizes, face_lines, corner_v, corner_vt, corner_vn = faces
 
@@ -297,8 +300,10 @@ def _events_at(face_lines: IntArray, event_lines: list[int], event_values: list[
     return np.where(pos >= 0, values[np.maximum(pos, 0)], default)
 
 
-def _read_vertices(lines: Lines, path: str, findings: list[Finding]) -> tuple[FloatArray, FloatArray | None, IntArray]:
-    values, counts, line_numbers = vector_block(lines, V, "v", path)
+def _read_vertices(
+    lines: Lines, path: str, findings: list[Finding], read: FloatBlocks | None
+) -> tuple[FloatArray, FloatArray | None, IntArray]:
+    values, counts, line_numbers = vector_block(lines, V, "v", path, read)
     if counts.size == 0:
         return np.zeros((0, 3)), None, line_numbers
     short = np.flatnonzero(counts < 3)
@@ -401,9 +406,9 @@ def _drop_invalid(
 
 
 def _read_vectors(
-    lines: Lines, kind: int, keyword: str, least: int, most: int, path: str
+    lines: Lines, kind: int, keyword: str, least: int, most: int, path: str, read: FloatBlocks | None
 ) -> tuple[FloatArray, IntArray]:
-    values, counts, line_numbers = vector_block(lines, kind, keyword, path)
+    values, counts, line_numbers = vector_block(lines, kind, keyword, path, read)
     width = 2 if keyword == "vt" else 3
     if counts.size == 0:
         return np.zeros((0, width)), line_numbers
