@@ -226,14 +226,28 @@ def create_app(
         page: Returns the dashboard's HTML (``GET /``); ``None``: no dashboard.
         recording: Starts a new recording in the loop thread (``POST /api/recording/start``); ``None``: none.
     """
-    catalogue = loop.catalogue
-    services = [{"type": s["type"], "entity": s["entity"]} for s in catalogue["services"]]
-    document = openapi_document(catalogue)
     streams: list[Subscriber] = []
+    # The catalogue is the world's as it is now: an edit (simrun.serve.edit_routes) that adds or removes an
+    # entity, service or sensor replaces its lists in place, so every request reads loop.catalogue afresh,
+    # and the OpenAPI document (with each service's command paths) is rebuilt when its services list changed.
+    published: dict[str, Any] = {"services": None, "document": None}
+
+    def services() -> list[dict[str, Any]]:
+        """The bound services now, as ``[{"type", "entity"}]``."""
+        return [{"type": s["type"], "entity": s["entity"]} for s in loop.catalogue["services"]]
+
+    def current_document() -> dict[str, Any]:
+        """The OpenAPI document of the world's current services (built again after an edit changed them)."""
+        listed = loop.catalogue["services"]
+        if published["services"] is not listed:
+            published["document"] = openapi_document(loop.catalogue)
+            published["services"] = listed  # held, so its id is never reused while compared
+        document: dict[str, Any] = published["document"]
+        return document
 
     def schema(path: str) -> dict[str, Any]:
         """The request body schema of ``POST path`` in the published document (``{}``: none there)."""
-        body = document["paths"].get(path, {}).get("post", {}).get("requestBody")
+        body = current_document()["paths"].get(path, {}).get("post", {}).get("requestBody")
         return dict(body["content"]["application/json"]["schema"]) if body else {}
 
     async def run(fn: Callable[[Any], Any], read: bool = False) -> Any:
@@ -262,24 +276,25 @@ def create_app(
         return HTMLResponse(text, headers={"Cache-Control": "no-store"})
 
     async def openapi(request: Request) -> Response:
-        return JSONResponse(document)
+        return JSONResponse(current_document())
 
     async def api(request: Request) -> Response:
         return JSONResponse({"api_version": API_VERSION, "schema": "/openapi.json", "world": "/api/world"})
 
     async def world(request: Request) -> Response:
-        return JSONResponse(catalogue)
+        return JSONResponse(loop.catalogue)
 
     async def listing(request: Request) -> Response:
-        return JSONResponse(catalogue[request.url.path.rsplit("/", 1)[1]])
+        return JSONResponse(loop.catalogue[request.url.path.rsplit("/", 1)[1]])
 
     async def state(request: Request) -> Response:
         return JSONResponse(await run(loop.state, read=True))
 
     async def service_state(request: Request) -> Response:
         kind, entity = request.path_params["service"], request.path_params["entity"]
-        if not any(s["type"] == kind and s["entity"] == entity for s in services):
-            command_from_request(services, kind, entity, "", None)  # raises the 404 naming the field
+        bound = services()
+        if not any(s["type"] == kind and s["entity"] == entity for s in bound):
+            command_from_request(bound, kind, entity, "", None)  # raises the 404 naming the field
 
         def read(w: Any) -> Any:
             target = w.service(kind, entity)
@@ -295,7 +310,7 @@ def create_app(
         p = request.path_params
         path = f"/api/services/{p['service']}/{p['entity']}/{p['call']}"
         body = await _body(request, schema(path))
-        command = command_from_request(services, p["service"], p["entity"], p["call"], body)
+        command = command_from_request(services(), p["service"], p["entity"], p["call"], body)
 
         def call(w: Any) -> Any:
             result = loop.apply(command)(w)
@@ -309,8 +324,8 @@ def create_app(
 
     def sensor_name(request: Request) -> str:
         name = request.path_params["name"]
-        if not any(s["name"] == name for s in catalogue["sensors"]):
-            known = ", ".join(s["name"] for s in catalogue["sensors"]) or "none"
+        if not any(s["name"] == name for s in loop.catalogue["sensors"]):
+            known = ", ".join(s["name"] for s in loop.catalogue["sensors"]) or "none"
             raise RequestError(404, "name", f"no sensor {name!r} (sensors: {known})")
         return str(name)
 
@@ -325,7 +340,7 @@ def create_app(
 
     async def sensor_image(request: Request) -> Response:
         name = sensor_name(request)
-        if not next(s for s in catalogue["sensors"] if s["name"] == name)["image"]:
+        if not next(s for s in loop.catalogue["sensors"] if s["name"] == name)["image"]:
             raise RequestError(404, "name", f"sensor {name!r} is not a camera")
         fmt = request.query_params.get("format", "png")
         if fmt not in FORMATS:
@@ -354,8 +369,8 @@ def create_app(
         if "steps" in body and "seconds" in body:
             raise RequestError(422, "seconds", "give steps or seconds, not both")
         if "seconds" in body:
-            seconds = _number(body, "seconds", 0.0, MAX_STEPS * catalogue["timestep"])
-            steps = round(seconds / catalogue["timestep"])
+            seconds = _number(body, "seconds", 0.0, MAX_STEPS * loop.catalogue["timestep"])
+            steps = round(seconds / loop.catalogue["timestep"])
         else:
             steps = int(_number(body, "steps", 1, MAX_STEPS, integer=True)) if "steps" in body else 1
         return JSONResponse(await run(loop.step_request(steps)))
@@ -411,8 +426,8 @@ def create_app(
 
     async def stream(ws: WebSocket) -> None:
         query = ws.query_params
-        names = {s["name"] for s in catalogue["sensors"]}
-        cameras = {s["name"] for s in catalogue["sensors"] if s["image"]}
+        names = {s["name"] for s in loop.catalogue["sensors"]}
+        cameras = {s["name"] for s in loop.catalogue["sensors"] if s["image"]}
         wanted = query.get("sensors", "all")
         sensors = None if wanted == "all" else {n for n in wanted.split(",") if n}
         images = {n for n in query.get("images", "").split(",") if n}

@@ -1,9 +1,11 @@
 """What a served world offers, by name: entities, bound services with their commands and queries, sensors.
 
-The catalogue is built once from a prepared world (its ``[[services]]`` bindings and ``[[sensors]]``) and is
-plain JSON. A service call from a client goes through :func:`command_from_request`, which builds the table
-a ``[[commands]]`` entry would hold and hands it to :func:`simrun.run.commands.parse_command`: one validation
-path for commands files, recordings and the server. Errors are :class:`RequestError`, which name the
+The catalogue is built from a prepared world (its ``[[services]]`` bindings and ``[[sensors]]``) and is
+plain JSON; the server builds it again after an edit that changes the world's bodies, services or sensors
+(:mod:`simrun.serve.edit_routes`), and every request reads the current one. A service call from a client
+goes through :func:`command_from_request`, which builds the table a ``[[commands]]`` entry would hold and
+hands it to :func:`simrun.run.commands.parse_command`: one validation path for commands files, recordings
+and the server. Errors are :class:`RequestError`, which name the
 request field (``service``, ``entity``, ``call``, ``args``, ``args.metres``) for the 4xx JSON answer.
 
 Commands are the public methods that ``parse_command`` accepts; those that take no argument and return a

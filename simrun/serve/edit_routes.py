@@ -140,12 +140,12 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
 
         def call(world: World) -> Any:
             began[0] = time.perf_counter()
-            model = world.model
+            model, offered = world.model, _offered(world)
             try:
                 result = fn(world, payload)
             except EditError as exc:
                 raise refusal(exc) from None
-            if world.model is not model:  # a recompile: new bodies, new names
+            if world.model is not model or _offered(world) != offered:  # new bodies, names, services or sensors
                 loop.catalogue.update(build_catalogue(world))
             loop._publish(world, poses=True)
             return {"time": float(world.data.time), **(result or {})}
@@ -397,6 +397,12 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         Route("/api/edit/sensors/{name}", sensor_change, methods=["PATCH"]),
         Route("/api/edit/sensors/{name}", sensor_remove, methods=["DELETE"]),
     ]
+
+
+def _offered(world: World) -> tuple[Any, ...]:
+    """What the catalogue lists besides bodies: the bound services and each sensor with its period (s)."""
+    services = tuple((s.get("type"), s.get("entity")) for s in world.services)
+    return services, tuple((name, float(s.period)) for name, s in world.sensors.items())
 
 
 def _folder(payload: dict[str, Any]) -> Path | None:
