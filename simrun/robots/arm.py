@@ -93,14 +93,16 @@ class ArticulatedArm(Entity, Robot):
         acting at their centres of mass, as a force and a moment about the arm base body's centre of mass,
         world frame) to the arm's base body through ``data.xfrc_applied``, which maps onto the dofs above
         the arm only: the compensation stays as joint torques on the arm, the base carries the full weight.
-        It uses the centres of mass of the state before the step (one step old, ``timestep`` s), the model's
-        current masses, ``body_gravcomp`` and gravity. An arm welded to the world does nothing here.
+        It uses the centres of mass of the state about to be stepped (``mj_kinematics`` of ``qpos``: a function
+        of the state alone, so a run restored from a checkpoint carries exactly what the recorded run carried),
+        the model's current masses, ``body_gravcomp`` and gravity. An arm welded to the world does nothing here.
         """
         cached, carry = self._carry
         if cached is not model:
             carry = _Carry.plan(model, self.name if self.parent is None else f"{self.parent}/{self.name}")
             self._carry = (model, carry)
         if carry is not None:
+            mujoco.mj_kinematics(model, data)
             carry.apply(model, data)
 
     def joint_names(self, full_name: str) -> list[str]:

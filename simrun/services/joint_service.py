@@ -422,7 +422,8 @@ class JointService:
         }
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Inverse of :meth:`snapshot`."""
+        """Inverse of :meth:`snapshot` (bound to the world's model first: the next tick must not hold again)."""
+        self._lookup(self.world.model)
         self._targets = {str(k): [float(v[0]), float(v[1])] for k, v in state["targets"].items()}
         self._plan = None if state["plan"] is None else Trajectory.from_state(state["plan"])
         self._integral = {str(k): float(v) for k, v in state.get("integral", {}).items()}
