@@ -129,6 +129,33 @@ class FoxgloveChannels:
     """
 
     def __init__(self, world: Any, context: Any, sensors: Iterable[str] | None = None) -> None:
+        self.world = world
+        self._context = context
+        self._only = None if sensors is None else tuple(sensors)
+        self.topics: dict[str, str] = {}
+        self.counts: dict[str, int] = {}
+        self._channels: dict[str, Any] = {}
+        #: The drive services (entity name -> root body id), whose odometry :meth:`odometry` logs.
+        self.drives: dict[str, int] = {}
+        self._odom: dict[str, tuple[float, float, float]] = {}
+        self._scene_ids: set[str] = set()
+        self._shape: tuple[Any, ...] = ()
+        self.refresh()
+
+    def refresh(self) -> tuple[list[str], list[str]]:
+        """Follow the world after an edit: channels for what is new, none for what is gone, frames by name.
+
+        Called by the live server after an edit (:mod:`simrun.serve.foxglove_live`) and cheap when nothing
+        changed (the model, the services and the sensors are compared by identity and name). A topic that
+        stays keeps its channel (a client's subscription goes on); a new robot, drive or sensor gets its
+        channels (advertised to connected clients); a removed one's channels are closed (unadvertised); the
+        body tables are rebuilt by name for the new model, and the next :meth:`frame` sends ``/scene`` again
+        (with deletions of the bodies gone). A drive's ``NAME/odom`` origin is kept; a new drive's is its root
+        now. With the ``sensors`` the channels were made for, only those of them the world still has.
+
+        Returns:
+            (topics added, topics removed), in creation order / sorted.
+        """
         import foxglove
         from foxglove import channels as fc
 
@@ -138,66 +165,80 @@ class FoxgloveChannels:
         from simrun.sensors.robot_state import IMU
         from simrun.services.drive_service import DriveService
 
-        self.world = world
+        world, context = self.world, self._context
         model = world.model
+        shape = (
+            id(model),
+            tuple(id(c) for c in world.controllers),
+            tuple((n, id(v)) for n, v in world.sensors.items()),
+        )
+        if shape == self._shape:
+            return [], []
+        self._shape = shape
         self._bodies = [(b, model.body(b).name or f"body{b}") for b in range(1, model.nbody)]
-        self.topics: dict[str, str] = {}
-        self.counts: dict[str, int] = {}
-        self._channels: dict[str, Any] = {}
+        wanted: dict[str, tuple[str, Any]] = {}  # topic -> (schema name, a function making its channel)
 
-        def add(topic: str, channel: Any, schema: str) -> None:
-            self._channels[topic] = channel
-            self.topics[topic] = schema
+        def want(topic: str, schema: str, make: Any) -> None:
+            wanted[topic] = (schema, make)
 
-        def json_channel(topic: str, schema: dict[str, Any]) -> Any:
-            return foxglove.Channel(topic, schema=schema, message_encoding="json", context=context)
+        def json_channel(schema: dict[str, Any]) -> Any:
+            return lambda topic: foxglove.Channel(topic, schema=schema, message_encoding="json", context=context)
 
-        add(CLOCK_TOPIC, json_channel(CLOCK_TOPIC, CLOCK_SCHEMA), "simrun.Clock")
-        add(TF_TOPIC, fc.FrameTransformsChannel(TF_TOPIC, context=context), "foxglove.FrameTransforms")
-        add(SCENE_TOPIC, fc.SceneUpdateChannel(SCENE_TOPIC, context=context), "foxglove.SceneUpdate")
+        def typed(cls: Any) -> Any:
+            return lambda topic: cls(topic, context=context)
+
+        want(CLOCK_TOPIC, "simrun.Clock", json_channel(CLOCK_SCHEMA))
+        want(TF_TOPIC, "foxglove.FrameTransforms", typed(fc.FrameTransformsChannel))
+        want(SCENE_TOPIC, "foxglove.SceneUpdate", typed(fc.SceneUpdateChannel))
         self._robots: list[tuple[str, int, list[int]]] = []
         for name, robot in robots(world).items():
             joints = [int(model.joint(j).id) for j in robot.joints]
             self._robots.append((name, int(model.body(robot.root).id), joints))
-            add(f"/{name}/pose", fc.PoseInFrameChannel(f"/{name}/pose", context=context), "foxglove.PoseInFrame")
+            want(f"/{name}/pose", "foxglove.PoseInFrame", typed(fc.PoseInFrameChannel))
             if joints:
-                topic = f"/{name}/joint_states"
-                add(topic, fc.JointStatesChannel(topic, context=context), "foxglove.JointStates")
-        #: The drive services (entity name -> root body id), whose odometry :meth:`odometry` logs.
-        self.drives: dict[str, int] = {}
+                want(f"/{name}/joint_states", "foxglove.JointStates", typed(fc.JointStatesChannel))
+        self.drives = {}
         for controller in world.controllers:
             if isinstance(controller, DriveService):
                 self.drives[controller.name] = int(model.body(controller.wheels.base).id)
-                topic = f"/{controller.name}/odometry"
-                add(topic, fc.PoseInFrameChannel(topic, context=context), "foxglove.PoseInFrame")
+                want(f"/{controller.name}/odometry", "foxglove.PoseInFrame", typed(fc.PoseInFrameChannel))
         self._sensors: dict[str, tuple[str, Any]] = {}
-        for name in world.sensors if sensors is None else sensors:
+        names = world.sensors if self._only is None else [n for n in self._only if n in world.sensors]
+        for name in names:
             sensor = world.sensors[name]
             topic = f"/sensors/{name}"
             if isinstance(sensor, LaserRangeFinder):
                 self._sensors[name] = ("laser", sensor)
-                add(topic, fc.LaserScanChannel(topic, context=context), "foxglove.LaserScan")
+                want(topic, "foxglove.LaserScan", typed(fc.LaserScanChannel))
             elif isinstance(sensor, Webcam):
                 self._sensors[name] = ("image", sensor)
-                add(topic, fc.RawImageChannel(topic, context=context), "foxglove.RawImage")
-                compressed = f"{topic}/compressed"
-                add(compressed, fc.CompressedImageChannel(compressed, context=context), "foxglove.CompressedImage")
+                want(topic, "foxglove.RawImage", typed(fc.RawImageChannel))
+                want(f"{topic}/compressed", "foxglove.CompressedImage", typed(fc.CompressedImageChannel))
             elif isinstance(sensor, IMU):
                 self._sensors[name] = ("imu", sensor)
-                add(topic, json_channel(topic, IMU_SCHEMA), "simrun.Imu")
+                want(topic, "simrun.Imu", json_channel(IMU_SCHEMA))
             else:
                 title = type(sensor).__name__
                 self._sensors[name] = ("json", sensor)
-                add(topic, json_channel(topic, {"type": "object", "title": title}), title)
+                want(topic, title, json_channel({"type": "object", "title": title}))
         if self.drives:
-            add(
-                TF_STATIC_TOPIC, fc.FrameTransformsChannel(TF_STATIC_TOPIC, context=context), "foxglove.FrameTransforms"
-            )
-        data = world.data  # the odometry origins: each drive's root now (x, y, heading), the world's start
+            want(TF_STATIC_TOPIC, "foxglove.FrameTransforms", typed(fc.FrameTransformsChannel))
+        removed = sorted(t for t in self.topics if wanted.get(t, ("",))[0] != self.topics[t])
+        for topic in removed:
+            self._channels.pop(topic).close()
+            del self.topics[topic]
+        added = [t for t in wanted if t not in self.topics]
+        for topic in added:
+            schema, make = wanted[topic]
+            self._channels[topic] = make(topic)
+            self.topics[topic] = schema
+        data = world.data  # the odometry origins: each drive's root when first seen (x, y, heading)
         self._odom = {
-            n: (float(data.xpos[b][0]), float(data.xpos[b][1]), _yaw(data.xquat[b])) for n, b in self.drives.items()
+            n: self._odom.get(n) or (float(data.xpos[b][0]), float(data.xpos[b][1]), _yaw(data.xquat[b]))
+            for n, b in self.drives.items()
         }
         self._next_scene = -math.inf
+        return added, removed
 
     def _log(self, topic: str, message: Any, t: float) -> None:
         self._channels[topic].log(message, log_time=ns(t))
@@ -397,7 +438,13 @@ class FoxgloveChannels:
                     cylinders=cylinders,
                 )
             )
-        return fm.SceneUpdate(entities=entities)
+        ids = {model.body(b).name or (WORLD_FRAME if b == 0 else f"body{b}") for b in by_body}
+        gone = sorted(self._scene_ids - ids)  # bodies an edit removed: deleted from the scene by id
+        self._scene_ids = ids
+        deletions = [
+            fm.SceneEntityDeletion(timestamp=stamp, type=fm.SceneEntityDeletionType.MatchingId, id=i) for i in gone
+        ]
+        return fm.SceneUpdate(deletions=deletions, entities=entities)
 
 
 def _stamp(t: float) -> Any:

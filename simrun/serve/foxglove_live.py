@@ -6,7 +6,9 @@ connects to ``ws://127.0.0.1:N`` and subscribes to the channels of
 ``/scene``, ``/NAME/pose`` and ``/NAME/joint_states`` per robot, ``/NAME/odometry`` per drive service, all
 logged whenever the loop publishes poses (``pose_rate`` per simulated second, after every step request), and
 ``/sensors/NAME`` (``/sensors/NAME/compressed`` for a webcam's JPEG) for every sensor, at each new reading
-the loop publishes (at most :data:`simrun.serve.loop.MIN_SENSOR_INTERVAL` apart in wall time).
+the loop publishes (at most :data:`simrun.serve.loop.MIN_SENSOR_INTERVAL` apart in wall time). The channels
+follow edits (``simrun serve --edit``): an inserted robot's, an added drive's or sensor's channels are
+advertised, a removed one's unadvertised, at the next publication after the edit.
 
 With ``mcap``, every message the server logs is also written to that MCAP file as it happens (foxglove-sdk's
 writer, a sink of the same context: the same channels and the same messages as the live stream;
@@ -106,7 +108,7 @@ class FoxgloveLive:
         except BaseException:
             self.close()
             raise
-        self._drives = [c for c in world.controllers if isinstance(c, DriveService)]
+        self._world, self._drive_type = world, DriveService
         self._images = _ImageLogger(self.channels)
 
     @property
@@ -118,16 +120,21 @@ class FoxgloveLive:
         """Log the world's frame at simulated ``time`` s (loop thread; ``poses`` are the published body poses).
 
         The messages come from the world's state (:meth:`FoxgloveChannels.frame`), the same state as ``poses``;
-        each drive's odometry is its current estimate.
+        each drive's odometry is its current estimate. The channels follow the world first
+        (:meth:`FoxgloveChannels.refresh`): after an edit, a new robot's, drive's or sensor's channels are
+        advertised and a removed one's unadvertised before this frame is logged.
         """
+        self.channels.refresh()
         self.channels.frame()
-        for drive in self._drives:
-            self.channels.odometry(drive.name, time, dataclasses.astuple(drive.odometry()))
+        for drive in self._world.controllers:
+            if isinstance(drive, self._drive_type):
+                self.channels.odometry(drive.name, time, dataclasses.astuple(drive.odometry()))
 
     def sensor(self, name: str, time: float, reading: Any) -> None:
         """Log a sensor's reading taken at simulated ``time`` s (a camera's by the image thread)."""
         from simrun.serve.images import image_of
 
+        self.channels.refresh()  # a sensor an edit added reads before the next frame: its channel first
         if image_of(reading) is not None:
             self._images.put(name, time, reading)
         else:
