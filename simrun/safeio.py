@@ -54,6 +54,9 @@ def open_regular(path: Path, what: str = "file") -> BinaryIO:
             os.close(fd)
 
 
+_CHUNK = 1 << 20  # bytes read at a time past a file's size when it was opened
+
+
 def read_regular(path: Path, what: str = "file", limit: int = MAX_FILE_BYTES) -> bytes:
     """The bytes of a regular file of at most ``limit`` bytes.
 
@@ -64,10 +67,18 @@ def read_regular(path: Path, what: str = "file", limit: int = MAX_FILE_BYTES) ->
         size = os.fstat(file.fileno()).st_size
         if size > limit:
             raise FileReadError(f"{path}: {what} is {size} bytes, over the limit of {limit} bytes")
-        try:
-            data = file.read(limit + 1)
+        try:  # the size it has now, then what it grew by, in chunks: never a buffer of ``limit`` bytes up front
+            parts = [file.read(size), file.read(1)]  # one byte past its size: did it grow?
+            got = len(parts[0]) + len(parts[1])
+            while parts[-1] and got <= limit:
+                chunk = file.read(min(_CHUNK, limit + 1 - got))
+                if not chunk:
+                    break
+                parts.append(chunk)
+                got += len(chunk)
         except OSError as exc:
             raise FileReadError(f"{path}: {what} cannot be read: {exc.strerror}") from None
+    data = parts[0] if not parts[1] else b"".join(parts)
     if len(data) > limit:
         raise FileReadError(f"{path}: {what} grew past the limit of {limit} bytes while being read")
     return data
