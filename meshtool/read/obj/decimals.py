@@ -20,6 +20,8 @@ _POW10 = 10.0 ** np.arange(23)
 #: Largest integer mantissa below which every integer is exact in a float64.
 _EXACT = 2**53
 _LETTER_TABLES: dict[bytes, bytes] = {}
+#: Most tokens of a block read one by one with ``float`` (past the fast path's digits or powers of ten).
+_MAX_SLOW = 10_000
 
 
 def _digit(c: npt.NDArray[np.uint8]) -> BoolArray:
@@ -37,7 +39,8 @@ def decimal_numbers(block: bytes, letters: dict[int, int]) -> tuple[FloatArray, 
     each mantissa ``m`` scaled by ``10**(exponent - decimals)``: ``m`` and the power are exact floats when
     ``|m| <= 2**53`` and the power is at most 22, and one IEEE multiplication or division is correctly
     rounded, so the result is bit for bit what a correctly rounded parser (``float``, ``np.loadtxt``) reads
-    (Clinger's fast path); ``-0`` keeps its sign. Anything else (``nan``, a tab, more digits, a larger power,
+    (Clinger's fast path); ``-0`` keeps its sign. Up to :data:`_MAX_SLOW` tokens beyond that (17 digits,
+    ``1e-30``) are read by Python's ``float`` from their text. Anything else (``nan``, a tab,
     a token that is not one number) means ``None``: the caller reads the block with numpy's float parser or
     line by line.
 
@@ -117,20 +120,25 @@ def decimal_numbers(block: bytes, letters: dict[int, int]) -> tuple[FloatArray, 
         power[marked] += ints[at[marked] + 1]
     else:
         mantissa, power = ints, -decimals
-    if int(mantissa.max()) > _EXACT or int(mantissa.min()) < -_EXACT:
-        return None  # more digits than a float64 holds exactly (numpy saturates beyond int64)
-    low, high = int(power.min()), int(power.max())
-    if low < -22 or high > 22:
-        return None
+    # beyond the fast path: more digits than a float64 holds exactly (numpy saturates beyond int64) or a
+    # power of ten past 22 ("2.710505e-20"): those few tokens are read by Python's float from their text
+    inexact = (mantissa > _EXACT) | (mantissa < -_EXACT) | (power < -22) | (power > 22)
+    slow = np.flatnonzero(inexact) if bool(inexact.any()) else None
+    if slow is not None:
+        if slow.size > _MAX_SLOW:
+            return None
+        power = np.where(inexact, 0, power)
     exact = mantissa.astype(np.float64)
     values: FloatArray
-    if high <= 0:
+    if int(power.max()) <= 0:
         values = exact / _POW10[-power]
     else:
         values = np.where(power >= 0, exact * _POW10[np.maximum(power, 0)], exact / _POW10[np.maximum(-power, 0)])
     zero = np.flatnonzero(mantissa == 0)
     if zero.size and signs.size:
         values[zero[a[tstart[zero]] == 45]] = -0.0
+    if slow is not None:
+        values[slow] = [float(block[s:e]) for s, e in zip(tstart[slow].tolist(), tend[slow].tolist(), strict=True)]
     counts = tokens_per_line(a, tstart, tend)
     if not bool(counts.all()):
         return None  # a keyword alone: an error, reported by the caller's path as before
