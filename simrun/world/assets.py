@@ -68,6 +68,8 @@ class AssetLibrary:
     #: Other files builds read, by real path: what an import read (a URDF robot's URDF, meshes, MTL, textures).
     sources: set[Path] = field(default_factory=set)
     added_meshes: dict[tuple[Path, float], MeshAsset] = field(default_factory=dict)
+    #: The names of ``added_meshes``' assets (kept beside it: a set rebuilt per added file made N files O(N^2)).
+    mesh_names: set[str] = field(default_factory=set)
     added_textures: dict[Path, str] = field(default_factory=dict)
     added_whole: set[str] = field(default_factory=set)
     #: In-memory files (MuJoCo's virtual file system) handed to the spec: PNG textures by file name.
@@ -131,7 +133,7 @@ class AssetLibrary:
             return self.added_meshes[key]
         view = asset_view(self.packed(path))  # parts, materials and textures as every consumer reads a pack
         stem = printable(path.stem)  # MuJoCo names are UTF-8: a non-UTF-8 file name's bytes become \xNN
-        base = unique_name(f"{stem}@{scale:g}" if scale != 1.0 else stem, {a.name for a in self.added_meshes.values()})
+        base = unique_name(f"{stem}@{scale:g}" if scale != 1.0 else stem, self.mesh_names)
         textures = []
         for k, texture in enumerate(view.textures):
             png = png_without_tail(texture.data, f"{printable(path.name)}: texture {k}")
@@ -159,6 +161,7 @@ class AssetLibrary:
             volumes.append(surface.volume(v, f) * scale**3)
         asset = MeshAsset(base, visual, hulls, volumes, f"{base}/whole")
         self.added_meshes[key] = asset
+        self.mesh_names.add(base)
         return asset
 
     def whole(self, path: Path, scale: float) -> str:
