@@ -69,6 +69,12 @@ class Recorder:
             survives a kill up to its last chunk, takes commands as they happen (:meth:`command`), and a
             failed write (a full disk) ends it, keeping what was written (:attr:`failed`), without stopping
             the simulation. ``False``: version 1.1 through a temporary file renamed at :meth:`close`.
+        listener: Live recordings: told what goes into the chunks as it is written (``simrun serve
+            --record-as mcap``: :class:`simrun.record.mcap_export.McapStream`): ``frame(state, snapshots)``
+            (the integration state, f64; the controllers' snapshots as the checkpoint's JSON holds them, or
+            ``None`` for a plain frame), ``sample(name, time, text)`` (the sample's JSON ``{name: reading}``),
+            ``image(name, time, rgb)`` ((H, W, 3) u8, the image stored as PNG) and ``flush()`` (a chunk went
+            to the operating system).
     """
 
     def __init__(
@@ -83,8 +89,10 @@ class Recorder:
         sensors: tuple[str, ...] = (),
         controller: Path | None = None,
         live: bool = False,
+        listener: Any = None,
     ) -> None:
         model = world.model
+        self.listener = listener
         self.world, self.period, self.checkpoint_every = world, period, checkpoint
         unknown = [n for n in sensors if n not in world.sensors]
         if unknown:
@@ -185,6 +193,8 @@ class Recorder:
                       f"{self._last_time:g} s ({self.frames} frames before the failed chunk are kept)")  # fmt: skip
             return
         self._good += len(chunk)
+        if self.listener is not None:
+            self.listener.flush()
 
     def _end(self, failure: str) -> None:
         """A live recording's write failed: cut the torn chunk, close the file, remember why."""
@@ -270,23 +280,32 @@ class Recorder:
             body = struct.pack("<dI", time, len(raw)) + raw + _png(rgb)
             self._write(struct.pack("<BI", IMAGE, len(body)) + body)
             self.counts["images"] += 1
+            if self.listener is not None:
+                self.listener.image(name, time, rgb)
             return
-        extra = struct.pack("<d", time) + json.dumps({name: _plain(reading)}).encode("utf-8")
+        text = json.dumps({name: _plain(reading)})
+        extra = struct.pack("<d", time) + text.encode("utf-8")
         self._write(struct.pack("<BI", SENSORS, len(extra)) + extra)
         self.counts["sensor_samples"] += 1
+        if self.listener is not None:
+            self.listener.sample(name, time, text)
 
     def _frame(self, model: mujoco.MjModel, data: mujoco.MjData) -> int:
         """Write a frame, or a checkpoint when one is due; its kind."""
         state = state_of(model, data)
         body = struct.pack("<d", float(data.time)) + state.tobytes()
         kind = FRAME
+        text = None
         if data.time + 0.5 * model.opt.timestep >= self._next_checkpoint:
             snaps = [c.snapshot() for c in self.world.controllers if c is not self]
-            extra = json.dumps(snaps).encode("utf-8")
+            text = json.dumps(snaps)
+            extra = text.encode("utf-8")
             body += struct.pack("<I", len(extra)) + extra
             kind = CHECKPOINT
             self._next_checkpoint += self.checkpoint_every
         self._write(struct.pack("<BI", kind, len(body)) + body)
+        if self.listener is not None and self.live:
+            self.listener.frame(state, None if text is None else json.loads(text))
         self.frames += 1
         self.counts["frames"] += 1
         return kind

@@ -394,21 +394,13 @@ def create_app(
     async def recording_stop(request: Request) -> Response:
         _object(await _body(request, schema("/api/recording/stop")), ())
 
-        def stop(w: Any) -> Any:  # the loop thread writes the last chunk and the end record only
+        def stop(w: Any) -> Any:  # the loop thread writes the last chunks and the end records (and MCAP summary)
             current = loop.recording
             if current is None or not current.active:
                 raise RequestError(409, "", "nothing is being recorded")
-            mcap, current.mcap = current.mcap, None
-            return current, mcap, list(current.finish())
+            return current, list(current.finish())
 
-        current, mcap, written = await run(stop)
-        if mcap is not None:  # converting the finished .simlog to MCAP reads files only: a worker thread
-            from simrun.record.mcap_export import export_mcap
-
-            await asyncio.to_thread(export_mcap, current.path, mcap)
-            current.mcap = mcap
-            current.written.append(mcap)
-            written.append(mcap)
+        current, written = await run(stop)
         return JSONResponse({"written": [str(p) for p in written], "recording": current.describe()})
 
     async def scene_glb(request: Request) -> Response:

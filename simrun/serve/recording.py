@@ -9,7 +9,11 @@ simulation thread) writes the last chunk and an end record: no spool, no second 
 does not grow with the commands. A server killed outright (SIGKILL) leaves a recording readable up to its
 last chunk; a full disk ends the recording with one error and keeps what was written, while the world
 goes on. ``simrun resim`` applies the commands at the same steps: a served run re-simulates bit for bit.
-With ``mcap``, the finished recording is also converted (:func:`simrun.record.mcap_export.export_mcap`).
+With ``mcap``, the MCAP is written as the recording goes too (:class:`simrun.record.mcap_export.McapStream`,
+the recorder's listener, through foxglove-sdk's writer and the channels of the live Foxglove stream): the
+messages :func:`simrun.record.mcap_export.export_mcap` would write from the finished ``.simlog``, in place
+from the start, a chunk ended with every chunk of the recording (a SIGKILL leaves its whole chunks
+readable), finished with its summary by :meth:`LiveRecording.finish`; nothing is converted at the end.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from simrun.run.commands import Command
 from simrun.world.world import World
 
 if TYPE_CHECKING:
+    from simrun.record.mcap_export import McapStream
     from simrun.serve.loop import SimLoop
 
 
@@ -36,7 +41,7 @@ class LiveRecording:
         scene: The scene file served.
         sensors: Sensors whose readings are kept.
         seed: The sensor seed, recorded.
-        mcap: Also write the finished recording as MCAP here.
+        mcap: Also write the recording as MCAP here, as it is recorded.
 
     Raises:
         SimrunError: The output is refused (an input, a file simrun did not write) or cannot be made.
@@ -57,7 +62,21 @@ class LiveRecording:
             check_output(mcap, inputs=[*scene_files(scene), path], world=world)
         self.path, self.mcap, self.loop = path, mcap, loop
         self.start = float(world.time)
-        self.recorder = Recorder(world, path, scene, [], seed=seed, sensors=sensors, live=True)
+        unknown = [n for n in sensors if n not in world.sensors]  # the recorder's refusal, before any file is made
+        self.stream: McapStream | None = None
+        if mcap is not None and not unknown:
+            from simrun.record.mcap_export import McapStream
+
+            self.stream = McapStream(world, mcap, path, sensors)
+        try:
+            self.recorder = Recorder(world, path, scene, [], seed=seed, sensors=sensors, live=True,
+                                     listener=self.stream)  # fmt: skip
+        except BaseException:
+            if self.stream is not None:
+                self.stream.discard()
+            raise
+        if self.stream is not None:
+            self.stream.start()
         self.active = True
         self.written: list[Path] = []
 
@@ -86,10 +105,10 @@ class LiveRecording:
             return self.written
         self.active = False
         self.written = [self.path]
-        self.recorder.close()  # raises the failure that ended it early; the file stays
-        if self.mcap is not None:
-            from simrun.record.mcap_export import export_mcap
-
-            export_mcap(self.path, self.mcap)
-            self.written.append(self.mcap)
+        try:
+            self.recorder.close()  # raises the failure that ended it early; the file stays
+        finally:
+            if self.stream is not None:
+                self.written.append(self.stream.out)
+                self.stream.close()  # its summary (raises why it ended early; its whole chunks stay)
         return self.written
