@@ -157,3 +157,20 @@ def test_a_webcam_session_records_one_image_per_rendered_frame_and_writes_its_mc
     print(f"\nwebcam {seconds:g} s: simlog {record.stat().st_size} B, mcap {mcap.stat().st_size} B, images per "
           f"second {min(per_second)}-{max(per_second)} ({len(images)} in all), wall {wall:.1f} s "
           f"(stop {time.monotonic() - stopping:.1f} s)")  # fmt: skip
+
+
+def test_a_recording_started_while_the_world_runs_writes_the_mcap_of_its_own_export(tmp_path):
+    scene = _scene(tmp_path)
+    record = tmp_path / "run.simlog"
+    args = ["--lockstep", "--record", str(record), "--record-as", "mcap", "--record-sensors", SENSORS]
+    with serve(scene, *args) as server:
+        _drive(server, 1)
+        server.post("/api/recording/stop")
+        _drive(server, 1)
+        assert server.post("/api/recording/start")["path"] == str(tmp_path / "run-2.simlog")
+        _drive(server, 2)
+    exported = tmp_path / "exported.mcap"
+    export_mcap(tmp_path / "run-2.simlog", exported)
+    live, truth = _messages(tmp_path / "run-2.mcap"), _messages(exported)
+    assert sorted(live) == sorted(truth) and all(live[t] == truth[t] for t in truth)
+    assert live["/clock"][0][0] == round(2.0e9) and len(live["/clock"]) == pytest.approx(2 * 50, abs=1)
