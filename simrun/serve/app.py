@@ -6,6 +6,7 @@ nested at most :data:`MAX_DEPTH` deep, sent as ``application/json`` (empty bodie
 web sites' plain form and ``text/plain`` posts out); ``NaN`` and ``Infinity`` are refused, and every number
 must lie in the range its route's schema gives (:func:`check_numbers`). The routes and their schemas are in
 ``GET /openapi.json`` (:mod:`simrun.serve.openapi`), versioned by :data:`simrun.serve.openapi.API_VERSION`.
+Each client address has a request budget (:class:`simrun.serve.request_budget.RequestBudget`: 429 beyond).
 
 Access (:class:`Guard`, the rules of :mod:`simrun.serve.access`): every request and WebSocket handshake
 must name this server in ``Host`` (a DNS-rebinding page cannot reach it), come from the server's own
@@ -38,6 +39,7 @@ from simrun.serve.edit_routes import edit_routes
 from simrun.serve.images import FORMATS, encode_jpeg_bytes, encode_png, image_of
 from simrun.serve.loop import CALL_TIMEOUT, MAX_RATE, MAX_STEPS, MIN_RATE, SimLoop, Subscriber
 from simrun.serve.openapi import API_VERSION, MAX_ARGUMENT, openapi_document
+from simrun.serve.request_budget import RequestBudget
 
 #: Largest request body, bytes.
 MAX_BODY = 64 * 1024
@@ -469,7 +471,8 @@ def create_app(
 
     async def refused(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, RequestError)
-        return JSONResponse(exc.body(), exc.status)
+        retry = {"Retry-After": "1"} if exc.status in (429, 503) else None  # a budget or a busy loop: try again
+        return JSONResponse(exc.body(), exc.status, headers=retry)
 
     async def http_error(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, HTTPException)
@@ -518,4 +521,5 @@ def create_app(
             Exception: internal,
         },
     )
-    return Guard(app, access)
+    # a client's flood is refused before anything else runs (in real time; a lockstep world waits for its clients)
+    return RequestBudget(Guard(app, access), applies=lambda: not loop.options.lockstep)
