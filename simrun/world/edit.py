@@ -37,7 +37,8 @@ import numpy as np
 
 from simrun.errors import EntityError, SimrunError
 from simrun.safeio import FileReadError, check_regular
-from simrun.world.edit_carry import _bound_to, carry_kinematics, carry_state
+from simrun.world.edit_carry import _bound_to, bind_now, carry_kinematics, carry_state, rebuild_sensor, rebuild_service
+from simrun.world.edit_errors import EditError as EditError  # re-exported: simrun.world.edit.EditError
 from simrun.world.entity import Entity
 from simrun.world.pose import Pose
 from simrun.world.registry import (
@@ -57,20 +58,6 @@ MAX_BATCH = 100
 FILE_KEYS = ("texture", "image", "urdf", "asset", "visual_mesh", "file")
 #: Keys of a table an edit cannot change (remove the entity and insert it again instead).
 FIXED = ("type", "name", "parent")
-
-
-class EditError(EntityError):
-    """An edit simrun or MuJoCo refused; the world is as it was before.
-
-    Attributes:
-        key: The field refused (``entity.mass``, ``entities[2].pose.position[1]``, ``name``); ``None``: the edit.
-        reason: ``invalid`` (a bad value: HTTP 422), ``missing`` (no such entity, service or sensor: 404) or
-            ``conflict`` (a name taken, a binding that cannot go: 409).
-    """
-
-    def __init__(self, message: str, key: str | None = None, entity: str | None = None, reason: str = "invalid"):
-        super().__init__(message, key=key, entity=entity)
-        self.reason = reason
 
 
 def _join(prefix: str, path: KeyPath) -> str:
@@ -214,8 +201,6 @@ class Edit:
         w.controllers[:] = self.controllers
         w.assets.clear()
         w.assets.update(self.assets)
-        from simrun.world.edit_bindings import bind_now
-
         for key, service in self.bound.items():  # bound to the old model again, as they were
             bind_now(service, self.model)
             service.restore(self.snapshots[key])
@@ -247,7 +232,6 @@ class Edit:
         mujoco.mj_forward(model, data)
         carry_kinematics(self.model, self.data, model, data, set(fresh))
         rebuilt = set(rebuilt)
-        from simrun.world.edit_bindings import bind_now, rebuild_sensor, rebuild_service
 
         # a service meeting a new model takes it for a restart at time 0 (a DriveService zeroes its odometry, a
         # JointService forgets what it holds), which an edit is not: each is bound now and restored; one bound

@@ -4,13 +4,21 @@
 activations) from the running ``MjData`` into the one of the new model, matching joints, actuators, bodies
 and equalities by name; :func:`carry_kinematics` copies the bodies' derived frames as the last step left
 them. Bodies named *fresh* (an inserted entity, one given a new pose) keep the new model's initial values.
+Services and sensors cross too: :func:`bind_now` binds a service to the new model before it is restored,
+:func:`rebuild_service` / :func:`rebuild_sensor` build one again in its place, restored from its snapshot.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
+
+from simrun.errors import SimrunError
+from simrun.world.edit_errors import EditError
+
+if TYPE_CHECKING:
+    from simrun.world.world import World
 
 
 def _bound_to(target: Any, names_: set[str]) -> bool:
@@ -107,3 +115,68 @@ def carry_kinematics(
         for field in _KINEMATICS:
             if not (above_fresh and field == "subtree_com"):
                 getattr(data, field)[i] = getattr(old, field)[k]
+
+
+def bind_now(service: Any, model: Any) -> None:
+    """Bind a service (and the JointService an ArmService wraps) to ``model`` now, before it is restored.
+
+    A service meeting a model at its next tick takes it for a restart at time 0 (a ``DriveService`` zeroes
+    its odometry, a ``JointService`` forgets what it holds); bound now (their ``_lookup``, the services' own
+    binding step) and then restored from a snapshot, it continues as it was.
+    """
+    for target in (service, getattr(service, "joint_service", None)):
+        lookup = getattr(target, "_lookup", None)
+        if callable(lookup):
+            lookup(model)
+
+
+def rebuild_service(world: World, kind: str, entity: str, snapshot: dict[str, Any] | None = None) -> Any:
+    """Build a bound service again from its binding, in its place among the controllers, restored.
+
+    ``snapshot``: the state to restore (taken before the model changed); ``None``: the old service's now.
+    """
+    old = world._bound.pop((kind, entity), None)
+    if old is None:
+        return world.service(kind, entity)
+    index = next(k for k, c in enumerate(world.controllers) if c is old)
+    world.controllers.pop(index)
+    try:
+        new = world.service(kind, entity)
+    except SimrunError as exc:
+        message = f"{kind} of {entity!r} cannot drive the edited entity: {exc.message or exc}"
+        raise EditError(message, key="entity") from None
+    world.controllers.remove(new)
+    world.controllers.insert(index, new)
+    bind_now(new, world.model)
+    new.restore(old.snapshot() if snapshot is None else snapshot)
+    return new
+
+
+def rebuild_sensor(world: World, name: str, spec: dict[str, Any], keep_noise: bool = True) -> Any:
+    """Build a sensor again from ``spec`` in its place (sensors, specs, controllers), restored from its snapshot.
+
+    ``keep_noise``: the noise generator continues its stream (else it starts from the spec's ``seed``).
+    """
+    old = world.sensors[name]
+    order = list(world.sensors)
+    spec_index = next(k for k, s in enumerate(world.sensor_specs) if s.get("name") == name)
+    index = next(k for k, c in enumerate(world.controllers) if c is old)
+    del world.sensors[name]
+    world.sensor_specs.pop(spec_index)
+    world.controllers.pop(index)
+    snapshot = old.snapshot()
+    try:
+        new = world.add_sensor(spec)
+    except (SimrunError, TypeError, ValueError) as exc:
+        raise EditError(str(exc).removeprefix(f"sensor {name!r}: "), key=None, entity=name) from None
+    world.controllers.remove(new)
+    world.controllers.insert(index, new)
+    world.sensor_specs.insert(spec_index, world.sensor_specs.pop())
+    sensors = dict(world.sensors)
+    world.sensors.clear()
+    world.sensors.update({n: sensors[n] for n in order})
+    if not keep_noise:
+        snapshot["rng"] = new.snapshot()["rng"]
+    new.restore(snapshot)
+    new.reading = old.reading
+    return new
