@@ -339,4 +339,4 @@ def test_a_recorded_session_with_five_edits_re_simulates_bit_identically(tmp_pat
     html = tmp_path / "run.html"
     done = subprocess.run([SIMRUN, "replay", str(record), "--html", str(html)], capture_output=True, text=True,
                           timeout=300, env=env)  # fmt: skip
-    assert done.returncode == 1 and "edited" in done.stderr and not html.exists(), done.stderr
+    assert done.returncode == 0 and html.stat().st_size > 0, done.stderr  # the edited world (test_replay_edits)

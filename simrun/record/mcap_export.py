@@ -94,6 +94,7 @@ def _write(world: Any, log: Simlog, out: Path) -> McapSummary:
     import foxglove
     from PIL import Image
 
+    from simrun.record.replay_edits import edited_states, has_edits
     from simrun.services.drive_service import DriveService
 
     for name in log.header["sensors"]:
@@ -106,10 +107,14 @@ def _write(world: Any, log: Simlog, out: Path) -> McapSummary:
         writer = _open(tmp, context)
         channels = FoxgloveChannels(world, context, sensors=log.header["sensors"])
         drives = [(k, c.name) for k, c in enumerate(world.controllers) if isinstance(c, DriveService)]
-        checkpoints = {round(r.time, 9): r.controllers for r in log.records() if r.kind == CHECKPOINT}
-        for t in replay_states(world, log):
+        edited = has_edits(log)  # simrun serve --edit: the edits applied as the frames come, channels following
+        checkpoints = {round(r.time, 9): r.controllers for r in log.records(edits=edited) if r.kind == CHECKPOINT}
+        recorded = world.model
+        for t in (edited_states if edited else replay_states)(world, log):
+            channels.refresh()
             channels.frame()
-            snaps = checkpoints.get(round(t, 9)) or []
+            # odometry from the checkpoints' snapshots, by controller index: only while no edit changed the model
+            snaps = (checkpoints.get(round(t, 9)) or []) if world.model is recorded else []
             for k, name in drives if snaps else ():
                 if k < len(snaps) and "odom" in snaps[k]:
                     channels.odometry(name, t, snaps[k]["odom"])

@@ -1,7 +1,9 @@
 """Write a ``.simlog`` as files anyone can watch: animated GLB / glTF, animated USD, an HTML player.
 
 One kinematic replay of the recording (each frame's state through ``mj_forward``, in the recorded scene,
-refused when the scene changed since) feeds every output. ``simrun replay --glb/--gltf/--usd/--html`` and
+refused when the scene changed since) feeds every output; a recording with edits (``simrun serve --edit``) is
+replayed with its edits applied and shows every body for its lifetime
+(:mod:`simrun.record.replay_edits`). ``simrun replay --glb/--gltf/--usd/--html`` and
 ``simrun play --record RUN.simlog --record-as glb,html`` call :func:`export_recording`.
 """
 
@@ -15,6 +17,7 @@ from meshtool.files.safeopen import printable
 from meshtool.formats import check_suffix, output_named
 from simrun.errors import SimrunError
 from simrun.outfile import refuse_inputs, scene_files, write_bytes, write_text
+from simrun.record.replay_edits import edited_gltf, edited_replay
 from simrun.record.replay_glb import recording_gltf
 from simrun.record.replay_html import recording_html, viewer_bundle
 from simrun.record.replay_tracks import animation_keys, read_tracks
@@ -89,7 +92,10 @@ def export_recording(
         world.compile()
         check_model(recording, world)
         refuse_inputs(outputs.values(), inputs=[log_path, *scene_files(scene)], world=world)  # before any is written
-        tracks = read_tracks(world, recording)
+        edited = edited_replay(scene, recording)  # simrun serve --edit: the edited world (replay_edits)
+        if edited is not None:
+            world = edited.world
+        tracks = read_tracks(world, recording) if edited is None else edited.tracks
     finally:
         recording.close()
     keys = animation_keys(tracks, fps, tolerance, tolerance)
@@ -97,14 +103,16 @@ def export_recording(
     written = []
     for kind, path in outputs.items():
         start = time.perf_counter()
+        gltf = (lambda: recording_gltf(world, tracks, keys)) if edited is None else (lambda: edited_gltf(edited, keys))
         if kind == "glb":
-            write_bytes(path, recording_gltf(world, tracks, keys).glb())
+            write_bytes(path, gltf().glb())
         elif kind == "gltf":
-            write_bytes(path, recording_gltf(world, tracks, keys).gltf())
+            write_bytes(path, gltf().gltf())
         elif kind == "usd":
-            export_recording_usd(world, tracks, keys, path)
+            export_recording_usd(world, tracks, keys, path, None if edited is None else edited.alive)
         else:
-            write_text(path, recording_html(world, tracks, keys, printable(log_path.stem)))  # bytes as \xNN
+            glb = None if edited is None else gltf().glb()
+            write_text(path, recording_html(world, tracks, keys, printable(log_path.stem), glb))  # bytes as \xNN
         seconds = time.perf_counter() - start
         written.append(Written(path, path.stat().st_size, seconds, count))
     return written

@@ -197,7 +197,7 @@ def _camera(tracks: Tracks, moving: list[int]) -> dict[str, Any]:
     }
 
 
-def recording_html(world: World, tracks: Tracks, keys: dict[int, I64], title: str) -> str:
+def recording_html(world: World, tracks: Tracks, keys: dict[int, I64], title: str, glb: bytes | None = None) -> str:
     """The page (see the module) for ``tracks`` keyed at ``keys``.
 
     Args:
@@ -205,12 +205,14 @@ def recording_html(world: World, tracks: Tracks, keys: dict[int, I64], title: st
         tracks: Every body's pose per frame (:func:`simrun.record.replay_tracks.read_tracks`).
         keys: Keyframe indices per moving body.
         title: Shown as the page's title and heading (the recording's name).
+        glb: The animation to embed (an edited recording's, :func:`simrun.record.replay_edits.edited_gltf`);
+            ``None``: :func:`simrun.record.replay_glb.recording_gltf` of ``tracks``.
 
     Raises:
         SimrunError: The viewer bundle is missing, or the world has nothing to show.
     """
     viewer = viewer_bundle()
-    glb = recording_gltf(world, tracks, keys).glb()
+    glb = recording_gltf(world, tracks, keys).glb() if glb is None else glb
     moving = sorted(keys)
     labels = _labels(world.model, moving)
     camera = _camera(tracks, moving)

@@ -19,6 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from meshtool.export.usd_write import UsdBuilder
 from simrun.export.usd import export_world_usd
@@ -37,7 +38,9 @@ def time_code(seconds: float, per_second: float) -> float:
     return round(seconds * per_second, 6)
 
 
-def export_recording_usd(world: World, tracks: Tracks, keys: dict[int, I64], out: Path) -> None:
+def export_recording_usd(
+    world: World, tracks: Tracks, keys: dict[int, I64], out: Path, alive: npt.NDArray[np.bool_] | None = None
+) -> None:
     """Write the animated stage (see the module) to ``out`` (``.usd``, ``.usda`` or ``.usdc``).
 
     Args:
@@ -45,6 +48,9 @@ def export_recording_usd(world: World, tracks: Tracks, keys: dict[int, I64], out
         tracks: Every body's pose per frame (:func:`simrun.record.replay_tracks.read_tracks`).
         keys: Keyframe indices per moving body.
         out: The output file.
+        alive: (frames, bodies) whether each body exists at each frame (an edited recording's,
+            :mod:`simrun.record.replay_edits`): a body that does not exist throughout gets ``visibility``
+            time samples, ``invisible`` outside its lifetime and ``inherited`` inside (held, not interpolated).
 
     Raises:
         SimrunError: An unsupported extension or a failed write.
@@ -59,6 +65,12 @@ def export_recording_usd(world: World, tracks: Tracks, keys: dict[int, I64], out
             if b == 0:
                 continue
             prim = usd.stage.GetPrimAtPath(path)
+            if alive is not None and not alive[:, b].all():
+                life = alive[:, b]
+                visibility = UsdGeom.Imageable(prim).CreateVisibilityAttr()
+                for k in [0, *(np.flatnonzero(life[1:] != life[:-1]) + 1).tolist()]:
+                    shown = UsdGeom.Tokens.inherited if life[k] else UsdGeom.Tokens.invisible
+                    visibility.Set(shown, time_code(float(tracks.times[k]), rate))
             frames = keys.get(b)
             if frames is None:
                 translate, orient = UsdGeom.Xformable(prim).GetOrderedXformOps()[:2]

@@ -103,6 +103,8 @@ class Simlog:
         self.truncated: str | None = None
         self._end = self._size
         self._recorded = 0  # command records of a chunked recording
+        #: Edit records (``simrun serve --edit``) of a chunked recording, counted when it is opened.
+        self.edits = 0
         self._check_header()
         self.state_size = int(header["state_size"])
         self.timestep = float(header["timestep"])
@@ -197,6 +199,7 @@ class Simlog:
             while at + 5 <= len(body):
                 kind, length = struct.unpack("<BI", body[at : at + 5])
                 self._recorded += kind == COMMAND
+                self.edits += kind == EDIT
                 at += 5 + length
             if at != len(body):
                 raise SimlogError(f"{self.path}: byte {offset + at}: a record runs past the end of its chunk")
@@ -279,8 +282,8 @@ class Simlog:
         return [r.command for r in self.events() if r.kind == COMMAND]
 
     def sensor_readings(self) -> Iterator[tuple[float, dict[str, Any]]]:
-        """The recorded sensor readings: (time, {sensor name: reading as plain data})."""
-        for record in self.records(sensors=True):
+        """The recorded sensor readings: (time, {sensor name: reading as plain data}; edits do not change them)."""
+        for record in self.records(sensors=True, edits=True):
             yield record.time, (record.controllers or [{}])[0]
 
     def images(self) -> Iterator[tuple[float, str, str, bytes]]:
@@ -327,8 +330,11 @@ class Simlog:
             counts[f"images.{name}"] = counts.get(f"images.{name}", 0) + 1
         return counts
 
-    def records(self, sensors: bool = False) -> Iterator[Record]:
+    def records(self, sensors: bool = False, edits: bool = False) -> Iterator[Record]:
         """Every frame and checkpoint record in order (or, with ``sensors``, the sensor records).
+
+        A recording with edits is refused unless ``edits`` (the caller applies them:
+        :func:`simrun.record.replay_edits.edited_states`; frames after an edit are of the edited model).
 
         Raises:
             SimlogError: A truncated or malformed record, a non-finite state or time, or times that do not
@@ -336,8 +342,8 @@ class Simlog:
         """
         wanted = (SENSORS,) if sensors else (FRAME, CHECKPOINT)
         for record in self.events():
-            if record.kind == COMMAND and not isinstance(record.command, Command):  # an edit: frames after it
-                # are of another model than the scene's
+            if not edits and record.kind == COMMAND and not isinstance(record.command, Command):  # an edit: the
+                # frames after it are of another model than the scene's
                 raise SimlogError(
                     f"{self.path}: the world was edited at t = {record.time:g} s (simrun serve --edit): replay "
                     "exports do not show an edited world yet; simrun resim re-simulates it"
