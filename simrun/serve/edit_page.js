@@ -60,10 +60,21 @@
     if (error) ed.error = text;
     if (box) { box.textContent = text; box.className = error ? "error" : ""; }
   };
+  // An edit the server's budget refuses (429: too many edits, or edits took their share of the loop) did not
+  // run: it is sent again after the Retry-After the server gives, a few times, before the page gives up.
+  const RETRIES = 15; // a recompile that took 2 s spends the 20 % share for 10 s (simrun/serve/edit_routes.py Budget)
   async function call(method, path, body) {
     ed.busy += 1;
     try {
-      return await v.api(method, path, body);
+      for (let attempt = 0; ; attempt += 1) {
+        try {
+          return await v.api(method, path, body);
+        } catch (error) {
+          if (error.status !== 429 || attempt >= RETRIES) throw error;
+          message("the server is busy: sending it again in " + Math.max(1, error.retryAfter) + " s");
+          await new Promise((resolve) => setTimeout(resolve, 1000 * Math.max(1, error.retryAfter)));
+        }
+      }
     } catch (error) {
       message(error.message, true);
       throw error;

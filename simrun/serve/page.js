@@ -33,7 +33,12 @@
       method, headers: headers(body !== undefined), body: body === undefined ? undefined : JSON.stringify(body),
     });
     const answer = await response.json().catch(() => ({ error: "HTTP " + response.status }));
-    if (!response.ok) throw new Error((answer.field ? answer.field + ": " : "") + answer.error);
+    if (!response.ok) {
+      const error = new Error((answer.field ? answer.field + ": " : "") + answer.error);
+      error.status = response.status; // 429 / 503 come with Retry-After (seconds): the request did not run
+      error.retryAfter = Number(response.headers.get("Retry-After")) || 0;
+      throw error;
+    }
     return answer;
   }
 
