@@ -330,7 +330,6 @@ def test_a_recorded_session_with_five_edits_re_simulates_bit_identically(tmp_pat
     done = subprocess.run([SIMRUN, "resim", str(record)], capture_output=True, text=True, timeout=300, env=env)
     assert done.returncode == 0 and "bit-identical" in done.stdout, done.stdout + done.stderr
     from simrun.record.simlog import Simlog
-
     from simrun.world.edit_apply import EditRecord
 
     log = Simlog(record)

@@ -283,9 +283,7 @@ def edit_paths() -> dict[str, Any]:
         name + "/force": {"post": op("Push a body with a force and torque for a duration.", "force")},
         "/api/edit": {"get": _op("Whether edits are allowed, the limits and every registered type's schema.")},
         "/api/edit/log": {"get": _op("The session's edits: {edits: [{t (simulated s), kind, args}]}, in order.")},
-        "/api/edit/undo": {
-            "post": op("Undo the last edit (a push has none: 409; the one before is next).", "remove")
-        },
+        "/api/edit/undo": {"post": op("Undo the last edit (a push has none: 409; the one before is next).", "remove")},
         "/api/edit/world": {"post": op("Change the world's gravity.", "world")},
         "/api/edit/save": {"post": _op("The world as scene TOML ({toml}), at current poses.", body["save"])},
         "/api/edit/save-entities": {
