@@ -11,30 +11,23 @@ from pathlib import Path
 
 import mujoco
 import pytest
+from scene_text import boebot_scene
 from serve_helpers import CHECKOUT, serve
 
 from simrun.client import Client, ClientError
 from simrun.run.session import prepare
 from simrun.scene.scene_file import load_scene
 
-SCENE = """[world]
-timestep = 0.002
-
-[[entities]]
-type = "Ground"
-name = "ground"
-
-[[entities]]
-type = "BoeBot"
-name = "boebot"
-pose = { position = [0.0, 0.0, 0.001] }
-
+SCENE = boebot_scene(
+    drive=False,
+    entities="""
 [[entities]]
 type = "MjcfRobot"
 name = "arm"
 file = "arm/arm.xml"
 pose = { position = [0.0, 2.0, 0.0] }
-"""
+""",
+)
 
 
 def _scene(tmp_path: Path) -> Path:

@@ -15,6 +15,7 @@ import time
 from typing import Any
 
 import pytest
+from scene_text import boebot_scene
 from serve_helpers import serve
 from test_foxglove_client import _decoder
 
@@ -22,18 +23,8 @@ from simrun.client import Client
 
 pytest.importorskip("google.protobuf", reason="pip install protobuf (mcap-protobuf-support brings it)")
 
-SCENE = """[world]
-timestep = 0.002
-
-[[entities]]
-type = "Ground"
-name = "ground"
-
-[[entities]]
-type = "BoeBot"
-name = "boebot"
-pose = { position = [0.0, 0.0, 0.001] }
-
+SCENE = boebot_scene(
+    entities="""
 [[entities]]
 type = "Box"
 name = "crate"
@@ -41,11 +32,8 @@ free = true
 mass = 2.0
 dimensions = [0.2, 0.2, 0.2]
 pose = { position = [1.0, 0.0, 0.1] }
-
-[[services]]
-type = "DriveService"
-entity = "boebot"
 """
+)
 BEFORE = {"/clock", "/tf", "/tf_static", "/scene", "/boebot/pose", "/boebot/joint_states", "/boebot/odometry"}
 BOT2 = {"/bot2/pose", "/bot2/joint_states", "/bot2/odometry", "/sensors/imu2"}
 

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scene_text import boebot_scene
 from serve_helpers import SIMRUN, serve
 from test_replay_export import _gltf, _read, _validate
 
@@ -25,29 +26,16 @@ from simrun.client import Client
 from simrun.record.simlog import Simlog
 from simrun.world.edit_apply import EditRecord
 
-SCENE = """[world]
-timestep = 0.002
-
-[[entities]]
-type = "Ground"
-name = "ground"
-
-[[entities]]
-type = "BoeBot"
-name = "boebot"
-pose = { position = [0.0, 0.0, 0.001] }
-
+SCENE = boebot_scene(
+    entities="""
 [[entities]]
 type = "Box"
 name = "old"
 free = true
 dimensions = [0.1, 0.1, 0.1]
 pose = { position = [0.0, -1.0, 0.05] }
-
-[[services]]
-type = "DriveService"
-entity = "boebot"
 """
+)
 CRATE = {"type": "Box", "name": "crate", "dimensions": [0.2, 0.2, 0.2], "mass": 2.0, "free": True,
          "pose": {"position": [1.0, 0.0, 0.1]}}  # fmt: skip
 

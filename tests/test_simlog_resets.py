@@ -15,6 +15,7 @@ from pathlib import Path
 import mujoco
 import pytest
 from click.testing import CliRunner
+from scene_text import boebot_scene
 from serve_helpers import SIMRUN, serve
 
 from simrun.cli.main import main
@@ -33,27 +34,15 @@ UNSTABLE_MJCF = """<mujoco model="unstable">
   </actuator>
 </mujoco>
 """
-SCENE = """[world]
-timestep = 0.002
-
-[[entities]]
-type = "Ground"
-name = "ground"
-
-[[entities]]
-type = "BoeBot"
-name = "boebot"
-pose = { position = [1.0, 1.0, 0.001] }
-
-[[services]]
-type = "DriveService"
-entity = "boebot"
-
+SCENE = boebot_scene(
+    (1.0, 1.0),
+    tail="""
 [[entities]]
 type = "MjcfRobot"
 name = "wobbly"
 file = "unstable.xml"
-"""
+""",
+)
 COMMANDS = """[[commands]]
 t = 0.5
 entity = "boebot"
