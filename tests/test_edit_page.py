@@ -270,3 +270,62 @@ def test_a_child_entity_moves_relative_to_its_parent(browser) -> None:  # type: 
         assert np.allclose(box1["pose"], box0["pose"], atol=1e-3)  # the parent stays
         assert not errors, errors
         page.close()
+
+
+SENSOR_SCENE = """[[entities]]
+type = "Ground"
+name = "ground"
+
+[[entities]]
+type = "BoeBot"
+name = "boebot"
+pose = { position = [0.0, 0.0, 0.001] }
+
+[[services]]
+type = "DriveService"
+entity = "boebot"
+rate = 25.0
+
+[[sensors]]
+type = "Bumper"
+name = "bump"
+entity = "boebot"
+rate = 40.0
+"""
+
+
+def test_the_pane_shows_a_sensors_and_a_services_current_settings_and_a_changed_rate(browser, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    scene = tmp_path / "bump.toml"
+    scene.write_text(SENSOR_SCENE)
+    with serve(scene, "--edit") as server:
+        page, errors = _open(browser, server)
+        page.click("#edit-tree button[data-name='boebot']")
+        page.wait_for_function(f"{ED}.item && {ED}.item.name === 'boebot'", timeout=20_000)
+        rate = page.locator("#edit-props details[data-binding='sensor:bump'] input[data-key='rate']")
+        drive = page.locator("#edit-props details[data-binding='service:DriveService'] input[data-key='rate']")
+        # the scene's values, not the types' defaults (50 Hz each), and not greyed as defaults
+        assert rate.input_value() == "40" and "default" not in (rate.get_attribute("class") or "")
+        assert drive.input_value() == "25" and "default" not in (drive.get_attribute("class") or "")
+        unset = page.locator("#edit-props details[data-binding='sensor:bump'] input[data-key='geom']")
+        assert "default" in (unset.get_attribute("class") or "")  # a key the table lacks: its default, greyed
+        # change the sensor's rate in the pane: the server's sensor has it, and the pane built again shows it
+        page.click("#edit-props details[data-binding='sensor:bump'] summary")
+        edits = page.evaluate(f"{ED}.edits")
+        rate.fill("12.5")
+        rate.dispatch_event("change")
+        _until(lambda: server.get("/api/entities/boebot")["sensor_settings"]["bump"]["rate"], lambda r: r == 12.5)
+        page.wait_for_function(f"{ED}.edits > {edits}", timeout=30_000)
+        _settled(page)
+        assert server.get("/api/sensors")[0]["rate_hz"] == pytest.approx(12.5)  # the live sensor's period
+        again = page.locator("#edit-props details[data-binding='sensor:bump']")
+        assert again.get_attribute("open") is not None  # still open after the pane was built again
+        assert rate.input_value() == "12.5" and "default" not in (rate.get_attribute("class") or "")
+        # a change from another client shows when the entity is selected again
+        server.request("PATCH", "/api/edit/sensors/bump", {"rate": 8.0})
+        page.click("#edit-tree button[data-name='ground']")
+        page.wait_for_function(f"{ED}.item && {ED}.item.name === 'ground'", timeout=20_000)
+        page.click("#edit-tree button[data-name='boebot']")
+        page.wait_for_function(f"{ED}.item && {ED}.item.name === 'boebot'", timeout=20_000)
+        assert rate.input_value() == "8"
+        assert page.evaluate(f"{ED}.error") == "" and not errors, errors
+        page.close()

@@ -339,3 +339,25 @@ def test_a_recorded_session_with_five_edits_re_simulates_bit_identically(tmp_pat
     done = subprocess.run([SIMRUN, "replay", str(record), "--html", str(html)], capture_output=True, text=True,
                           timeout=300, env=env)  # fmt: skip
     assert done.returncode == 0 and html.stat().st_size > 0, done.stderr  # the edited world (test_replay_edits)
+
+
+def test_an_entitys_sensor_and_service_settings_are_read_back_as_changed(tmp_path):
+    """GET /api/entities/NAME gives each sensor's and service's table now; the sample count agrees with the rate."""
+    with serve(_scene(tmp_path), "--lockstep", "--edit") as server:
+        sim = Client(server.url)
+        bot = sim.entity("boebot")
+        assert bot["sensor_settings"]["bump"]["rate"] == 50.0  # the scene's table
+        assert bot["service_settings"]["DriveService"] == {"type": "DriveService", "entity": "boebot"}
+        sim.step(seconds=1.0)
+        first = sim.sensor("bump")["samples"]
+        assert sim.change_sensor("bump", rate=20.0)["sensor"]["rate"] == 20.0
+        sim.change_service("DriveService", "boebot", limits={"max_linear": 0.3}, rate=25.0)
+        bot = sim.entity("boebot")
+        assert bot["sensor_settings"]["bump"]["rate"] == 20.0
+        assert bot["service_settings"]["DriveService"]["limits"] == {"max_linear": 0.3}
+        assert bot["service_settings"]["DriveService"]["rate"] == 25.0
+        sim.step(seconds=2.0)
+        after = sim.sensor("bump")
+        # ground truth: the sensor's own count over 1 s at 50 Hz, then 2 s at the new 20 Hz
+        assert first == 50 and after["samples"] - first == 40, (first, after)
+        assert sim.entity("ground")["sensor_settings"] == {} and sim.entity("ground")["service_settings"] == {}

@@ -1,6 +1,7 @@
 // simrun serve's edit mode (issue 40): the entity tree; a property pane built from the entity type's schema
 // (GET /api/entities/NAME: every key that can change has a field, with its unit and default), and the settings
-// of the services and sensors bound to it; a "new entity" dialog built from the registry (GET /api/edit: type,
+// of the services and sensors bound to it (their current values: service_settings, sensor_settings of the same
+// answer); a "new entity" dialog built from the registry (GET /api/edit: type,
 // name, parent, parameters with units and defaults); click a body in the 3D view to select its entity; move and
 // rotate handles (three.js TransformControls); delete; save the scene; save / load entities; undo (the server's
 // POST /api/edit/undo). After an edit that rebuilds the world the page loads /api/scene.glb again, so new and
@@ -401,31 +402,41 @@
     const round = (list) => list.map((x) => Math.round(x * 1e6) / 1e6);
     if (!item.parent && item.pose) shownValues.pose = { position: round(item.pose.slice(0, 3)), orientation: round(item.pose.slice(3, 7)) };
     pane.appendChild(form(keys, shownValues, (path, value) => changeEntity(item, path, value)));
+    const serviceNow = item.service_settings || {}, sensorNow = item.sensor_settings || {};
     for (const kind of item.services || []) {
       const schema = types.services.find((t) => t.type === kind);
-      if (schema) pane.appendChild(binding("service " + kind, schema, "/api/edit/services/" + kind + "/" + segments(item.name)));
+      if (schema) pane.appendChild(binding("service:" + kind, "service " + kind, schema, serviceNow[kind],
+        "/api/edit/services/" + kind + "/" + segments(item.name)));
     }
     for (const sensor of item.sensors || []) {
       const known = ed.sensors.find((s) => s.name === sensor);
       const schema = known && types.sensors.find((t) => t.type === known.type);
-      if (schema) pane.appendChild(binding("sensor " + sensor + " (" + known.type + ")", schema, "/api/edit/sensors/" + encodeURIComponent(sensor)));
+      if (schema) pane.appendChild(binding("sensor:" + sensor, "sensor " + sensor + " (" + known.type + ")", schema,
+        sensorNow[sensor], "/api/edit/sensors/" + encodeURIComponent(sensor)));
     }
     attachHandles();
   }
-  // a service's or sensor's settings (the server lists no current values: the fields show the defaults)
-  function binding(title, schema, path) {
+  // a service's or sensor's settings: `current` is its table now (a key it lacks shows its default, greyed);
+  // a settings box left open stays open when the pane is built again after a change
+  const opened = new Set();
+  function binding(id, title, schema, current, path) {
     const box = document.createElement("details");
+    box.dataset.binding = id;
+    box.open = opened.has(id);
+    box.addEventListener("toggle", () => { if (box.open) opened.add(id); else opened.delete(id); });
     const summary = document.createElement("summary");
     summary.textContent = title;
     box.appendChild(summary);
     const fixed = new Set(schema.fixed || []);
     const keys = schema.keys.filter((k) => !fixed.has(k.name));
-    box.appendChild(form(keys, {}, async (keyPath, value) => {
+    box.appendChild(form(keys, current || {}, async (keyPath, value) => {
       try {
         await call("PATCH", path, nested(keyPath, value));
         message("changed " + title + " " + keyPath.join("."));
         await edited(false);
-      } catch (error) { /* shown */ }
+      } catch (error) {
+        await renderPane(); // the refusal is shown; the fields show the values the server kept
+      }
     }));
     return box;
   }

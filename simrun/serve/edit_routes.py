@@ -1,12 +1,12 @@
 """The editor's routes of ``simrun serve``: list, insert, change, remove, move and push entities; save and load.
 
 Reading is always allowed: ``GET /api/entities`` (every entity with its current values and world pose),
-``GET /api/entities/NAME`` (one, with its type's schema), ``GET /api/edit`` (whether edits are allowed, the
-limits, and the schema of every registered type for a "new entity" dialog), ``POST /api/edit/save`` and
-``/api/edit/save-entities`` (scene text). Every other route changes the world and is refused (403) unless the
-server runs with ``--edit``, recorded when a recording runs (an edit record of the ``.simlog``, which
-``simrun resim`` applies again at the same step), and limited to :data:`MAX_EDITS_PER_SECOND` and
-:data:`EDIT_SHARE` of the loop thread's time (429 beyond).
+``GET /api/entities/NAME`` (one, with its type's schema and the current settings of its services and sensors),
+``GET /api/edit`` (whether edits are allowed, the limits, and the schema of every registered type for a "new
+entity" dialog), ``POST /api/edit/save`` and ``/api/edit/save-entities`` (scene text). Every other route
+changes the world and is refused (403) unless the server runs with ``--edit``, recorded when a recording runs
+(an edit record of the ``.simlog``, which ``simrun resim`` applies again at the same step), and limited to
+:data:`MAX_EDITS_PER_SECOND` and :data:`EDIT_SHARE` of the loop thread's time (429 beyond).
 
 Each edit runs on the world's loop thread between steps (as a service command does) through
 :mod:`simrun.world.edit`; an edit refused there leaves the world exactly as it was and is answered 404 (no
@@ -119,12 +119,14 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
             before = inverse(world, kind, args) if undoable else None
         except SimrunError:  # the edit itself names the problem
             before = None
+        size_before = int(mujoco.mj_stateSize(world.model, mujoco.mjtState.mjSTATE_INTEGRATION))
         result = apply_edit(world, kind, args)
         record = EditRecord(t, kind, args)
         log.append(record)
+        size = int(mujoco.mj_stateSize(world.model, mujoco.mjtState.mjSTATE_INTEGRATION))
+        loop.edit_history.append((t, record.to_json(), size_before, size))
         recording = loop.recording
         if recording is not None and recording.active:  # a .simlog edit record: simrun resim applies it again
-            size = int(mujoco.mj_stateSize(world.model, mujoco.mjtState.mjSTATE_INTEGRATION))
             recording.recorder.edit(t, record.to_json(), size)
         if undoable:
             undo.append((kind, undo_of(t, kind, args, result, before)))
@@ -194,7 +196,7 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
             except EditError as exc:
                 raise refusal(exc) from None
             item = edit.describe(world, name)
-            return {**item, "schema": edit_schema.type_schema("entities", item["type"])}
+            return {**item, "schema": edit_schema.type_schema("entities", item["type"]), **_settings(world, item)}
 
         return JSONResponse(await run(read))
 
@@ -397,6 +399,22 @@ def edit_routes(loop: SimLoop, run: Run, body: Body) -> list[Route]:
         Route("/api/edit/sensors/{name}", sensor_change, methods=["PATCH"]),
         Route("/api/edit/sensors/{name}", sensor_remove, methods=["DELETE"]),
     ]
+
+
+def _settings(world: World, item: dict[str, Any]) -> dict[str, Any]:
+    """The current settings of an entity's services and sensors: their tables now, as PATCH changed them.
+
+    ``{"service_settings": {TYPE: [[services]] table}, "sensor_settings": {NAME: [[sensors]] table}}``, read
+    from ``world.services`` and ``world.sensor_specs`` (the merged tables each change builds the service or
+    sensor again from); a key a table lacks is at its type's default (``GET /api/edit``). Units as the schema's
+    (``rate`` Hz, ``noise`` in the reading's unit).
+    """
+    services = {s["type"]: s for s in world.services if s.get("entity") == item["name"]}
+    sensors = {s["name"]: s for s in world.sensor_specs if s.get("name") in item["sensors"]}
+    return {
+        "service_settings": {k: edit_schema.json_value(v) for k, v in services.items()},
+        "sensor_settings": {k: edit_schema.json_value(v) for k, v in sensors.items()},
+    }
 
 
 def _offered(world: World) -> tuple[Any, ...]:

@@ -258,6 +258,33 @@ def edit_request_schemas() -> dict[str, dict[str, Any]]:
     }
 
 
+_TABLES = {"type": "object", "additionalProperties": {"type": "object"}}
+#: ``GET /api/entities/NAME``'s answer (simrun/serve/edit_routes.py ``one``).
+_ENTITY = {
+    "type": "object",
+    "properties": {
+        "name": {"type": "string"},
+        "type": {"type": "string"},
+        "parent": {"type": ["string", "null"]},
+        "values": {"type": "object", "description": "Its scene table now."},
+        "pose": {"type": ["array", "null"], "description": "World [x, y, z, qw, qx, qy, qz] now: m, unit quaternion."},
+        "services": {"type": "array", "items": {"type": "string"}, "description": "Types of the services bound to it."},
+        "sensors": {"type": "array", "items": {"type": "string"}, "description": "Names of its sensors."},
+        "schema": {"type": "object", "description": "Its type's keys (GET /api/edit's types.entities[k])."},
+        "service_settings": {
+            **_TABLES,
+            "description": "Service type to its [[services]] table now (as PATCH /api/edit/services changed it);"
+            " a key it lacks is at its default.",
+        },
+        "sensor_settings": {
+            **_TABLES,
+            "description": "Sensor name to its [[sensors]] table now (rate Hz, noise...; as PATCH"
+            " /api/edit/sensors changed it); a key it lacks is at its default.",
+        },
+    },
+}
+
+
 def edit_paths() -> dict[str, Any]:
     """The editor's paths of the document (reading always; changing with ``simrun serve --edit``)."""
     body = edit_request_schemas()
@@ -275,7 +302,11 @@ def edit_paths() -> dict[str, Any]:
             "post": op("Insert an entity ({entity: table}) or a list ({entities: [...]}), under parent.", "insert"),
         },
         name: {
-            "get": _op("One entity, with its type's schema (keys, types, units, defaults, descriptions)."),
+            "get": _op(
+                "One entity, with its type's schema (keys, types, units, defaults, descriptions) and the current"
+                " settings of its services and sensors.",
+                result=_ENTITY,
+            ),
             "patch": op("Change an entity's keys (pose, mass, dimensions, color, material...).", "change"),
             "delete": op("Remove an entity, its children and the services and sensors bound to them.", "remove"),
         },
