@@ -40,8 +40,8 @@ from simrun.errors import SimrunError
 from simrun.record.replay_glb import recording_gltf
 from simrun.record.replay_tracks import I64, Tracks
 from simrun.record.simlog import Simlog, check_model
-from simrun.record.simlog_format import CHECKPOINT, COMMAND, FRAME, STATE, SimlogError
-from simrun.record.simlog_read import MAX_REPLAY_COORDINATE_M
+from simrun.record.simlog_format import CHECKPOINT, COMMAND, FRAME, SimlogError
+from simrun.record.simlog_read import set_frame
 from simrun.scene.scene_file import load_scene
 from simrun.world.world import World
 
@@ -157,16 +157,7 @@ def edited_states(world: World, log: Simlog) -> Iterator[float]:
             continue
         if record.kind not in (FRAME, CHECKPOINT):
             continue
-        model, data = world.model, world.data
-        mujoco.mj_setState(model, data, record.state, STATE)
-        mujoco.mj_forward(model, data)
-        far = np.abs(data.xpos).max(axis=1)
-        if not far.max(initial=0.0) <= MAX_REPLAY_COORDINATE_M:
-            body = model.body(int(np.argmax(~(far <= MAX_REPLAY_COORDINATE_M)))).name
-            raise SimlogError(
-                f"{log.path}: byte {record.offset}: the frame at t = {record.time!r} s puts body {body!r} beyond "
-                f"{MAX_REPLAY_COORDINATE_M:g} m; the recorded state is corrupt"
-            )
+        set_frame(world, log, record)
         yield record.time
 
 

@@ -503,18 +503,28 @@ def replay_states(world: World, log: Simlog) -> Iterator[float]:
             (a corrupt state the watchable outputs cannot hold), naming the frame's time and the body.
     """
     check_model(log, world)
-    model, data = world.model, world.data
     for record in log.records():
-        mujoco.mj_setState(model, data, record.state, STATE)
-        mujoco.mj_forward(model, data)
-        far = np.abs(data.xpos).max(axis=1)
-        if not far.max(initial=0.0) <= MAX_REPLAY_COORDINATE_M:
-            body = model.body(int(np.argmax(~(far <= MAX_REPLAY_COORDINATE_M)))).name
-            raise SimlogError(
-                f"{log.path}: byte {record.offset}: the frame at t = {record.time!r} s puts body {body!r} beyond "
-                f"{MAX_REPLAY_COORDINATE_M:g} m; the recorded state is corrupt"
-            )
+        set_frame(world, log, record)
         yield record.time
+
+
+def set_frame(world: World, log: Simlog, record: Record) -> None:
+    """Set ``world`` to one recorded frame's state (``mj_setState`` of the full state, then ``mj_forward``).
+
+    Raises:
+        SimlogError: The frame puts a body beyond :data:`MAX_REPLAY_COORDINATE_M` (metres, world frame), naming
+            the record's byte offset in ``log``, the frame's time and the body.
+    """
+    model, data = world.model, world.data
+    mujoco.mj_setState(model, data, record.state, STATE)
+    mujoco.mj_forward(model, data)
+    far = np.abs(data.xpos).max(axis=1)
+    if not far.max(initial=0.0) <= MAX_REPLAY_COORDINATE_M:
+        body = model.body(int(np.argmax(~(far <= MAX_REPLAY_COORDINATE_M)))).name
+        raise SimlogError(
+            f"{log.path}: byte {record.offset}: the frame at t = {record.time!r} s puts body {body!r} beyond "
+            f"{MAX_REPLAY_COORDINATE_M:g} m; the recorded state is corrupt"
+        )
 
 
 def truncation_note(path: Path) -> str | None:
