@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import json
 import math
+import time
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, NoReturn
 from urllib.parse import quote, urlencode, urlsplit
 
 from simrun.errors import SimrunError
@@ -63,14 +64,18 @@ class Client:
         url: The server's address (``http://127.0.0.1:8765/``).
         token: The server's token, when it has one.
         timeout: Seconds to wait for an answer.
+        retries: Times a request the server's budgets refuse (``429``: it did not run) is sent again, each
+            after the ``Retry-After`` seconds the server gives; ``0``: a 429 is raised at once.
     """
 
-    def __init__(self, url: str = "http://127.0.0.1:8765/", token: str | None = None, timeout: float = 30.0) -> None:
+    def __init__(
+        self, url: str = "http://127.0.0.1:8765/", token: str | None = None, timeout: float = 30.0, retries: int = 10
+    ) -> None:
         parts = urlsplit(url)
         if parts.scheme not in ("http", "https") or not parts.netloc:
             raise ClientError(f"{url!r} is not an http:// address of a simrun server")
         self.base = f"{parts.scheme}://{parts.netloc}"
-        self.token, self.timeout = token, timeout
+        self.token, self.timeout, self.retries = token, timeout, retries
 
     # -- HTTP ----------------------------------------------------------------------------------------------
 
@@ -84,19 +89,32 @@ class Client:
             # a header carries latin-1 text only: any other token goes percent-encoded (the server decodes it)
             headers["Authorization"] = f"Bearer {self.token if self.token.isascii() else quote(self.token, safe='')}"
         request = urllib.request.Request(self.base + path, data=data, method=method, headers=headers)
-        try:
-            with urllib.request.urlopen(request, timeout=self.timeout) as response:
-                return bytes(response.read())
-        except urllib.error.HTTPError as exc:
-            raw = exc.read()
+        for attempt in range(self.retries + 1):
             try:
-                error = json.loads(raw)
-                raise ClientError(f"{method} {path}: {error['error']}", exc.code, error.get("field", "")) from None
-            except (ValueError, KeyError, TypeError):
-                raise ClientError(f"{method} {path}: HTTP {exc.code}", exc.code) from None
-        except (urllib.error.URLError, OSError) as exc:
-            reason = getattr(exc, "reason", exc)
-            raise ClientError(f"cannot reach {self.base}: {reason}") from None
+                with urllib.request.urlopen(request, timeout=self.timeout) as response:
+                    return bytes(response.read())
+            except urllib.error.HTTPError as exc:
+                if exc.code != 429 or attempt == self.retries:
+                    self._refused(method, path, exc)
+                exc.read()
+                wait = exc.headers.get("Retry-After", "1")
+                time.sleep(min(30.0, max(0.1, float(wait) if wait.replace(".", "", 1).isdigit() else 1.0)))
+            except (urllib.error.URLError, OSError) as exc:
+                reason = getattr(exc, "reason", exc)
+                raise ClientError(f"cannot reach {self.base}: {reason}") from None
+        raise AssertionError("unreachable")  # the last attempt returns or raises
+
+    @staticmethod
+    def _refused(method: str, path: str, exc: urllib.error.HTTPError) -> NoReturn:
+        """Raise the server's refusal as a :class:`ClientError` (its message, status and field)."""
+        raw = exc.read()
+        try:
+            error = json.loads(raw)
+        except ValueError:
+            error = None
+        if isinstance(error, dict) and isinstance(error.get("error"), str):
+            raise ClientError(f"{method} {path}: {error['error']}", exc.code, str(error.get("field", "")))
+        raise ClientError(f"{method} {path}: HTTP {exc.code}", exc.code)
 
     def get(self, path: str) -> Any:
         """``GET path`` as JSON."""

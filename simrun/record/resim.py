@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from simrun.errors import SimrunError
 from simrun.record.simlog_format import CHECKPOINT, CHUNKED_MINOR, COMMAND, FRAME, STATE, Record, SimlogError, state_of
 from simrun.record.simlog_read import Simlog, check_model
 from simrun.run.commands import Command
@@ -137,7 +138,7 @@ def difference(model: mujoco.MjModel, recorded: npt.NDArray[np.float64], resimul
 def _checkpoint(log: Simlog, start: float | None) -> Record:
     """The first checkpoint (``start`` ``None``) or the last at or before ``start``; streamed."""
     chosen: Record | None = None
-    for record in log.records():
+    for record in log.records(edits=True):  # edits before it are applied by resimulate (_edits_before)
         if record.kind != CHECKPOINT:
             continue
         if start is None:
@@ -172,13 +173,19 @@ def resimulate(world: World, log: Simlog, start: float | None = None) -> Resimul
     """
     if start is not None and not math.isfinite(start):
         raise SimlogError(f"--from must be a finite time, got {start}")
-    model, data = world.model, world.data
     checkpoint = _checkpoint(log, start)
+    check_model(log, world)
+    _edits_before(world, log, checkpoint)
+    model, data = world.model, world.data
     controllers = list(world.controllers)
     snaps = checkpoint.controllers or []
     if len(controllers) != len(snaps):
         raise SimlogError(f"{log.path}: the world has {len(controllers)} controllers, the recording {len(snaps)}")
-    check_model(log, world)
+    if int(mujoco.mj_stateSize(model, STATE)) != len(checkpoint.state):
+        raise SimlogError(
+            f"{log.path}: checkpoint at t = {checkpoint.time:g} s holds {len(checkpoint.state)} state values, "
+            f"the (edited) world has {int(mujoco.mj_stateSize(model, STATE))}"
+        )
     mujoco.mj_setState(model, data, checkpoint.state, STATE)
     mujoco.mj_forward(model, data)
     for k, (controller, snap) in enumerate(zip(controllers, snaps, strict=True)):
@@ -235,11 +242,41 @@ def resimulate(world: World, log: Simlog, start: float | None = None) -> Resimul
     return Resimulation(comparator.compared, comparator.mismatch, checkpoint.time)
 
 
+def _edits_before(world: World, log: Simlog, checkpoint: Record) -> None:
+    """Apply to ``world`` every edit recorded before ``checkpoint`` (``simrun serve --edit``), in file order.
+
+    A recording started after edits begins with them (its prelude), and a later checkpoint comes after those
+    made while recording: applied first, at their simulated times, they turn the scene's world into the one
+    the checkpoint holds the state of (which then replaces the state they leave).
+
+    Raises:
+        SimlogError: An edit the rebuilt world refuses.
+    """
+    from simrun.world.edit_apply import EditRecord  # the edit modules load only for recordings with edits
+
+    if not log.edits:
+        return
+    for record in log.events():
+        if record.offset >= checkpoint.offset:
+            return
+        edit = record.command
+        if record.kind == COMMAND and isinstance(edit, EditRecord):
+            world.data.time = edit.t
+            try:
+                edit.apply(world)
+            except SimrunError as exc:
+                raise SimlogError(
+                    f"{log.path}: byte {record.offset}: the edit at t = {edit.t:g} s before the checkpoint at "
+                    f"t = {checkpoint.time:g} s does not apply to the scene's world: {exc}"
+                ) from None
+
+
 def _misfit(template: Any, value: Any, where: str) -> str | None:
     """Why a recorded snapshot does not have the shape of a fresh one (``template``), or ``None``.
 
     Keys and JSON types must match (numbers may be ints or floats; ``None`` and empty containers in the
-    template accept any value of plain JSON data).
+    template accept any value of plain JSON data); an array of arrays or objects (records, such as the pushes
+    running) may have any length, each record of the shape of the template's first.
     """
     here = where or "snapshot"
     if template is None or (isinstance(template, dict | list) and not template):
@@ -251,6 +288,9 @@ def _misfit(template: Any, value: Any, where: str) -> str | None:
     if isinstance(template, str):
         return None if isinstance(value, str) else f"{here}: expected a string"
     if isinstance(template, list):
+        if isinstance(template[0], dict | list) and isinstance(value, list):  # records (pushes running now):
+            # as many as there are at that instant, each of the template's first record's shape
+            return next((p for k, v in enumerate(value) if (p := _misfit(template[0], v, f"{where}[{k}]"))), None)
         if not isinstance(value, list) or len(value) != len(template):
             return f"{here}: expected an array of {len(template)}"
         return next((p for k, t in enumerate(template) if (p := _misfit(t, value[k], f"{where}[{k}]"))), None)

@@ -15,6 +15,7 @@ import struct
 import tempfile
 import time as wallclock
 import zlib
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -75,6 +76,10 @@ class Recorder:
             ``None`` for a plain frame), ``sample(name, time, text)`` (the sample's JSON ``{name: reading}``),
             ``image(name, time, rgb)`` ((H, W, 3) u8, the image stored as PNG) and ``flush()`` (a chunk went
             to the operating system).
+        prelude: Live recordings: the edits that made the world from its scene before the recording started
+            (``simrun serve --edit``), as (simulated time s, ``EditRecord.to_json``, state size before, after):
+            written as edit records before the first checkpoint, and the header's ``state_size`` is the scene
+            model's (the size before the first), so ``simrun resim`` rebuilds the edited world first.
     """
 
     def __init__(
@@ -90,6 +95,7 @@ class Recorder:
         controller: Path | None = None,
         live: bool = False,
         listener: Any = None,
+        prelude: Sequence[tuple[float, str, int, int]] = (),
     ) -> None:
         model = world.model
         self.listener = listener
@@ -125,7 +131,8 @@ class Recorder:
             "scene_sha256": scene_sha,
             "seed": seed,
             "timestep": model.opt.timestep,
-            "state_size": int(mujoco.mj_stateSize(model, STATE)),
+            # the scene's model: with a prelude (edits before the recording), the one before the first edit
+            "state_size": int(prelude[0][2]) if prelude else int(mujoco.mj_stateSize(model, STATE)),
             "frame_period": period,
             "commands": [[c.t, c.service, c.entity, c.call, list(c.args)] for c in commands],
             "sensors": list(sensors),
@@ -154,6 +161,10 @@ class Recorder:
             self._write(head)
         world.controllers.append(self)
         self._resets = world.mujoco_resets
+        if prelude and not live:
+            raise SimrunError("edits before a recording are recorded only in live recordings")
+        for t, text, _, size in prelude:  # the edits that made this world from the scene, before its checkpoint
+            self.edit(t, text, size)
         if live:  # the checkpoint of this instant first: a recording started while the world runs resimulates from it
             model, data = world.model, world.data
             self._frame(model, data)

@@ -196,6 +196,10 @@ class SimLoop:
         self.applied: list[Command] = []
         self.catalogue: dict[str, Any] = {}
         self.recording: Any = None
+        #: Every edit applied to the world this session (``simrun serve --edit``), in order: (simulated time s,
+        #: the edit's ``EditRecord.to_json``, the state size before it, after it). A recording started later
+        #: writes them first, so ``simrun resim`` rebuilds the edited world from the scene before its checkpoint.
+        self.edit_history: list[tuple[float, str, int, int]] = []
         #: The Foxglove WebSocket server (:class:`simrun.serve.foxglove_live.FoxgloveLive`), when one is asked for.
         self.foxglove: Any = None
         self.steps = 0

@@ -70,7 +70,7 @@ class LiveRecording:
             self.stream = McapStream(world, mcap, path, sensors)
         try:
             self.recorder = Recorder(world, path, scene, [], seed=seed, sensors=sensors, live=True,
-                                     listener=self.stream)  # fmt: skip
+                                     listener=self.stream, prelude=list(loop.edit_history))  # fmt: skip
         except BaseException:
             if self.stream is not None:
                 self.stream.discard()
