@@ -303,17 +303,31 @@ def alarmed(call: Callable[[Task], Result], task: Task, timeout: float | None) -
     if timeout is None or threading.current_thread() is not threading.main_thread() or not hasattr(signal, "SIGALRM"):
         return True, call(task)
 
-    def on_alarm(_signum: int, _frame: Any) -> None:
-        raise _Alarm
+    armed = [True]
 
+    def on_alarm(_signum: int, _frame: Any) -> None:
+        if armed[0]:
+            raise _Alarm
+
+    # The signal is sent to the main thread itself (pthread_kill from a timer thread), not to the process
+    # (setitimer): a process-directed SIGALRM may be delivered to any thread that does not block it (a C
+    # library's, a renderer's), and then a main thread blocked in a system call (sleep, a read) never wakes.
+    main = threading.main_thread().ident
+    assert main is not None
+    timer = threading.Timer(timeout, signal.pthread_kill, (main, signal.SIGALRM))
+    timer.daemon = True
     previous = signal.signal(signal.SIGALRM, on_alarm)
     try:
-        signal.setitimer(signal.ITIMER_REAL, timeout)
-        return True, call(task)
+        timer.start()
+        result = call(task)
+        armed[0] = False
+        return True, result
     except _Alarm:
         return False, None
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
+        armed[0] = False
+        timer.cancel()
+        timer.join()  # a signal it sent is handled (as a no-op, disarmed) before the previous handler is back
         signal.signal(signal.SIGALRM, previous)
 
 
