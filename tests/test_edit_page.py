@@ -19,6 +19,7 @@ from urllib.parse import quote
 
 import numpy as np
 import pytest
+from scene_text import boebot_scene
 from serve_helpers import SCENES, Server, serve
 from test_serve_dashboard import ARGS, TOKEN, _chromium, _until
 
@@ -272,15 +273,9 @@ def test_a_child_entity_moves_relative_to_its_parent(browser) -> None:  # type: 
         page.close()
 
 
-SENSOR_SCENE = """[[entities]]
-type = "Ground"
-name = "ground"
-
-[[entities]]
-type = "BoeBot"
-name = "boebot"
-pose = { position = [0.0, 0.0, 0.001] }
-
+SENSOR_SCENE = boebot_scene(
+    drive=False,
+    tail="""
 [[services]]
 type = "DriveService"
 entity = "boebot"
@@ -291,7 +286,8 @@ type = "Bumper"
 name = "bump"
 entity = "boebot"
 rate = 40.0
-"""
+""",
+)
 
 
 def test_the_pane_shows_a_sensors_and_a_services_current_settings_and_a_changed_rate(browser, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]

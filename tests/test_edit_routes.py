@@ -19,6 +19,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from scene_text import boebot_scene
 from serve_helpers import SCENES, serve
 from test_edit import _slide
 
@@ -26,28 +27,15 @@ from simrun.client import Client, ClientError
 from simrun.scene.scene_file import load_scene
 from simrun.world import edit
 
-BUMPER_SCENE = """[world]
-timestep = 0.002
-
-[[entities]]
-type = "Ground"
-name = "ground"
-
-[[entities]]
-type = "BoeBot"
-name = "boebot"
-pose = { position = [0.0, 0.0, 0.001] }
-
-[[services]]
-type = "DriveService"
-entity = "boebot"
-
+BUMPER_SCENE = boebot_scene(
+    tail="""
 [[sensors]]
 type = "Bumper"
 name = "bump"
 entity = "boebot"
 rate = 50.0
 """
+)
 CRATE = {"type": "Box", "name": "crate", "dimensions": [0.2, 0.6, 0.2], "mass": 20.0, "free": True,
          "pose": {"position": [0.35, 0.0, 0.1]}}  # fmt: skip
 
@@ -257,6 +245,19 @@ def test_edits_are_refused_without_edit_and_an_edit_storm_gets_429(tmp_path):
         assert refused.value.status in (409, 429)
 
 
+def _five_edits(sim: Client, steps: tuple[float, float, float], teleport: list[float]) -> None:
+    """Insert the crate, change the floor's friction, push the crate, teleport it, change the bumper's rate:
+    ``steps`` are the simulated seconds stepped after the insert, the push and the rate change (lockstep)."""
+    sim.insert(CRATE)
+    sim.step(seconds=steps[0])
+    sim.change("ground", {"material": {"dynamic_friction": 0.5}})
+    sim.apply_force("crate", force=[0.0, 300.0, 0.0], duration=0.2)
+    sim.step(seconds=steps[1])
+    sim.teleport("crate", teleport)
+    sim.change_sensor("bump", rate=25.0)
+    sim.step(seconds=steps[2])
+
+
 def test_the_servers_edit_log_replays_to_the_same_state_bit_for_bit(tmp_path):
     from simrun.run.session import prepare
     from simrun.world.edit_apply import EditRecord
@@ -265,14 +266,7 @@ def test_the_servers_edit_log_replays_to_the_same_state_bit_for_bit(tmp_path):
     with serve(scene, "--lockstep", "--edit") as server:
         sim = Client(server.url)
         sim.step(seconds=0.2)
-        sim.insert(CRATE)
-        sim.step(seconds=0.3)
-        sim.change("ground", {"material": {"dynamic_friction": 0.5}})
-        sim.apply_force("crate", force=[0.0, 300.0, 0.0], duration=0.2)
-        sim.step(seconds=0.4)
-        sim.teleport("crate", [1.0, 1.0, 0.3])
-        sim.change_sensor("bump", rate=25.0)
-        sim.step(seconds=0.5)
+        _five_edits(sim, (0.3, 0.4, 0.5), teleport=[1.0, 1.0, 0.3])
         log = server.get("/api/edit/log")["edits"]
         _, saved = _current(sim, tmp_path)
     assert [e["kind"] for e in log] == ["insert", "change", "apply_force", "teleport", "change_sensor"]
@@ -318,14 +312,7 @@ def test_a_recorded_session_with_five_edits_re_simulates_bit_identically(tmp_pat
         sim = Client(server.url)
         sim.service("DriveService", "boebot").drive_distance(1.0, 0.8)
         sim.step(seconds=0.3)
-        sim.insert(CRATE)
-        sim.step(seconds=0.4)
-        sim.change("ground", {"material": {"dynamic_friction": 0.5}})
-        sim.apply_force("crate", force=[0.0, 300.0, 0.0], duration=0.2)
-        sim.step(seconds=0.4)
-        sim.teleport("crate", [0.35, 3.0, 0.1])
-        sim.change_sensor("bump", rate=25.0)
-        sim.step(seconds=1.0)
+        _five_edits(sim, (0.4, 0.4, 1.0), teleport=[0.35, 3.0, 0.1])
     env = {"MUJOCO_GL": "egl", "PATH": str(Path(sys.executable).parent)}
     done = subprocess.run([SIMRUN, "resim", str(record)], capture_output=True, text=True, timeout=300, env=env)
     assert done.returncode == 0 and "bit-identical" in done.stdout, done.stdout + done.stderr
