@@ -285,3 +285,30 @@ def test_every_robot_kind_keeps_its_state_across_an_edit_and_continues_as_an_une
     for j in joints:  # a welded ball 50 m away changes nothing of the robots' motion
         assert _joint_state(edited, j)[0].tobytes() == _joint_state(plain, j)[0].tobytes(), j
     assert [c.snapshot() for c in edited.controllers] == [c.snapshot() for c in plain.controllers]
+
+
+@pytest.mark.parametrize(
+    ("call", "table", "key", "reason"),
+    [
+        ("service", ["DriveService"], "service", "invalid"),
+        ("service", {"type": "WarpDrive", "entity": "boebot"}, "type", "invalid"),
+        ("service", {"type": "DriveService", "entity": "nobody"}, "entity", "missing"),
+        ("service", {"type": "DriveService", "entity": "boebot"}, "entity", "conflict"),  # bound by the scene
+        ("sensor", "Bumper", "sensor", "invalid"),
+        ("sensor", {"type": "Bumpr", "name": "b", "entity": "boebot"}, "type", "invalid"),
+        ("sensor", {"type": "Bumper", "entity": "boebot"}, "name", "invalid"),
+        ("sensor", {"type": "Bumper", "name": "laser", "entity": "boebot"}, "name", "conflict"),
+        ("sensor", {"type": "Bumper", "name": "b", "entity": "nobody"}, "entity", "missing"),
+    ],
+)
+def test_a_refused_service_or_sensor_table_names_its_field_and_changes_nothing(call, table, key, reason):
+    from simrun.world.edit_bindings import add_service
+
+    world = _running(0.1)
+    model, data, services, sensors = world.model, world.data, list(world.services), list(world.sensors)
+    qpos = data.qpos.copy()
+    with pytest.raises(EditError) as refused:
+        (add_service if call == "service" else add_sensor)(world, table)
+    assert (refused.value.key, refused.value.reason) == (key, reason), refused.value
+    assert world.model is model and world.data is data and (data.qpos == qpos).all()
+    assert list(world.services) == services and list(world.sensors) == sensors

@@ -422,10 +422,11 @@ def change(world: World, name: str, changes: dict[str, Any]) -> None:
         edit.commit(fresh=[name] if moved else [], rebuilt=[name])
 
 
-def _entity(world: World, name: Any) -> Entity:
+def _entity(world: World, name: Any, key: str = "name") -> Entity:
+    """The entity called ``name``, or an EditError (404) naming the request field ``key`` and the known names."""
     if not isinstance(name, str) or name not in dict(world):
         known = ", ".join(n for n, _ in world) or "none"
-        raise EditError(f"no entity named {name!r} (entities: {known[:300]})", key="name", reason="missing")
+        raise EditError(f"no entity named {name!r} (entities: {known[:300]})", key=key, reason="missing")
     return world.entity(name)
 
 

@@ -8,7 +8,7 @@ clock, its state and its noise stream continue. Tables go through the registry's
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from simrun.errors import EntityError, SimrunError
 from simrun.world.edit import Edit, EditError, _entity, _merge, edit_fail, trial
@@ -99,20 +99,29 @@ def _check(world: World) -> None:
     trial(world, "settings")
 
 
+def _table_type(table: Any, group: Literal["services", "sensors"], key: str) -> str:
+    """The registered type name of a ``[[services]]`` or ``[[sensors]]`` table (``group``).
+
+    Raises:
+        EditError: Naming ``key`` (not a table) or ``type`` (an unknown type).
+    """
+    if not isinstance(table, dict):
+        raise EditError("expected a table", key=key)
+    try:
+        return scene_type(group, table.get("type")).name
+    except EntityError as exc:
+        raise EditError(str(exc), key="type") from None
+
+
 def add_service(world: World, table: dict[str, Any]) -> None:
     """Bind a service from a ``[[services]]`` table (``{"type": "DriveService", "entity": "bot", ...}``).
 
     Raises:
         EditError: An unknown type or entity, a binding already there, a refused value, or it does not fit.
     """
-    if not isinstance(table, dict):
-        raise EditError("expected a table", key="service")
-    try:
-        kind = scene_type("services", table.get("type")).name
-    except EntityError as exc:
-        raise EditError(str(exc), key="type") from None
+    kind = _table_type(table, "services", "service")
     entity = table.get("entity")
-    _entity(world, entity)
+    _entity(world, entity, key="entity")
     if any(s.get("type") == kind and s.get("entity") == entity for s in world.services):
         raise EditError(f"a {kind} is already bound to {entity!r}", key="entity", reason="conflict")
     arguments("services", kind, table, edit_fail("", str(entity)))
@@ -140,12 +149,7 @@ def add_sensor(world: World, table: dict[str, Any]) -> None:
     Raises:
         EditError: An unknown type, a name taken, an unknown entity, a refused value, or it cannot read.
     """
-    if not isinstance(table, dict):
-        raise EditError("expected a table", key="sensor")
-    try:
-        kind = scene_type("sensors", table.get("type")).name
-    except EntityError as exc:
-        raise EditError(str(exc), key="type") from None
+    kind = _table_type(table, "sensors", "sensor")
     name = table.get("name")
     if not isinstance(name, str) or not name:
         raise EditError("a sensor needs a 'name' string", key="name")
