@@ -15,6 +15,7 @@ player's clock advancing. Skips, saying why, without Chromium or Playwright.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import select
@@ -139,10 +140,12 @@ def _get(url: str) -> bytes:
         return bytes(response.read())
 
 
-def test_dashboard_from_the_wheel_drives_the_robot(venv: Path, browser, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+@contextlib.contextmanager
+def _serving(venv: Path, scene: Path, *options: str, cwd: Path) -> Iterator[str]:
+    """The wheel's ``simrun serve SCENE OPTIONS`` on 127.0.0.1 (a free port): its URL; ended with SIGINT, exit 0."""
     process = subprocess.Popen(
-        [str(venv / "simrun"), "serve", str(SCENES / "boebot.toml"), "--host", "127.0.0.1", "--port", "0"],
-        cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        [str(venv / "simrun"), "serve", str(scene), "--host", "127.0.0.1", "--port", "0", *options],
+        cwd=cwd, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     assert process.stdout is not None
     try:
@@ -153,12 +156,27 @@ def test_dashboard_from_the_wheel_drives_the_robot(venv: Path, browser, tmp_path
                 if line.startswith("serving ") or not line:
                     break
         assert line.startswith("serving "), (line, process.poll())
-        url = line.split()[1]
+        yield line.split()[1]
+    finally:
+        if process.poll() is None:
+            process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    assert process.returncode == 0, (out, err)
+
+
+def _ours(page, url: str) -> list[str]:  # type: ignore[no-untyped-def]
+    """The URLs the page requests from anywhere but this server (``data:``/``blob:`` URLs are its own)."""
+    foreign: list[str] = []
+    page.on("request", lambda r: None if r.url.startswith((url, "data:", f"blob:{url}")) else foreign.append(r.url))
+    return foreign
+
+
+def test_dashboard_from_the_wheel_drives_the_robot(venv: Path, browser, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    with _serving(venv, SCENES / "boebot.toml", cwd=tmp_path) as url:
         assert "from nicegui " in _get(url).decode("utf-8")  # the page's three.js: nicegui's module, inlined
 
         page = browser.new_page(viewport={"width": 1100, "height": 700})
-        foreign: list[str] = []
-        page.on("request", lambda r: None if r.url.startswith((url, "data:", f"blob:{url}")) else foreign.append(r.url))
+        foreign = _ours(page, url)
         page.goto(url)
         page.wait_for_function("window.simrunDashboard && window.simrunDashboard.ready", timeout=90_000)
         assert page.evaluate("document.documentElement.dataset.state") == "ready"
@@ -175,11 +193,41 @@ def test_dashboard_from_the_wheel_drives_the_robot(venv: Path, browser, tmp_path
         page.keyboard.press("Space")
         assert not foreign, foreign  # everything from this server
         page.close()
-    finally:
-        if process.poll() is None:
-            process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=60)
-    assert process.returncode == 0, (out, err)
+
+
+def test_edit_page_from_the_wheel_moves_a_box_with_its_handle(venv: Path, browser, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """``--edit`` from the wheel: its edit script and the vendored TransformControls (package data) load; a drag
+    of the box's X handle moves the simulator's box along +X (``GET /api/entities``), Y and Z kept."""
+    edit = "window.simrunDashboard.edit"
+    scene = tmp_path / "boebot.toml"
+    shutil.copyfile(SCENES / "boebot.toml", scene)
+    with _serving(venv, scene, "--edit", cwd=tmp_path) as url:
+
+        def box() -> list[float]:
+            entities = json.loads(_get(url.rstrip("/") + "/api/entities"))
+            return list(next(e for e in entities if e["name"] == "box")["pose"])
+
+        page = browser.new_page(viewport={"width": 1200, "height": 820})
+        foreign = _ours(page, url)
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(url)
+        page.wait_for_function(f"window.simrunDashboard && {edit} && {edit}.ready", timeout=90_000)
+        assert page.evaluate(f"{edit}.allowed") is True
+        x, y, _ = page.evaluate("window.simrunDashboard.screen('box')")
+        page.mouse.click(x, y)
+        page.wait_for_function(f"{edit}.item && {edit}.item.name === 'box'", timeout=20_000)
+        before = box()
+        hx, hy = page.evaluate(f"{edit}.handleAt('X')")
+        ax, ay, _ = page.evaluate(f"{edit}.screenOf([{before[0] + 0.3}, {before[1]}, {before[2]}])")
+        page.mouse.move(hx, hy)
+        page.mouse.down()
+        page.mouse.move(hx + (ax - x) * 0.6, hy + (ay - y) * 0.6, steps=10)
+        page.mouse.up()
+        after = _until(box, lambda p: p[0] - before[0] > 0.08)
+        assert after[0] - before[0] < 0.3 and abs(after[1] - before[1]) < 1e-3, (before, after)
+        assert not errors and not foreign, (errors, foreign)
+        page.close()
 
 
 def test_replay_page_from_the_wheel_plays_offline(venv: Path, browser, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
