@@ -11,6 +11,7 @@ import contextlib
 import itertools
 import json
 import mmap
+import os
 import pickle
 import shlex
 import struct
@@ -22,8 +23,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from meshtool.errors import PackFormatError
-from meshtool.files.resolve import map_readonly
+from meshtool.errors import PackFormatError, ResolveError
+from meshtool.files.safeopen import open_regular, printable
 from meshtool.packfile import format as fmt
 from meshtool.packfile import verify as check
 from meshtool.packfile.encode import dequantize_box, oct_decode
@@ -131,15 +132,53 @@ def load(path: str | Path, verify: bool = True) -> PackedMesh:
         ResolveError: The file cannot be opened.
     """
     name = str(path)
-    mapped = map_readonly(Path(path))
+    mapped = _open_pack(Path(path))
     if mapped is None:
         raise PackFormatError("empty file, not an .mbin", path=name, offset=0)
+    if isinstance(mapped, bytes):  # a small file, read whole: the arrays view these bytes
+        return parse(mapped, name, verify)
     try:
         return parse(mapped, name, verify, keep=mapped)
     except PackFormatError:
         with contextlib.suppress(BufferError):  # views made before the error still point into the map
             mapped.close()
         raise
+
+
+#: Files up to this size (bytes) are read into memory instead of mapped: for a small asset a map's set-up,
+#: page faults and unmapping cost more than one read (suzanne's 20 KB: about 20 us of a 65 us load).
+SMALL_FILE_BYTES = 256 * 1024
+
+
+def _open_pack(path: Path) -> mmap.mmap | bytes | None:
+    """The file's bytes (at most :data:`SMALL_FILE_BYTES`), else a read-only map of it; ``None`` when empty.
+
+    The file is opened as :func:`meshtool.files.resolve.map_readonly` opens it (a regular file, symlinks
+    followed, never blocking), once.
+
+    Raises:
+        ResolveError: It cannot be opened or read, or is not a regular file.
+    """
+    fd = open_regular(path)
+    try:
+        size = os.fstat(fd).st_size
+        if size == 0:
+            return None
+        if size > SMALL_FILE_BYTES:
+            return mmap.mmap(fd, 0, access=mmap.ACCESS_READ)
+        chunks = []
+        while True:  # to the end, as a map would see it (the file may grow or shrink meanwhile)
+            chunk = os.read(fd, max(size, 65536))
+            if not chunk:
+                break
+            chunks.append(chunk)
+        if not chunks:
+            return None
+        return chunks[0] if len(chunks) == 1 else b"".join(chunks)
+    except OSError as exc:
+        raise ResolveError(f"cannot be read: {exc.strerror}", path=printable(path)) from None
+    finally:
+        os.close(fd)
 
 
 def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mmap | None = None) -> PackedMesh:
@@ -212,7 +251,8 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
             s.crc_ok = fmt.checksum(view[s.offset : s.offset + s.length], minor) == s.crc
             if not s.crc_ok:
                 raise PackFormatError(f"section {s.kind!r} checksum mismatch", path=name, offset=s.offset)
-    return _build(view, sections, name, verify, bool(flags & fmt.FLAG_QUANTIZED), (major, minor), keep)
+    quantized = bool(flags & fmt.FLAG_QUANTIZED)
+    return _build(view, sections, name, verify, quantized, (major, minor), keep, (head, size))
 
 
 #: Checks made once per content (issue 28: a small asset's load was ~100 Python-level checks and two
@@ -223,6 +263,9 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
 #: Content: the small arrays check_submeshes and check_hulls read -> passed.
 _LAYOUTS: dict[tuple[bytes, int], tuple[tuple[Any, ...], ...]] = {}
 _JSON_CHECKED: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+#: (header + table bytes, file size) -> how :func:`_build` views that layout's sections, once its checks of
+#: the layout alone (section types, row counts, the quantised flag) passed.
+_PLANS: dict[tuple[bytes, int], _Plan] = {}
 _CONTENT_CHECKED: dict[tuple[Any, ...], bool] = {}
 #: Entries kept per cache; the oldest goes first (a process loading many assets stays bounded).
 CACHE_ENTRIES = 256
@@ -245,6 +288,7 @@ def _fields(s: Section) -> tuple[Any, ...]:
 def forget_checks() -> None:
     """Empty the caches of checks made once per content (for benchmarks that time a first load)."""
     _LAYOUTS.clear()
+    _PLANS.clear()
     _JSON_CHECKED.clear()
     _CONTENT_CHECKED.clear()
 
@@ -345,7 +389,57 @@ def _build(
     quantized: bool,
     version: tuple[int, int],
     keep: mmap.mmap | None,
+    layout_key: tuple[bytes, int] | None = None,
 ) -> PackedMesh:
+    plan = _PLANS.get(layout_key) if layout_key is not None else None
+    if plan is None:
+        by_kind, textures, raw = _view_sections(view, sections, name, quantized)
+        if layout_key is not None:
+            _remember(_PLANS, layout_key, _plan_of(sections, by_kind))
+    else:  # a layout seen before: its checks passed, only the views (and any inflating) are made
+        by_kind = plan.by_kind
+        textures = [view[offset : offset + length].toreadonly() for offset, length in plan.textures]
+        raw = {}
+        for tag, dtype, count, shape, s in plan.arrays:
+            if s.encoding == fmt.ENC_DEFLATE:
+                raw[tag] = np.frombuffer(_inflate(view, s, name), dtype=dtype, count=count).reshape(shape)
+            else:
+                raw[tag] = np.frombuffer(view, dtype=dtype, count=count, offset=s.offset).reshape(shape)
+    return _build_rest(view, sections, name, verify, quantized, version, keep, by_kind, textures, raw)
+
+
+@dataclass(slots=True, frozen=True)
+class _Plan:
+    """How :func:`_build` views the sections of one layout (see :data:`_PLANS`).
+
+    Attributes:
+        by_kind: The sections :func:`_build` reads, by kind.
+        textures: (offset, length) of each texture section, in texture order.
+        arrays: (kind, dtype, element count, shape, section) of each array section, in table order.
+    """
+
+    by_kind: dict[bytes, Section]
+    textures: tuple[tuple[int, int], ...]
+    arrays: tuple[tuple[str, np.dtype[Any], int, tuple[int, ...], Section], ...]
+
+
+def _plan_of(sections: list[Section], by_kind: dict[bytes, Section]) -> _Plan:
+    """The :class:`_Plan` of sections whose layout :func:`_view_sections` accepted."""
+    texture_sections = sorted((s for s in sections if s.kind == "TEX "), key=lambda s: s.index)
+    mine = {kind: Section(*_fields(s)) for kind, s in by_kind.items()}  # copies: the caller's are its own
+    arrays = []
+    for s in sections:  # table order, as _view_sections fills the arrays
+        kind = s.kind.encode()
+        if by_kind.get(kind) is s and s.dtype != "bytes":
+            cols = s.shape[1] if len(s.shape) == 2 else 0
+            arrays.append((s.kind, fmt.DTYPES[fmt.CODES[s.dtype]], s.shape[0] * cols, s.shape, mine[kind]))
+    return _Plan(mine, tuple((s.offset, s.length) for s in texture_sections), tuple(arrays))
+
+
+def _view_sections(
+    view: memoryview, sections: list[Section], name: str, quantized: bool
+) -> tuple[dict[bytes, Section], list[memoryview], dict[str, npt.NDArray[Any]]]:
+    """Every section checked against its kind's types and viewed: (sections by kind, textures, arrays by kind)."""
     by_kind: dict[bytes, Section] = {}
     textures: list[memoryview] = [memoryview(b"")] * sum(s.kind == "TEX " for s in sections)
     raw: dict[str, npt.NDArray[Any]] = {}
@@ -368,10 +462,6 @@ def _build(
             offset = 0 if s.encoding == fmt.ENC_DEFLATE else s.offset
             arr = np.frombuffer(source, dtype=dtype, count=s.shape[0] * cols, offset=offset)
             raw[s.kind] = arr.reshape(s.shape)
-    meta_at, matl_at = by_kind[fmt.KIND_META].offset, by_kind[fmt.KIND_MATERIALS].offset
-    meta_section, matl_section = by_kind[fmt.KIND_META], by_kind[fmt.KIND_MATERIALS]
-    meta_bytes = bytes(view[meta_at : meta_at + meta_section.length])
-    matl_bytes = bytes(view[matl_at : matl_at + matl_section.length])
     n = raw["POS "].shape[0]
     for tag in ("NRM ", "UV  ", "COL "):
         if tag in raw and raw[tag].shape[0] != n:
@@ -385,6 +475,27 @@ def _build(
         raise PackFormatError(
             "the header's quantised flag does not match the sections' encodings", path=name, offset=12
         )
+    return by_kind, textures, raw
+
+
+def _build_rest(
+    view: memoryview,
+    sections: list[Section],
+    name: str,
+    verify: bool,
+    quantized: bool,
+    version: tuple[int, int],
+    keep: mmap.mmap | None,
+    by_kind: dict[bytes, Section],
+    textures: list[memoryview],
+    raw: dict[str, npt.NDArray[Any]],
+) -> PackedMesh:
+    """What :func:`_build` reads beyond the layout: the JSON sections, the content checks, the mesh."""
+    meta_at, matl_at = by_kind[fmt.KIND_META].offset, by_kind[fmt.KIND_MATERIALS].offset
+    meta_section, matl_section = by_kind[fmt.KIND_META], by_kind[fmt.KIND_MATERIALS]
+    meta_bytes = bytes(view[meta_at : meta_at + meta_section.length])
+    matl_bytes = bytes(view[matl_at : matl_at + matl_section.length])
+    n = raw["POS "].shape[0]
     boxed = {"positions": ("POS ", 3), "uvs": ("UV  ", 2)}
     quantised = {
         array: cols
