@@ -141,3 +141,79 @@ def test_a_push_has_no_undo():
 
     world = load_scene(SCENE)
     assert inverse(world, "apply_force", {"name": "box", "force": [1.0, 0.0, 0.0]}) is None
+
+
+SENSORS = SCENE.with_name("boebot_sensors.toml")
+#: Edits of a world with two Boe-Bots, each with a DriveService (``bot2``'s added by an edit), and two sensors.
+SECOND = [
+    ("change_sensor", {"name": "laser", "settings": {"rate": 5.0, "max_range": 2.0}}),
+    ("remove_sensor", {"name": "laser"}),
+    ("change_service", {"kind": "DriveService", "entity": "bot2", "settings": {"rate": 25.0}}),
+    ("remove_service", {"kind": "DriveService", "entity": "bot2"}),
+    ("add_service", {"table": {"type": "DriveService", "entity": "bot3"}}),
+    ("change", {"name": "bot2", "changes": {"pose": {"position": [1.0, -1.0, 0.001]}}}),
+]
+
+
+def _two_robots():  # type: ignore[no-untyped-def]
+    world = load_scene(SENSORS)
+    prepare(world)
+    for name, y in (("bot2", 1.0), ("bot3", -1.5)):
+        apply_edit(world, "insert", {"tables": {"type": "BoeBot", "name": name, "pose": {"position": [1.0, y, 0.001]}}})
+    apply_edit(world, "add_service", {"table": {"type": "DriveService", "entity": "bot2"}})
+    world.run(0.2)
+    return world
+
+
+@pytest.mark.parametrize(("kind", "args"), SECOND, ids=[k for k, _ in SECOND])
+def test_undo_of_a_sensor_or_a_second_robots_edit_is_at_its_time_and_touches_nothing_else(kind, args):
+    from simrun.world import edit
+    from simrun.world.edit_apply import inverse, undo_of
+
+    world = _two_robots()
+    tables = edit.entity_tables(world)
+    services, sensors = [dict(s) for s in world.services], [dict(s) for s in world.sensor_specs]
+    periods = {name: sensor.period for name, sensor in world.sensors.items()}
+    t = float(world.data.time)
+    before = inverse(world, kind, args)
+    result = apply_edit(world, kind, args)
+    assert edit.entity_tables(world) != tables or world.services != services or world.sensor_specs != sensors
+    undo = undo_of(t, kind, args, result, before)
+    assert undo and all(record.t == t for record in undo), undo  # at the instant of the edit
+    for record in undo:
+        record.apply(world)
+    assert edit.entity_tables(world) == tables
+    assert {name: sensor.period for name, sensor in world.sensors.items()} == pytest.approx(periods)
+    if kind == "change_service":  # the old value written out: the binding's default rate
+        assert world.services == [services[0], {**services[1], "rate": 50.0}]
+    else:
+        assert world.services == services
+    if kind == "change_sensor":  # every value the change named comes back as it was
+        assert [s["name"] for s in world.sensor_specs] == [s["name"] for s in sensors]
+        laser = next(s for s in world.sensor_specs if s["name"] == "laser")
+        assert (laser["rate"], laser["max_range"]) == (10.0, 4.0) and laser == {**sensors[0], **laser}
+    elif kind == "remove_sensor":  # back, last in the order
+        assert sorted(world.sensor_specs, key=str) == sorted(sensors, key=str)
+    else:
+        assert world.sensor_specs == sensors
+    world.run(0.05)
+
+
+@pytest.mark.parametrize(
+    ("kind", "args"),
+    [
+        ("change", {"name": "nobody", "changes": {"mass": 1.0}}),
+        ("change", {"name": "box", "changes": [1.0]}),
+        ("remove", {"name": "nobody"}),
+        ("teleport", {"name": "nobody", "position": [0.0, 0.0, 1.0]}),
+        ("change_service", {"kind": "DriveService", "entity": "bot3", "settings": {"rate": 5.0}}),
+        ("remove_service", {"kind": "JointService", "entity": "bot2"}),
+        ("change_sensor", {"name": "nothing", "settings": {"rate": 5.0}}),
+        ("remove_sensor", {"name": "nothing"}),
+        ("explode", {}),
+    ],
+)
+def test_an_edit_that_cannot_apply_has_no_undo(kind, args):
+    from simrun.world.edit_apply import inverse
+
+    assert inverse(_two_robots(), kind, args) is None
