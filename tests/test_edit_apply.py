@@ -217,3 +217,41 @@ def test_an_edit_that_cannot_apply_has_no_undo(kind, args):
     from simrun.world.edit_apply import inverse
 
     assert inverse(_two_robots(), kind, args) is None
+
+
+def test_records_are_canonical_json_and_every_refusal_is_one_line_naming_its_field():
+    record = EditRecord(0.5, "teleport", {"position": [0.0, 1.0, 0.1], "name": "box"})
+    assert record.to_json() == '[0.5,"teleport",{"name":"box","position":[0.0,1.0,0.1]}]'  # keys sorted, no spaces
+    with pytest.raises(ValueError):
+        EditRecord(0.5, "teleport", {"name": "box", "position": [float("nan"), 0.0, 0.0]}).to_json()
+    world = load_scene(SCENE)
+    refusals = [
+        (lambda: apply_edit(world, "explode", {}), "kind", "unknown edit 'explode' (known: insert, change, remove,"),
+        (lambda: apply_edit(world, "remove", ["box"]), "args", "expected an object of the edit's arguments"),
+        (lambda: apply_edit(world, "remove", {"nam": "x"}), "nam", "remove takes no argument 'nam' (arguments: name)"),
+        (lambda: apply_edit(world, "remove", {}), "name", "remove needs 'name'"),
+        (lambda: EditRecord.from_json("[0, "), "edit", "not JSON ("),
+        (lambda: EditRecord.from_json("[0, 1]"), "edit", "expected [t, kind, args]"),
+        (lambda: EditRecord.from_json('[true, "remove", {}]'), "t", "expected a time >= 0, got True"),
+        (lambda: EditRecord.from_json('[NaN, "remove", {}]'), "t", "expected a time >= 0, got nan"),
+        (lambda: EditRecord.from_json('["1", "remove", {}]'), "t", "expected a time >= 0, got '1'"),
+        (lambda: EditRecord.from_json('[1, "explode", {}]'), "kind", "unknown edit 'explode'"),
+        (lambda: EditRecord.from_json('[1, "remove", []]'), "args", "expected an object of arguments"),
+    ]
+    for call, key, message in refusals:
+        with pytest.raises(EditError) as refused:
+            call()
+        assert refused.value.key == key and str(refused.value).startswith(f"{key}: {message}"), str(refused.value)
+        assert "\n" not in str(refused.value)
+    assert EditRecord.from_json('[2, "remove", {"name": "box"}]') == EditRecord(2.0, "remove", {"name": "box"})
+
+
+def test_the_undo_of_a_first_pose_is_the_origin_at_rest():
+    """An entity whose table gives no pose (the ground) is at the origin: its undo names that pose."""
+    from simrun.world.edit_apply import inverse
+
+    world = _two_robots()
+    (undo,) = inverse(world, "change", {"name": "ground", "changes": {"pose": {"position": [0.0, 0.0, -0.5]}}})
+    assert undo.args == {
+        "name": "ground", "changes": {"pose": {"position": [0.0, 0.0, 0.0], "orientation": [1.0, 0.0, 0.0, 0.0]}}
+    }  # fmt: skip
