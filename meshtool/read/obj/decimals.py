@@ -53,9 +53,14 @@ def decimal_numbers(block: bytes, letters: dict[int, int]) -> tuple[FloatArray, 
         The numbers in order (float64, shape (n,)) and how many each line holds, or ``None``.
     """
     key = bytes(sorted(letters))
-    if not block or min(key) < 102 or block.translate(None, _DECIMAL_BYTES + key):
+    if not block or min(key) < 102:
         return None
-    if any(block.count(bytes([c])) != n for c, n in letters.items()):
+    # one pass: what is left without the plain decimals' bytes must be the keywords' letters, each as often
+    # as it starts a keyword (a letter found more often occurs in the numbers)
+    rest = block.translate(None, _DECIMAL_BYTES)
+    if len(rest) != sum(letters.values()) or rest.translate(None, key):
+        return None
+    if any(rest.count(c) != n for c, n in letters.items()):
         return None
     a = np.frombuffer(block, dtype=np.uint8)
     ws = (a <= 32) | (a >= 102)  # the keywords' letters (counted above; e and E are below 102): blanks

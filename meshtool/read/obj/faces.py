@@ -19,7 +19,7 @@ from meshtool.read.obj.lines import (
     F,
     IntArray,
     Lines,
-    _blank,
+    blank_keywords,
     gather,
     numbers,
     strip_comment,
@@ -151,7 +151,7 @@ def _uniform_faces(block: bytes, n_lines: int) -> tuple[IntArray, IntArray, IntA
     if b"#" in block or b"(" in block or not block.isascii():
         return None
     try:
-        values = np.fromstring(_blank(block, b"f", True), dtype=np.int64, sep=" ")
+        values = np.fromstring(blank_keywords(block, b"f", True), dtype=np.int64, sep=" ")  # "f" counted
     except (ValueError, TypeError):
         return None
     if values.size != fields * n or _out_of_range(values):

@@ -120,7 +120,7 @@ def parse_obj(data: bytes | str, path: str = "<obj>") -> SourceMesh:
     lines = classify(decoded.data)
     state = _State()
     _read_statements(lines, state, path, findings)
-    n_numeric = int(np.count_nonzero(np.isin(lines.kinds, (V, VT, VN, F))))
+    n_numeric = int(np.count_nonzero((lines.kinds >= V) & (lines.kinds <= F)))  # V, VT, VN, F: 1 to 4
     if n_numeric == 0 and state.recognised == 0:
         other = np.flatnonzero(lines.kinds == OTHER)
         if other.size:

@@ -83,16 +83,17 @@ def triangulate_polygons(positions: FloatArray, face_sizes: IntArray, corner_v: 
 
     quad = np.flatnonzero(face_sizes == 4)
     if quad.size:
-        c = offsets[quad, None] + np.arange(4)
-        p = positions[corner_v[c]]
+        first = offsets[quad]
+        p = positions[corner_v[first[:, None] + np.arange(4)]]
         normal = _newell(p)
-        edge_in = p - np.roll(p, 1, axis=1)
-        edge_out = np.roll(p, -1, axis=1) - p
+        # the turn at corners 1 and 3 only (the two that decide the diagonal): the edges into and out of
+        # them, their cross product and its dot with the normal, the same operations as over all four
+        odd = p[:, 1::2]  # corners 1, 3
+        edge_in = odd - p[:, 0::2]  # 1 - 0, 3 - 2
+        edge_out = p[:, [2, 0]] - odd  # 2 - 1, 0 - 3
         turn = np.einsum("qkj,qj->qk", np.cross(edge_in, edge_out), normal)
-        reflex_odd = (turn[:, 1] < 0) | (turn[:, 3] < 0)
-        diag02 = np.stack([c[:, [0, 1, 2]], c[:, [0, 2, 3]]], axis=1)
-        diag13 = np.stack([c[:, [0, 1, 3]], c[:, [1, 2, 3]]], axis=1)
-        chosen = np.where(reflex_odd[:, None, None], diag13, diag02).reshape(-1, 3)
+        reflex_odd = (turn[:, 0] < 0) | (turn[:, 1] < 0)
+        chosen = (first[:, None, None] + np.where(reflex_odd[:, None, None], _DIAG13, _DIAG02)).reshape(-1, 3)
         pieces.append((np.repeat(quad, 2), chosen, np.zeros(0, dtype=np.int64)))
 
     lost = 0
@@ -132,6 +133,11 @@ def triangulate_polygons(positions: FloatArray, face_sizes: IntArray, corner_v: 
     corners = np.concatenate([p[1] for p in pieces]).astype(np.int64, copy=False)
     order = np.argsort(face, kind="stable")
     return Triangulation(corners[order], face[order], lost, False, fanned_ids, over_ids)
+
+
+#: A quad's two triangles (local corners) split along the diagonal 0-2, and along 1-3.
+_DIAG02 = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
+_DIAG13 = np.array([[0, 1, 3], [1, 2, 3]], dtype=np.int64)
 
 
 def _newell(points: FloatArray) -> FloatArray:
