@@ -11,8 +11,8 @@ import click
 import pytest
 from click.testing import CliRunner
 
-from meshtool.cli.commands import obj2bin
 from meshtool.cli.main import main as meshtool_main
+from meshtool.cli.mesh_commands import obj2bin
 from meshtool.cli.output import EXIT_CODES
 from simrun.cli.main import main as simrun_main
 

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from meshtool.cli.commands import obj2bin
 from meshtool.cli.main import main as meshtool_main
+from meshtool.cli.mesh_commands import obj2bin
 from simrun.scene.scene_file import load_scene
 from simrun.world.assets import pack_cache
 

@@ -64,7 +64,7 @@ def test_import_simrun_does_not_load_mujoco_but_the_first_import_of_it_is_headle
 
 def test_the_light_copies_of_option_choices_agree_with_the_library() -> None:
     """The command lines keep the choices they show in ``--help`` without importing the library that owns them."""
-    from meshtool.cli import commands as cli_commands
+    from meshtool.cli import command_support as cli_support
     from meshtool.cli import validate as cli_validate
     from meshtool.frame.units import UNIT_FACTORS
     from meshtool.validate.reports import FORMATS
@@ -72,7 +72,7 @@ def test_the_light_copies_of_option_choices_agree_with_the_library() -> None:
     from simrun.run.render import MODES
     from simrun.run.session import DEFAULT_SIZE
 
-    assert tuple(UNIT_FACTORS) == cli_commands.UNITS
+    assert tuple(UNIT_FACTORS) == cli_support.UNITS
     assert cli_validate.FORMATS == FORMATS
     assert cli.MODES == MODES
     assert cli.DEFAULT_SIZE == DEFAULT_SIZE

@@ -42,7 +42,8 @@ def test_library_paths_that_need_no_trimesh() -> None:
     """Loading an .mbin and the normalise/pack path never import trimesh, scipy, mujoco or pxr."""
     loaded = _imported(
         "import meshtool\nfrom meshtool.packfile import load, pack\n"
-        "import meshtool.repair.normalise, meshtool.pipeline\nimport meshtool.cli.commands"
+        "import meshtool.repair.normalise, meshtool.pipeline\n"
+        "import meshtool.cli.mesh_commands, meshtool.cli.model_commands"
     )
     assert not loaded & {"trimesh", "scipy", "mujoco", "pxr", "coacd", "dask", "simrun"}
 

@@ -10,8 +10,10 @@ the outcome to output and an exit code:
 * 2: usage error (click);
 * 3: meshtool itself failed (a bug: please report it; set ``MESHTOOL_DEBUG=1`` for the traceback).
 
-Start-up: this module imports click and nothing else heavy. The commands live in :mod:`meshtool.cli.commands`,
-:mod:`meshtool.cli.pack` and :mod:`meshtool.cli.validate` and are imported when one of them runs, so
+Start-up: this module imports click and nothing else heavy. The commands live in
+:mod:`meshtool.cli.mesh_commands`, :mod:`meshtool.cli.model_commands`, :mod:`meshtool.cli.pack` and
+:mod:`meshtool.cli.validate` (what they share: :mod:`meshtool.cli.command_support`) and are imported when one of
+them runs, so
 ``meshtool --version`` and ``meshtool --help`` never import numpy, trimesh or Pillow.
 """
 
@@ -37,7 +39,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 COMMANDS: dict[str, tuple[str, str]] = {
     "export": ("meshtool.cli.pack:export", "Export an .mbin as GLB, MuJoCo's legacy MSH and/or USD."),
     "hulls": (
-        "meshtool.cli.commands:hulls",
+        "meshtool.cli.mesh_commands:hulls",
         "Compute the collision hulls of SRC (a mesh file) and report their quality; writes nothing.",
     ),
     "info": (
@@ -45,16 +47,16 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Describe an .mbin file: counts, sections, sizes, checksums and metadata.",
     ),
     "mjcf": (
-        "meshtool.cli.commands:mjcf",
+        "meshtool.cli.model_commands:mjcf",
         "Write a MuJoCo model for SRC: an .mbin, a mesh file (packed first, as obj2bin does) or a folder of .mbin.",
     ),
     "normalize": (
-        "meshtool.cli.commands:normalize",
+        "meshtool.cli.mesh_commands:normalize",
         "Normalise SRC (OBJ, STL, PLY, glTF/GLB or COLLADA) into OUTPUT/NAME/: metres, Z-up, PNG textures.",
     ),
     "unpack": ("meshtool.cli.pack:unpack", "Turn an .mbin back into OBJ/MTL/PNG in OUTPUT/NAME/."),
     "urdf": (
-        "meshtool.cli.commands:urdf",
+        "meshtool.cli.model_commands:urdf",
         "Import ROBOT (a URDF): every mesh normalised, packed and hulled; an MJCF of the robot.",
     ),
     "validate": (
@@ -115,7 +117,7 @@ def main() -> None:
 def __getattr__(name: str) -> Any:
     """``obj2bin`` (its own console script) and the commands, imported on first use."""
     if name == "obj2bin":
-        return _import("meshtool.cli.commands:obj2bin")
+        return _import("meshtool.cli.mesh_commands:obj2bin")
     if name in COMMANDS:
         return _import(COMMANDS[name][0])
     raise AttributeError(f"module 'meshtool.cli.main' has no attribute {name!r}")

@@ -1,6 +1,6 @@
 """The ``.mbin`` pack commands: ``meshtool info``, ``unpack`` and ``export``.
 
-Thin click commands over :mod:`meshtool.packfile`; errors and exit codes as in :mod:`meshtool.cli.commands`.
+Thin click commands over :mod:`meshtool.packfile`; errors and exit codes as in :mod:`meshtool.cli.command_support`.
 """
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ from typing import Any
 
 import click
 
-from meshtool.cli.commands import _guard, _hull_summary, force_option, output_dir_option
+from meshtool.cli.command_support import _guard, force_option, output_dir_option
+from meshtool.cli.mesh_commands import _hull_summary
 from meshtool.cli.output import findings, report, say, wrote
 from meshtool.errors import PackFormatError
 from meshtool.files.outdir import check_output, write_folder, write_output
