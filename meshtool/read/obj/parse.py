@@ -386,9 +386,10 @@ def _drop_invalid(
     """Corners lose a texcoord/normal that is not finite or beyond :data:`MAX_ATTRIBUTE` (-1), with a warning."""
     if values.shape[0] == 0:
         return index
+    with np.errstate(invalid="ignore"):
+        if bool((np.abs(values) <= MAX_ATTRIBUTE).all()):  # the usual case: every row valid (one reduction)
+            return index
     invalid = ~_valid_rows(values)
-    if not invalid.any():
-        return index
     hit = (index >= 0) & invalid[np.maximum(index, 0)]
     if not hit.any():
         return index  # unused: dropped with the other unused ones

@@ -90,7 +90,7 @@ def triangulate_polygons(positions: FloatArray, face_sizes: IntArray, corner_v: 
         # them, their cross product and its dot with the normal, the same operations as over all four
         odd = p[:, 1::2]  # corners 1, 3
         edge_in = odd - p[:, 0::2]  # 1 - 0, 3 - 2
-        edge_out = p[:, [2, 0]] - odd  # 2 - 1, 0 - 3
+        edge_out = p[:, 2::-2] - odd  # 2 - 1, 0 - 3
         turn = np.einsum("qkj,qj->qk", np.cross(edge_in, edge_out), normal)
         reflex_odd = (turn[:, 0] < 0) | (turn[:, 1] < 0)
         chosen = (first[:, None, None] + np.where(reflex_odd[:, None, None], _DIAG13, _DIAG02)).reshape(-1, 3)
