@@ -43,6 +43,7 @@ class MeshEntity(Entity):
     """
 
     TYPE: ClassVar[str] = "MeshEntity"
+    BATCHABLE: ClassVar[bool] = True  # build: geoms of its body, meshes of ctx.assets
 
     asset: str
     scale: float = 1.0

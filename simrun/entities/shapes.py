@@ -24,6 +24,7 @@ class Shape(Entity):
     """
 
     GEOM: ClassVar[int] = mujoco.mjtGeom.mjGEOM_BOX
+    BATCHABLE: ClassVar[bool] = True  # build: one geom of its body, a texture material of ctx.assets
 
     mass: float | None = None
     density: float = 1000.0

@@ -120,6 +120,11 @@ class Entity:
 
     TYPE: ClassVar[str] = "Entity"
     HAS_BODY: ClassVar[bool] = True
+    #: Whether :meth:`build` adds nothing but elements of ``body`` (geoms, sites) and assets of ``ctx.assets``,
+    #: so that a world of many entities may build it in a child spec (:mod:`simrun.world.batch`). Read from
+    #: the class that defines the ``build`` an entity runs: a subclass overriding ``build`` is not batched
+    #: unless it sets it too.
+    BATCHABLE: ClassVar[bool] = False
 
     name: str
     pose: Pose = field(default_factory=Pose)

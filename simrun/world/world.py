@@ -24,6 +24,7 @@ from simrun.errors import CompileError, EntityError, Origin, SimrunError
 from simrun.world import model_cache
 from simrun.world import options as model_options
 from simrun.world.assets import AssetLibrary
+from simrun.world.batch import BATCH, TreeBuilder
 from simrun.world.entity import BuildContext, Entity
 from simrun.world.registry import Controller, arguments, python_fail, scene_type, service_arguments
 
@@ -243,8 +244,14 @@ class World:
         self._spec = self._model = self._data = None
         self.reschedule()
 
-    def build_spec(self) -> mujoco.MjSpec:
-        """A fresh spec with every entity built into it (assets added once, from memory)."""
+    def build_spec(self, batched: bool | None = None) -> mujoco.MjSpec:
+        """A fresh spec with every entity built into it (assets added once, from memory).
+
+        Args:
+            batched: Build the entities that allow it in child specs of :data:`~simrun.world.batch.BATCH`
+                entities, each attached once (:mod:`simrun.world.batch`: the same model, in time linear in
+                the entities); ``None``: when the world has more than ``BATCH`` entities.
+        """
         spec = mujoco.MjSpec()
         spec.modelname = "world"
         spec.compiler.degree = False  # angles in radians (joint ranges), as everywhere in simrun
@@ -255,15 +262,17 @@ class World:
         spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
         assets = AssetLibrary(spec, files=self._assets.files, images=self._assets.images, sources=self._assets.sources)
         bodies: dict[str, Any] = {}
+        tree = TreeBuilder(spec, len(self._entities) > BATCH if batched is None else batched)
         for full, entity in self._entities.items():
             try:
-                self._build_entity(spec, full, entity, assets, bodies)
+                self._build_entity(tree, full, entity, assets, bodies)
             except (EntityError, ValueError) as exc:
                 raise self._located(full, entity, exc) from None
-        if len(spec.bodies) - 1 > MAX_BODIES:
-            raise EntityError(f"the world has {len(spec.bodies) - 1} bodies, over the limit of {MAX_BODIES}")
+        spec, nbody = tree.finish()
+        if nbody - 1 > MAX_BODIES:
+            raise EntityError(f"the world has {nbody - 1} bodies, over the limit of {MAX_BODIES}")
         spec.assets = dict(assets.vfs)
-        arena = arena_bytes(len(spec.bodies))
+        arena = arena_bytes(nbody)
         if arena is not None:
             spec.memory = arena
         main = [full for full, e in self._entities.items() if isinstance(e, Camera) and e.main]
@@ -272,16 +281,19 @@ class World:
         return spec
 
     def _build_entity(
-        self, spec: mujoco.MjSpec, full: str, entity: Entity, assets: AssetLibrary, bodies: dict[str, Any]
+        self, tree: TreeBuilder, full: str, entity: Entity, assets: AssetLibrary, bodies: dict[str, Any]
     ) -> None:
-        parent = bodies[entity.parent] if entity.parent else spec.worldbody
-        ctx = BuildContext(spec, full, assets, self.base_dir, self.assets)
+        ctx = BuildContext(tree.spec, full, assets, self.base_dir, self.assets)
         if not entity.HAS_BODY:
+            tree.parent(full, entity, None, bodies)  # what was batched before it is attached first
             entity.build(None, ctx)
             return
         pose = entity.body_pose()
-        body = parent.add_body(name=full, pos=list(pose.position), quat=list(pose.orientation))
-        body.mocap = entity.kinematic
+        parent = tree.parent(full, entity, pose, bodies)
+        body = parent.add_body()
+        body.name, body.pos, body.quat = full, pose.position, pose.orientation
+        if entity.kinematic:
+            body.mocap = True
         if entity.free:
             body.add_freejoint(name=f"{full}/free")
         entity.build(body, ctx)
