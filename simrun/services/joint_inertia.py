@@ -7,6 +7,7 @@ add to it (issue 37). Shapes: dof counts of the model (``nv``) and of the comman
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import mujoco
@@ -39,7 +40,7 @@ def with_contacts(
     model: mujoco.MjModel,
     work: mujoco.MjData | None,
     tree: np.ndarray[Any, np.dtype[np.intp]],
-    dofs: list[int],
+    dofs: Sequence[int] | np.ndarray[Any, np.dtype[np.intp]],
     free: Matrix,
     bandwidth: float,
     period: float,

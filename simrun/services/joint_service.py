@@ -3,59 +3,15 @@
 Bound to an entity (an :class:`~simrun.robots.mjcf_robot.MjcfRobot`, a :class:`~simrun.robots.urdf_robot.UrdfRobot` with
 ``actuators = true``, any entity whose model has actuators), it commands the entity's own actuators that
 drive one hinge or slide joint each (``NAME/joint``); joints are named without the entity prefix. It runs
-as a world controller at ``rate`` Hz (controls hold between ticks). How a target becomes a control depends on
-the actuator (read from the compiled model, never from names):
+as a world controller at ``rate`` Hz (controls hold between ticks).
 
-* **position servo** (``biastype affine`` with ``biasprm[1] < 0``: a spring towards a point the control
-  sets; ``<position>`` is ``gain = kp``, ``biasprm = [0, -kp, -kv]``): ``ctrl = -(b0 + b1 gear q*) / gain``,
-  which is ``gear q*`` for ``<position>`` (the servo's own loop; a velocity target moves the position target
-  at that speed).
-* **velocity servo** (``biasprm[1] = 0``, ``biasprm[2] = -kv``): ``ctrl = gear * (v* + w (q* - q))``, a
-  position loop of bandwidth ``w`` (rad/s) around the servo (``v*``: the velocity target, 0 when holding),
-  damped by the servo itself: joint torque ``K (ctrl / gear - v)``, ``K = gear^2 kv``, so the loop is
-  ``m s^2 + (K + b) s + K w`` (``m`` the joint's diagonal of the mass matrix, ``b`` its damping), at least
-  critically damped where ``(K + b)^2 >= 4 m K w``. A servo too weak for that rings: dm_control's jumping
-  ball's camera slide (``kv`` 1 on 1 kg, damping ratio 0.14) still swung 40 % of its step 5 s after the
-  walker's kick. Such a servo is used as a torque source: ``ctrl = gear (v + m (w^2 e + 2 w (v* - v)) / K)``
-  puts both poles at ``-w``; the ``v`` in it cancels the servo's damping explicitly, stable because
-  ``K h / m < 4 w h`` there (``h`` how long a control holds, the control period or the timestep; ``K h / m``
-  is required below 1).
-* **integrated velocity servo** (``intvelocity``: integrator dynamics, position bias): the activation is
-  the servo's position target; ``ctrl = gear v* + w (gear q* - act)`` steers it to ``gear q*``.
-* **force** (a motor, or any other fixed-gain actuator with affine or no bias, with or without a filter):
-  a PID loop in joint space with
-  feed-forward of MuJoCo's bias, spring and gravity-compensation forces, ``tau = qfrc_bias - qfrc_spring -
-  qfrc_gravcomp + S a + B a / (3 w)``, ``a = 3 w^2 e + 3 w (v* - v) + w^3 integral(e)`` per joint,
-  ``e = q* - q``, ``w`` the bandwidth: the three closed-loop poles sit at ``-w`` (critically damped,
-  ``(s + w)^3``). ``S`` is the inertia the commanded force joints see together, every other degree of
-  freedom free: the Schur complement of MuJoCo's mass matrix (armature included) at the model's initial
-  pose over the rest (a free root, passive joints, servo-driven joints). Each joint's own diagonal of the
-  mass matrix (its inertia with everything else held), as before issue 29's walker roots, made the force
-  loops of a floating body fight each other through it: on the CMU humanoids of dm_control with their free
-  root the spine joints chattered at half the control rate between the actuators' full forces (the
-  smallest inertia a spine joint sees, everything else free, is 1/66 of its diagonal); with ``S`` they
-  settle (``bench/mjcf_robots.py``: 58 of 62 models reach their targets, against 56 with the diagonal and
-  no regression). ``S`` is computed once per set of commanded joints. The joints' damping ``B`` (diagonal)
-  is not cancelled: MuJoCo integrates it implicitly, a cancellation held over a control period is explicit
-  and diverges where ``b * period / m > 2`` (light wrists and fingers); ``B / (3 w)`` is added to the
-  inertia instead, so a joint whose damping dwarfs its inertia still closes its loop in about ``1 / w``
-  (poles ``w (-1 +- 1.29 i) / 4`` in that limit). The integral removes what the feed-forward misses
-  (friction loss, contacts) and stops growing while the control is clipped in the error's direction (no
-  wind-up). The actuator's own bias is subtracted: ``ctrl = (tau / gear - b0 - b1 gear q - b2 gear v) / gain``.
-  **Contacts** (issue 37): a joint whose limb touches something carries more than ``S``: a ball rolling on
-  the ground carries the body along (31 times its own inertia on dm_control's jumping ball), and the loop,
-  stable only while the inertia stays below 9 times its design, rang ever wider. Each tick the contacts of
-  the current pose that touch the entity are taken as held (MuJoCo's soft constraint rows) and the inertia
-  they add is added to ``S`` (capped at ``1 / (3 w h) - 1`` times ``S``, 5.6 at the defaults, so the loop
-  still samples stably when the contact lets go; beyond the cap the integral is slowed by ``4.5 / k``, ``k``
-  what is left; :func:`simrun.services.joint_inertia.with_contacts`). **Filtered actuators** (``dyntype filter`` or
-  ``filterexact``, dm_control's dog: 50 ms): the force follows the activation, not the control, and a 4 Hz
-  loop around a 50 ms lag is unstable (``tau w < 8 / 9`` is needed); the control is the one that brings the
-  activation to the wanted value in one control period (``(u - d act) / (1 - d)``, ``d`` the part of the
-  activation a held control leaves, from the filter's integration), clipped to the control range.
-
-Muscles, user-defined gains or biases, integrator dynamics without a position bias and actuators on
-tendons, sites or bodies are not commanded (:meth:`JointService.joints` leaves their joints out).
+How a target becomes a control depends on the actuator (a position, velocity or integrated-velocity servo, or
+a force with or without a filter; read from the compiled model, never from names): the control laws, and the
+inertia the force loops design for (issue 29's ``S``, issue 37's contacts), are those of
+:mod:`simrun.services.joint_loops`
+(vectorised over the driven joints, issue 41). Muscles, user-defined gains or biases, integrator dynamics
+without a position bias and actuators on tendons, sites or bodies are not commanded
+(:meth:`JointService.joints` leaves their joints out).
 
 Controls are clipped to the actuator's ``ctrlrange``: a weak motor may not hold a pose. **Targets** are
 refused, with one line naming the joint, the value and the range, outside what the joint and its actuator
@@ -95,15 +51,8 @@ import mujoco
 import numpy as np
 
 from simrun.errors import EntityError
-from simrun.services.joint_drives import (
-    Drive,
-    check_position,
-    check_speed,
-    drive_of,
-    filter_decay,
-    servo_integral_rate,
-)
-from simrun.services.joint_inertia import free_inertia, with_contacts
+from simrun.services.joint_drives import Drive, check_position, check_speed, drive_of
+from simrun.services.joint_loops import Layout, Scratch
 from simrun.services.joint_trajectory import Trajectory, check_waypoints
 
 if TYPE_CHECKING:  # the world imports the registry, which names this module: no import back
@@ -117,6 +66,8 @@ HOLD_MODES = ("all", "commanded")
 #: How a trajectory moves between two waypoints: a straight line at constant speed (``linear``) or
 #: ``a + (b - a) (1 - cos(pi u)) / 2`` (``cosine``: at rest at each waypoint; ``u`` the segment's time fraction).
 PROFILES = ("linear", "cosine")
+#: Most layouts (sets of driven joints) a service keeps; more are built again when next driven.
+_LAYOUTS = 64
 _ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
@@ -200,9 +151,10 @@ class JointService:
         self._held: dict[str, float] = {}  # joint -> where it is held without a command (hold = "all")
         self._plan: Trajectory | None = None  # the trajectory being followed
         self._integral: dict[str, float] = {}  # joint -> integral of the position error (force joints), rad s
-        self._scratch: _Scratch | None = None  # feed-forward forces are computed here, from the state alone
+        self._scratch: Scratch | None = None  # feed-forward forces are computed here, from the state alone
         self._mass = np.zeros((0, 0))  # MuJoCo's mass matrix at the model's initial pose (nv x nv)
-        self._inertia: dict[tuple[str, ...], np.ndarray[Any, np.dtype[np.float64]]] = {}  # force joints -> S
+        self._layouts: dict[tuple[Any, ...], Layout] = {}  # (driven joints, w, h, integral) -> their laws' arrays
+        self._holdable: list[tuple[str, int]] = []  # (joint, qpos) of every commandable joint but the wheels
         self._wheels: set[str] = set()  # the entity's wheel joints (the DriveService's), never held
         self._tree = np.zeros(0, dtype=np.intp)  # the dofs of the entity's bodies (its root's included)
         world.controllers.append(self)
@@ -337,71 +289,82 @@ class JointService:
     # -- controller hooks ----------------------------------------------------------------------------------
 
     def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """Advance the trajectory and the velocity targets, then set every commanded actuator's control."""
-        self._lookup(model)
-        if self._plan is not None:
-            self._follow(float(data.time))
-        if self.hold_mode == "all":
-            for joint, drive in self._drives.items():
-                if joint not in self._targets and joint not in self._held and joint not in self._wheels:
-                    self._held[joint] = float(data.qpos[drive.qpos])
-        goals = {**{j: [q, 0.0] for j, q in self._held.items()}, **self._targets}  # held ones: copies
-        w, h = self.bandwidth, self.period
-        force = [j for j in goals if self._drives[j].kind == "force"]
-        wanted = self._computed_torque(model, data, force, goals) if force else {}
-        for joint, target in goals.items():
-            drive = self._drives[joint]
-            position, velocity = target
-            if velocity and (self._plan is None or joint not in self._plan.joints):
-                position = target[0] = min(drive.highest, max(drive.lowest, position + velocity * h))
-                if position in (drive.lowest, drive.highest):  # at the end of its range: it stops there
-                    velocity = target[1] = 0.0
-            q, v = float(data.qpos[drive.qpos]), float(data.qvel[drive.dof])
-            error = position - q
-            integral = self._integral.get(joint, 0.0) + error * h if self.integral else 0.0  # rad s (m s)
-            if (
-                drive.kind == "position"
-            ):  # force = g u + b0 + b1 gear q (+ b2 speed): at rest where g u = -b0 - b1 gear q
-                bias = model.actuator_biasprm[drive.actuator]
-                shift = servo_integral_rate(model, drive, w) * integral if self.integral else 0.0
-                if bias[0] == 0 and bias[1] == -drive.gain:  # <position>: ctrl = gear q*, exactly
-                    ctrl = drive.gear * (position + shift)
-                else:
-                    ctrl = -(bias[0] + bias[1] * drive.gear * (position + shift)) / drive.gain
-            elif drive.kind == "velocity":
-                servo = drive.gear * drive.gear * drive.gain  # joint torque per rad/s of speed error
-                hold = max(h, float(model.opt.timestep))  # how long a control stays
-                weak = (servo + drive.damping) ** 2 < 4.0 * drive.mass * servo * w and servo * hold < drive.mass
-                if weak:  # its own damping cannot damp the loop: command the torque (see the module)
-                    torque = drive.mass * (w * w * (position - q) + 2.0 * w * (velocity - v))
-                    ctrl = drive.gear * (v + torque / servo)
-                else:
-                    rate = min(w * w / 3.0, 0.5 * (servo + drive.damping) * w / drive.mass)
-                    ctrl = drive.gear * (velocity + w * error + rate * integral)
-                    self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
-            elif drive.kind == "intvelocity":  # the servo's target is the activation: steer it to gear * q*
-                act = float(data.act[model.actuator_actadr[drive.actuator]])
-                shift = servo_integral_rate(model, drive, w) * integral
-                ctrl = drive.gear * velocity + w * (drive.gear * (position + shift) - act)
-            else:
-                tau, error, integral = wanted[joint]
-                bias = model.actuator_biasprm[drive.actuator]  # force = gain ctrl + b0 + b1 length + b2 speed
-                offset = float(bias[0] + bias[1] * drive.gear * q + bias[2] * drive.gear * v)
-                ctrl = (tau / drive.gear - offset) / drive.gain  # the activation that gives the torque
-                if drive.lag > 0:  # a filtered actuator: the control that brings the activation there in one hold
-                    self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
-                    act = float(data.act[model.actuator_actadr[drive.actuator]])
-                    decay = filter_decay(model, drive, h)
-                    data.ctrl[drive.actuator] = min(drive.high, max(drive.low, (ctrl - decay * act) / (1.0 - decay)))
-                    continue
-            if drive.kind != "velocity":
-                self._keep_integral(joint, drive, ctrl, error * drive.gear, integral)
-            data.ctrl[drive.actuator] = min(drive.high, max(drive.low, ctrl))
+        """Advance the trajectory and the velocity targets, then set every driven actuator's control.
 
-    def _keep_integral(self, joint: str, drive: Drive, ctrl: float, push: float, integral: float) -> None:
-        """Store the new error integral unless the control is clipped in the direction it pushes (no wind-up)."""
-        if self.integral and not ((ctrl > drive.high and push > 0) or (ctrl < drive.low and push < 0)):
-            self._integral[joint] = integral
+        The laws are :class:`~simrun.services.joint_loops.Layout`'s, over arrays of the driven joints: the held
+        ones (in the order they were first held), then the commanded ones (in the order first commanded).
+        """
+        self._lookup(model)
+        plan = self._plan
+        if plan is not None:
+            self._follow(float(data.time))
+            plan = self._plan
+        held, targets = self._held, self._targets
+        if self.hold_mode == "all":
+            for joint, qpos in self._holdable:
+                if joint not in targets and joint not in held:
+                    held[joint] = float(data.qpos[qpos])
+        names = (*held, *targets)
+        if not names:
+            return
+        layout = self._layout(model, names)
+        names = layout.names
+        before = [*held.values(), *(t[0] for t in targets.values())]
+        speeds = [0.0] * len(held) + [t[1] for t in targets.values()]
+        after = before
+        if any(speeds):
+            h, moved = self.period, False
+            for joint, target in targets.items():
+                position, velocity = target
+                if velocity and (plan is None or joint not in plan.joints):
+                    drive = self._drives[joint]
+                    position = target[0] = min(drive.highest, max(drive.lowest, position + velocity * h))
+                    if position in (drive.lowest, drive.highest):  # at the end of its range: it stops there
+                        target[1] = 0.0
+                    moved = True
+            if moved:
+                after = [*held.values(), *(t[0] for t in targets.values())]
+                speeds_after = [0.0] * len(held) + [t[1] for t in targets.values()]
+            else:
+                speeds_after = speeds
+        else:
+            speeds_after = speeds
+        take = layout.take
+        old = (np.array(before)[take], np.array(speeds)[take])
+        new = old if after is before else (np.array(after)[take], np.array(speeds_after)[take])
+        integral = self._integral
+        sums = np.array([integral.get(j, 0.0) for j in names]) if self.integral else np.zeros(len(names))
+        scratch = self._scratch
+        if scratch is None or scratch.model is not model:
+            scratch = self._scratch = Scratch(model)
+        ctrl, keep, sums = layout.controls(data, scratch, self._tree, old, new, sums)
+        data.ctrl[layout.actuator] = ctrl
+        if self.integral:
+            values = sums.tolist()
+            for k in np.flatnonzero(keep).tolist():
+                integral[names[k]] = values[k]
+
+    def _layout(self, model: mujoco.MjModel, names: tuple[str, ...]) -> Layout:
+        """The :class:`~simrun.services.joint_loops.Layout` of the driven joints ``names`` (held, then commanded).
+
+        Built once per set (and order) of joints, bandwidth, period and ``integral``; a joint both held and
+        commanded is driven once, at its held place, to its commanded target.
+        """
+        key = (names, self.bandwidth, self.period, self.integral)
+        found = self._layouts.get(key)
+        if found is None:
+            if len(self._layouts) >= _LAYOUTS:
+                self._layouts.clear()
+            places: dict[str, int] = {}
+            for k, joint in enumerate(names):  # {**held, **targets}: the first place, the last value
+                places[joint] = places.get(joint, k)
+            unique = tuple(places)
+            last = {joint: k for k, joint in enumerate(names)}
+            take = np.array([last[j] for j in unique], dtype=np.intp)
+            found = Layout(model, self._drives, unique, self._mass, self.bandwidth, self.period, self.integral)
+            found.take = take
+            self._layouts[key] = found
+        return found
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """After ``World.reset``: no targets, no trajectory (the actuators' controls are MuJoCo's reset ones).
@@ -433,43 +396,6 @@ class JointService:
 
     # -- internals -----------------------------------------------------------------------------------------
 
-    def _computed_torque(
-        self, model: mujoco.MjModel, data: mujoco.MjData, joints: list[str], goals: dict[str, list[float]]
-    ) -> dict[str, tuple[float, float, float]]:
-        """Joint torque, position error and the error's new integral of each force-driven joint (see the module).
-
-        ``goals``: joint to [position target, velocity target], the commanded and the held joints.
-        """
-        w, h = self.bandwidth, self.period
-        dofs = [self._drives[j].dof for j in joints]
-        feed = self._feed_forward(model, data)[dofs]
-        free = self._joint_inertia(tuple(joints), dofs)
-        work = None if self._scratch is None else self._scratch.data
-        inertia, slower = with_contacts(model, work, self._tree, dofs, free, self.bandwidth, self.period)
-        rates, damped, errors, integrals = [], [], [], []
-        for joint in joints:
-            drive, (position, velocity) = self._drives[joint], goals[joint]
-            error = position - float(data.qpos[drive.qpos])
-            integral = self._integral.get(joint, 0.0) + error * h if self.integral else 0.0
-            rate = (
-                3.0 * w * w * error
-                + 3.0 * w * (velocity - float(data.qvel[drive.dof]))
-                + slower * (w * w * w * integral)
-            )
-            rates.append(rate)
-            damped.append(drive.damping / (3.0 * w) * rate)
-            errors.append(error)
-            integrals.append(integral)
-        torque = inertia @ np.asarray(rates) + np.asarray(damped) + feed
-        return {j: (float(torque[k]), errors[k], integrals[k]) for k, j in enumerate(joints)}
-
-    def _joint_inertia(self, joints: tuple[str, ...], dofs: list[int]) -> np.ndarray[Any, np.dtype[np.float64]]:
-        """The inertia matrix the force joints ``joints`` (dofs ``dofs``) see with every other dof free."""
-        found = self._inertia.get(joints)
-        if found is None:
-            found = self._inertia[joints] = free_inertia(self._mass, dofs)
-        return found
-
     def _follow(self, now: float) -> None:
         plan = self._plan
         assert plan is not None
@@ -481,28 +407,6 @@ class JointService:
             return
         for joint, (position, velocity) in zip(plan.joints, targets, strict=True):
             self._targets[joint] = [position, velocity]
-
-    def _feed_forward(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray[Any, np.dtype[np.float64]]:
-        """``qfrc_bias - qfrc_spring - qfrc_gravcomp`` (per dof) at the current ``qpos``, ``qvel``.
-
-        Computed in a scratch ``MjData`` from the state alone: the derived fields of ``data`` between steps
-        belong to the state before the last step, and a run resumed from a checkpoint has other ones, so a
-        control that read them would not replay bit for bit.
-        """
-        scratch = self._scratch
-        if scratch is None or scratch.model is not model:
-            scratch = self._scratch = _Scratch(model)
-        work = scratch.data
-        work.qpos[:] = data.qpos
-        work.qvel[:] = data.qvel
-        mujoco.mj_kinematics(model, work)
-        mujoco.mj_comPos(model, work)
-        mujoco.mj_tendon(model, work)
-        mujoco.mj_comVel(model, work)
-        mujoco.mj_passive(model, work)
-        mujoco.mj_rne(model, work, 0, scratch.bias)
-        feed: np.ndarray[Any, np.dtype[np.float64]] = scratch.bias - work.qfrc_spring - work.qfrc_gravcomp
-        return feed
 
     def _target_now(self, joint: str) -> float:
         """The joint's current position target, or where it is when it has none."""
@@ -594,10 +498,11 @@ class JointService:
             if drive is not None:
                 drives[name] = drive
         self._joints, self._drives, self._bound = joints, drives, model
-        self._mass, self._inertia = full, {}
+        self._mass, self._layouts = full, {}
         self._targets = {k: v for k, v in self._targets.items() if k in drives}
         self._held = {}  # a new model starts at its initial state: held again from there at the next tick
         self._wheels = self._wheel_joints()
+        self._holdable = [(j, d.qpos) for j, d in drives.items() if j not in self._wheels]
         mine = [
             b for b in range(model.nbody) if model.body(b).name in (self.name,) or model.body(b).name.startswith(prefix)
         ]
@@ -615,12 +520,3 @@ class JointService:
             return {"left_wheel", "right_wheel"}
         wheels = getattr(entity, "wheels", ())
         return {str(w) for w in wheels} if isinstance(wheels, tuple | list) else set()
-
-
-class _Scratch:
-    """A private ``MjData`` of one model and the bias-force buffer."""
-
-    def __init__(self, model: mujoco.MjModel) -> None:
-        self.model = model
-        self.data = mujoco.MjData(model)
-        self.bias = np.zeros(model.nv)
