@@ -83,6 +83,8 @@ def test_the_reporting_check_sees_every_cli_module():
         "meshtool/cli/model_commands.py",
         "meshtool/cli/command_support.py",
         "simrun/cli/main.py",
+        "simrun/cli/scene_commands.py",
+        "simrun/cli/log_commands.py",
         "simrun/cli/scenetest.py",
         "meshtool/cli/output.py",
     } <= names

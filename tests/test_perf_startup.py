@@ -68,7 +68,7 @@ def test_the_light_copies_of_option_choices_agree_with_the_library() -> None:
     from meshtool.cli import validate as cli_validate
     from meshtool.frame.units import UNIT_FACTORS
     from meshtool.validate.reports import FORMATS
-    from simrun.cli import main as cli
+    from simrun.cli import types as cli
     from simrun.run.render import MODES
     from simrun.run.session import DEFAULT_SIZE
 

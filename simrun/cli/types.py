@@ -1,4 +1,7 @@
-"""Parameter types the ``simrun`` commands share (click types that refuse NaN, durations, frame rates, outputs)."""
+"""Parameter types the ``simrun`` commands share (click types that refuse NaN, durations, frame rates, outputs).
+
+Also the render modes and image size (``--render-mode``, ``--size WxH``) of play, replay and snapshot.
+"""
 
 from __future__ import annotations
 
@@ -36,3 +39,21 @@ SECONDS = Number(0.0, MAX_SECONDS)
 FPS = Number(0.0, 1000.0, low_open=True)
 #: An output file (not a folder).
 OUT = click.Path(path_type=Path, dir_okay=False)
+
+
+#: Render modes (simrun.run.render.MODES, which imports MuJoCo; tests/test_perf_startup.py checks they agree).
+MODES = ("visual", "wireframe", "physics", "combined", "none")
+#: The default image size (simrun.run.session.DEFAULT_SIZE, checked equal by tests/test_perf_startup.py).
+DEFAULT_SIZE = (640, 480)
+#: The one default image size of play, replay and snapshot (docs/cli.md).
+DEFAULT_SIZE_TEXT = f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}"
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected WxH, got {text!r}") from None
+    if not (16 <= width <= 4096 and 16 <= height <= 4096):
+        raise click.BadParameter("width and height must be 16..4096")
+    return width, height
