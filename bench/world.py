@@ -52,6 +52,7 @@ from meshtool.packfile import pack
 from meshtool.packfile.read import forget_checks
 from meshtool.pipeline import ConvertOptions, convert
 from simrun import MeshEntity, Pose, World
+from simrun.world import batch
 from simrun.world.model_cache import RACY_NS, ModelCache, model_bytes
 
 COUNT = 50
@@ -303,7 +304,8 @@ class Growth:
 def growth_split(bench: Growth, count: int, shared: bool) -> dict[str, float]:
     """One more simrun build of ``count`` entities under ``cProfile`` (process CPU), its seconds split into
     MuJoCo's spec bindings (``add_body``, ``add_geom``, ``add_mesh``), MuJoCo's compile, meshtool's
-    ``.mbin`` reading and the rest (simrun's Python; the profiler's own overhead falls on it)."""
+    ``.mbin`` reading, the batches' ``attach`` and the final ``copy`` (simrun/world/batch.py) and the rest
+    (simrun's Python; the profiler's own overhead falls on it)."""
     folder = bench._folder(count, shared, False)
     forget_checks()
     forget_mujoco_meshes()
@@ -313,11 +315,13 @@ def growth_split(bench: Growth, count: int, shared: bool) -> dict[str, float]:
     profile.disable()
     shutil.rmtree(folder)
     stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
-    split = {"bindings": 0.0, "compile": 0.0, "meshtool": 0.0, "rest": 0.0}
+    split = {"bindings": 0.0, "attach": 0.0, "compile": 0.0, "meshtool": 0.0, "rest": 0.0}
     for (filename, _, name), row in stats.items():
         own = float(row[2])  # tottime: each second counted once
         if name == "<built-in method mujoco._specs.compile>":
             split["compile"] += own
+        elif name in ("<built-in method mujoco._specs.attach>", "<built-in method mujoco._specs.copy>"):
+            split["attach"] += own
         elif "mujoco._specs" in name or (filename == "~" and "mujoco" in name):
             split["bindings"] += own
         elif "/meshtool/" in filename:
@@ -373,8 +377,13 @@ def growth_table(before: str, r: dict[str, Timing], ready: str, repeat: int, siz
     verdict = ""
     if adds[big] > 1.5 * adds[probe[0]]:
         verdict = (
-            ": the cost of one addition grows with the spec, so a build through the bindings is not linear in N "
-            "however little simrun adds to it"
+            ": the cost of one addition grows with the spec (MuJoCo's C++ walks the whole tree at every "
+            "`mjs_addBody` / `mjs_addGeom`: `ResetTreeLists`, `MakeTreeLists`, the signature), and MuJoCo's MJCF "
+            "parser adds its elements the same way, which is why MuJoCo's own per-entity column grows. simrun "
+            f"builds worlds of more than {batch.BATCH} entities in child specs of {batch.BATCH} entities, "
+            "attached to the world's spec with their elements unnamed and named again after, then copied once "
+            "(`simrun/world/batch.py`; the same model byte for byte: `tests/test_world_batch.py`), so no "
+            "addition walks more than one batch"
         )
     lines = [
         GROWTH_BEGIN,
@@ -419,20 +428,37 @@ def growth_table(before: str, r: dict[str, Timing], ready: str, repeat: int, siz
         "",
         "Where simrun's build goes: one more build under `cProfile` (process CPU; the profiler's overhead falls on "
         "the Python rows), seconds by what ran them: MuJoCo's spec bindings (`add_body`, `add_geom`, `add_mesh`; "
-        "setting an element's attributes counts in its caller's row), MuJoCo's compile, meshtool's `.mbin` "
-        "reading (parse, checks, mass properties), and the rest (simrun's Python: entities, poses, paths, asset "
-        "tables).",
+        "setting an element's attributes counts in its caller's row), the batches' `MjSpec.attach` and the final "
+        "`MjSpec.copy`, MuJoCo's compile, meshtool's `.mbin` reading (parse, checks, mass properties), and the "
+        "rest (simrun's Python: entities, poses, paths, asset tables, the in-memory `.msh` files).",
         "",
-        "| build | bindings s | compile s | meshtool s | rest s |",
-        "|---|---|---|---|---|",
+        "| build | bindings s | attach + copy s | compile s | meshtool s | rest s |",
+        "|---|---|---|---|---|---|",
         *(
-            f"| {key.split()[0]} {int(key.split()[1]):,} | {v['bindings']:.4f} | {v['compile']:.4f} | "
-            f"{v['meshtool']:.4f} | {v['rest']:.4f} |"
+            f"| {key.split()[0]} {int(key.split()[1]):,} | {v['bindings']:.4f} | {v['attach']:.4f} | "
+            f"{v['compile']:.4f} | {v['meshtool']:.4f} | {v['rest']:.4f} |"
             for key, v in SPLITS.items()
         ),
+        "",
+        *_distinct_note(big),
         GROWTH_END,
     ]
     return "\n".join(lines)
+
+
+def _distinct_note(big: int) -> list[str]:
+    """What the profile says of the distinct-file worlds (one ``.mbin`` per entity), where they fall short."""
+    v = SPLITS.get(f"distinct {big}")
+    if v is None:
+        return []
+    total = sum(v.values())
+    return [
+        f"Distinct files at N = {big:,}: of the profiled build's {total:.1f} s, MuJoCo's compile takes "
+        f"{v['compile']:.1f} s (each file's meshes: MuJoCo's own work, as in the MJCF build), meshtool's `.mbin` "
+        f"reading {v['meshtool']:.1f} s and simrun's Python {v['rest']:.1f} s, most of it the per-file asset path "
+        "(`simrun/world/assets.py`: the pack's view, the in-memory `.msh` files, the hull volumes); the tree "
+        f"(bindings {v['bindings']:.1f} s, attach + copy {v['attach']:.1f} s) no longer grows with N.",
+    ]
 
 
 def main() -> int:

@@ -5,8 +5,9 @@ and its signature at every addition (``mjs_addBody``, ``mjs_addGeom``...: ``Rese
 ``MakeTreeLists``), so the k-th addition costs O(k) and a spec of N entities O(N^2) (about 60 us per body
 added to a spec of 10,000; MuJoCo's own MJCF parser adds its elements the same way). :class:`TreeBuilder`
 builds the entities that touch nothing but their own body (and the shared asset library) into small
-child specs of :data:`BATCH` entities, where an addition walks at most that many, and attaches each child
-spec to the world's spec in one call (``MjSpec.attach`` to a frame, which moves the elements: no copy).
+child specs of :data:`BATCH` entities, where an addition walks at most that many, and attaches them to the
+world's spec (``MjSpec.attach`` to a frame, which moves the elements: no copy), their elements unnamed
+while they are attached (an attachment checks every name of the spec attached to) and named again after.
 
 The model compiled from such a spec is the one the entities built one by one give, byte for byte: an
 attached body lies in an identity frame, which MuJoCo composes with its pose exactly, except for the sign
@@ -31,8 +32,10 @@ if TYPE_CHECKING:
     from simrun.world.entity import Entity
     from simrun.world.pose import Pose
 
-#: Entities per child spec; a world of more top-level entities than this is built in batches.
+#: Entities per child spec; a world of more entities than this is built in batches.
 BATCH = 128
+#: Most batches merged into one child spec before it is attached to the world's spec.
+MERGE = 8
 #: The warning MuJoCo gives (through ``mju_warning``) at every attachment with an empty prefix.
 EMPTY_PREFIX = "Attaching a spec with an empty prefix"
 
@@ -53,7 +56,7 @@ def batchable(cls: type[Entity]) -> bool:
 
 
 def _negative_zero(values: tuple[float, ...]) -> bool:
-    return any(v == 0.0 and math.copysign(1.0, v) < 0.0 for v in values)
+    return -1.0 in [math.copysign(1.0, v) for v in values if v == 0.0]
 
 
 class TreeBuilder:
@@ -70,6 +73,7 @@ class TreeBuilder:
         self._child: mujoco.MjSpec | None = None
         self._members: set[str] = set()  # full names of the bodies in the child spec being filled
         self._stack: list[tuple[mujoco.MjSpec, int]] = []  # filled child specs, with their batch counts
+        self._names: list[tuple[Any, str]] = []  # the elements of filled child specs and their names
         self._attached = False
         self._bodies = 0  # bodies of batchable entities (one each: their builds add none)
         self._others = False  # an entity that may add bodies of its own was built
@@ -91,7 +95,7 @@ class TreeBuilder:
                 if parent in self._members:
                     self._members.add(full)
                 return bodies[parent]  # (a child adds nothing to the order of top-level bodies)
-            if not (_negative_zero(pose.position) or _negative_zero(pose.orientation)):
+            if not _negative_zero(pose.position + pose.orientation):
                 if self._child is None or len(self._members) >= BATCH:
                     self._seal()
                     self._child = _child_of(self.spec)
@@ -108,31 +112,40 @@ class TreeBuilder:
         self._members = set()
         if child is None:
             return
+        names = self._names
+        for elements in (child.bodies[1:], child.geoms, child.joints, child.sites, child.cameras, child.lights):
+            for element in elements:
+                name = element.name
+                if name:
+                    names.append((element, name))
+                    element.name = ""
         stack, size = self._stack, 1
         with _quiet_attach():
-            while stack and stack[-1][1] == size:  # a binary counter: each entity is moved log2(N / BATCH) times
+            while stack and stack[-1][1] == size and size < MERGE:  # a binary counter, up to MERGE batches
                 into, _ = stack.pop()
                 into.attach(child, frame=into.worldbody.add_frame(), prefix="")
                 child, size = into, 2 * size
         stack.append((child, size))
 
     def flush(self) -> None:
-        """Attach every filled child spec to the world's spec, in entity order.
+        """Attach every filled child spec to the world's spec, in entity order, and name their elements again.
 
-        MuJoCo's attachment checks the names of every named element of the spec attached to (about 1.3 us
-        each), so filled child specs are merged pairwise first (a spec of 2^k batches attached to another of
-        as many) and the world's spec is attached to once: an entity's elements are checked about
-        log2(N / BATCH) times, not N / BATCH times.
+        MuJoCo's attachment checks the name of every named element of the spec attached to (about 1.3 us
+        each) and moves the elements of the attached spec in a time that grows with the square of their
+        number: the elements of a filled child spec are unnamed while it is attached (their names are set
+        again here, once every spec is in place), and child specs are merged pairwise up to :data:`MERGE`
+        batches before they are attached.
         """
         self._seal()
         if not self._stack:
             return
         stack, self._stack = self._stack, []
         with _quiet_attach():
-            while len(stack) > 1:  # the later ones into the earlier, smaller into larger: each once
-                child, _ = stack.pop()
-                stack[-1][0].attach(child, frame=stack[-1][0].worldbody.add_frame(), prefix="")
-            self.spec.attach(stack[0][0], frame=self.spec.worldbody.add_frame(), prefix="")
+            for child, _ in stack:
+                self.spec.attach(child, frame=self.spec.worldbody.add_frame(), prefix="")
+        for element, name in self._names:
+            element.name = name
+        self._names = []
         self._attached = True
 
     def finish(self) -> tuple[mujoco.MjSpec, int]:
