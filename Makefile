@@ -130,7 +130,7 @@ clean:
 # Mutation testing of the robot modules (docs/testing.md, "Mutation testing"); slow, not part of make test.
 # One module at a time, each against its tests (pyproject [tool.mutmut]); LP_NUM_THREADS=0 keeps Mesa's
 # renderer single-threaded so mutmut's forked test runs cannot deadlock. MUTATE=simrun.robots.arm.* for one module.
-MUTATE ?= simrun.robots.diff_drive.* simrun.services.drive_service.* simrun.robots.arm.* simrun.robots.arm_joints.* simrun.sensors.base.* simrun.sensors.range_cone.* simrun.services.joint_service.* \
+MUTATE ?= simrun.robots.diff_drive.* simrun.services.drive_service.* simrun.robots.arm.* simrun.robots.arm_service.* simrun.robots.arm_joints.* simrun.sensors.base.* simrun.sensors.range_cone.* simrun.services.joint_service.* \
 	simrun.world.world.xǁWorldǁstep__* simrun.world.world.xǁWorldǁreschedule__*
 mutants: $(TEST_STAMP)
 	$(PIP) install --quiet -e ".[test,mutation]"

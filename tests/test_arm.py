@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from simrun import Box, EntityError, Ground, Pose, World, WorldOptions
-from simrun.robots.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment, SixDof
+from simrun.robots.arm import ArmJoint, ArticulatedArm, KukaLBR3, LynxL6, Segment, SixDof
+from simrun.robots.arm_service import ArmService
 from simrun.robots.catalogue import Pioneer3DX
 from simrun.services.drive_service import DriveService
 

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from simrun import Ground, World, load_scene, save_scene
-from simrun.robots.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment
+from simrun.robots.arm import ArmJoint, ArticulatedArm, KukaLBR3, LynxL6, Segment
+from simrun.robots.arm_service import ArmService
 from simrun.services.joint_service import JointService
 
 

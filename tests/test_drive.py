@@ -1057,7 +1057,8 @@ def test_service_follows_its_robot_when_the_world_is_rebuilt():
 
 
 def test_bumper_ignores_its_own_mounted_arm():
-    from simrun.robots.arm import ArmService, LynxL6
+    from simrun.robots.arm import LynxL6
+    from simrun.robots.arm_service import ArmService
 
     world = World()
     world.insert(Ground(name="ground"))

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from simrun import EntityError, Ground, Pose, UrdfRobot, World, WorldOptions, load_scene
-from simrun.robots.arm import ArmService
+from simrun.robots.arm_service import ArmService
 from simrun.robots.mjcf_robot import MjcfRobot
 from simrun.services.joint_service import JointService
 

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from simrun import Box, EntityError, Ground, Pose, World, WorldOptions
-from simrun.robots.arm import ArmJoint, ArmService, ArticulatedArm, KukaLBR3, LynxL6, Segment
+from simrun.robots.arm import ArmJoint, ArticulatedArm, KukaLBR3, LynxL6, Segment
+from simrun.robots.arm_service import ArmService
 from simrun.robots.catalogue import BoeBot, IRobotCreate, LegoNxtTribot, Pioneer3DX
 from simrun.sensors.base import RayCaster
 from simrun.sensors.cameras import StereoRig, Webcam

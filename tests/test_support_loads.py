@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from simrun import Ground, Pose, World
-from simrun.robots.arm import ArmService, KukaLBR3, LynxL6
+from simrun.robots.arm import KukaLBR3, LynxL6
+from simrun.robots.arm_service import ArmService
 from simrun.robots.catalogue import READY_ROBOTS
 from simrun.services.drive_service import DriveService
 

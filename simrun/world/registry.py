@@ -148,7 +148,7 @@ _SERVICES = _types(
             "simrun.services.drive_service:DriveService",
             "Wheel speed control, odometry, drive/rotate commands.",
         ),
-        ("ArmService", "simrun.robots.arm:ArmService", "Joint targets, trajectories and gripper of an arm."),
+        ("ArmService", "simrun.robots.arm_service:ArmService", "Joint targets, trajectories and gripper of an arm."),
         (
             "JointService",
             "simrun.services.joint_service:JointService",
