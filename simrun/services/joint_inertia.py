@@ -15,12 +15,9 @@ import numpy as np
 
 #: A float matrix or vector.
 Matrix = np.ndarray[Any, np.dtype[np.float64]]
-#: MuJoCo's contact constraint types (a constraint row of one of them is a contact's).
-_CONTACTS = (
-    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS),
-    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
-    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC),
-)
+#: MuJoCo's first contact constraint type: the types from it on (frictionless, pyramidal, elliptic, the last
+#: three of ``mjtConstraint``) are contacts'.
+_FIRST_CONTACT = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
 
 
 def free_inertia(mass: Matrix, dofs: list[int]) -> Matrix:
@@ -42,8 +39,10 @@ def with_contacts(
     tree: np.ndarray[Any, np.dtype[np.intp]],
     dofs: Sequence[int] | np.ndarray[Any, np.dtype[np.intp]],
     free: Matrix,
+    whitening: Matrix,
     bandwidth: float,
     period: float,
+    movers: np.ndarray[Any, np.dtype[np.bool_]] | None = None,
 ) -> tuple[Matrix, float]:
     """``free`` (the force joints' inertia ``F``, every other dof free) plus what the entity's contacts add now.
 
@@ -61,42 +60,82 @@ def with_contacts(
     free limb still samples stably when the contact lets go. What the cap leaves out, ``k`` times the
     design's inertia, slows the integral by ``min(1, 4.5 / k)`` (the second value returned), so the loop
     keeps half the Routh margin (``(s + w)^3``'s gains are stable while ``k < 9``). No contact on the
-    entity: ``(free, 1.0)``.
+    entity (or ``H`` not positive definite): ``(free, 1.0)``.
+
+    ``whitening``: :func:`whiten` of ``free``; ``movers``: per body, whether it moves a dof of ``tree`` (a
+    world whose contacts are all elsewhere is skipped after the collision). Cost (issue 41): two LAPACK calls
+    (``D`` by one solve with ``H``, and the eigenvalue only when the cap binds, of ``W D W'``, k x k); whether
+    ``H`` and ``room F - D`` are positive definite is MuJoCo's Cholesky (``mju_cholFactor``).
     """
     hold = max(period, float(model.opt.timestep))
     room = 1.0 / (3.0 * bandwidth * hold) - 1.0
     if room <= 0 or work is None or not tree.size:
         return free, 1.0
     mujoco.mj_collision(model, work)
-    if not work.ncon:
+    ncon = int(work.ncon)
+    if not ncon:
         return free, 1.0
+    nv = model.nv
+    whole = tree.size == nv  # the entity moves every dof: every contact row that moves anything is its
+    if not whole and movers is not None and not movers[model.geom_bodyid[work.contact.geom[:ncon]]].any():
+        return free, 1.0  # no contact on a body that moves a dof of the entity: no row of it can move one
     mujoco.mj_makeConstraint(model, work)
     rows = int(work.nefc)
-    nv = model.nv
-    jac = np.zeros((rows, nv))
     if mujoco.mj_isSparse(model):
+        jac = np.zeros((rows, nv))
         mujoco.mju_sparse2dense(jac, work.efc_J, work.efc_J_rownnz, work.efc_J_rowadr, work.efc_J_colind)
     else:
-        jac[:] = work.efc_J[: rows * nv].reshape(rows, nv)
-    touching = np.isin(work.efc_type[:rows], _CONTACTS) & (jac[:, tree] != 0).any(axis=1)
-    if not touching.any():
+        jac = work.efc_J[: rows * nv].reshape(rows, nv)  # a view: read only here
+    moving = jac != 0
+    touching = (work.efc_type[:rows] >= _FIRST_CONTACT) & (moving if whole else moving[:, tree]).any(axis=1)
+    if touching.all():
+        regulariser = work.efc_R[:rows]
+    elif touching.any():
+        jac, regulariser = np.ascontiguousarray(jac[touching]), work.efc_R[:rows][touching]
+    else:
         return free, 1.0
-    jac = np.ascontiguousarray(jac[touching])
     mujoco.mj_crb(model, work)
     mujoco.mj_factorM(model, work)
     solved = np.empty_like(jac)
     mujoco.mj_solveM(model, work, solved, jac)  # rows: M^-1 j
-    coupling = solved[:, dofs] @ free  # C F
-    through = coupling @ solved[:, dofs].T  # C F C'
-    locked = jac @ solved.T + np.diag(work.efc_R[:rows][touching]) - through  # H
+    columns = solved[:, dofs]
+    coupling = columns @ free  # C F
+    locked = jac @ solved.T + np.diag(regulariser) - coupling @ columns.T  # H = G - C F C'
+    locked = 0.5 * (locked + locked.T)
+    if not _definite(locked.copy()):
+        return free, 1.0
     try:
-        lower = np.linalg.cholesky(0.5 * (locked + locked.T))
+        added = coupling.T @ np.linalg.solve(locked, coupling)  # D = F C' H^-1 C F
     except np.linalg.LinAlgError:
         return free, 1.0
-    scaled = np.linalg.solve(lower, coupling)  # L^-1 C F: D = scaled' scaled
-    largest = float(np.linalg.eigvalsh(np.linalg.solve(lower, np.linalg.solve(lower, through).T)).max())
+    added = 0.5 * (added + added.T)
+    if _definite(room * free - added):  # its largest eigenvalue relative to F is below the cap: D whole
+        return free + added, 1.0
+    largest = float(np.linalg.eigvalsh(whitening @ added @ whitening.T).max())  # that of F^-1 D
     if not largest > 0:
         return free, 1.0
-    result: Matrix = free + (scaled.T @ scaled) * min(1.0, room / largest)
+    result: Matrix = free + added * min(1.0, room / largest)
     left = (1.0 + largest) / (1.0 + min(largest, room))  # k: the inertia beyond the design, in its direction
     return result, min(1.0, 4.5 / left)
+
+
+def whiten(free: Matrix) -> Matrix:
+    """``W = L^-1`` of ``free = L L'`` (Cholesky): ``W D W'`` has the eigenvalues of ``D`` relative to ``free``.
+
+    ``free``: ``F`` (k x k, symmetric positive definite), the result k x k.
+    """
+    lower = np.linalg.cholesky(0.5 * (free + free.T))
+    found: Matrix = np.linalg.inv(lower)
+    return found
+
+
+#: Smallest pivot a Cholesky factor may have for its matrix to count as positive definite.
+_PIVOT = 1e-15
+
+
+def _definite(matrix: Matrix) -> bool:
+    """Whether the symmetric ``matrix`` is positive definite.
+
+    MuJoCo's Cholesky of it (in place) has full rank (every pivot at least :data:`_PIVOT`) and is finite.
+    """
+    return bool(mujoco.mju_cholFactor(matrix, _PIVOT) == matrix.shape[0]) and bool(np.isfinite(matrix).all())

@@ -75,7 +75,7 @@ import mujoco
 import numpy as np
 
 from simrun.services.joint_drives import Drive, filter_decay, servo_integral_rate
-from simrun.services.joint_inertia import Matrix, free_inertia, with_contacts
+from simrun.services.joint_inertia import Matrix, free_inertia, whiten, with_contacts
 
 #: An index array (addresses in ``qpos``, ``qvel``, ``ctrl``, ``act``, or places in a layout).
 Index = np.ndarray[Any, np.dtype[np.intp]]
@@ -216,6 +216,7 @@ class Layout:
             self.force_damped: Matrix = g.damping / (3.0 * w)  # B / (3 w): the damping added to the inertia
             self.force_dofs: Index = self.dof[g.places]
             self.force_free = free_inertia(mass, self.force_dofs.tolist())  # S
+            self.force_whitening = whiten(self.force_free)
             lagged = [j for j, k in enumerate(kinds["force"]) if chosen[k].lag > 0]
             self.force_lagged: Index = np.asarray(lagged, dtype=np.intp)  # filtered actuators, places in the group
             self.force_act: Index = model.actuator_actadr[self.actuator[g.places[self.force_lagged]]].astype(np.intp)
@@ -227,6 +228,7 @@ class Layout:
         data: mujoco.MjData,
         scratch: Scratch,
         tree: Index,
+        movers: Mask,
         before: tuple[Matrix, Matrix],
         after: tuple[Matrix, Matrix],
         integrals: Matrix,
@@ -236,7 +238,7 @@ class Layout:
         ``before``/``after``: position (rad or m) and velocity (rad/s or m/s) targets of :attr:`names` before
         and after this tick moved the velocity-driven ones (the force loops use ``before``, the servos
         ``after``, as the per-joint loop did); ``integrals``: the error integrals so far (0 without one);
-        ``tree``: the entity's dofs (for its contacts).
+        ``tree``: the entity's dofs, ``movers``: per body, whether it moves one of them (for its contacts).
         """
         w, h = self.bandwidth, self.period
         count = len(self.names)
@@ -282,7 +284,9 @@ class Layout:
             error = g.take(target) - here
             integral = g.take(integrals) + error * h if self.integral else np.zeros(g.size)
             feed = scratch.feed_forward(data)[self.force_dofs]
-            inertia, slower = with_contacts(scratch.model, scratch.data, tree, self.force_dofs, self.force_free, w, h)
+            inertia, slower = with_contacts(
+                scratch.model, scratch.data, tree, self.force_dofs, self.force_free, self.force_whitening, w, h, movers
+            )
             rates = 3.0 * w * w * error + 3.0 * w * (g.take(speed) - rate_now) + slower * (w * w * w * integral)
             torque = inertia @ rates + self.force_damped * rates + feed
             offset = self.force_b0 + self.force_b1 * here + self.force_b2 * rate_now

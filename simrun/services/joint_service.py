@@ -51,7 +51,8 @@ import mujoco
 import numpy as np
 
 from simrun.errors import EntityError
-from simrun.services.joint_drives import Drive, check_position, check_speed, drive_of
+from simrun.services.joint_bind import bind, wheel_joints
+from simrun.services.joint_drives import Drive, check_position, check_speed
 from simrun.services.joint_loops import Layout, Scratch
 from simrun.services.joint_trajectory import Trajectory, check_waypoints
 
@@ -68,7 +69,6 @@ HOLD_MODES = ("all", "commanded")
 PROFILES = ("linear", "cosine")
 #: Most layouts (sets of driven joints) a service keeps; more are built again when next driven.
 _LAYOUTS = 64
-_ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
 @dataclass(frozen=True, slots=True)
@@ -157,6 +157,7 @@ class JointService:
         self._holdable: list[tuple[str, int]] = []  # (joint, qpos) of every commandable joint but the wheels
         self._wheels: set[str] = set()  # the entity's wheel joints (the DriveService's), never held
         self._tree = np.zeros(0, dtype=np.intp)  # the dofs of the entity's bodies (its root's included)
+        self._movers = np.zeros(0, dtype=bool)  # per body: whether it moves one of those dofs (its chain has one)
         world.controllers.append(self)
 
     # -- commands ------------------------------------------------------------------------------------------
@@ -337,7 +338,7 @@ class JointService:
         scratch = self._scratch
         if scratch is None or scratch.model is not model:
             scratch = self._scratch = Scratch(model)
-        ctrl, keep, sums = layout.controls(data, scratch, self._tree, old, new, sums)
+        ctrl, keep, sums = layout.controls(data, scratch, self._tree, self._movers, old, new, sums)
         data.ctrl[layout.actuator] = ctrl
         if self.integral:
             values = sums.tolist()
@@ -475,48 +476,10 @@ class JointService:
         """Find the entity's joints and actuators in ``model`` (again after a rebuild)."""
         if self._bound is model:
             return
-        prefix = f"{self.name}/"
-        data = mujoco.MjData(model)  # the mass matrix at the initial pose: gains independent of when asked
-        mujoco.mj_forward(model, data)
-        full = np.zeros((model.nv, model.nv))
-        mujoco.mj_fullM(model, data, full)
-        joints: list[tuple[str, int, int]] = []
-        for j in range(model.njnt):
-            name = model.joint(j).name
-            if name.startswith(prefix) and int(model.jnt_type[j]) in _ONE_DOF:
-                joints.append((name[len(prefix) :], int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])))
-        by_id = {int(model.joint(prefix + n).id): (n, q, d) for n, q, d in joints}
-        drives: dict[str, Drive] = {}
-        for a in range(model.nu):
-            joint = int(model.actuator_trnid[a, 0])
-            if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT) or joint not in by_id:
-                continue
-            name, qpos, dof = by_id[joint]
-            if name in drives:
-                continue  # the first actuator of a joint commands it
-            drive = drive_of(model, a, joint, qpos, dof, full)
-            if drive is not None:
-                drives[name] = drive
-        self._joints, self._drives, self._bound = joints, drives, model
-        self._mass, self._layouts = full, {}
-        self._targets = {k: v for k, v in self._targets.items() if k in drives}
+        found = bind(model, self.name)
+        self._joints, self._drives, self._bound = found.joints, found.drives, model
+        self._mass, self._layouts, self._tree, self._movers = found.mass, {}, found.tree, found.movers
+        self._targets = {k: v for k, v in self._targets.items() if k in found.drives}
         self._held = {}  # a new model starts at its initial state: held again from there at the next tick
-        self._wheels = self._wheel_joints()
-        self._holdable = [(j, d.qpos) for j, d in drives.items() if j not in self._wheels]
-        mine = [
-            b for b in range(model.nbody) if model.body(b).name in (self.name,) or model.body(b).name.startswith(prefix)
-        ]
-        self._tree = np.flatnonzero(np.isin(model.dof_bodyid, mine)).astype(np.intp)
-
-    def _wheel_joints(self) -> set[str]:
-        """The entity's driven wheel joints, without the prefix: the ``DriveService``'s, never held.
-
-        A built-in differential drive's ``left_wheel`` and ``right_wheel``, an imported robot's ``wheels``.
-        """
-        from simrun.robots.diff_drive import DifferentialDrive  # the registry names this module: import late
-
-        entity = self.world.entity(self.name)
-        if isinstance(entity, DifferentialDrive):
-            return {"left_wheel", "right_wheel"}
-        wheels = getattr(entity, "wheels", ())
-        return {str(w) for w in wheels} if isinstance(wheels, tuple | list) else set()
+        self._wheels = wheel_joints(self.world.entity(self.name))
+        self._holdable = [(j, d.qpos) for j, d in found.drives.items() if j not in self._wheels]
