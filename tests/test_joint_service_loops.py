@@ -5,6 +5,7 @@ Ground truth: MuJoCo's joint positions against the designed critically damped re
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -139,9 +140,12 @@ def test_a_filtered_force_actuator_is_driven_through_its_filter(tmp_path: Path) 
     assert np.abs(path - 0.3 * design).max() <= 0.2 * 0.3  # measured 16 %: the filter's slew at the start
 
 
-def test_a_run_with_contacts_restored_from_a_checkpoint_continues_bit_for_bit(tmp_path: Path) -> None:
-    """The contact inertia is computed from the state alone: a new world and service restored mid-run end
-    exactly where the uninterrupted run does."""
+@pytest.mark.parametrize("seconds", [0.6, 0.606])
+def test_a_run_with_contacts_restored_from_a_checkpoint_continues_bit_for_bit(tmp_path: Path, seconds: float) -> None:
+    """The contact inertia is computed from the state alone, at every tick: a new world and service restored
+    mid-run (at 0.6 s, and 6 ms after) from the snapshot through JSON end exactly where the uninterrupted run
+    does. (Issue 41: holding it for 4 or 10 ms windows made gymnasium's walker2d miss its targets in
+    bench/mjcf_gravity.py, so it is not held.)"""
     import mujoco
 
     from simrun import Ground
@@ -156,11 +160,11 @@ def test_a_run_with_contacts_restored_from_a_checkpoint_continues_bit_for_bit(tm
 
     world, service = build()
     service.set_positions(["roll"], [0.5])
-    world.run(0.6)
+    world.run(seconds)
     kind = mujoco.mjtState.mjSTATE_INTEGRATION
     saved = np.zeros(mujoco.mj_stateSize(world.model, kind))
     mujoco.mj_getState(world.model, world.data, saved, kind)
-    snap = service.snapshot()
+    snap = json.loads(json.dumps(service.snapshot()))  # as a checkpoint file carries it
     world.run(1.0)
     again, restored = build()
     mujoco.mj_setState(again.model, again.data, saved, kind)
