@@ -44,6 +44,22 @@ MESHES = [
     ("bunny subdivided (1.11M tri)", "derived/stanford-bunny-subdiv2/stanford-bunny-subdiv2.obj"),
 ]
 BEGIN, END = "<!-- load:begin -->", "<!-- load:end -->"
+#: What the profile says about the .mbin -> MjSpec rows (measured by hand; update it when the numbers change).
+MJSPEC_NOTE = (
+    "Where the rest goes (issue 41 item 6, measured by hand in the session of these rows, process CPU): M"
+    "uJoCo compiling the in-memory `.msh` costs what compiling the MSH file costs (suzanne, 5 x 200 build"
+    "s in a loop: 0.61-0.70 ms against 0.65-0.80 ms), so the gap is the Python that builds the spec. In a"
+    " warm loop (`AssetLibrary.mesh` + `add_geom` + `assets`, 7 x 500 calls) that is 152-154 us per mesh,"
+    " 196-201 us before issue 41's cuts (small `.mbin` files read whole instead of mapped, each layout's "
+    "section plan remembered, `msh_bytes` joining the cast arrays; compiled model and virtual files byte-"
+    "identical): the verified load about 50 us, path resolution and the regular-file check 20 us, `asset_"
+    "view` 13 us, the spec calls 10 us. Measured once between other contenders, as in this table, the sam"
+    "e code costs 3 to 5 times more (caches cold: 0.14-0.25 ms warm against 0.68-0.98 ms after a `trimesh"
+    ".load` or 64 MB of other work). Handing MuJoCo the arrays as `uservert`/`userface`/`usernormal` inst"
+    "ead of a `.msh` compiles no faster (1.64 against 1.57 ms per build + compile; the bindings convert e"
+    "lement by element) and changes the saved model's bytes (mesh arrays equal), so the `.msh` path stays"
+    ". Two runs of this table in one session: suzanne / MSH 1.72x and 1.87x, fuze / MSH 2.12x and 1.80x."
+)
 #: Most triangles MuJoCo reads from an STL file.
 STL_MAX_FACES = 200_000
 
@@ -292,6 +308,7 @@ def table(rows: list[tuple[str, dict[str, float], dict[str, Timing]]], repeat: i
         + ", ".join(f"{t['mbin spec'].cpu_median * 1e3:.3f} ms ({name})" for name, _, t in rows)
         + "; the rest is MuJoCo compiling the `.msh` it was handed, the same work as compiling the MSH file."
     )
+    lines += ["", MJSPEC_NOTE]
     for name, info, t in rows:
         v, touch, bare = t["verify"].cpu_median, t["fromfile"].cpu_median, t["no verify"].cpu_median
         if info["triangles"] > 10_000 or v <= 1e-4:

@@ -127,3 +127,28 @@ def test_one_mesh_at_two_scales_and_both_collision_modes(tmp_path: Path) -> None
                 assert np.array_equal(ours[key], expected), f"{name}: {key}"
         body = alone.model.body(entity.name)
         assert body.mass == pytest.approx(both.model.body(entity.name).mass, rel=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_msh_bytes_is_mujocos_layout(dtype: type) -> None:
+    """Counts, float32 positions/normals/uvs (v flipped) and int32 faces, little-endian, as MuJoCo reads them."""
+    import struct
+
+    from simrun.world.assets import msh_bytes
+
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(7, 3)).astype(dtype)
+    n = rng.normal(size=(7, 3)).astype(dtype)
+    t = rng.random((7, 2)).astype(dtype)
+    f = rng.integers(0, 7, (5, 3)).astype(np.uint32)
+    flipped = np.stack([t[:, 0], 1 - t[:, 1]], axis=1)
+    expected = (
+        struct.pack("<4i", 7, 7, 7, 5)
+        + b"".join(np.asarray(a, "<f4").tobytes() for a in (v, n, flipped))
+        + np.asarray(f, "<i4").tobytes()
+    )
+    assert msh_bytes(v, f, n, t) == expected
+    assert (
+        msh_bytes(v, f)
+        == struct.pack("<4i", 7, 0, 0, 5) + np.asarray(v, "<f4").tobytes() + np.asarray(f, "<i4").tobytes()
+    )

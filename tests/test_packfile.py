@@ -1,4 +1,5 @@
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -346,3 +347,43 @@ def test_non_finite_material_numbers_are_refused_by_the_writer():
     asset.materials[0].scalars["Ns"] = float("nan")
     with pytest.raises(PackFormatError, match="non-finite number"):
         pack(asset)
+
+
+def test_small_files_read_whole_load_as_mapped_ones(tmp_path, monkeypatch):
+    """A file under SMALL_FILE_BYTES is read into memory, a larger one mapped: the same mesh either way."""
+    from meshtool.packfile import load, read
+
+    data = (Path(__file__).parent.parent / "fixtures" / "golden" / "head.mbin").read_bytes()
+    path = tmp_path / "h.mbin"
+    path.write_bytes(data)
+    with load(path) as small:
+        assert small._map is None  # read whole
+        monkeypatch.setattr(read, "SMALL_FILE_BYTES", 0)
+        with load(path) as mapped:
+            assert mapped._map is not None
+            for name in ("positions", "indices", "normals", "uvs", "submeshes"):
+                a, b = getattr(small, name), getattr(mapped, name)
+                assert (a is None) == (b is None)
+                if a is not None:
+                    assert a.dtype == b.dtype and np.array_equal(a, b)
+            assert small.meta == mapped.meta and small.materials == mapped.materials
+            assert [bytes(t) for t in small.textures] == [bytes(t) for t in mapped.textures]
+    empty = tmp_path / "empty.mbin"
+    empty.write_bytes(b"")
+    with pytest.raises(PackFormatError, match="empty file"):
+        load(empty)
+
+
+def test_a_layout_seen_before_still_checks_its_content(golden_bytes):
+    """The second file of a known layout reuses the section plan, never the first file's verdict."""
+    from meshtool.packfile.read import forget_checks
+
+    forget_checks()
+    first = parse(golden_bytes)
+    again = parse(golden_bytes)
+    assert np.array_equal(first.positions, again.positions) and again.sections[0] is not first.sections[0]
+    pos = next(s for s in first.sections if s.kind == "POS ")
+    damaged = bytearray(golden_bytes)
+    damaged[pos.offset] ^= 0x01
+    with pytest.raises(PackFormatError, match="section 'POS ' checksum mismatch"):
+        parse(bytes(damaged))
