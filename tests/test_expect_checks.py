@@ -18,8 +18,9 @@ import pytest
 
 from simrun.scene.scene_file import load_scene
 from simrun.scene.tomlpos import key_lines
-from simrun.scenetest import expect
-from simrun.scenetest.expect import Observer, parse_expectations
+from simrun.scenetest import observer as observer_module
+from simrun.scenetest.expect import parse_expectations
+from simrun.scenetest.observer import Observer
 
 SCENE = """
 [world]
@@ -140,7 +141,7 @@ def test_non_finite_state_and_warnings_fall_back_to_the_measurement(tmp_path: Pa
 
 
 def test_the_two_mask_path_agrees_above_the_pair_matrix(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(expect, "_PAIR_MATRIX_GEOMS", 0)
+    monkeypatch.setattr(observer_module, "_PAIR_MATRIX_GEOMS", 0)
     observer = _observer(tmp_path)
     probe = next(p for p in observer.probes if p.e.id == "apart")
     assert probe.pair is None

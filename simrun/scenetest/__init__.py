@@ -1,6 +1,6 @@
 """``simrun test``: scenes with expectations run over seeds and variations, locally or on Dask, with reports.
 
-- :mod:`simrun.scenetest.expect`: the ``[[expect]]`` tables and how a run is judged;
+- :mod:`simrun.scenetest.expect`: the ``[[expect]]`` tables; :mod:`.observer`: how a run is judged against them;
 - :mod:`.spec`: which scenes, their ``[test]`` table, the preflight check and the bundle of files;
 - :mod:`.vary`: seeds, ``--vary`` and pose jitter;
 - :mod:`.task`: one run (what a worker executes, through meshtool's batch layer: this process, worker

@@ -27,7 +27,8 @@ from simrun.run.commands import Command, check_commands, load_commands
 from simrun.run.session import prepare
 from simrun.scene.tomlpos import KeyPath, line_of, read_toml
 from simrun.scenetest.bundle import Bundle, collect
-from simrun.scenetest.expect import Expectation, check_against, parse_expectations
+from simrun.scenetest.expect import Expectation, parse_expectations
+from simrun.scenetest.observer import check_against
 
 #: Simulated seconds of a scene whose ``[test]`` table gives no duration.
 DEFAULT_DURATION = 5.0

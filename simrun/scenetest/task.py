@@ -5,7 +5,7 @@ commands and the expectations; the scene's other files travel once per worker as
 :class:`~simrun.scenetest.bundle.Bundle`. :func:`run_task` unpacks the bundle into a private folder (once
 per bundle and process), writes the scene text next to the original scene's place in it, loads and runs
 it through the library (:func:`simrun.run.session.prepare`, :func:`simrun.run.play.play`) with an
-:class:`~simrun.scenetest.expect.Observer`, and returns a :class:`RunResult`: plain data, the same whichever process
+:class:`~simrun.scenetest.observer.Observer`, and returns a :class:`RunResult`: plain data, the same whichever process
 or machine ran it. With ``record``, the run is recorded as a ``.simlog`` whose bytes come back when it
 failed (re-simulated by ``simrun resim`` next to the scene text).
 
@@ -29,7 +29,8 @@ from meshtool.formats import suffix
 from simrun.errors import SimrunError
 from simrun.run.commands import Command
 from simrun.scenetest.bundle import Bundle, materialise
-from simrun.scenetest.expect import Expectation, Observer, Outcome
+from simrun.scenetest.expect import Expectation, Outcome
+from simrun.scenetest.observer import Observer
 
 if TYPE_CHECKING:
     from simrun.world.world import World
