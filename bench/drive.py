@@ -119,17 +119,31 @@ def walker_world(path: Path) -> World:
     return world
 
 
-def walker_run(path: Path, service: bool) -> Callable[[], tuple[float, float]]:
-    """5 s of the walker: ``world.step(N)`` with a ``JointService`` holding its pose, or raw ``nstep=N``."""
+class Idle:
+    """A controller that does nothing at 500 Hz: what ``world.step(N)`` costs around a tick of that rate."""
+
+    def __init__(self, world: World) -> None:
+        self.next_time, self.period = world.time, 0.002
+        world.controllers.append(self)
+
+    def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Nothing."""
+
+
+def walker_run(path: Path, service: bool, idle: bool = False) -> Callable[[], tuple[float, float]]:
+    """5 s of the walker: ``world.step(N)`` with a ``JointService`` holding its pose (or, ``idle``, with an
+    :class:`Idle` controller at the same rate), or raw ``nstep=N``."""
 
     def run() -> tuple[float, float]:
         world = walker_world(path)
         model, data = world.compile()
         if service:
             JointService(world, "robot")
+        elif idle:
+            Idle(world)
         steps = round(SECONDS / world.options.timestep)
         cpu, wall = time.process_time(), time.perf_counter()
-        if service:
+        if service or idle:
             world.step(steps)
         else:
             mujoco.mj_step(model, data, nstep=steps)
@@ -160,9 +174,11 @@ def split_seconds(robots: int) -> tuple[float, float, float]:
     return physics, rays, float(total) - physics - rays
 
 
-def walker_split(path: Path) -> tuple[float, float, float]:
+def walker_split(path: Path) -> tuple[float, float, float, float, float]:
     """One more walker run with its ``JointService`` under ``cProfile`` (process CPU): seconds in ``mj_step``,
-    in ``JointService.tick`` (cumulative) and in the contact-inertia part of it (``joint_inertia.with_contacts``)."""
+    in ``JointService.tick`` (cumulative), in its contact inertia (``joint_inertia.with_contacts``), in its
+    feed-forward forces (``joint_loops.Scratch.feed_forward``) and in the numpy LAPACK wrappers the contact
+    inertia calls (``numpy.linalg``'s ``solve``, ``eigvalsh``)."""
     world = walker_world(path)
     world.compile()
     JointService(world, "robot")
@@ -176,7 +192,14 @@ def walker_split(path: Path) -> tuple[float, float, float]:
         return float(sum(v[3] for k, v in stats.items() if k[0].endswith(file) and k[2] == name))
 
     physics = float(sum(v[2] for k, v in stats.items() if k[2] == "<built-in method mujoco._functions.mj_step>"))
-    return physics, cumulative("joint_service.py", "tick"), cumulative("joint_inertia.py", "with_contacts")
+    lapack = cumulative("_linalg.py", "solve") + cumulative("_linalg.py", "eigvalsh")
+    return (
+        physics,
+        cumulative("joint_service.py", "tick"),
+        cumulative("joint_inertia.py", "with_contacts"),
+        cumulative("joint_loops.py", "feed_forward"),
+        lapack,
+    )
 
 
 def cast_seconds(robots: int) -> float:
@@ -277,6 +300,7 @@ def main() -> int:
     for name in walkers:
         contenders[f"raw {name}"] = walker_run(WALKERS[name], service=False)
         contenders[f"service {name}"] = walker_run(WALKERS[name], service=True)
+        contenders[f"idle {name}"] = walker_run(WALKERS[name], service=False, idle=True)
     results = interleave(contenders, args.repeat)
     costs = tick_costs()
     casts = {n: cast_seconds(n) for n in ROBOTS}
@@ -295,7 +319,7 @@ def robots_section(
     results: dict[str, Timing],
     casts: dict[int, float],
     splits: dict[int, tuple[float, float, float]],
-    walker_splits: dict[str, tuple[float, float, float]],
+    walker_splits: dict[str, tuple[float, float, float, float, float]],
     steps: int,
     repeat: int,
     before: str,
@@ -355,22 +379,33 @@ def robots_section(
         "`mj_step(model, data, nstep=N)` on the same compiled model (the same rounds):",
         "",
         "| model | raw CPU min / median s | with JointService CPU min / median s | ratio | "
-        f"goal <= {WALKERS_GOAL:g}x |",
-        "|---|---|---|---|---|",
+        f"goal <= {WALKERS_GOAL:g}x | idle 500 Hz controller CPU median s (ratio) | service us per tick |",
+        "|---|---|---|---|---|---|---|",
     ]
+    ticks = round(SECONDS / 0.002)
     for name in walkers:
-        raw, full = results[f"raw {name}"], results[f"service {name}"]
+        raw, full, idle = results[f"raw {name}"], results[f"service {name}"], results[f"idle {name}"]
         ratio = full.cpu_median / raw.cpu_median
         met = "met" if ratio <= WALKERS_GOAL else f"short by {ratio / WALKERS_GOAL:.2f}x"
+        per_tick = (full.cpu_median - idle.cpu_median) / ticks * 1e6
         lines.append(
             f"| {name} | {raw.cpu_min:.3f} / {raw.cpu_median:.3f} | {full.cpu_min:.3f} / {full.cpu_median:.3f} | "
-            f"{ratio:.2f}x | {met} |"
+            f"{ratio:.2f}x | {met} | {idle.cpu_median:.3f} ({idle.cpu_median / raw.cpu_median:.2f}x) | "
+            f"{per_tick:.0f} |"
         )
-    for name, (physics, tick, contacts) in walker_splits.items():
+    lines += [
+        "",
+        "*Idle*: `world.step(N)` with a controller that does nothing at 500 Hz (the same rounds): the step loop's "
+        "own cost around a tick every step, which no service can go below. *Service us per tick*: (service "
+        f"median - idle median) / {ticks} ticks.",
+    ]
+    for name, (physics, tick, contacts, feed, lapack) in walker_splits.items():
         lines.append(
-            f"\n{name}, profiled: `mj_step` {physics:.3f} s, `JointService.tick` {tick:.3f} s "
-            f"(of which `joint_inertia.with_contacts` {contacts:.3f} s): the service ticks at every 2 ms step and "
-            "its per-tick cost (simrun/services/joint_service.py) is what the ratio measures."
+            f"\n{name}, profiled (cProfile, its overhead included): `mj_step` {physics:.3f} s, `JointService.tick` "
+            f"{tick:.3f} s, of which the contact inertia `joint_inertia.with_contacts` {contacts:.3f} s (its "
+            f"`numpy.linalg` solve and eigvalsh {lapack:.3f} s) and the feed-forward forces "
+            f"`joint_loops.Scratch.feed_forward` {feed:.3f} s; the rest is the control laws' array arithmetic "
+            "(`joint_loops.Layout.controls`) and the tick's bookkeeping."
         )
     if not walkers:
         lines.append("| (skipped: `.bench-mjcf/` not installed; `python bench/mjcf_robots.py` installs it) | | | | |")

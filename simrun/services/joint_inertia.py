@@ -7,6 +7,7 @@ add to it (issue 37). Shapes: dof counts of the model (``nv``) and of the comman
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -81,6 +82,8 @@ def with_contacts(
         return free, 1.0  # no contact on a body that moves a dof of the entity: no row of it can move one
     mujoco.mj_makeConstraint(model, work)
     rows = int(work.nefc)
+    if not rows:  # contacts that make no constraint rows (disabled, or beyond their margins)
+        return free, 1.0
     if mujoco.mj_isSparse(model):
         jac = np.zeros((rows, nv))
         mujoco.mju_sparse2dense(jac, work.efc_J, work.efc_J_rownnz, work.efc_J_rowadr, work.efc_J_colind)
@@ -136,6 +139,8 @@ _PIVOT = 1e-15
 def _definite(matrix: Matrix) -> bool:
     """Whether the symmetric ``matrix`` is positive definite.
 
-    MuJoCo's Cholesky of it (in place) has full rank (every pivot at least :data:`_PIVOT`) and is finite.
+    MuJoCo's Cholesky of it (in place) has full rank (every pivot at least :data:`_PIVOT`) and is finite
+    (``matrix`` is 1 x 1 or larger).
     """
-    return bool(mujoco.mju_cholFactor(matrix, _PIVOT) == matrix.shape[0]) and bool(np.isfinite(matrix).all())
+    full = mujoco.mju_cholFactor(matrix, _PIVOT) == matrix.shape[0]
+    return bool(full) and math.isfinite(matrix[-1, -1])  # a NaN or inf anywhere reaches the last pivot

@@ -83,6 +83,9 @@ Index = np.ndarray[Any, np.dtype[np.intp]]
 Mask = np.ndarray[Any, np.dtype[np.bool_]]
 
 
+_EMPTY = np.zeros(0)
+
+
 class Scratch:
     """A private ``MjData`` of one model, where the feed-forward forces (and the contacts) are computed."""
 
@@ -155,8 +158,9 @@ class Layout:
     ) -> None:
         w, h = bandwidth, period
         self.names, self.bandwidth, self.period, self.integral = names, w, h, integral
-        #: Where each joint's targets are in the service's list of held then commanded ones (set by the service).
-        self.take: Index = np.arange(len(names), dtype=np.intp)
+        #: Where each joint's targets are in the service's list of held then commanded ones (set by the service;
+        #: ``None``: in that order, no joint both held and commanded).
+        self.take: Index | None = None
         chosen = [drives[n] for n in names]
         count = len(chosen)
         self.qpos: Index = np.array([d.qpos for d in chosen], dtype=np.intp)
@@ -222,6 +226,8 @@ class Layout:
             self.force_act: Index = model.actuator_actadr[self.actuator[g.places[self.force_lagged]]].astype(np.intp)
             self.force_decay = _floats([filter_decay(model, chosen[kinds["force"][j]], h) for j in lagged])
         self.keepable: Mask = keepable
+        groups = [g for g in (self.position, self.velocity, self.intvelocity, self.force) if g is not None]
+        self.single = len(groups) == 1 and groups[0].whole
 
     def controls(
         self,
@@ -243,7 +249,10 @@ class Layout:
         w, h = self.bandwidth, self.period
         count = len(self.names)
         q, v = data.qpos[self.qpos], data.qvel[self.dof]
-        raw, out, push, new = np.empty(count), np.empty(count), np.empty(count), np.empty(count)
+        single = self.single  # one kind, every joint: its arrays are the results, nothing scattered
+        raw = out = push = new = _EMPTY
+        if not single:
+            raw, out, push, new = np.empty(count), np.empty(count), np.empty(count), np.empty(count)
         position, velocity = after
         if self.position is not None:
             g = self.position
@@ -254,7 +263,10 @@ class Layout:
             shift = self.position_rate * integral if self.integral else np.zeros(g.size)
             aim = target + shift
             ctrl = np.where(self.position_exact, g.gear * aim, -(self.position_b0 + self.position_b1 * aim) / g.gain)
-            raw[p], out[p], push[p], new[p] = ctrl, ctrl, error * g.gear, integral
+            if single:
+                raw, out, push, new = ctrl, ctrl, error * g.gear, integral
+            else:
+                raw[p], out[p], push[p], new[p] = ctrl, ctrl, error * g.gear, integral
         if self.velocity is not None:
             g = self.velocity
             p = g.places
@@ -265,7 +277,10 @@ class Layout:
             weak = g.gear * (rate_now + torque / self.velocity_servo)
             loop = g.gear * (speed + w * error + self.velocity_rate * integral)
             ctrl = np.where(self.velocity_weak, weak, loop)
-            raw[p], out[p], push[p], new[p] = ctrl, ctrl, error * g.gear, integral
+            if single:
+                raw, out, push, new = ctrl, ctrl, error * g.gear, integral
+            else:
+                raw[p], out[p], push[p], new[p] = ctrl, ctrl, error * g.gear, integral
         if self.intvelocity is not None:
             g = self.intvelocity
             p = g.places
@@ -275,7 +290,10 @@ class Layout:
             act = data.act[self.intvelocity_act]
             shift = self.intvelocity_rate * integral
             ctrl = g.gear * speed + w * (g.gear * (target + shift) - act)
-            raw[p], out[p], push[p], new[p] = ctrl, ctrl, error * g.gear, integral
+            if single:
+                raw, out, push, new = ctrl, ctrl, error * g.gear, integral
+            else:
+                raw[p], out[p], push[p], new[p] = ctrl, ctrl, error * g.gear, integral
         if self.force is not None:
             g = self.force
             p = g.places
@@ -291,13 +309,19 @@ class Layout:
             torque = inertia @ rates + self.force_damped * rates + feed
             offset = self.force_b0 + self.force_b1 * here + self.force_b2 * rate_now
             ctrl = (torque / g.gear - offset) / g.gain  # the activation that gives the torque
-            raw[p], push[p], new[p] = ctrl, error * g.gear, integral
+            if single:
+                raw, push, new = ctrl, error * g.gear, integral
+            else:
+                raw[p], push[p], new[p] = ctrl, error * g.gear, integral
             if self.force_lagged.size:  # filtered: the control that brings the activation there in one hold
                 act = data.act[self.force_act]
                 lagged = self.force_lagged
                 ctrl = ctrl.copy()
                 ctrl[lagged] = (ctrl[lagged] - self.force_decay * act) / (1.0 - self.force_decay)
-            out[p] = ctrl
+            if single:
+                out = ctrl
+            else:
+                out[p] = ctrl
         clipped: Matrix = np.fmin(self.high, np.fmax(self.low, out))
         keep: Mask = self.keepable & ~(((raw > self.high) & (push > 0)) | ((raw < self.low) & (push < 0)))
         return clipped, keep, new

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import compress
 from typing import TYPE_CHECKING, Any
 
 import mujoco
@@ -330,9 +331,13 @@ class JointService:
                 speeds_after = speeds
         else:
             speeds_after = speeds
-        take = layout.take
-        old = (np.array(before)[take], np.array(speeds)[take])
-        new = old if after is before else (np.array(after)[take], np.array(speeds_after)[take])
+        take = layout.take  # None: the held and the commanded joints are all different (always, but after a restore)
+        old = (np.array(before), np.array(speeds)) if take is None else (np.array(before)[take], np.array(speeds)[take])
+        if after is before:
+            new = old
+        else:
+            new = (np.array(after), np.array(speeds_after))
+            new = new if take is None else (new[0][take], new[1][take])
         integral = self._integral
         sums = np.array([integral.get(j, 0.0) for j in names]) if self.integral else np.zeros(len(names))
         scratch = self._scratch
@@ -340,10 +345,8 @@ class JointService:
             scratch = self._scratch = Scratch(model)
         ctrl, keep, sums = layout.controls(data, scratch, self._tree, self._movers, old, new, sums)
         data.ctrl[layout.actuator] = ctrl
-        if self.integral:
-            values = sums.tolist()
-            for k in np.flatnonzero(keep).tolist():
-                integral[names[k]] = values[k]
+        if self.integral:  # in the joints' order: a new one is added to the snapshot's dict as the loop added it
+            integral.update(compress(zip(names, sums.tolist(), strict=True), keep.tolist()))
 
     def _layout(self, model: mujoco.MjModel, names: tuple[str, ...]) -> Layout:
         """The :class:`~simrun.services.joint_loops.Layout` of the driven joints ``names`` (held, then commanded).
@@ -361,9 +364,9 @@ class JointService:
                 places[joint] = places.get(joint, k)
             unique = tuple(places)
             last = {joint: k for k, joint in enumerate(names)}
-            take = np.array([last[j] for j in unique], dtype=np.intp)
             found = Layout(model, self._drives, unique, self._mass, self.bandwidth, self.period, self.integral)
-            found.take = take
+            if len(unique) < len(names):
+                found.take = np.array([last[j] for j in unique], dtype=np.intp)
             self._layouts[key] = found
         return found
 
