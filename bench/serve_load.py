@@ -1,29 +1,27 @@
-"""simrun serve under hostile load: the world's real-time factor and a legitimate request's latency.
+"""simrun serve under hostile load: the world's real-time factor and a legitimate client's latency.
 
 Usage: python bench/serve_load.py [any path] [--repeat 3] [--out docs/benchmarks.md]   (no corpus needed)
 
 Every round starts a real ``simrun serve fixtures/scenes/boebot.toml --port 0`` process (real time, rate 1)
-and measures it under each load in turn, interleaved: none (the peer), 900 idle + 200 slowloris sockets
-(an unfinished request head, a byte every 2 s; opened once the server runs, which keeps the file-descriptor
-limit it started with), 4 threads looping ``GET /api/scene.glb``, and both. Per load, three windows of 3 wall
-seconds: the real-time factor from ``/api/state``'s simulated time against this process's wall clock (not the
-server's own ``measured_rate``) and the slowest ``GET /api/state``. The first window under the flood includes
-the server accepting it. Then, in lockstep, ``GET /api/state`` while a ``POST /api/step {"steps": 100000}``
-runs (median and slowest of 10).
+per load, loads interleaved: none (the peer); 900 idle + 200 slowloris sockets (an unfinished request head,
+a byte every 2 s) from 8 other loopback addresses, each one the server closes opened again (at most
+``REOPEN_RATE`` a second), so the flood lasts as long as the load; 4 threads looping ``GET
+/api/scene.glb``; a client looping ``POST /api/step {"steps": 100000}`` (a real-time world answers 409 at
+once: stepping is for lockstep or paused worlds); and all four at once (issue 39's Done-when load). Under
+each, a legitimate client (tests/serve_flood.py) makes 10 calls a second for ``SECONDS``, a new connection
+each, alternating ``GET /api/state`` and a drive command: the slowest call, and the real-time factor from the
+simulated time in its answers (those within ``PRECISE`` s) against this process's wall clock (not the
+server's own ``measured_rate``), over sliding 3 s windows. Then, in lockstep, ``GET /api/state`` while a
+``POST /api/step {"steps": 100000}`` runs (median and slowest of 10).
 """
 
 from __future__ import annotations
 
-import contextlib
 import platform
-import resource
-import socket
 import statistics
 import sys
 import threading
 import time
-import urllib.parse
-import urllib.request
 from pathlib import Path
 
 import mujoco
@@ -31,11 +29,14 @@ from _report import arguments, load_average, write_section
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+from serve_flood import PRECISE, REOPEN_RATE, Flood, GlbLoopers, StepRequests, legitimate, raise_file_limit, summary  # noqa: E402
 from serve_helpers import SCENES, Server, serve  # noqa: E402
 
 BEGIN, END = "<!-- serve-load:begin -->", "<!-- serve-load:end -->"
 BOEBOT = SCENES / "boebot.toml"
 IDLE, SLOWLORIS, GLB_CLIENTS = 900, 200, 4
+#: Wall seconds the legitimate client calls under each load (the flood's first sockets time out after 10 s).
+SECONDS = 15.0
 
 
 def _state(server: Server) -> tuple[float, float, float]:
@@ -46,84 +47,26 @@ def _state(server: Server) -> tuple[float, float, float]:
     return (before + after) / 2, after - before, sim
 
 
-def _window(server: Server, seconds: float = 3.0) -> tuple[float, float]:
-    """(real-time factor, slowest latency s) over ``seconds``."""
-    wall0, late0, sim0 = _state(server)
-    time.sleep(seconds)
-    wall1, late1, sim1 = _state(server)
-    return (sim1 - sim0) / (wall1 - wall0), max(late0, late1)
-
-
 class Load:
-    """The flood (idle and slowloris sockets) and/or the scene-GLB loopers against one server."""
+    """Any of the four loads of the Done-when against one server, started together."""
 
-    def __init__(self, server: Server, flood: bool, glb: bool) -> None:
-        url = urllib.parse.urlsplit(server.url)
-        assert url.hostname is not None and url.port is not None
-        self.address = (url.hostname, url.port)
-        self.stop = threading.Event()
-        self.sockets: list[socket.socket] = []
-        self.slow: list[socket.socket] = []
-        self.downloads = 0
-        threads = []
-        if flood:
-            head = f"GET /api/state HTTP/1.1\r\nHost: {url.hostname}:{url.port}\r\n".encode()
-            self.slow = self._open(SLOWLORIS)
-            for s in self.slow:
-                with contextlib.suppress(OSError):
-                    s.sendall(head)
-            self.sockets = self.slow + self._open(IDLE)
-            threads.append(threading.Thread(target=self._trickle, daemon=True))
-        if glb:
-            threads += [threading.Thread(target=self._glb, args=(server.url,), daemon=True) for _ in range(GLB_CLIENTS)]
-        self.threads = threads
-        for thread in threads:
-            thread.start()
-
-    def _open(self, count: int) -> list[socket.socket]:
-        opened = []
-        for _ in range(count):
-            s = socket.socket()
-            s.settimeout(10)
-            try:
-                s.connect(self.address)
-            except OSError:
-                s.close()
-                continue
-            opened.append(s)
-        return opened
-
-    def _trickle(self) -> None:
-        while not self.stop.wait(2.0):
-            for s in self.slow:
-                with contextlib.suppress(OSError):
-                    s.send(b"X")
-
-    def _glb(self, url: str) -> None:
-        while not self.stop.is_set():
-            with contextlib.suppress(OSError), urllib.request.urlopen(url + "api/scene.glb", timeout=30) as answer:
-                answer.read()
-                self.downloads += 1
+    def __init__(self, server: Server, flood: bool, glb: bool, steps: bool) -> None:
+        self.flood = Flood(server, IDLE, SLOWLORIS) if flood else None
+        self.glb = GlbLoopers(server, GLB_CLIENTS) if glb else None
+        self.steps = StepRequests(server) if steps else None
 
     def close(self) -> None:
-        self.stop.set()
-        for thread in self.threads:
-            thread.join(30)
-        for s in self.sockets:
-            s.close()
-
-
-def _raise_file_limit(needed: int) -> None:
-    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
-    if soft != resource.RLIM_INFINITY and soft < needed:
-        resource.setrlimit(resource.RLIMIT_NOFILE, (min(needed, hard), hard))
+        for part in (self.glb, self.steps, self.flood):
+            if part is not None:
+                part.close()
 
 
 LOADS = {
-    "none (the peer)": (False, False),
-    f"{IDLE} idle + {SLOWLORIS} slowloris sockets": (True, False),
-    f"{GLB_CLIENTS} clients looping /api/scene.glb": (False, True),
-    "both": (True, True),
+    "none (the peer)": (False, False, False),
+    f"{IDLE} idle + {SLOWLORIS} slowloris sockets, reopened": (True, False, False),
+    f"{GLB_CLIENTS} clients looping /api/scene.glb": (False, True, False),
+    "a client looping a 100,000-step POST /api/step (409)": (False, False, True),
+    "all four at once (the Done-when load)": (True, True, True),
 }
 
 
@@ -143,39 +86,55 @@ def _long_step_reads(rounds: int) -> list[float]:
 
 def main() -> None:
     args = arguments(__doc__, repeat=3)
-    results: dict[str, list[tuple[float, float]]] = {name: [] for name in LOADS}
-    downloads: dict[str, list[float]] = {name: [] for name in LOADS}
+    results: dict[str, list[dict[str, float]]] = {name: [] for name in LOADS}
+    refused: dict[str, list[int]] = {name: [] for name in LOADS}
+    glbs: dict[str, list[float]] = {name: [] for name in LOADS}
     for _ in range(args.repeat):
-        for name, (flood, glb) in LOADS.items():
+        for name, (flood, glb, steps) in LOADS.items():
             with serve(BOEBOT) as server:
-                _raise_file_limit(4 * (IDLE + SLOWLORIS) + 256)  # this process only, after the server started
+                raise_file_limit(4 * (IDLE + SLOWLORIS) + 256)  # this process only, after the server started
                 time.sleep(1.0)
-                load = Load(server, flood, glb)
-                started = time.monotonic()
+                load = Load(server, flood, glb, steps)
                 try:
-                    results[name] += [_window(server) for _ in range(3)]
+                    calls = legitimate(server, SECONDS)
                 finally:
-                    downloads[name].append(load.downloads / (time.monotonic() - started))
                     load.close()
+                assert set(calls.statuses()) == {200}, sorted(set(calls.statuses()))
+                results[name].append(summary(calls))
+                if load.steps is not None:
+                    refused[name] += [status for status, _ in load.steps.answers]
+                if load.glb is not None:
+                    glbs[name].append(sum(s == 200 for s, _ in load.glb.answers) / SECONDS)
     reads = _long_step_reads(max(1, args.repeat // 3))
     rows = []
-    for name, windows in results.items():
-        rtfs, late = [w[0] for w in windows], [w[1] for w in windows]
-        glb = f"{statistics.mean(downloads[name]):.0f}" if LOADS[name][1] else "-"
-        rows.append(f"| {name} | {min(rtfs):.3f} | {statistics.median(rtfs):.3f} | {1000 * max(late):.0f} | "
-                    f"{1000 * statistics.median(late):.0f} | {glb} |")  # fmt: skip
+    for name, runs in results.items():
+        steps = refused[name]
+        step_cell = f"{sum(s == 409 for s in steps)}/{len(steps)}" if steps else "-"
+        glb_cell = f"{statistics.mean(glbs[name]):.0f}" if glbs[name] else "-"
+        rows.append(f"| {name} | {min(r['rtf_min'] for r in runs):.3f} | "
+                    f"{statistics.median(r['rtf_median'] for r in runs):.3f} | "
+                    f"{1000 * max(r['slowest'] for r in runs):.0f} | "
+                    f"{1000 * statistics.median(r['median'] for r in runs):.0f} | "
+                    f"{sum(int(r['calls']) for r in runs)} | {glb_cell} | {step_cell} |")  # fmt: skip
     section = "\n".join(
         [
             BEGIN,
-            "## Serving under hostile load: `simrun serve` with floods and scene-GLB loopers",
+            "## Serving under hostile load: `simrun serve` with floods, scene-GLB loopers and long step requests",
             "",
-            f"`python bench/serve_load.py . --repeat {args.repeat}`: a real `simrun serve boebot.toml` (real time) per "
-            "load, loads interleaved; each load three 3 s windows per round; real-time factor from `/api/state`'s "
-            f"simulated time against the bench's wall clock. Machine: {platform.machine()}, CPython "
-            f"{platform.python_version()}, MuJoCo {mujoco.__version__}.",
+            f"`python bench/serve_load.py . --repeat {args.repeat}`: a real `simrun serve boebot.toml` (real time, "
+            f"rate 1) per load and round, loads interleaved; for {SECONDS:g} s under each load a legitimate client "
+            "(127.0.0.1, a new connection per call, 10 calls a second) alternates `GET /api/state` and a drive "
+            "command (`all_stop`); the real-time factor is the world's simulated time from those answers against "
+            "the bench's wall clock, over every window of 3 s between two answers given within "
+            f"{1000 * PRECISE:.0f} ms (sliding; min over all rounds, median of the rounds' medians; a slower answer's "
+            "time is uncertain by half its latency, and a clock that lags stays behind in every later answer). "
+            "The flood holds its sockets from 8 other loopback addresses "
+            f"(127.0.1.1-8) and opens a new one for each the server closes (at most {REOPEN_RATE:g} a second). "
+            f"Machine: {platform.machine()}, CPython {platform.python_version()}, MuJoCo {mujoco.__version__}.",
             "",
-            "| load | real-time factor: min | median | slowest GET /api/state ms | median ms | GLBs/s |",
-            "|---|---|---|---|---|---|",
+            "| load | real-time factor: min | median | slowest legitimate call ms | median ms | calls | GLBs/s | "
+            "step requests answered 409 |",
+            "|---|---|---|---|---|---|---|---|",
             *rows,
             "",
             f"`GET /api/state` during a 100,000-step `POST /api/step` (lockstep): median "

@@ -51,7 +51,7 @@ from simrun.record.simlog import CHECKPOINT, Simlog, SimlogError, check_model, c
 from simrun.run.session import prepare
 from simrun.scene.scene_file import load_scene
 
-__all__ = ["TF_TOPIC", "WORLD_FRAME", "McapStream", "McapSummary", "export_mcap"]
+__all__ = ["TF_TOPIC", "WORLD_FRAME", "McapStream", "McapSummary", "export_mcap", "open_writer", "temporary_beside"]
 
 
 @dataclass
@@ -100,11 +100,11 @@ def _write(world: Any, log: Simlog, out: Path) -> McapSummary:
     for name in log.header["sensors"]:
         if name not in world.sensors:
             raise SimrunError(f"{log.path}: header: sensors: {name!r} is not a sensor of the recorded scene")
-    tmp = _temporary(out)
+    tmp = temporary_beside(out)
     context = foxglove.Context()
     ok = False
     try:
-        writer = _open(tmp, context)
+        writer = open_writer(tmp, context)
         channels = FoxgloveChannels(world, context, sensors=log.header["sensors"])
         drives = [(k, c.name) for k, c in enumerate(world.controllers) if isinstance(c, DriveService)]
         edited = has_edits(log)  # simrun serve --edit: the edits applied as the frames come, channels following
@@ -148,8 +148,12 @@ def _write(world: Any, log: Simlog, out: Path) -> McapSummary:
     return McapSummary(out, dict(channels.counts), out.stat().st_size)
 
 
-def _temporary(out: Path) -> str:
-    """A new empty file beside ``out`` (``O_EXCL``), its path."""
+def temporary_beside(out: Path) -> str:
+    """A new empty file beside ``out`` (``O_EXCL``, named ``.NAME.*.tmp``), its path.
+
+    Raises:
+        SimrunError: It cannot be made (the folder is missing or not writable).
+    """
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
     except (OSError, ValueError) as exc:
@@ -158,8 +162,12 @@ def _temporary(out: Path) -> str:
     return tmp
 
 
-def _open(path: str, context: Any) -> Any:
-    """foxglove-sdk's MCAP writer on ``path``, a sink of ``context`` (zstd chunks of at most 1 MiB)."""
+def open_writer(path: str, context: Any) -> Any:
+    """foxglove-sdk's MCAP writer on ``path``, a sink of ``context`` (zstd chunks of at most 1 MiB).
+
+    The one writer set-up of every MCAP simrun writes: the export, :class:`McapStream` and the live Foxglove
+    server's ``--foxglove-mcap`` (:mod:`simrun.serve.foxglove_live`).
+    """
     import foxglove
 
     options = foxglove.mcap.MCAPWriteOptions(compression=foxglove.mcap.MCAPCompression.Zstd)
@@ -264,14 +272,14 @@ class McapStream:
         self._data = data
         # the checkpoint's snapshots are of every controller before the recorder (appended last), as in the export
         self._drives = [(k, c.name) for k, c in enumerate(world.controllers) if isinstance(c, DriveService)]
-        self._tmp: str | None = _temporary(out)
+        self._tmp: str | None = temporary_beside(out)
         self._writer: Any = None
         try:
             context = foxglove.Context()
-            self._writer = _open(self._tmp, context)
+            self._writer = open_writer(self._tmp, context)
             self.channels = FoxgloveChannels(_Replayed(world, data), context, sensors=sensors)
             self._readings = _Readings(self.channels, source, world, list(sensors))
-        except BaseException as exc:
+        except BaseException as exc:  # whatever stops it (Ctrl+C included), no writer or file is left; re-raised
             self.close()
             self._drop()
             if isinstance(exc, RuntimeError) and "FoxgloveError" in str(exc):

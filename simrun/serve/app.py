@@ -37,7 +37,7 @@ from simrun.serve.access import Access
 from simrun.serve.catalogue import RequestError, command_from_request, plain, service_queries
 from simrun.serve.edit_routes import edit_routes
 from simrun.serve.images import FORMATS, encode_jpeg_bytes, encode_png, image_of
-from simrun.serve.loop import CALL_TIMEOUT, MAX_RATE, MAX_STEPS, MIN_RATE, SimLoop, Subscriber
+from simrun.serve.loop import CALL_TIMEOUT, MAX_RATE, MAX_STEPS, MIN_RATE, REALTIME_STEP, SimLoop, Subscriber
 from simrun.serve.openapi import API_VERSION, MAX_ARGUMENT, openapi_document
 from simrun.serve.request_budget import RequestBudget
 
@@ -375,6 +375,8 @@ def create_app(
             steps = round(seconds / loop.catalogue["timestep"])
         else:
             steps = int(_number(body, "steps", 1, MAX_STEPS, integer=True)) if "steps" in body else 1
+        if not (loop.options.lockstep or loop.paused):  # refused at once, without a hop to the loop thread
+            raise RequestError(409, "steps", REALTIME_STEP)  # (which checks again: a pause may be queued)
         return JSONResponse(await run(loop.step_request(steps)))
 
     async def reset(request: Request) -> Response:

@@ -16,6 +16,7 @@ value (``odometry``, ``encoders``, ``joint_states``) and the properties (``busy`
 from __future__ import annotations
 
 import dataclasses
+import functools
 import inspect
 import math
 import typing
@@ -86,7 +87,16 @@ def service_commands(cls: type) -> list[str]:
 
 
 def service_queries(cls: type) -> list[str]:
-    """Properties and argument-less methods that return a value: what ``GET`` on a service reads."""
+    """Properties and argument-less methods that return a value: what ``GET`` on a service reads.
+
+    Worked out once per class (``inspect.getmembers`` and signatures were most of a service call's time in
+    the simulation thread); a new list each call.
+    """
+    return list(_queries(cls))
+
+
+@functools.cache
+def _queries(cls: type) -> tuple[str, ...]:
     out = []
     for name, member in inspect.getmembers(cls):
         if name.startswith("_") or name in LIFECYCLE:
@@ -97,7 +107,7 @@ def service_queries(cls: type) -> list[str]:
             signature = inspect.signature(member)
             if len(signature.parameters) == 1 and signature.return_annotation not in (None, "None"):
                 out.append(name)
-    return out
+    return tuple(out)
 
 
 def build_catalogue(world: World) -> dict[str, Any]:

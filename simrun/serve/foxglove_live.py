@@ -32,7 +32,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
-import tempfile
 import threading
 from collections.abc import Iterable
 from pathlib import Path
@@ -98,14 +97,13 @@ class FoxgloveLive:
         self._writer: Any = None
         self._tmp: str | None = None
         try:
-            if mcap is not None:
-                fd, self._tmp = tempfile.mkstemp(prefix=f".{mcap.name}.", suffix=".tmp", dir=mcap.parent)
-                os.close(fd)
-                options = foxglove.mcap.MCAPWriteOptions(compression=foxglove.mcap.MCAPCompression.Zstd)
-                self._writer = foxglove.open_mcap(self._tmp, allow_overwrite=True, context=self._context,
-                                                  writer_options=options)  # fmt: skip
+            if mcap is not None:  # the writer of every MCAP simrun writes (the export's), on this context
+                from simrun.record.mcap_export import open_writer, temporary_beside
+
+                self._tmp = temporary_beside(mcap)
+                self._writer = open_writer(self._tmp, self._context)
             self.channels = FoxgloveChannels(world, self._context)
-        except BaseException:
+        except BaseException:  # whatever stops it (Ctrl+C included): the SDK's server, the gate, the file go; re-raised
             self.close()
             raise
         self._world, self._drive_type = world, DriveService

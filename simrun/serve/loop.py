@@ -73,6 +73,8 @@ MIN_POSE_INTERVAL = 1.0 / 120
 #: would otherwise send a 10 Hz laser 10 000 times a second to every client).
 MIN_SENSOR_INTERVAL = 1.0 / 60
 _SHUTTING_DOWN = RequestError(503, "", "the server is shutting down; the call did not run")
+#: The refusal of a step request while the world runs in real time (409).
+REALTIME_STEP = "the world runs in real time; pause it (or serve --lockstep) to step"
 #: Real-time factors accepted.
 MIN_RATE, MAX_RATE = 0.01, 1000.0
 
@@ -421,7 +423,7 @@ class SimLoop:
 
         def run(world: World) -> Any:
             if not (self.options.lockstep or self.paused):
-                raise RequestError(409, "steps", "the world runs in real time; pause it (or serve --lockstep) to step")
+                raise RequestError(409, "steps", REALTIME_STEP)
             done, cancelled = 0, None
             while done < steps:
                 if self._stop.is_set():

@@ -71,7 +71,7 @@ class LiveRecording:
         try:
             self.recorder = Recorder(world, path, scene, [], seed=seed, sensors=sensors, live=True,
                                      listener=self.stream, prelude=list(loop.edit_history))  # fmt: skip
-        except BaseException:
+        except BaseException:  # whatever stops it (Ctrl+C included), the MCAP made beside it goes; re-raised
             if self.stream is not None:
                 self.stream.discard()
             raise
