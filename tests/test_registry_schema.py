@@ -1,7 +1,8 @@
 """The registry's schema (issue 37 item 2): one route from a scene table to constructor arguments.
 
 Every key of every entity, service and sensor type has its type, unit, default and description read from the
-class (:func:`simrun.world.registry.schema`); :func:`~simrun.world.registry.arguments` turns a TOML table into
+class (:func:`simrun.world.registry.key_schema.schema`); :func:`~simrun.world.registry.conversion.arguments` turns
+a TOML table into
 the constructor's arguments for all three groups, so a key works in a scene file exactly as in Python; and
 docs/scene-format.md is checked against the schema: its generated ``## Keys`` section is the schema's, and
 every default or unit a prose row states next to a key is the schema's.
@@ -20,18 +21,9 @@ import tomli_w
 
 from simrun import World, load_scene
 from simrun.errors import EntityError, SceneError
-from simrun.world.registry import (
-    GROUPS,
-    KEY_TABLES,
-    REGISTRY,
-    REQUIRED,
-    arguments,
-    keys_markdown,
-    known_keys,
-    names,
-    python_fail,
-    schema,
-)
+from simrun.world.registry.conversion import arguments, python_fail
+from simrun.world.registry.key_schema import KEY_TABLES, REQUIRED, keys_markdown, known_keys, schema
+from simrun.world.registry.tables import GROUPS, REGISTRY, names
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = (ROOT / "docs" / "scene-format.md").read_text()
@@ -54,7 +46,7 @@ def test_the_doc_key_tables_are_the_schema():
             "docs/scene-format.md's key tables differ from the schema at table line "
             f"{first + 1}:\n  doc:    {ours[first] if first < len(ours) else '(end)'}\n"
             f"  schema: {theirs[first] if first < len(theirs) else '(end)'}\n"
-            'regenerate: .venv/bin/python -c "from simrun.world.registry import keys_markdown; '
+            'regenerate: .venv/bin/python -c "from simrun.world.registry.key_schema import keys_markdown; '
             "print(keys_markdown(), end='')\" and paste it between the keys markers"
         )
     for group in GROUPS:
@@ -162,7 +154,7 @@ UNITS_OF = {("Webcam", "width"): "px", ("Webcam", "height"): "px", ("Camera", "r
 
 @pytest.mark.parametrize(("group", "kind"), ALL)
 def test_every_key_has_a_description_and_the_units_of_physics(group, kind):
-    from simrun.world.registry import table_keys
+    from simrun.world.registry.key_schema import table_keys
 
     keys = [row for key in schema(group, kind).values() for row in (key, *table_keys(key.hint, key.name))]
     assert keys or kind == "StereoCamera" or group != "entities"
@@ -214,7 +206,7 @@ def test_sensor_defaults_are_what_a_sensor_built_without_keys_has(kind):
 
 def _sample(key):
     """A TOML-writable value for a key: its default, or a typical value where the default is unset."""
-    from simrun.world.registry import _optional
+    from simrun.world.registry.key_schema import _optional
 
     if key.default not in (None, REQUIRED, ()) and not isinstance(key.default, dict):
         return key.default

@@ -9,7 +9,7 @@ import pytest
 
 from simrun import load_scene, save_scene
 from simrun.sensors.base import Sensor
-from simrun.world.registry import GROUPS, REGISTRY, Controller, names
+from simrun.world.registry.tables import GROUPS, REGISTRY, Controller, names
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = (ROOT / "docs" / "scene-format.md").read_text()
@@ -160,7 +160,7 @@ def test_every_key_a_doc_row_names_exists():
     type's, the base keys, a service's commands, an arm segment's keys); values are written quoted (`"convex"`)."""
     from simrun.robots.arm_joints import ArmJoint, Segment
     from simrun.serve.catalogue import service_commands
-    from simrun.world.registry import parameters
+    from simrun.world.registry.key_schema import parameters
 
     for group in GROUPS:
         for name, row in _rows(group).items():

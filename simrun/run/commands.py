@@ -19,7 +19,7 @@ from typing import Any
 from simrun.errors import SceneError, SimrunError, did_you_mean
 from simrun.safeio import FileReadError, read_regular
 from simrun.scene.tomlpos import line_of, read_toml
-from simrun.world.registry import REGISTRY, names
+from simrun.world.registry.tables import REGISTRY, names
 from simrun.world.world import World
 
 #: Largest commands file read, bytes.

@@ -25,19 +25,17 @@ from simrun.scene.state import KEYS, apply_state, state_table
 from simrun.scene.tomlpos import KeyPath, line_of, read_toml
 from simrun.world.entity import Entity, Material
 from simrun.world.pose import Pose
-from simrun.world.registry import (
+from simrun.world.registry.conversion import (
     MAX_HEIGHT_CELLS,
     MAX_MAGNITUDE,
-    REGISTRY,
     Fail,
     arguments,
     convert,
     key_text,
-    known_keys,
-    names,
-    scene_type,
     unknown_message,
 )
+from simrun.world.registry.key_schema import known_keys
+from simrun.world.registry.tables import REGISTRY, names, scene_type
 from simrun.world.world import MAX_TIMESTEP, MIN_TIMESTEP, World, WorldOptions
 
 #: Entity types by name (:mod:`simrun.world.registry`, the one list of scene types).
@@ -90,7 +88,10 @@ class _Loader:
         return SceneError(message, self.name, key_text(where) or None, line)
 
     def fail(self, where: KeyPath) -> Fail:
-        """The :class:`~simrun.world.registry.Fail` of the table at ``where``: its errors name this file and line."""
+        """The :class:`~simrun.world.registry.conversion.Fail` of the table at ``where``.
+
+        Its errors name this file and line.
+        """
 
         def fail(message: str, path: KeyPath, line_at: KeyPath | None = None) -> SceneError:
             return self.error(message, (*where, *path), None if line_at is None else (*where, *line_at))

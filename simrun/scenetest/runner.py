@@ -199,7 +199,7 @@ def plan(
 def entity_class(name: str) -> Any:
     """The class of an entity type name of a scene file, or ``None``."""
     try:
-        from simrun.world import registry
+        from simrun.world.registry import tables as registry
     except ImportError:  # before the scene-type registry
         from simrun.scene import scene_file as scene
 

@@ -1,7 +1,7 @@
 """Editing a running world: insert, change and remove entities, services and sensors, teleport and push bodies.
 
 Every edit goes from a table (the same table a scene file's ``[[entities]]``, ``[[services]]`` or
-``[[sensors]]`` holds) through the registry's one route (:func:`simrun.world.registry.arguments`), then the
+``[[sensors]]`` holds) through the registry's one route (:func:`simrun.world.registry.conversion.arguments`), then the
 world is built again from its entities into a new ``MjSpec`` and compiled (``spec.compile()``) *beside* the
 running model. Only when MuJoCo and simrun accept it is the new model swapped in
 (:meth:`~simrun.world.world.World.adopt`), with the state of the running one carried over by name
@@ -41,15 +41,8 @@ from simrun.world.edit_carry import _bound_to, bind_now, carry_kinematics, carry
 from simrun.world.edit_errors import EditError as EditError  # re-exported: simrun.world.edit.EditError
 from simrun.world.entity import Entity
 from simrun.world.pose import Pose
-from simrun.world.registry import (
-    REGISTRY,
-    Fail,
-    KeyPath,
-    arguments,
-    convert,
-    key_text,
-    scene_type,
-)
+from simrun.world.registry.conversion import Fail, KeyPath, arguments, convert, key_text
+from simrun.world.registry.tables import REGISTRY, scene_type
 from simrun.world.world import World
 
 #: Most entities one :func:`insert` may add.
@@ -68,7 +61,10 @@ def _join(prefix: str, path: KeyPath) -> str:
 
 
 def edit_fail(prefix: str = "", entity: str | None = None) -> Fail:
-    """A :class:`~simrun.world.registry.Fail` whose errors are :class:`EditError` with the field ``PREFIX.KEY``."""
+    """A :class:`~simrun.world.registry.conversion.Fail`.
+
+    Its errors are :class:`EditError` with the field ``PREFIX.KEY``.
+    """
 
     def fail(message: str, path: KeyPath, line_at: KeyPath | None = None) -> Exception:
         return EditError(message, key=_join(prefix, path) or None, entity=entity)

@@ -19,7 +19,7 @@ from typing import Any
 
 from simrun.world import edit, edit_bindings, edit_push, edit_save
 from simrun.world.edit import EditError
-from simrun.world.registry import Group
+from simrun.world.registry.tables import Group
 from simrun.world.world import World
 
 #: Every edit by name: the library function a record of that kind calls (keyword arguments, JSON values).
@@ -113,7 +113,7 @@ class EditRecord:
 def _old_values(current: dict[str, Any], keys: Any, group: Group, kind: str) -> dict[str, Any]:
     """The values ``keys`` have in ``current`` (a table), or their schema defaults when it leaves them out."""
     from simrun.world.edit_schema import json_value
-    from simrun.world.registry import schema
+    from simrun.world.registry.key_schema import schema
 
     known = schema(group, kind)
     out: dict[str, Any] = {}

@@ -3,7 +3,7 @@
 A service or sensor built again (new settings, or its entity changed) takes the place of the old one among
 the world's controllers (checkpoints depend on the order) and is restored from the old one's snapshot: its
 clock, its state and its noise stream continue. Tables go through the registry's one route
-(:func:`simrun.world.registry.arguments`), as a scene's ``[[services]]`` and ``[[sensors]]`` do.
+(:func:`simrun.world.registry.conversion.arguments`), as a scene's ``[[services]]`` and ``[[sensors]]`` do.
 """
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ from typing import Any, Literal
 from simrun.errors import EntityError, SimrunError
 from simrun.world.edit import Edit, EditError, _entity, _merge, edit_fail, trial
 from simrun.world.edit_carry import rebuild_sensor, rebuild_service
-from simrun.world.registry import REGISTRY, arguments, scene_type
+from simrun.world.registry.conversion import arguments
+from simrun.world.registry.tables import REGISTRY, scene_type
 from simrun.world.world import World
 
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from simrun.world.edit import EditError, _entity, edit_fail
 from simrun.world.edit_carry import _bound_to
-from simrun.world.registry import convert
+from simrun.world.registry.conversion import convert
 from simrun.world.world import World
 
 #: Longest push of :func:`apply_force`, simulated seconds.

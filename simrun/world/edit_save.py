@@ -41,7 +41,8 @@ from simrun.world.edit import (
 )
 from simrun.world.edit_carry import _bound_to
 from simrun.world.pose import Pose
-from simrun.world.registry import REGISTRY, arguments, scene_type
+from simrun.world.registry.conversion import arguments
+from simrun.world.registry.tables import REGISTRY, scene_type
 from simrun.world.world import World
 
 #: Largest entities file or text :func:`load_entities` reads, bytes.

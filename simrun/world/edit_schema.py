@@ -1,6 +1,6 @@
 """The editable schema of every registered type, as JSON (:mod:`simrun.world.edit`, ``GET /api/edit``).
 
-Read from the registry's one schema (:func:`simrun.world.registry.schema`): keys, types, units, defaults and
+Read from the registry's one schema (:func:`simrun.world.registry.key_schema.schema`): keys, types, units, defaults and
 descriptions, nothing kept by hand.
 """
 
@@ -10,7 +10,8 @@ import dataclasses
 import math
 from typing import Any
 
-from simrun.world.registry import GROUPS, REQUIRED, Group, Key, fixed_keys, names, scene_type, schema, table_keys
+from simrun.world.registry.key_schema import REQUIRED, Key, fixed_keys, schema, table_keys
+from simrun.world.registry.tables import GROUPS, Group, names, scene_type
 
 
 def json_value(value: Any) -> Any:
@@ -50,7 +51,7 @@ def type_schema(group: Group, kind: str) -> dict[str, Any]:
     """A registered type's schema: ``{"type", "group", "summary", "fixed", "keys": [key_schema...]}``.
 
     ``fixed`` are the keys besides the parameters (``type``, a sensor's ``name``, what it binds to); an
-    entity's keys start with :data:`~simrun.world.registry.ENTITY_BASE` (``name``, ``parent``, ``pose``...).
+    entity's keys start with :data:`~simrun.world.registry.key_schema.ENTITY_BASE` (``name``, ``parent``, ``pose``...).
     """
     registered = scene_type(group, kind)
     return {
