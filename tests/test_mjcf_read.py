@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from simrun.errors import EntityError
-from simrun.robots.mjcf_read import Limits, MjcfReadError, read_mjcf
+from simrun.robots.mjcf_limits import Limits
+from simrun.robots.mjcf_read import MjcfReadError, read_mjcf
 from simrun.robots.mjcf_robot import MjcfRobot
 from simrun.world.world import World
 

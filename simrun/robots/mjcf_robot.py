@@ -72,12 +72,13 @@ import numpy as np
 
 from simrun.errors import EntityError
 from simrun.robots.contract import Robot
-from simrun.robots.mjcf_read import DEFAULT_LIMITS, MjcfModel, MjcfReadError, allowed_roots, read_mjcf
+from simrun.robots.mjcf_limits import DEFAULT_LIMITS
+from simrun.robots.mjcf_read import MjcfModel, MjcfReadError, allowed_roots, read_mjcf
 from simrun.robots.wheels import WheelFields, Wheels, measure
 from simrun.world.entity import BuildContext, Entity
 from simrun.world.options import own_options
 
-#: Largest MJCF file read, bytes (its includes and assets: :class:`simrun.robots.mjcf_read.Limits`).
+#: Largest MJCF file read, bytes (its includes and assets: :class:`simrun.robots.mjcf_limits.Limits`).
 MAX_MJCF_BYTES = DEFAULT_LIMITS.xml_bytes
 _LINE = re.compile(r"[Ll]ine(?: number)?[ =](\d+)")
 _ELEMENT = re.compile(r"Element '([^']*)'|XMLElement name=(\w+)")
