@@ -121,7 +121,7 @@ def test_a_built_in_arm_refuses_targets_past_its_limits() -> None:
 
 def test_every_actuator_kind_has_its_range_and_a_velocity_stops_at_the_joint_limit(tmp_path: Path) -> None:
     """The model of every actuator kind (tests/test_joint_service.py): ranges from MuJoCo's own fields."""
-    from tests.test_joint_service import KINDS_XML
+    from test_joint_service import KINDS_XML
 
     (tmp_path / "kinds.xml").write_text(KINDS_XML)
     world = World(WorldOptions(gravity=(0.0, 0.0, 0.0)), base_dir=tmp_path)

@@ -33,7 +33,7 @@ def _bend(world: World) -> None:
 
 
 def _kinds_world(tmp_path: Path) -> World:
-    from tests.test_joint_service import KINDS_XML
+    from test_joint_service import KINDS_XML
 
     (tmp_path / "kinds.xml").write_text(KINDS_XML)
     world = World(base_dir=tmp_path)

@@ -36,7 +36,7 @@ space with the segment's slope as velocity feed-forward (``profile = "cosine"``:
 their targets. ``integral = False`` leaves the error integrals out of every loop.
 
 The built-in arms (:class:`~simrun.robots.arm.ArticulatedArm`, ``KukaLBR3``, ``LynxL6``) are served by this
-class too: :class:`~simrun.robots.arm.ArmService` is a JointService at 50 Hz with the cosine profile and no
+class too: :class:`~simrun.robots.arm_service.ArmService` is a JointService at 50 Hz with the cosine profile and no
 integral (their servos are designed critically damped, their gravity compensated), behind the arm's own
 names (``set_joint_targets``, ``move_to(joint_positions, duration)``, ``joint_states``).
 """
