@@ -152,3 +152,41 @@ def test_msh_bytes_is_mujocos_layout(dtype: type) -> None:
         msh_bytes(v, f)
         == struct.pack("<4i", 7, 0, 0, 5) + np.asarray(v, "<f4").tobytes() + np.asarray(f, "<i4").tobytes()
     )
+
+
+def test_asset_paths_resolve_as_path_resolve(tmp_path: Path) -> None:
+    """AssetLibrary.real resolves each folder once and each file by one lstat: the same paths as resolve()."""
+    from simrun.world.assets import AssetLibrary
+
+    (tmp_path / "real").mkdir()
+    shutil.copy(GOLDEN / "head.mbin", tmp_path / "real" / "a.mbin")
+    (tmp_path / "linked").symlink_to(tmp_path / "real")
+    (tmp_path / "real" / "b.mbin").symlink_to(tmp_path / "real" / "a.mbin")
+    library = AssetLibrary(mujoco.MjSpec())
+    for path in (
+        tmp_path / "linked" / "a.mbin",  # a linked folder
+        tmp_path / "real" / "b.mbin",  # a linked file
+        tmp_path / "real" / "missing.mbin",
+        tmp_path / "linked" / "..",
+        tmp_path / "real" / "." / "a.mbin",
+        Path("relative.mbin"),
+    ):
+        assert library.real(path) == path.resolve(), path
+    assert library.real(tmp_path / "linked" / "a.mbin") == tmp_path.resolve() / "real" / "a.mbin"
+
+
+def test_hull_volumes_are_computed_when_a_mass_needs_them(tmp_path: Path) -> None:
+    """Hull volumes (scaled) are computed on first use, the same numbers as computed when the mesh is added."""
+    from meshtool.hulls import surface
+    from simrun.world.assets import AssetLibrary
+
+    shutil.copy(GOLDEN / "head-1.1.mbin", tmp_path / "head.mbin")  # one hull
+    asset = AssetLibrary(mujoco.MjSpec()).mesh(tmp_path / "head.mbin", 2.0)
+    assert asset._volumes is None
+    hulls = load(tmp_path / "head.mbin").hulls
+    assert asset.hull_volumes == [surface.volume(v, f) * 8.0 for v, f in hulls] and asset.hull_volumes
+    world = World(base_dir=tmp_path)
+    world.insert(MeshEntity(name="heavy", asset="head.mbin", scale=2.0, mass=3.0, pose=Pose((0.0, 0.0, 1.0))))
+    world.insert(MeshEntity(name="light", asset="head.mbin", pose=Pose((1.0, 0.0, 1.0))))
+    model = world.build_spec().compile()
+    assert model.body("heavy").mass[0] == pytest.approx(3.0)

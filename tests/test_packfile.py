@@ -387,3 +387,94 @@ def test_a_layout_seen_before_still_checks_its_content(golden_bytes):
     damaged[pos.offset] ^= 0x01
     with pytest.raises(PackFormatError, match="section 'POS ' checksum mismatch"):
         parse(bytes(damaged))
+
+
+def _with_section_byte(data, section, at, value, fix_entry_crc):
+    """``data`` with one byte of ``section`` set, its entry's checksum fixed or not, the table checksum fixed."""
+    buf = bytearray(data)
+    buf[section.offset + at] = value
+    if not fix_entry_crc:
+        return rewrite(bytes(buf), lambda h, t: None)
+    k = next(i for i, s in enumerate(parse(data).sections) if s.offset == section.offset)
+    crc = fmt.checksum(bytes(buf[section.offset : section.offset + section.length]), 0)
+    return rewrite(bytes(buf), lambda h, t: t[k].__setitem__("crc", crc))
+
+
+def test_files_of_one_layout_keep_their_own_checksums(golden_bytes):
+    """The layout caches are keyed by the table without its checksums (a distinct file per entity): each file's
+    table checksum and section checksums are still its own, and checked."""
+    from meshtool.packfile.read import forget_checks
+
+    forget_checks()
+    first = parse(golden_bytes)
+    pos = next(s for s in first.sections if s.kind == "POS ")
+    other = _with_section_byte(golden_bytes, pos, 0, golden_bytes[pos.offset] ^ 0x01, fix_entry_crc=True)
+    assert other[64 : table_end(other)] != golden_bytes[64 : table_end(golden_bytes)]
+    second = parse(other)  # the same layout, other contents: read, with its own checksums
+    assert [s.crc for s in second.sections if s.kind == "POS "] != [pos.crc]
+    assert all(s.crc_ok for s in second.sections)
+    assert not np.array_equal(first.raw["POS "], second.raw["POS "])
+    stale = _with_section_byte(golden_bytes, pos, 0, golden_bytes[pos.offset] ^ 0x01, fix_entry_crc=False)
+    with pytest.raises(PackFormatError, match="section 'POS ' checksum mismatch"):
+        parse(stale)
+    damaged = bytearray(other)
+    damaged[64 + 40] ^= 0x10  # the first entry's checksum, the table checksum left as it was
+    with pytest.raises(PackFormatError, match="section table checksum mismatch"):
+        parse(bytes(damaged), verify=False)
+    forget_checks()
+    parse(golden_bytes)
+    again = bytearray(golden_bytes)
+    again[32] ^= 0x01  # the table checksum itself, of a layout seen before
+    with pytest.raises(PackFormatError, match="section table checksum mismatch"):
+        parse(bytes(again), verify=False)
+
+
+def _json_section(text):
+    from meshtool.packfile.read import Section
+
+    data = text.encode()
+    return data, Section("META", "bytes", (len(data),), 0, len(data), 0, fmt.ENC_PLAIN, 0)
+
+
+@pytest.mark.parametrize(
+    "literal",
+    ["1e999", "-1E+309", "1e0400", "2" + "0" * 209 + "e99", "-" + "9" * 300, "1" + "0" * 400 + ".5"],
+)
+def test_a_json_literal_that_overflows_is_refused(literal):
+    from meshtool.packfile.read import _json
+
+    data, s = _json_section(f'{{"a": [1.5, {literal}]}}')
+    if literal.lstrip("-").isdigit():  # an integer stays an integer (no float to overflow)
+        assert _json(data, s, "x", dict)["a"][1] == int(literal)
+        return
+    with pytest.raises(PackFormatError, match="float range"):
+        _json(data, s, "x", dict)
+
+
+def test_the_largest_decimal_literals_that_do_not_overflow_are_read():
+    from meshtool.packfile.read import _json
+
+    for literal, value in (("1" + "0" * 209 + "e99", 1e308), ("1.7e308", 1.7e308), ("4.9e-324", 5e-324)):
+        data, s = _json_section(f'{{"a": {literal}}}')
+        assert _json(data, s, "x", dict) == {"a": value}
+
+
+@given(st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=8), st.integers(-400, 400))
+@settings(max_examples=200, deadline=None)
+def test_json_decoding_is_the_checked_decoding(values, exponent):
+    """Every JSON section decodes to the value the number-by-number finiteness check gives, or is refused as
+    it refuses."""
+    import json
+
+    from meshtool.packfile import verify as check
+    from meshtool.packfile.read import _json
+
+    text = json.dumps({"v": values, "e": "x", "n": 0.0}).replace('"x"', f"1.25e{exponent}")
+    data, s = _json_section(text)
+    try:
+        expected = json.loads(text, parse_constant=check.reject_constant, parse_float=check.finite_float)
+    except ValueError:
+        with pytest.raises(PackFormatError):
+            _json(data, s, "x", dict)
+        return
+    assert _json(data, s, "x", dict) == expected

@@ -231,39 +231,76 @@ def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mma
             f"section table ({count} entries at {table_offset}) does not fit the file", path=name, offset=16
         )
     head = bytes(view[:table_end])
-    layout = _LAYOUTS.get((head, size))
+    if fmt.checksum(head[:32] + head[table_offset:], minor) != table_crc:  # every file's own table, always
+        raise PackFormatError("header or section table checksum mismatch", path=name, offset=32)
+    layout_key = (_without_checksums(head, count), size)
+    layout = _LAYOUTS.get(layout_key)
     if layout is None:  # not seen before in this process: every check of the header and the table
-        table = head[table_offset:]
-        crc = fmt.checksum(head[:32] + table, minor)
-        if crc != table_crc:
-            raise PackFormatError("header or section table checksum mismatch", path=name, offset=32)
         if any(head[36:64]):
             raise PackFormatError("reserved header bytes are not zero", path=name, offset=36)
         if flags & ~fmt.FLAG_QUANTIZED:
             raise PackFormatError(f"unknown header flags {flags:#x}", path=name, offset=12)
-        entries = _ENTRY.iter_unpack(table)
+        entries = _ENTRY.iter_unpack(head[table_offset:])
         checked = [_entry(e, k, name, size, table_end, table_offset) for k, e in enumerate(entries)]
         _check_layout(checked, name)
-        layout = _remember(_LAYOUTS, (head, size), tuple(_fields(s) for s in checked))
-    sections = [Section(*fields) for fields in layout]
+        layout = _remember(_LAYOUTS, layout_key, tuple(_fields(s)[:5] + _fields(s)[6:] for s in checked))
+    crcs = _crcs(head, count)
+    sections = [
+        Section(kind, dtype, shape, offset, length, crc, encoding, index)
+        for (kind, dtype, shape, offset, length, encoding, index), crc in zip(layout, crcs, strict=True)
+    ]
     if verify:
         for s in sections:
             s.crc_ok = fmt.checksum(view[s.offset : s.offset + s.length], minor) == s.crc
             if not s.crc_ok:
                 raise PackFormatError(f"section {s.kind!r} checksum mismatch", path=name, offset=s.offset)
     quantized = bool(flags & fmt.FLAG_QUANTIZED)
-    return _build(view, sections, name, verify, quantized, (major, minor), keep, (head, size))
+    return _build(view, sections, name, verify, quantized, (major, minor), keep, layout_key)
+
+
+#: Byte offset of a section's stored checksum within its table entry (``crc`` in docs/mbin-spec.md section 3).
+_CRC_AT = 40
+
+
+def _without_checksums(head: bytes, count: int) -> bytes:
+    """``head`` (the header and ``count`` table entries) with the header's and every entry's checksum zeroed.
+
+    The key of the layout caches: files of one layout whose contents differ (a distinct file per entity)
+    differ in their checksums alone, and no check of the layout reads a checksum (each file's table checksum
+    and, when verifying, each section's are computed from its own bytes).
+    """
+    key = bytearray(head)
+    key[32:36] = bytes(4)
+    for at in range(fmt.HEADER_SIZE + _CRC_AT, fmt.HEADER_SIZE + count * fmt.ENTRY_SIZE, fmt.ENTRY_SIZE):
+        key[at : at + 4] = bytes(4)
+    return bytes(key)
+
+
+def _crcs(head: bytes, count: int) -> tuple[int, ...]:
+    """The stored section checksums of ``count`` table entries, in table order."""
+    unpack = _CRCS.get(count)
+    if unpack is None:
+        unpack = struct.Struct(f"<{'I60x' * (count - 1)}I")
+        if count <= 64:
+            _CRCS[count] = unpack
+    result: tuple[int, ...] = unpack.unpack_from(head, fmt.HEADER_SIZE + _CRC_AT)
+    return result
+
+
+#: Struct reading the section checksums of a table of N entries (one unpack per file), by N.
+_CRCS: dict[int, struct.Struct] = {}
 
 
 #: Checks made once per content (issue 28: a small asset's load was ~100 Python-level checks and two
 #: JSON decodes with a call per number, 0.2-0.4 ms). Each cache is keyed by the exact bytes the checks
 #: read (never by a checksum: a checksum is not a proof of sameness), so a file that differs anywhere they
-#: look is checked in full. Layout: (header + table bytes, file size) -> the sections' fields. JSON:
+#: look is checked in full. Layout: (header + table bytes with their checksums zeroed, file size; see
+#: :func:`_without_checksums`) -> the sections' fields but their checksums. JSON:
 #: (the META and MATL stored bytes, what their checks depend on) -> the values (pickled) and the part names.
 #: Content: the small arrays check_submeshes and check_hulls read -> passed.
 _LAYOUTS: dict[tuple[bytes, int], tuple[tuple[Any, ...], ...]] = {}
 _JSON_CHECKED: dict[tuple[Any, ...], tuple[Any, ...]] = {}
-#: (header + table bytes, file size) -> how :func:`_build` views that layout's sections, once its checks of
+#: The layout key -> how :func:`_build` views that layout's sections, once its checks of
 #: the layout alone (section types, row counts, the quantised flag) passed.
 _PLANS: dict[tuple[bytes, int], _Plan] = {}
 _CONTENT_CHECKED: dict[tuple[Any, ...], bool] = {}
@@ -426,7 +463,12 @@ class _Plan:
 def _plan_of(sections: list[Section], by_kind: dict[bytes, Section]) -> _Plan:
     """The :class:`_Plan` of sections whose layout :func:`_view_sections` accepted."""
     texture_sections = sorted((s for s in sections if s.kind == "TEX "), key=lambda s: s.index)
-    mine = {kind: Section(*_fields(s)) for kind, s in by_kind.items()}  # copies: the caller's are its own
+    # copies (the caller's are its own) without the checksum, which differs between files of one layout and is
+    # read from the sections of the file at hand, never from the plan
+    mine = {
+        kind: Section(s.kind, s.dtype, s.shape, s.offset, s.length, 0, s.encoding, s.index)
+        for kind, s in by_kind.items()
+    }
     arrays = []
     for s in sections:  # table order, as _view_sections fills the arrays
         kind = s.kind.encode()
@@ -602,14 +644,40 @@ def _inflate(view: memoryview, s: Section, name: str, start: int | None = None) 
     return data
 
 
+#: JSON bytes mapped to the shape of their number literals: digits to ``0``, ``e``/``E`` to ``e``, both signs
+#: to ``+``, every other byte to a space (a JSON number is ASCII: no byte of a multi-byte character is a digit).
+_NUMBER_SHAPE = bytes(
+    (ord("0") if chr(c).isdigit() else ord("e") if chr(c) in "eE" else ord("+") if chr(c) in "+-" else ord(" "))
+    if c < 128
+    else ord(" ")
+    for c in range(256)
+)
+_DIGITS_200 = b"0" * 200
+
+
+def _may_overflow(data: bytes) -> bool:
+    """Whether some number literal of the JSON ``data`` could overflow a float (over 1.8e308) to infinity.
+
+    Only a literal with an exponent of 3 or more digits or, with at most 2 (at most e99), an integer part
+    of at least 210 digits can: the bytes are searched for ``e``/``E`` and an optional sign before 3 digits,
+    and for 200 digits in a row (anywhere, strings included: a false match only takes the checked path).
+    """
+    shape = data.translate(_NUMBER_SHAPE)
+    return b"e000" in shape or b"e+000" in shape or _DIGITS_200 in shape
+
+
 def _json(stored: bytes, s: Section, name: str, kind: type) -> Any:
     """A JSON section's value from its ``stored`` bytes, every number checked finite."""
     data = _inflate(memoryview(stored), s, name, 0) if s.encoding == fmt.ENC_DEFLATE else stored
     try:
         text = data.decode("utf-8")
-        # every float literal through the finiteness check (1e999 overflows to infinity): one call per number
-        # costs less than scanning the text for literals that could overflow
-        value = json.loads(text, parse_constant=check.reject_constant, parse_float=check.finite_float)
+        # every float literal that could overflow to infinity (1e999) goes through the finiteness check; JSON
+        # where none can is decoded by json's C float path (float(literal), what finite_float returns, without
+        # a Python call per number)
+        if not _may_overflow(data):
+            value = json.loads(text, parse_constant=check.reject_constant)
+        else:
+            value = json.loads(text, parse_constant=check.reject_constant, parse_float=check.finite_float)
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise PackFormatError(f"section {s.kind!r} is not UTF-8 JSON ({exc})", path=name, offset=s.offset) from None
     if not isinstance(value, kind):

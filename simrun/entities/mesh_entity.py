@@ -77,7 +77,9 @@ class MeshEntity(Entity):
                 "(convert it with obj2bin --hulls convex|decompose, or use collision='convex')"
             )
         meshes = asset.hulls if self.collision == "hulls" else [ctx.assets.whole(path, self.scale)]
-        volumes = asset.hull_volumes if self.collision == "hulls" else [1.0]
+        # the hulls' volumes only where a mass is split by them (computing them was a fifth of a distinct file's
+        # build, issue 41)
+        volumes = (asset.hull_volumes if self.collision == "hulls" else [1.0]) if self.mass is not None else []
         for k, mesh in enumerate(meshes):
             geom = body.add_geom()
             geom.name, geom.type, geom.meshname, geom.group = f"{prefix}/collision{k}", MESH, mesh, 3

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import hashlib
 import io
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -49,13 +51,26 @@ MAX_PACK_BYTES = 1024**3
 
 @dataclass(slots=True)
 class MeshAsset:
-    """Names of what one ``.mbin`` added to the spec, and the volumes of its hulls (m^3, unscaled)."""
+    """Names of what one ``.mbin`` added to the spec, and the volumes of its hulls (m^3, scaled).
+
+    The volumes are computed when first read (:attr:`hull_volumes`): only an entity given a mass needs them.
+    """
 
     name: str
     visual: list[tuple[str, str | None]]  # (mesh name, material name) per submesh
     hulls: list[str]
-    hull_volumes: list[float]
+    #: (vertices (n, 3) m unscaled, faces (k, 3)) per hull, and the scale, for :attr:`hull_volumes`.
+    hull_arrays: list[tuple[npt.NDArray[Any], npt.NDArray[Any]]]
+    scale: float
     whole: str  # name for the whole mesh in one piece (added by :meth:`AssetLibrary.whole` when needed)
+    _volumes: list[float] | None = None
+
+    @property
+    def hull_volumes(self) -> list[float]:
+        """Each hull's enclosed volume times ``scale**3``, m^3 (computed once)."""
+        if self._volumes is None:
+            self._volumes = [surface.volume(v, f) * self.scale**3 for v, f in self.hull_arrays]
+        return self._volumes
 
 
 @dataclass(slots=True)
@@ -80,12 +95,36 @@ class AssetLibrary:
     #: Each asset path as given, resolved (symlinks, ``..``) once: many entities name one file.
     resolved: dict[Path, Path] = field(default_factory=dict)
 
+    #: Each folder of those paths, resolved once (:meth:`real`).
+    resolved_dirs: dict[Path, Path] = field(default_factory=dict)
+
     def real(self, path: Path) -> Path:
-        """``path`` resolved, once per path."""
+        """``path`` resolved (as ``Path.resolve``), once per path.
+
+        A file that is not a symbolic link resolves to its resolved folder joined with its name, so each
+        folder is resolved once and each file costs one ``lstat`` (many entities name distinct files of one
+        folder); a link, a missing file or a name such as ``..`` is resolved in full.
+        """
         key = self.resolved.get(path)
         if key is None:
-            key = self.resolved[path] = path.resolve()
+            key = self.resolved[path] = self._resolve(path)
         return key
+
+    def _resolve(self, path: Path) -> Path:
+        """:meth:`real` of a path not seen before."""
+        name = path.name
+        if name in ("", ".", ".."):
+            return path.resolve()
+        try:
+            if stat.S_ISLNK(os.lstat(path).st_mode):
+                return path.resolve()
+        except (OSError, ValueError):  # missing, unreadable folder, a NUL in the name: as resolve() has it
+            return path.resolve()
+        parent = path.parent
+        folder = self.resolved_dirs.get(parent)
+        if folder is None:
+            folder = self.resolved_dirs[parent] = parent.resolve()
+        return folder / name
 
     def register(self, path: Path, packed: PackedMesh) -> None:
         """Use ``packed`` (already in memory) as the content of ``path``; nothing is read from disk."""
@@ -161,7 +200,7 @@ class AssetLibrary:
                 inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL,
             )
             visual.append((mesh.name, materials[part.material] if materials else None))
-        hulls, volumes = [], []
+        hulls = []
         for k, (v, f) in enumerate(view.hulls):
             hull = self.spec.add_mesh(
                 name=f"{base}/hull{k}",
@@ -170,8 +209,7 @@ class AssetLibrary:
                 inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX,
             )
             hulls.append(hull.name)
-            volumes.append(surface.volume(v, f) * scale**3)
-        asset = MeshAsset(base, visual, hulls, volumes, f"{base}/whole")
+        asset = MeshAsset(base, visual, hulls, list(view.hulls), scale, f"{base}/whole")
         self.added_meshes[key] = asset
         self.mesh_names.add(base)
         return asset
