@@ -429,7 +429,7 @@ def growth_table(before: str, r: dict[str, Timing], ready: str, repeat: int, siz
         "Where simrun's build goes: one more build under `cProfile` (process CPU; the profiler's overhead falls on "
         "the Python rows), seconds by what ran them: MuJoCo's spec bindings (`add_body`, `add_geom`, `add_mesh`; "
         "setting an element's attributes counts in its caller's row), the batches' `MjSpec.attach` and the final "
-        "`MjSpec.copy`, MuJoCo's compile, meshtool's `.mbin` reading (parse, checks, mass properties), and the "
+        "`MjSpec.copy`, MuJoCo's compile, meshtool's `.mbin` reading (parse, checks, checksums), and the "
         "rest (simrun's Python: entities, poses, paths, asset tables, the in-memory `.msh` files).",
         "",
         "| build | bindings s | attach + copy s | compile s | meshtool s | rest s |",
@@ -456,7 +456,8 @@ def _distinct_note(big: int) -> list[str]:
         f"Distinct files at N = {big:,}: of the profiled build's {total:.1f} s, MuJoCo's compile takes "
         f"{v['compile']:.1f} s (each file's meshes: MuJoCo's own work, as in the MJCF build), meshtool's `.mbin` "
         f"reading {v['meshtool']:.1f} s and simrun's Python {v['rest']:.1f} s, most of it the per-file asset path "
-        "(`simrun/world/assets.py`: the pack's view, the in-memory `.msh` files, the hull volumes); the tree, "
+        "(`simrun/world/assets.py`: the pack's view, the in-memory `.msh` files; hull volumes are computed only "
+        "for an entity given a mass, a layout's checks run once for files that differ only in content); the tree, "
         f"{v['bindings']:.1f} s in the bindings and {v['attach']:.1f} s in attach + copy (an attachment checks "
         "every name of the world's spec, which holds two named meshes per file), is "
         f"{100 * (v['bindings'] + v['attach']) / total:.1f} % of it.",
