@@ -71,6 +71,7 @@ bench: $(TEST_STAMP) $(PEERS)/.installed
 	$(BIN)/python bench/load.py ../shared/corpus
 	$(BIN)/python bench/world.py ../shared/corpus
 	$(BIN)/python bench/decompose_fixed.py .
+	$(BIN)/python bench/mjcf_robots.py --install
 	$(BIN)/python bench/drive.py .
 	$(BIN)/python bench/validate.py ../shared/corpus
 	$(BIN)/python bench/hulls.py ../shared/corpus --obj2mjcf=$(PEERS)/bin/obj2mjcf

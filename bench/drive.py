@@ -18,9 +18,10 @@ lasers' own ray casts (``mj_multiRay`` on the compiled model, timed with ``timei
 can go below.
 
 Walkers (issue 41 item 4): gymnasium's ``humanoid.xml`` and ``ant.xml`` (from the bench environment
-``.bench-mjcf/`` that ``bench/mjcf_robots.py`` installs; skipped when it is missing) as an ``MjcfRobot`` on a
-ground, the world's timestep 2 ms, 5 s in one ``world.step(N)`` with a ``JointService`` (500 Hz, holding the
-initial pose) against ``mj_step(nstep=N)`` on the same compiled model (goal <= 1.1x).
+``.bench-mjcf/`` that ``bench/mjcf_robots.py --install`` installs, as ``make bench`` does; skipped when it is
+missing) as an ``MjcfRobot`` on a ground, the world's timestep 2 ms, 5 s in one ``world.step(N)`` with a
+``JointService`` (500 Hz, holding the initial pose) against ``mj_step(nstep=N)`` on the same compiled model
+(goal <= 1.1x).
 """
 
 from __future__ import annotations
@@ -393,6 +394,10 @@ def robots_section(
             f"{ratio:.2f}x | {met} | {idle.cpu_median:.3f} ({idle.cpu_median / raw.cpu_median:.2f}x) | "
             f"{per_tick:.0f} |"
         )
+    if not walkers:
+        lines.append(
+            "| (skipped: `.bench-mjcf/` not installed; `python bench/mjcf_robots.py --install` installs it) |||||||"
+        )
     lines += [
         "",
         "*Idle*: `world.step(N)` with a controller that does nothing at 500 Hz (the same rounds): the step loop's "
@@ -407,8 +412,6 @@ def robots_section(
             f"`joint_loops.Scratch.feed_forward` {feed:.3f} s; the rest is the control laws' array arithmetic "
             "(`joint_loops.Layout.controls`) and the tick's bookkeeping."
         )
-    if not walkers:
-        lines.append("| (skipped: `.bench-mjcf/` not installed; `python bench/mjcf_robots.py` installs it) | | | | |")
     lines.append(ROBOTS_END)
     return "\n".join(lines)
 

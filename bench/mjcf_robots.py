@@ -52,7 +52,7 @@ folder), USD (opened in pxr) and GLB (the Khronos validator) exports; ``--docs``
 own section of docs/robots.md (``mjcf-chain``), leaving the table above as it was. ``--budget`` bounds its
 wall time (models past it are listed as not run).
 
-Usage: python bench/mjcf_robots.py [--docs] [--skip-validate] [--chain [--budget S]]   (``make bench-mjcf``)
+Usage: python bench/mjcf_robots.py [--install] [--docs] [--skip-validate] [--chain [--budget S]]   (``make bench-mjcf``)
 """
 
 from __future__ import annotations
@@ -815,7 +815,13 @@ def main() -> int:
         "--chain", action="store_true", help="run the whole chain instead (check, test, exports: its own section)"
     )
     parser.add_argument("--budget", type=float, default=840.0, help="--chain: wall seconds before models are skipped")
+    parser.add_argument(
+        "--install", action="store_true", help="only create or complete the bench environment .bench-mjcf/, then exit"
+    )
     args = parser.parse_args()
+    if args.install:
+        print(site_packages())
+        return 0
     started = time.perf_counter()
     budget_end = started + args.budget
     site = site_packages()
