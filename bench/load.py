@@ -9,9 +9,10 @@ cache. The fast readers run interleaved for --repeat rounds (wall-clock and proc
   * .mbin 1.1 lossless with verify=True (checksums, index bounds, finite floats: everything), verify=False,
     and quantised with verify=True; the same lossless file written as format 1.0 (CRC-32) with verify=True;
   * MSH via numpy.
-Slow peers (OBJ and GLB through trimesh, MuJoCo compiling the OBJ or the .mbin arrays) run interleaved for
-max(2, --repeat // 3) rounds. Tables go into docs/benchmarks.md between ``<!-- load:begin -->`` and
-``<!-- load:end -->``.
+Slow peers (OBJ and GLB through trimesh) run interleaved for max(2, --repeat // 3) rounds; the Into-MuJoCo
+contenders (MuJoCo compiling the OBJ, STL, MSH or the .mbin arrays) after one untimed warm-up call each, for
+max(5, --repeat) rounds (meshes of at most 100,000 triangles) or max(2, --repeat // 3). Tables go into
+docs/benchmarks.md between ``<!-- load:begin -->`` and ``<!-- load:end -->``.
 """
 
 from __future__ import annotations
@@ -115,8 +116,11 @@ def as_version_1_0(data: bytes) -> bytes:
 def mujoco_from_mbin(path: Path, compiled: bool = True) -> None:
     """What a world does with an ``.mbin`` (simrun's :class:`~simrun.world.assets.AssetLibrary`): load it, hand its
     arrays to an ``MjSpec`` (in-memory ``.msh``), compile. MuJoCo's mesh cache is emptied first, as for every
-    MuJoCo contender (the library names a mesh by its content, which would hit the cache from the last round)."""
+    MuJoCo contender (the library names a mesh by its content, which would hit the cache from the last round),
+    and so are meshtool's caches of checks made once per content (:func:`forget_checks`): the file is read as
+    content not seen before, as MuJoCo reads each fresh file."""
     mujoco.mj_clearCache(mujoco.mj_getCache())
+    forget_checks()
     spec = mujoco.MjSpec()
     library = AssetLibrary(spec)
     asset = library.mesh(path, 1.0)
@@ -165,9 +169,10 @@ def measure(src: Path, work: Path, repeat: int) -> tuple[dict[str, float], dict[
     )
     trimesh.Trimesh(np.asarray(packed.positions), np.asarray(packed.indices), process=False).export(work / "m.stl")
     slow_rounds = max(2, repeat // 3)
+    rounds = mujoco_rounds(nf, repeat)
     fresh: dict[str, list[Path]] = {"obj": [], "stl": [], "msh": []}
     for kind, source in (("obj", obj), ("stl", work / "m.stl"), ("msh", paths["msh"])):
-        for k in range(slow_rounds):
+        for k in range(rounds + 1):  # one more for the warm-up call
             copy = work / f"fresh_{k}.{kind}"
             copy.write_bytes(source.read_bytes())
             fresh[kind].append(copy)
@@ -194,6 +199,8 @@ def measure(src: Path, work: Path, repeat: int) -> tuple[dict[str, float], dict[
     slow_contenders = {
         "obj trimesh": timed(lambda: trimesh.load(obj, force="mesh")),
         "glb trimesh": timed(lambda: trimesh.load(paths["glb"], force="mesh")),
+    }
+    mujoco_contenders = {
         "mujoco obj": timed(lambda: mujoco_from_file(fresh["obj"])),
         "mujoco stl": timed(lambda: mujoco_from_file(fresh["stl"])),
         "mujoco msh": timed(lambda: mujoco_from_file(fresh["msh"])),
@@ -201,9 +208,22 @@ def measure(src: Path, work: Path, repeat: int) -> tuple[dict[str, float], dict[
         "mbin spec": timed(lambda: mujoco_from_mbin(work / "geometry.mbin", compiled=False)),
     }
     if nf > STL_MAX_FACES:  # MuJoCo's STL reader refuses more
-        del slow_contenders["mujoco stl"]
+        del mujoco_contenders["mujoco stl"]
     slow = interleave(slow_contenders, slow_rounds)
-    return sizes, {**fast, **slow}
+    for run in mujoco_contenders.values():  # a warm-up call each: no contender's first call in the process is timed
+        run()
+    into_mujoco = interleave(mujoco_contenders, rounds)
+    return sizes, {**fast, **slow, **into_mujoco}
+
+
+def mujoco_rounds(triangles: int, repeat: int) -> int:
+    """Rounds of the Into-MuJoCo contenders: ``max(5, repeat)`` for a mesh of at most
+    :data:`MUJOCO_ROUNDS_TRIANGLES` triangles (a few ms each), else the slow peers' ``max(2, repeat // 3)``."""
+    return max(5, repeat) if triangles <= MUJOCO_ROUNDS_TRIANGLES else max(2, repeat // 3)
+
+
+#: Largest mesh (triangles) whose Into-MuJoCo contenders run ``max(5, --repeat)`` rounds.
+MUJOCO_ROUNDS_TRIANGLES = 100_000
 
 
 def ms(t: float) -> str:
@@ -221,7 +241,9 @@ def table(rows: list[tuple[str, dict[str, float], dict[str, Timing]]], repeat: i
         "",
         f"`python bench/load.py ../shared/corpus --repeat {repeat}` (part of `make bench`): the same normalised "
         f"mesh in every format, files in the page cache; fast readers interleaved for {repeat} rounds, slow "
-        f"peers for {max(2, repeat // 3)}; each fast measurement repeats the read for about 20 ms and divides. "
+        f"peers for {max(2, repeat // 3)} (the Into-MuJoCo contenders after a warm-up call each, for "
+        f"{max(5, repeat)} rounds up to {MUJOCO_ROUNDS_TRIANGLES:,} triangles); each fast measurement repeats "
+        "the read for about 20 ms and divides. "
         "Milliseconds per read as min / median of wall-clock and of process CPU. "
         f"Machine: {platform.machine()}, CPython {platform.python_version()}, numpy {np.__version__}, trimesh "
         f"{trimesh.__version__}, MuJoCo {mujoco.__version__}, meshtool {meshtool.__version__}; {load_average()} "
@@ -281,7 +303,8 @@ def table(rows: list[tuple[str, dict[str, float], dict[str, Timing]]], repeat: i
         "Into MuJoCo (issue 41 item 6): `.mbin` load + `MjSpec` compile through simrun's `AssetLibrary` (the arrays "
         "cast once into an in-memory `.msh`, MuJoCo's binary mesh format, no per-element conversion) against "
         "MuJoCo compiling the same mesh from an OBJ, a binary STL (trimesh's export of the same arrays) and an "
-        "MSH file it has not seen (fresh names; MuJoCo's mesh cache emptied before every contender), each with "
+        "MSH file it has not seen (fresh names; MuJoCo's mesh cache emptied before every contender, and for the "
+        "`.mbin` meshtool's caches of checks made once per content: a first load), each with "
         "the inertia simrun gives a visual mesh (`shell`); the `.mbin` "
         "is the same mesh without its texture, as the others hold none. Median ms "
         "of process CPU; goal: the binary format loads faster than the text one, <= 1x of every MuJoCo path.",

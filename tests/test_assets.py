@@ -154,9 +154,12 @@ def test_msh_bytes_is_mujocos_layout(dtype: type) -> None:
     )
 
 
-def test_asset_paths_resolve_as_path_resolve(tmp_path: Path) -> None:
+def test_asset_paths_resolve_as_path_resolve(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """AssetLibrary.real resolves each folder once and each file by one lstat: the same paths as resolve()."""
     from simrun.world.assets import AssetLibrary
+
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(GOLDEN / "head.mbin", tmp_path / "a.mbin")
 
     (tmp_path / "real").mkdir()
     shutil.copy(GOLDEN / "head.mbin", tmp_path / "real" / "a.mbin")
@@ -169,9 +172,15 @@ def test_asset_paths_resolve_as_path_resolve(tmp_path: Path) -> None:
         tmp_path / "real" / "missing.mbin",
         tmp_path / "linked" / "..",
         tmp_path / "real" / "." / "a.mbin",
+        tmp_path / "linked" / ".." / "real" / "a.mbin",  # '..' after a link: the link's target's folder
+        Path("//" + str(tmp_path).lstrip("/")) / "real" / "a.mbin",  # two leading slashes
         Path("relative.mbin"),
+        Path("real") / "a.mbin",  # relative, existing (the working folder is tmp_path)
+        Path("a.mbin"),  # in the working folder itself
+        Path("/etc/passwd"),  # a file of a folder of the root
     ):
         assert library.real(path) == path.resolve(), path
+        assert AssetLibrary(mujoco.MjSpec()).real(path) == path.resolve(), path  # a fresh library: same
     assert library.real(tmp_path / "linked" / "a.mbin") == tmp_path.resolve() / "real" / "a.mbin"
 
 

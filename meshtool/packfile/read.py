@@ -131,8 +131,30 @@ def load(path: str | Path, verify: bool = True) -> PackedMesh:
         PackFormatError: Anything wrong with the file, with the section and byte offset.
         ResolveError: The file cannot be opened.
     """
+    fd = open_regular(Path(path))
+    try:
+        return load_descriptor(fd, path, verify)
+    finally:
+        os.close(fd)
+
+
+def load_descriptor(fd: int, path: str | Path, verify: bool = True) -> PackedMesh:
+    """:func:`load` of the ``.mbin`` open as ``fd``, a regular file the caller opened (and closes).
+
+    For a caller that opened the file itself (to refuse a FIFO or device with its own message): the file is
+    opened once, and what is read is what that descriptor names (no second lookup by name).
+
+    Args:
+        fd: A descriptor open for reading on a regular file, at offset 0.
+        path: The file's name, for messages.
+        verify: See :func:`load`.
+
+    Raises:
+        PackFormatError: See :func:`load`.
+        ResolveError: It cannot be read.
+    """
     name = str(path)
-    mapped = _open_pack(Path(path))
+    mapped = _read_pack(fd, path)
     if mapped is None:
         raise PackFormatError("empty file, not an .mbin", path=name, offset=0)
     if isinstance(mapped, bytes):  # a small file, read whole: the arrays view these bytes
@@ -150,16 +172,15 @@ def load(path: str | Path, verify: bool = True) -> PackedMesh:
 SMALL_FILE_BYTES = 256 * 1024
 
 
-def _open_pack(path: Path) -> mmap.mmap | bytes | None:
-    """The file's bytes (at most :data:`SMALL_FILE_BYTES`), else a read-only map of it; ``None`` when empty.
+def _read_pack(fd: int, path: str | Path) -> mmap.mmap | bytes | None:
+    """The bytes of the file open as ``fd`` (at most :data:`SMALL_FILE_BYTES`), else a read-only map of it.
 
-    The file is opened as :func:`meshtool.files.resolve.map_readonly` opens it (a regular file, symlinks
-    followed, never blocking), once.
+    ``None`` when it is empty. :func:`load` opens it as :func:`meshtool.files.resolve.map_readonly` does (a regular
+    file, symlinks followed, never blocking), once; the caller closes ``fd``.
 
     Raises:
-        ResolveError: It cannot be opened or read, or is not a regular file.
+        ResolveError: It cannot be read.
     """
-    fd = open_regular(path)
     try:
         size = os.fstat(fd).st_size
         if size == 0:
@@ -177,8 +198,6 @@ def _open_pack(path: Path) -> mmap.mmap | bytes | None:
         return chunks[0] if len(chunks) == 1 else b"".join(chunks)
     except OSError as exc:
         raise ResolveError(f"cannot be read: {exc.strerror}", path=printable(path)) from None
-    finally:
-        os.close(fd)
 
 
 def parse(buffer: Any, name: str = "<mbin>", verify: bool = True, keep: mmap.mmap | None = None) -> PackedMesh:

@@ -34,10 +34,11 @@ from meshtool.files.safeopen import printable
 from meshtool.formats import suffix
 from meshtool.hulls import surface
 from meshtool.packfile import PackedMesh, parse
+from meshtool.packfile.read import load_descriptor
 from meshtool.packfile.view import asset_view, unique_name
 from meshtool.repair.pnginfo import png_end
 from simrun.errors import EntityError
-from simrun.safeio import FileReadError, check_regular, read_regular
+from simrun.safeio import FileReadError, check_regular, open_regular, read_regular
 
 #: Largest texture or height-field image file read, bytes.
 MAX_IMAGE_BYTES = 64 * 1024 * 1024
@@ -95,8 +96,8 @@ class AssetLibrary:
     #: Each asset path as given, resolved (symlinks, ``..``) once: many entities name one file.
     resolved: dict[Path, Path] = field(default_factory=dict)
 
-    #: Each folder of those paths, resolved once (:meth:`real`).
-    resolved_dirs: dict[Path, Path] = field(default_factory=dict)
+    #: Each folder of those paths (its text, as ``str(path.parent)`` spells it), resolved once (:meth:`real`).
+    resolved_dirs: dict[str, Path] = field(default_factory=dict)
 
     def real(self, path: Path) -> Path:
         """``path`` resolved (as ``Path.resolve``), once per path.
@@ -111,19 +112,28 @@ class AssetLibrary:
         return key
 
     def _resolve(self, path: Path) -> Path:
-        """:meth:`real` of a path not seen before."""
-        name = path.name
-        if name in ("", ".", ".."):
+        """:meth:`real` of a path not seen before.
+
+        Worked on the path's text (``str`` of a ``Path`` is normalised: no empty, ``.`` or trailing parts),
+        with ``os.path.realpath`` for the folder: ``Path.resolve`` is that plus a ``stat`` that only detects a
+        symlink loop, and the folder of a file whose ``lstat`` succeeded has none (the kernel walked it).
+        """
+        text = os.fspath(path)
+        folder_text, slash, name = text.rpartition("/")
+        if name in ("", ".", "..") or os.sep != "/":  # (another system's separators and drives: resolve())
             return path.resolve()
         try:
-            if stat.S_ISLNK(os.lstat(path).st_mode):
+            if stat.S_ISLNK(os.lstat(text).st_mode):
                 return path.resolve()
         except (OSError, ValueError):  # missing, unreadable folder, a NUL in the name: as resolve() has it
             return path.resolve()
-        parent = path.parent
-        folder = self.resolved_dirs.get(parent)
+        if not slash:
+            folder_text = "."
+        elif not folder_text:
+            folder_text = "/"  # a file of the root folder (one leading slash: Path keeps "//" alone)
+        folder = self.resolved_dirs.get(folder_text)
         if folder is None:
-            folder = self.resolved_dirs[parent] = parent.resolve()
+            folder = self.resolved_dirs[folder_text] = Path(os.path.realpath(folder_text))
         return folder / name
 
     def register(self, path: Path, packed: PackedMesh) -> None:
@@ -140,8 +150,12 @@ class AssetLibrary:
         if found is not None:
             return found
         try:
-            check_regular(key, "mesh asset")  # never hand a FIFO or device to the reader
-            found = self._pack(key) if is_mesh_file(key) else meshtool.load(key)
+            if is_mesh_file(key):
+                check_regular(key, "mesh asset")  # never hand a FIFO or device to the reader
+                found = self._pack(key)
+            else:  # opened once, refused here when not a regular file; the reader reads that descriptor
+                with open_regular(key, "mesh asset") as file:
+                    found = load_descriptor(file.fileno(), key)
         except FileReadError as exc:
             raise EntityError(str(exc)) from None
         except meshtool.MeshtoolError as exc:
