@@ -203,6 +203,97 @@ def walker_split(path: Path) -> tuple[float, float, float, float, float]:
     )
 
 
+def walker_tick(path: Path) -> dict[str, float]:
+    """What one ``JointService`` tick of the walker costs and what it is made of, over the states of a run.
+
+    The walker is held for :data:`SECONDS` by its service (one tick per 2 ms step) and every tick's state
+    (``qpos``, ``qvel``) kept; then, state by state (each set into the data first), best of 3 passes of
+    process CPU, in microseconds per tick: ``tick``, the service's ``tick``; ``mujoco``, the MuJoCo calls a
+    tick makes, in its order: the scratch data posed (``mj_kinematics``, ``mj_comPos``, ``mj_tendon``,
+    ``mj_comVel``, ``mj_passive``, ``mj_rne``; :class:`~simrun.services.joint_loops.Scratch`), the contacts'
+    rows (``mj_collision``, ``mj_makeConstraint``), the mass matrix (``mj_crb``, ``mj_factorM``) and
+    ``mj_solveM`` of those rows; ``pose``, setting the state alone (taken off both). ``calls``: Python and C
+    function calls per tick (cProfile's count over the states). ``joints``: the actuators (one per driven
+    joint); ``rows``: mean constraint rows per state. ``raw``: one physics step (``mj_step`` in the same states), us.
+    """
+    world = walker_world(path)
+    model, data = world.compile()
+    service = JointService(world, "robot")
+    states = []
+    for _ in range(round(SECONDS / world.options.timestep)):
+        states.append((data.qpos.copy(), data.qvel.copy()))
+        world.step(1)
+    work = mujoco.MjData(model)
+    bias = np.zeros(model.nv)
+    rows: list[int] = []
+
+    def pose() -> None:
+        for qpos, qvel in states:
+            data.qpos[:] = qpos
+            data.qvel[:] = qvel
+
+    def ticks() -> None:
+        for qpos, qvel in states:
+            data.qpos[:] = qpos
+            data.qvel[:] = qvel
+            service.tick(model, data)
+
+    def calls_in_c() -> None:
+        for qpos, qvel in states:
+            data.qpos[:] = qpos
+            data.qvel[:] = qvel
+            work.qpos[:] = data.qpos
+            work.qvel[:] = data.qvel
+            mujoco.mj_kinematics(model, work)
+            mujoco.mj_comPos(model, work)
+            mujoco.mj_tendon(model, work)
+            mujoco.mj_comVel(model, work)
+            mujoco.mj_passive(model, work)
+            mujoco.mj_rne(model, work, 0, bias)
+            mujoco.mj_collision(model, work)
+            mujoco.mj_makeConstraint(model, work)
+            mujoco.mj_crb(model, work)
+            mujoco.mj_factorM(model, work)
+            count = int(work.nefc)
+            if len(rows) < len(states):
+                rows.append(count)
+            jac = work.efc_J[: count * model.nv].reshape(count, model.nv)
+            mujoco.mj_solveM(model, work, np.empty((count, model.nv)), jac)
+
+    def steps() -> None:
+        for qpos, qvel in states:
+            work.qpos[:] = qpos
+            work.qvel[:] = qvel
+            mujoco.mj_step(model, work)
+
+    def best(run: Callable[[], None]) -> float:
+        found = []
+        for _ in range(3):
+            cpu = time.process_time()
+            run()
+            found.append(time.process_time() - cpu)
+        return min(found) / len(states) * 1e6
+
+    posing = best(pose)
+    tick, in_c, raw = best(ticks) - posing, best(calls_in_c) - posing, best(steps)
+    profile = cProfile.Profile(time.process_time)
+    profile.enable()
+    for qpos, qvel in states:
+        data.qpos[:] = qpos
+        data.qvel[:] = qvel
+        service.tick(model, data)
+    profile.disable()
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    return {
+        "tick": tick,
+        "mujoco": in_c,
+        "calls": sum(v[1] for v in stats.values()) / len(states),
+        "joints": float(model.nu),
+        "rows": sum(rows) / len(rows),
+        "raw": raw,
+    }
+
+
 def cast_seconds(robots: int) -> float:
     """CPU seconds of the lasers' own ``mj_multiRay`` calls over the 5 s run (10 Hz each), on the compiled model."""
     world = scene(robots)
@@ -307,9 +398,10 @@ def main() -> int:
     casts = {n: cast_seconds(n) for n in ROBOTS}
     splits = {n: split_seconds(n) for n in ROBOTS}
     walker_splits = {name: walker_split(WALKERS[name]) for name in walkers}
+    walker_ticks = {name: walker_tick(WALKERS[name]) for name in walkers}
     steps = round(SECONDS / 0.002)
     write_section(args.out, section(results, costs, steps, args.repeat, before), BEGIN, END)
-    text = robots_section(results, casts, splits, walker_splits, steps, args.repeat, before)
+    text = robots_section(results, casts, splits, walker_splits, walker_ticks, steps, args.repeat, before)
     write_section(args.out, text, ROBOTS_BEGIN, ROBOTS_END)
     for name, t in results.items():
         print(f"{name}: {steps / t.cpu_median:.0f} steps/s (CPU median)")
@@ -321,6 +413,7 @@ def robots_section(
     casts: dict[int, float],
     splits: dict[int, tuple[float, float, float]],
     walker_splits: dict[str, tuple[float, float, float, float, float]],
+    walker_ticks: dict[str, dict[str, float]],
     steps: int,
     repeat: int,
     before: str,
@@ -411,6 +504,27 @@ def robots_section(
             f"`numpy.linalg` solve and eigvalsh {lapack:.3f} s) and the feed-forward forces "
             f"`joint_loops.Scratch.feed_forward` {feed:.3f} s; the rest is the control laws' array arithmetic "
             "(`joint_loops.Layout.controls`) and the tick's bookkeeping."
+        )
+    for name, t in walker_ticks.items():
+        rest = t["tick"] - t["mujoco"]
+        _, tick_s, contacts_s, _, _ = walker_splits[name]
+        share = contacts_s / tick_s
+        allowed = (WALKERS_GOAL - 1.0) * t["raw"]
+        room = (
+            "less than MuJoCo's own calls take"
+            if t["mujoco"] >= allowed
+            else f"{allowed - t['mujoco']:.0f} us beyond MuJoCo's own calls"
+        )
+        lines.append(
+            f"\n{name}, a tick over the run's {ticks} states (each set into the data, then ticked; best of 3 "
+            f"passes): {t['tick']:.0f} us, of which MuJoCo's own calls {t['mujoco']:.0f} us (the scratch data "
+            f"posed, the contacts' constraint rows, {t['rows']:.0f} per state on average, the mass matrix factored "
+            f"and solved for them); the other {rest:.0f} us are {t['calls']:.0f} Python and numpy calls per tick "
+            f"(cProfile's count) on arrays of {t['joints']:.0f} actuated joints, {rest / t['calls']:.2f} us each. "
+            f"The goal leaves a tick {allowed:.0f} us ({WALKERS_GOAL - 1.0:.1f} x one `mj_step` of these states, "
+            f"{t['raw']:.0f} us): {room}. Per joint the laws are a few vector operations: a tick costs numpy's "
+            "price per call on arrays this small, and the contact inertia (issue 37: the joints' inertia with "
+            f"what their contacts hold) is {share:.0%} of the tick in the profile above."
         )
     lines.append(ROBOTS_END)
     return "\n".join(lines)

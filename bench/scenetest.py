@@ -198,6 +198,7 @@ def main() -> None:
         c: {"seconds": 0.0, "runs": 0, "cpu": 0.0, "memory": 0.0, "load": []} for c in CONFIGS
     }
     runs: list[Any] = []
+    fixed: dict[str, list[float]] = {}  # per round: CPU s of an invocation with 2 runs (-j 2, Dask)
     edges = [round(k * args.seeds / args.rounds) for k in range(args.rounds + 1)]
     with (
         LocalCluster(
@@ -234,6 +235,16 @@ def main() -> None:
                 if config == "j1":
                     runs.extend(result["report"])
             assert len(shas) == 1, f"round {r}: reports differ between executors"
+            for config in ("j2", "dask"):  # what an invocation costs beyond its runs: 2 runs, one per worker
+                before = sum(c for _, c in client.run(_worker_stats).values()) if config == "dask" else 0.0
+                command = [sys.executable, __file__, "--child", config, str(edges[r]), str(edges[r] + 2)]
+                out = subprocess.run([*command, cluster.scheduler_address], capture_output=True, text=True)
+                if out.returncode != 0:
+                    sys.exit(f"round {r}, {config} with 2 runs: the run failed:\n{out.stderr[-3000:]}")
+                small = json.loads(out.stdout.strip().splitlines()[-1])["cpu"]
+                if config == "dask":
+                    small += sum(c for _, c in client.run(_worker_stats).values()) - before
+                fixed.setdefault(config, []).append(small)
     if args.json is not None:
         args.json.write_text(json.dumps({"runs": runs}, indent=1) + "\n", encoding="utf-8")
     base = totals["j1"]["runs"] / totals["j1"]["seconds"]
@@ -282,10 +293,45 @@ def main() -> None:
         rounds = ", ".join(f"{a / b:.2f}" for a, b in zip(t["rounds"], totals["mjstep"]["rounds"], strict=True))
         verdict = f"met (<= {GOAL:g}x)" if ratio <= GOAL else f"short by {ratio / GOAL:.2f}x"
         lines.append(f"| {CONFIGS[config]} | {ratio:.2f}x | {rounds} | {verdict} |")
+    j1_run = totals["j1"]["cpu"] / totals["j1"]["runs"]
+    per_round = totals["j1"]["runs"] / args.rounds
     lines += [
         "",
-        "-j 2 starts its two worker processes (each imports MuJoCo and simrun) in every round, and the Dask "
-        "configuration pays its scheduler and workers' own CPU: with few runs per round both weigh on their ratio.",
+        "What an invocation costs beyond its runs: each round also runs -j 2 and Dask over 2 seeds (one run per "
+        "worker); their CPU less 2 runs at -j 1's CPU per run is the invocation's fixed cost (-j 2: two worker "
+        "processes started, each importing MuJoCo and simrun and loading the scene; Dask: the client's imports "
+        "and connection, the tasks' transfer, the workers' own CPU meanwhile). Spread over a round's "
+        f"{per_round:.0f} runs it is the first part of the ratio; the rest is the runs themselves, against "
+        "-j 1's.",
+        "",
+        "| configuration | fixed cost per invocation s (per round) | its share of the ratio | ratio less it | "
+        "-j 1's ratio |",
+        "|---|---|---:|---:|---:|",
+    ]
+    for config in ("j2", "dask"):
+        costs = [c - 2 * j1_run for c in fixed[config]]
+        cost = sum(costs) / len(costs)
+        share = cost / per_round / anchor_cpu
+        ratio = totals[config]["cpu"] / totals[config]["runs"] / anchor_cpu
+        lines.append(
+            f"| {CONFIGS[config]} | {cost:.2f} ({', '.join(f'{c:.2f}' for c in costs)}) | {share:.2f}x | "
+            f"{ratio - share:.2f}x | {j1_run / anchor_cpu:.2f}x |"
+        )
+    rest = {
+        config: (
+            totals[config]["cpu"] / totals[config]["runs"]
+            - sum(fixed[config]) / len(fixed[config]) / per_round
+            + 2 * j1_run / per_round
+        )
+        / j1_run
+        for config in ("j2", "dask")
+    }
+    lines += [
+        "",
+        f"Less their fixed cost, a run costs {rest['j2']:.2f}x its CPU at -j 1 in a -j 2 worker and "
+        f"{rest['dask']:.2f}x in a Dask worker (two runs at once on the 2 CPUs, and the results' transfer); the "
+        "fixed cost is paid per invocation, so a suite of more runs per invocation than a round here spreads it "
+        "thinner.",
     ]
     if args.profile:
         lines += ["", *profile(args.profile, 12)]
