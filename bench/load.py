@@ -45,21 +45,19 @@ MESHES = [
     ("bunny subdivided (1.11M tri)", "derived/stanford-bunny-subdiv2/stanford-bunny-subdiv2.obj"),
 ]
 BEGIN, END = "<!-- load:begin -->", "<!-- load:end -->"
-#: What the profile says about the .mbin -> MjSpec rows (measured by hand; update it when the numbers change).
+#: What was measured by hand about the .mbin -> MjSpec rows (not by this script; the commit says when).
 MJSPEC_NOTE = (
-    "Where the rest goes (issue 41 item 6, measured by hand in the session of these rows, process CPU): M"
-    "uJoCo compiling the in-memory `.msh` costs what compiling the MSH file costs (suzanne, 5 x 200 build"
-    "s in a loop: 0.61-0.70 ms against 0.65-0.80 ms), so the gap is the Python that builds the spec. In a"
-    " warm loop (`AssetLibrary.mesh` + `add_geom` + `assets`, 7 x 500 calls) that is 152-154 us per mesh,"
-    " 196-201 us before issue 41's cuts (small `.mbin` files read whole instead of mapped, each layout's "
-    "section plan remembered, `msh_bytes` joining the cast arrays; compiled model and virtual files byte-"
-    "identical): the verified load about 50 us, path resolution and the regular-file check 20 us, `asset_"
-    "view` 13 us, the spec calls 10 us. Measured once between other contenders, as in this table, the sam"
-    "e code costs 3 to 5 times more (caches cold: 0.14-0.25 ms warm against 0.68-0.98 ms after a `trimesh"
-    ".load` or 64 MB of other work). Handing MuJoCo the arrays as `uservert`/`userface`/`usernormal` inst"
-    "ead of a `.msh` compiles no faster (1.64 against 1.57 ms per build + compile; the bindings convert e"
-    "lement by element) and changes the saved model's bytes (mesh arrays equal), so the `.msh` path stays"
-    ". Two runs of this table in one session: suzanne / MSH 1.72x and 1.87x, fuze / MSH 2.12x and 1.80x."
+    "Measured by hand (issue 41 item 6, process CPU, at commit ef1bb1f; not re-measured by this script): "
+    "MuJoCo compiling the in-memory `.msh` costs what compiling the MSH file costs (suzanne, 5 x 200 builds in "
+    "a loop: 0.61-0.70 ms against 0.65-0.80 ms). In a warm loop (`AssetLibrary.mesh` + `add_geom` + `assets`, "
+    "content seen before, 7 x 500 calls) the build is 152-154 us per mesh, 196-201 us before issue 41's cuts "
+    "(small `.mbin` files read whole instead of mapped, each layout's section plan remembered, `msh_bytes` "
+    "joining the cast arrays; compiled model and virtual files byte-identical): the verified load about 50 us, "
+    "path resolution and the regular-file check 20 us, `asset_view` 13 us, the spec calls 10 us; run between "
+    "other contenders, as in this table, the same code costs 3 to 5 times more (caches cold). Handing MuJoCo "
+    "the arrays as `uservert`/`userface`/`usernormal` instead of a `.msh` compiles no faster (1.64 against "
+    "1.57 ms per build + compile; the bindings convert element by element) and changes the saved model's bytes "
+    "(mesh arrays equal), so the `.msh` path stays."
 )
 #: Most triangles MuJoCo reads from an STL file.
 STL_MAX_FACES = 200_000
@@ -325,11 +323,24 @@ def table(rows: list[tuple[str, dict[str, float], dict[str, Timing]]], repeat: i
             + f" | {goal} |"
         )
     lines.append("")
+    parts = []
+    for name, info, t in rows:
+        built, whole = t["mbin spec"].cpu_median, t["mujoco mbin"].cpu_median
+        first = (  # the fast table's file is this one where the mesh has no texture to leave out
+            ""
+            if info["texture"]
+            else f" (of it the verified first load {t['first verify'].cpu_median * 1e3:.3f} ms, the fast table's)"
+        )
+        parts.append(
+            f"{name}: the build {built * 1e3:.3f} ms{first}, the compile {(whole - built) * 1e3:.3f} ms against "
+            f"{t['mujoco msh'].cpu_median * 1e3:.3f} ms for MuJoCo's whole MSH path (read and compile)"
+        )
     lines.append(
-        "Of the `.mbin -> MjSpec` time, building the spec (the verified `.mbin` load, the library's path checks, "
-        "`asset_view`, the `.msh` bytes, the spec's meshes and material; no compile) takes "
-        + ", ".join(f"{t['mbin spec'].cpu_median * 1e3:.3f} ms ({name})" for name, _, t in rows)
-        + "; the rest is MuJoCo compiling the `.msh` it was handed, the same work as compiling the MSH file."
+        "Where the `.mbin -> MjSpec` time goes (medians of the same rounds; the build: the verified `.mbin` load, "
+        "the library's path checks, `asset_view`, the `.msh` bytes, the spec's meshes and material, no compile): "
+        + "; ".join(parts)
+        + ". Where the compile alone costs what MuJoCo's MSH path costs, the ratio's excess over 1x is the "
+        "build's Python."
     )
     lines += ["", MJSPEC_NOTE]
     for name, info, t in rows:
