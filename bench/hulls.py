@@ -145,7 +145,7 @@ def main() -> int:
         "## Collision geometry: decomposition vs obj2mjcf and one convex hull",
         "",
         "`make bench-hulls` (`python bench/hulls.py ../shared/corpus --obj2mjcf=.bench-peers/bin/obj2mjcf`); "
-        f"load average {load_average()}. Machine: {platform.machine()}, CPython {platform.python_version()}, "
+        f"{load_average()}. Machine: {platform.machine()}, CPython {platform.python_version()}, "
         f"meshtool {meshtool.__version__}.",
         "Wall / CPU seconds for the whole conversion (parse, hulls, pack; obj2mjcf: its CLI on a folder with the "
         "OBJ, its MTL and textures); CPU is user + system of the process and its children (CoACD's worker, the "

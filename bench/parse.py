@@ -43,11 +43,12 @@ MESHES = [
     ("fuze, uv + normals (small)", "src/mikedh__trimesh/models/fuze.obj"),
 ]
 BEGIN, END = "<!-- parse:begin -->", "<!-- parse:end -->"
-#: What the profile says about the rows short of the issue-41 goal (measured by hand with cProfile; update it
-#: when the numbers change).
+#: What the profile says about the rows short of the issue-41 goal (measured by hand with cProfile at the commit
+#: it names, not by this script; update it when the numbers change).
 PROFILE_NOTE = (
     "Where the rest goes (issue 41 item 5; cProfile of parse + `build_mesh`, shares of profiled CPU, meas"
-    "ured on this machine in the session of the rows above): *mug* (v/vt/vn interleaved): numpy's integer"
+    "ured by hand on this machine at commit 63d3a7e, not re-measured by this script): *mug* (v/vt/vn "
+    "interleaved): numpy's integer"
     " parser (`np.fromstring` on the slash-blanked face corners and on the dot-deleted vertex digits) 26 "
     "%, whole-block byte passes (`bytes.translate`: the control-byte check, the plain-decimal check, the "
     "blanking) 14 %, position scans (`flatnonzero` over block-sized masks) 12 %, selecting the interleave"
@@ -61,7 +62,7 @@ PROFILE_NOTE = (
     "and new reader interleaved: the quads' turns at two corners only, one byte pass less per block, `np."
     "isin` and per-row reductions replaced), every output byte-identical (`bench/obj_identity.py` over th"
     "e corpus). Ratios to tinyobjloader move by up to 45 % between runs on this loaded machine (load 7 to"
-    " 10 on 2 CPUs): two runs of this table in one session gave mug 1.77x and 2.55x, beast 2.35x and 1.91"
+    " 10 on 2 CPUs): two runs of this table in that session gave mug 1.77x and 2.55x, beast 2.35x and 1.91"
     "x, fuze 2.25x and 1.75x, stanford bunny 69k 1.59x and 1.37x (its code path unchanged: A/B 0.98x); th"
     "e A/B timings are the measure of the change. A vectorised digit parser in numpy measured slower than"
     " `np.fromstring` (7.0 vs 3.5 ms for mug's 221k face integers), so what is left is numpy's cost per p"
