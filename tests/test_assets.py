@@ -3,6 +3,7 @@ makes of the same mesh from an OBJ file (MuJoCo's own loader is the ground truth
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -178,6 +179,7 @@ def test_asset_paths_resolve_as_path_resolve(tmp_path: Path, monkeypatch: pytest
         Path("real") / "a.mbin",  # relative, existing (the working folder is tmp_path)
         Path("a.mbin"),  # in the working folder itself
         Path("/etc/passwd"),  # a file of a folder of the root
+        Path("/" + tmp_path.parts[1]),  # an entry of the root folder itself
     ):
         assert library.real(path) == path.resolve(), path
         assert AssetLibrary(mujoco.MjSpec()).real(path) == path.resolve(), path  # a fresh library: same
@@ -199,3 +201,16 @@ def test_hull_volumes_are_computed_when_a_mass_needs_them(tmp_path: Path) -> Non
     world.insert(MeshEntity(name="light", asset="head.mbin", pose=Pose((1.0, 0.0, 1.0))))
     model = world.build_spec().compile()
     assert model.body("heavy").mass[0] == pytest.approx(3.0)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+@pytest.mark.parametrize("name", ["pipe.mbin", "pipe.obj"])
+def test_a_fifo_mesh_asset_is_refused_as_a_mesh_asset(tmp_path: Path, name: str) -> None:
+    """A FIFO named as a mesh (a pack or a mesh file) is refused by the library, naming it a mesh asset."""
+    from simrun.errors import EntityError
+    from simrun.world.assets import AssetLibrary
+
+    os.mkfifo(tmp_path / name)
+    with pytest.raises(EntityError) as caught:
+        AssetLibrary(mujoco.MjSpec()).mesh(tmp_path / name, 1.0)
+    assert str(caught.value) == f"{tmp_path / name}: mesh asset is a FIFO (named pipe), not a regular file; name a file"

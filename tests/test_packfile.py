@@ -478,3 +478,29 @@ def test_json_decoding_is_the_checked_decoding(values, exponent):
             _json(data, s, "x", dict)
         return
     assert _json(data, s, "x", dict) == expected
+
+
+def test_load_checksums_the_sections_only_when_verifying(tmp_path, golden_bytes):
+    """``load(verify=False)`` reads a file whose array bytes were changed; the default verified load refuses it."""
+    from meshtool.packfile import load
+
+    positions = next(s for s in parse(golden_bytes).sections if s.kind == "POS ")
+    damaged = bytearray(golden_bytes)
+    damaged[positions.offset] ^= 0x01  # a float's lowest mantissa bit: still finite
+    path = tmp_path / "damaged.mbin"
+    path.write_bytes(bytes(damaged))
+    assert load(path, verify=False).positions.shape == parse(golden_bytes).positions.shape
+    with pytest.raises(PackFormatError, match="section 'POS ' checksum mismatch"):
+        load(path)
+
+
+def test_an_empty_file_is_named_empty(tmp_path):
+    from meshtool.packfile import load
+
+    (tmp_path / "empty.mbin").write_bytes(b"")
+    with pytest.raises(PackFormatError, match=r"empty file, not an \.mbin") as caught:
+        load(tmp_path / "empty.mbin")
+    assert caught.value.offset == 0
+    (tmp_path / "one.mbin").write_bytes(b"\x89")  # one byte: a truncated file, not an empty one
+    with pytest.raises(PackFormatError, match="truncated: 1 bytes, the header alone is 64"):
+        load(tmp_path / "one.mbin")
