@@ -46,6 +46,7 @@ from simrun.robots.mjcf_robot import MjcfRobot
 from simrun.sensors.laser import LaserRangeFinder
 from simrun.sensors.robot_state import GPS, Bumper, Encoders
 from simrun.services.drive_service import DriveService
+from simrun.services.joint_loops import Scratch
 from simrun.services.joint_service import JointService
 
 BEGIN, END = "<!-- drive:begin -->", "<!-- drive:end -->"
@@ -210,11 +211,12 @@ def walker_tick(path: Path) -> dict[str, float]:
     (``qpos``, ``qvel``) kept; then, state by state (each set into the data first), best of 3 passes of
     process CPU, in microseconds per tick: ``tick``, the service's ``tick``; ``mujoco``, the MuJoCo calls a
     tick makes, in its order: the scratch data posed (``mj_kinematics``, ``mj_comPos``, ``mj_tendon``,
-    ``mj_comVel``, ``mj_passive``, ``mj_rne``; :class:`~simrun.services.joint_loops.Scratch`), the contacts'
-    rows (``mj_collision``, ``mj_makeConstraint``), the mass matrix (``mj_crb``, ``mj_factorM``) and
-    ``mj_solveM`` of those rows; ``pose``, setting the state alone (taken off both). ``calls``: Python and C
-    function calls per tick (cProfile's count over the states). ``joints``: the actuators (one per driven
-    joint); ``rows``: mean constraint rows per state. ``raw``: one physics step (``mj_step`` in the same states), us.
+    ``mj_comVel``, ``mj_passive``, ``mj_rne``: :meth:`~simrun.services.joint_loops.Scratch.feed_forward`
+    itself, with its one vector subtraction), the contacts' rows (``mj_collision``, ``mj_makeConstraint``),
+    the mass matrix (``mj_crb``, ``mj_factorM``) and ``mj_solveM`` of those rows; setting the state alone is
+    taken off both. ``calls``: Python and C function calls per tick (cProfile's count over the states).
+    ``joints``: the actuators (one per driven joint); ``rows``: mean constraint rows per state. ``raw``: one
+    physics step (``mj_step`` in the same states), us.
     """
     world = walker_world(path)
     model, data = world.compile()
@@ -223,8 +225,8 @@ def walker_tick(path: Path) -> dict[str, float]:
     for _ in range(round(SECONDS / world.options.timestep)):
         states.append((data.qpos.copy(), data.qvel.copy()))
         world.step(1)
-    work = mujoco.MjData(model)
-    bias = np.zeros(model.nv)
+    scratch = Scratch(model)
+    work = scratch.data
     rows: list[int] = []
 
     def pose() -> None:
@@ -242,14 +244,7 @@ def walker_tick(path: Path) -> dict[str, float]:
         for qpos, qvel in states:
             data.qpos[:] = qpos
             data.qvel[:] = qvel
-            work.qpos[:] = data.qpos
-            work.qvel[:] = data.qvel
-            mujoco.mj_kinematics(model, work)
-            mujoco.mj_comPos(model, work)
-            mujoco.mj_tendon(model, work)
-            mujoco.mj_comVel(model, work)
-            mujoco.mj_passive(model, work)
-            mujoco.mj_rne(model, work, 0, bias)
+            scratch.feed_forward(data)  # the scratch data posed, as the tick poses it
             mujoco.mj_collision(model, work)
             mujoco.mj_makeConstraint(model, work)
             mujoco.mj_crb(model, work)
@@ -260,11 +255,13 @@ def walker_tick(path: Path) -> dict[str, float]:
             jac = work.efc_J[: count * model.nv].reshape(count, model.nv)
             mujoco.mj_solveM(model, work, np.empty((count, model.nv)), jac)
 
+    stepped = mujoco.MjData(model)
+
     def steps() -> None:
         for qpos, qvel in states:
-            work.qpos[:] = qpos
-            work.qvel[:] = qvel
-            mujoco.mj_step(model, work)
+            stepped.qpos[:] = qpos
+            stepped.qvel[:] = qvel
+            mujoco.mj_step(model, stepped)
 
     def best(run: Callable[[], None]) -> float:
         found = []
