@@ -165,3 +165,44 @@ def test_a_velocity_servo_refuses_speeds_past_its_ctrlrange(tmp_path: Path) -> N
     start = qpos(world, "v/j")
     world.run(1.0)
     assert qpos(world, "v/j") - start == pytest.approx(0.4, abs=0.02)
+
+
+@pytest.mark.parametrize("robot", ["mjcf", "urdf"])
+def test_a_target_a_hair_past_the_range_is_clamped_to_it_and_one_past_the_slack_refused(robot: str) -> None:
+    """A joint at its limit reads a hair outside it (MuJoCo's limits are soft); sent back, it is the range's end."""
+    world, service = mjcf_arm() if robot == "mjcf" else urdf_arm()
+    found = refused(service.set_positions, ["shoulder"], [1e3])  # the range the drive allows, as it says it
+    low, high = float(found.group(5)), float(found.group(6))
+    joint_low, joint_high = joint_range(world, "arm/shoulder")
+    assert joint_low <= low < high <= joint_high
+    slack = 1e-3 * min(high - low, 1.0)  # docs/limits.md
+    for given, taken in ((low - 4e-21, low), (high + 0.5 * slack, high), (0.25 * high, 0.25 * high)):
+        service.set_positions(["shoulder"], [given])
+        assert service.state().targets[service.state().names.index("shoulder")] == pytest.approx(taken, abs=1e-9)
+    for bad in (low - 2 * slack, high + 2 * slack):
+        refused(service.set_positions, ["shoulder"], [bad])
+        refused(service.trajectory, ["shoulder"], [0.5], [bad])
+    service.trajectory(["shoulder"], [0.5, 1.0], [high + 0.5 * slack, low - 0.5 * slack])
+    world.run(1.5)
+    assert service.state().targets[service.state().names.index("shoulder")] == low  # the last point, clamped
+    assert qpos(world, "arm/shoulder") == pytest.approx(low, abs=0.05)
+
+
+def test_a_built_in_arm_takes_back_the_joint_positions_it_reads() -> None:
+    """What a client does (tests/test_serve_scenes.py): read joint_states, change one joint, send them all back."""
+    world = load_scene(FIXTURES / "scenes" / "arm_on_base.toml")
+    arm = world.service("ArmService", "base/arm")
+    assert isinstance(arm, ArmService)
+    world.run(0.5)
+    read = list(arm.joint_states().positions)
+    fingers = [i for i, name in enumerate(arm.joints) if "finger" in name]
+    assert fingers
+    for i in fingers:  # closed fingers sit at (or a hair past) the low end of their slide
+        low, _ = joint_range(world, arm.joints[i])
+        read[i] = low - 1e-12
+    read[arm.joints.index("base/arm/yaw") if "base/arm/yaw" in arm.joints else 0] += 0.4
+    arm.move_to(read, 1.0)
+    world.run(1.5)
+    for i in fingers:
+        low, _ = joint_range(world, arm.joints[i])
+        assert qpos(world, arm.joints[i]) == pytest.approx(low, abs=1e-3)

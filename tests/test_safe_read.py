@@ -414,11 +414,16 @@ def test_many_mtllib_names_list_the_folder_once(tmp_path, monkeypatch):
 
 
 class LoopSwapper(threading.Thread):
-    """Replaces ``target`` atomically, alternating between the two ``make`` functions, until stopped."""
+    """Replaces ``target`` atomically, alternating between the two ``make`` functions, until stopped.
 
-    def __init__(self, target: Path, make_a: Callable[[Path], None], make_b: Callable[[Path], None]) -> None:
+    ``pause`` wall seconds between swaps (0: none) let a reader that retries until two looks agree finish.
+    """
+
+    def __init__(
+        self, target: Path, make_a: Callable[[Path], None], make_b: Callable[[Path], None], pause: float = 0.0
+    ) -> None:
         super().__init__(daemon=True)
-        self.target, self.makers, self.done = target, (make_a, make_b), 0
+        self.target, self.makers, self.done, self.pause = target, (make_a, make_b), 0, pause
         self.stop = threading.Event()
 
     def run(self) -> None:
@@ -427,6 +432,8 @@ class LoopSwapper(threading.Thread):
             self.makers[self.done % 2](scratch)
             os.replace(scratch, self.target)
             self.done += 1
+            if self.pause:
+                time.sleep(self.pause)
 
 
 NORMALISE_TRIES = 300
@@ -454,7 +461,9 @@ def test_race_asset_json_records_only_what_was_read(tmp_path):
     outside = tmp_path / "outside"
     outside.mkdir()
     (outside / "secret.png").write_bytes(outside_png)
-    swapper = LoopSwapper(obj.parent / "tex.png", regular(inside_png), link(outside / "secret.png"))
+    # a swap every 0.2 ms or so, several within each normalisation (about 3 ms); with back-to-back swaps the
+    # test took 207 s in one CI run (0.7 s a normalisation) and 3.6 s in another run here
+    swapper = LoopSwapper(obj.parent / "tex.png", regular(inside_png), link(outside / "secret.png"), pause=2e-4)
     seen = {"read": 0, "refused": 0, "unresolved": 0}
     swapper.start()
     try:

@@ -35,10 +35,19 @@ def _stalled_stream(url: str) -> socket.socket:
 
 
 def _rate(server: Server, seconds: float) -> float:
-    """Simulated seconds per wall second over ``seconds``."""
-    t0, w0 = server.get("/api/state")["time"], time.monotonic()
+    """Simulated seconds per wall second over ``seconds``.
+
+    Each reading of the simulated time is placed at the middle of its request (it is read somewhere within).
+    """
+
+    def now() -> tuple[float, float]:
+        before = time.monotonic()
+        sim = server.get("/api/state")["time"]
+        return sim, 0.5 * (before + time.monotonic())
+
+    t0, w0 = now()
     time.sleep(seconds)
-    t1, w1 = server.get("/api/state")["time"], time.monotonic()
+    t1, w1 = now()
     return (t1 - t0) / (w1 - w0)
 
 
@@ -48,20 +57,23 @@ def test_a_client_that_stops_reading_does_not_change_the_real_time_factor():
     # at 4x, well below what it can do on this machine (more than 8x alone), so the rate it holds does not
     # depend on how busy the machine is (the suite runs on 2 workers): a loop that waited on a stalled client
     # would fall below it.
+    # The loop catches up a lag of up to 0.25 wall s in a burst (simrun/serve/loop.py): at 4x, 1 simulated s,
+    # which over a window of 4 s is up to 6 %; a CI run measured 4.21 over 2 s alone. Windows of 4 s, 10 %.
     with serve(ROOM, "--rate", "4") as server:
-        alone = _rate(server, 2.0)
+        time.sleep(1.0)  # past the start
+        alone = _rate(server, 4.0)
         stalled = [_stalled_stream(server.url) for _ in range(4)]
         try:
             time.sleep(5.0)
             assert server.get("/api/state")["streams"]["open"] == 4
-            crowded = _rate(server, 3.0)
+            crowded = _rate(server, 4.0)
             streams = server.get("/api/state")["streams"]
         finally:
             for sock in stalled:
                 sock.close()
         assert streams["dropped"] > 0 and streams["queued"] <= 4 * 64  # the bound was reached, and held
-        assert alone == pytest.approx(4.0, rel=0.05)  # it holds the rate it was given on its own
-        assert crowded == pytest.approx(4.0, rel=0.05)  # and four stalled clients change nothing
+        assert alone == pytest.approx(4.0, rel=0.1)  # it holds the rate it was given on its own
+        assert crowded == pytest.approx(4.0, rel=0.1)  # and four stalled clients change nothing
         time.sleep(0.5)
         assert server.get("/api/state")["streams"]["open"] == 0  # vanished clients are let go
 

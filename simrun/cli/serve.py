@@ -46,6 +46,11 @@ from simrun.outfile import output_policy
     "--edit", is_flag=True,
     help="Allow edits of the running world over the API (insert, change, remove, move, push entities; docs/serve.md).",
 )  # fmt: skip
+@click.option(
+    "--request-rate", type=Number(1.0, 1e6), default=None,
+    help="Requests a wall second one client address may send in real time (a burst of twice as many; changing "
+    "requests half as many, a burst of this many); beyond, 429.  [default: 300]",
+)  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace existing outputs simrun did not write (never an input).")
 def serve_command(
     scene: Path,
@@ -64,6 +69,7 @@ def serve_command(
     foxglove_mcap: Path | None = None,
     allow_origins: tuple[str, ...] = (),
     edit: bool = False,
+    request_rate: float | None = None,
 ) -> None:
     """Run SCENE and serve it: HTTP/JSON services and sensors, a WebSocket stream, a dashboard at /.
 
@@ -76,6 +82,8 @@ def serve_command(
     mcap = record.with_suffix(suffix("mcap")) if record is not None and record_as == "mcap" else None
     options = ServeOptions(scene, not realtime, rate, record=record, record_sensors=sensors, record_mcap=mcap,
                            seed=seed, paused=paused, extra={"edit": edit})  # fmt: skip
+    if request_rate is not None:
+        options.request_rate = request_rate
     with output_policy(force, [scene]):
         served = serve(
             options,

@@ -524,4 +524,12 @@ def create_app(
         },
     )
     # a client's flood is refused before anything else runs (in real time; a lockstep world waits for its clients)
-    return RequestBudget(Guard(app, access), applies=lambda: not loop.options.lockstep)
+    per_client = loop.options.request_rate  # requests a second; --request-rate
+    return RequestBudget(
+        Guard(app, access),
+        per_client,
+        2.0 * per_client,
+        0.5 * per_client,
+        per_client,
+        applies=lambda: not loop.options.lockstep,
+    )

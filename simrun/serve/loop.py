@@ -44,6 +44,7 @@ from simrun.errors import SimrunError
 from simrun.run.commands import Command
 from simrun.serve.catalogue import RequestError, build_catalogue, plain
 from simrun.serve.images import ImageEncoder, image_of
+from simrun.serve.request_budget import REQUESTS_PER_SECOND
 from simrun.world.world import World
 
 #: Longest stretch of simulated time stepped between two looks at the call queue, seconds.
@@ -93,6 +94,8 @@ class ServeOptions:
         record_mcap: Also write the recording as MCAP (this path) when it is finished.
         seed: Sensor noise seed.
         paused: Start paused.
+        request_rate: Requests one client address may send per wall second in real time (a burst of twice as
+            many; changing requests half as many, a burst of ``request_rate``): :mod:`simrun.serve.request_budget`.
     """
 
     scene: Path
@@ -105,6 +108,7 @@ class ServeOptions:
     seed: int | None = None
     paused: bool = False
     extra: dict[str, Any] = field(default_factory=dict)
+    request_rate: float = REQUESTS_PER_SECOND
 
 
 class Subscriber:

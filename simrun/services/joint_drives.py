@@ -15,6 +15,10 @@ targets** the joint and the actuator allow (issue 42): a position target must li
 and a velocity target within a velocity servo's ``ctrlrange / gear`` and +-:data:`MAX_SPEED`. A command
 outside is refused (:func:`check_position`, :func:`check_speed`: one line naming the joint, the value and the
 range, and what sets it); a target that a velocity moves reaches the range's end and stops there.
+
+A joint at the end of its range reads a hair outside it (MuJoCo's limits are soft: ``-4e-21`` m for a finger
+closed at 0), so a position target within :func:`range_slack` of the range is taken as the range's end
+(clamped), and the positions a client reads can be sent back as they are.
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ from simrun.errors import EntityError
 MAX_TARGET = 1e6
 #: Largest velocity target, rad/s or m/s (docs/limits.md).
 MAX_SPEED = 1e6
+#: A position target this fraction of its range's width (at most this many rad or m) past an end is clamped.
+RANGE_SLACK = 1e-3
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,17 +165,29 @@ def _position_range(
     return lowest[0], highest[1], source
 
 
-def check_position(joint: str, drive: Drive, value: float, what: str) -> None:
-    """Refuse a position target outside the drive's range (one line naming the joint, the value and the range).
+def range_slack(drive: Drive) -> float:
+    """How far past an end of its range a position target is still clamped to it, rad or m.
+
+    :data:`RANGE_SLACK` of the range's width, at most :data:`RANGE_SLACK` rad or m (a finger 0.0159 m wide:
+    1.6e-5 m; a hinge of 2 pi or an unlimited joint: 1e-3 rad), and at least 1e-9.
+    """
+    return max(1e-9, RANGE_SLACK * min(drive.highest - drive.lowest, 1.0))
+
+
+def check_position(joint: str, drive: Drive, value: float, what: str) -> float:
+    """A position target within the drive's range: ``value`` (rad or m), clamped when within :func:`range_slack`.
 
     Raises:
-        EntityError: ``value`` (rad or m) is outside ``[drive.lowest, drive.highest]``.
+        EntityError: ``value`` is further outside ``[drive.lowest, drive.highest]`` (one line naming the joint,
+            the value and the range).
     """
-    if not drive.lowest <= value <= drive.highest:
+    slack = range_slack(drive)
+    if not drive.lowest - slack <= value <= drive.highest + slack:
         raise EntityError(
             f"{what}: joint {joint!r} target {_num(value)} {drive.unit} is outside [{_num(drive.lowest)}, "
             f"{_num(drive.highest)}] {drive.unit} ({drive.source}); give a target within it"
         )
+    return min(drive.highest, max(drive.lowest, value))
 
 
 def check_speed(joint: str, drive: Drive, value: float, what: str) -> None:

@@ -445,11 +445,12 @@ class JointService:
         return out
 
     def _positions(self, joints: Any, positions: Any, what: str) -> list[float]:
-        """Position targets (rad or m), each within its joint's range (:func:`~.joint_drives.check_position`)."""
+        """Position targets (rad or m), each within its joint's range (a hair outside: clamped to it).
+
+        See :func:`~.joint_drives.check_position`.
+        """
         values = self._values(joints, positions, what)
-        for joint, value in zip(joints, values, strict=True):
-            check_position(joint, self._drives[joint], value, what)
-        return values
+        return [check_position(j, self._drives[j], value, what) for j, value in zip(joints, values, strict=True)]
 
     def _speeds(self, joints: Any, velocities: Any, what: str) -> list[float]:
         """Velocity targets (rad/s or m/s), each within its drive's speeds (:func:`~.joint_drives.check_speed`)."""

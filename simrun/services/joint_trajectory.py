@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from simrun.errors import EntityError
-from simrun.services.joint_drives import Drive, check_position
+from simrun.services.joint_drives import Drive, check_position, range_slack
 
 #: Most points of one trajectory (docs/limits.md). At 500 Hz a point per tick for 200 s.
 MAX_POINTS = 100_000
@@ -90,13 +90,14 @@ def check_waypoints(
     rows = flat.reshape(count, len(joints))
     lowest = np.array([drives[j].lowest for j in joints])
     highest = np.array([drives[j].highest for j in joints])
-    outside = np.argwhere(~((rows >= lowest) & (rows <= highest)))  # NaN included
+    slack = np.array([range_slack(drives[j]) for j in joints])
+    outside = np.argwhere(~((rows >= lowest - slack) & (rows <= highest + slack)))  # NaN included
     if outside.size:
         k, j = (int(i) for i in outside[0])
         if not math.isfinite(rows[k, j]):
             raise EntityError(f"{what}: point {k}: joint {joints[j]!r} position {rows[k, j]!r} is not a finite number")
         check_position(joints[j], drives[joints[j]], float(rows[k, j]), f"{what}: point {k}")
-    return stamps.tolist(), rows.tolist()
+    return stamps.tolist(), np.clip(rows, lowest, highest).tolist()  # a hair outside: the range's end
 
 
 class Trajectory:
