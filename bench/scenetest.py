@@ -329,7 +329,7 @@ def main() -> None:
     lines += [
         "",
         f"Less their fixed cost, a run costs {rest['j2']:.2f}x its CPU at -j 1 in a -j 2 worker and "
-        f"{rest['dask']:.2f}x in a Dask worker (two runs at once on the 2 CPUs, and the results' transfer); the "
+        f"{rest['dask']:.2f}x in a Dask worker (what the worker adds around a run is not broken down here); the "
         "fixed cost is paid per invocation, so a suite of more runs per invocation than a round here spreads it "
         "thinner.",
     ]
