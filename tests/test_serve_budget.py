@@ -22,6 +22,7 @@ from simrun.serve.request_budget import (
     REQUEST_BURST,
     REQUESTS_PER_SECOND,
     RequestBudget,
+    budgets,
 )
 
 
@@ -161,11 +162,8 @@ def test_the_default_budget_is_the_one_documented_and_request_rate_scales_all_fo
 
     from simrun.cli.main import main
 
-    assert (REQUEST_BURST, CHANGES_PER_SECOND, CHANGE_BURST) == (
-        2 * REQUESTS_PER_SECOND,
-        0.5 * REQUESTS_PER_SECOND,
-        REQUESTS_PER_SECOND,
-    )
+    assert budgets() == (REQUESTS_PER_SECOND, REQUEST_BURST, CHANGES_PER_SECOND, CHANGE_BURST) == (300, 600, 150, 300)
+    assert budgets(60) == (60, 120, 30, 60)
     shown = CliRunner().invoke(main, ["serve", "--help"], terminal_width=200).output
     assert f"[default: {REQUESTS_PER_SECOND:g}]" in " ".join(shown.split())
     limits = (Path(__file__).resolve().parent.parent / "docs" / "limits.md").read_text()

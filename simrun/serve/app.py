@@ -39,7 +39,7 @@ from simrun.serve.edit_routes import edit_routes
 from simrun.serve.images import FORMATS, encode_jpeg_bytes, encode_png, image_of
 from simrun.serve.loop import CALL_TIMEOUT, MAX_RATE, MAX_STEPS, MIN_RATE, REALTIME_STEP, SimLoop, Subscriber
 from simrun.serve.openapi import API_VERSION, MAX_ARGUMENT, openapi_document
-from simrun.serve.request_budget import RequestBudget
+from simrun.serve.request_budget import RequestBudget, budgets
 
 #: Largest request body, bytes.
 MAX_BODY = 64 * 1024
@@ -524,12 +524,5 @@ def create_app(
         },
     )
     # a client's flood is refused before anything else runs (in real time; a lockstep world waits for its clients)
-    per_client = loop.options.request_rate  # requests a second; --request-rate
-    return RequestBudget(
-        Guard(app, access),
-        per_client,
-        2.0 * per_client,
-        0.5 * per_client,
-        per_client,
-        applies=lambda: not loop.options.lockstep,
-    )
+    limits = budgets(loop.options.request_rate)  # --request-rate
+    return RequestBudget(Guard(app, access), *limits, applies=lambda: not loop.options.lockstep)

@@ -34,11 +34,11 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 #: Requests (any route, WebSocket handshakes included) one client address may send per wall second, sustained.
 REQUESTS_PER_SECOND = 300.0
 #: Requests one client address may send at once before the sustained rate applies.
-REQUEST_BURST = 600.0
+REQUEST_BURST = 2.0 * REQUESTS_PER_SECOND
 #: Changing requests (``POST``, ``PUT``, ``PATCH``, ``DELETE``) one client address may send per wall second.
-CHANGES_PER_SECOND = 150.0
+CHANGES_PER_SECOND = 0.5 * REQUESTS_PER_SECOND
 #: Changing requests one client address may send at once before the sustained rate applies.
-CHANGE_BURST = 300.0
+CHANGE_BURST = REQUESTS_PER_SECOND
 #: Wall seconds a 429 is held before it is sent.
 PENALTY = 0.1
 #: Client addresses whose buckets are kept (beyond, the one seen longest ago is forgotten: a full bucket).
@@ -70,6 +70,16 @@ class Bucket:
     def wait(self) -> float:
         """Seconds until one token is held (0 when one is)."""
         return max(0.0, (1.0 - self.tokens) / self.rate)
+
+
+def budgets(rate: float = REQUESTS_PER_SECOND) -> tuple[float, float, float, float]:
+    """The four numbers of a client's budget from its request ``rate`` (per wall second; ``--request-rate``).
+
+    Returns:
+        ``(rate, burst, change_rate, change_burst)``: ``rate``, twice it, half of it and ``rate`` (the defaults:
+        :data:`REQUESTS_PER_SECOND`, :data:`REQUEST_BURST`, :data:`CHANGES_PER_SECOND`, :data:`CHANGE_BURST`).
+    """
+    return rate, 2.0 * rate, 0.5 * rate, rate
 
 
 class RequestBudget:
