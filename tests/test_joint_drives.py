@@ -182,6 +182,7 @@ def test_a_target_a_hair_past_the_range_is_clamped_to_it_and_one_past_the_slack_
     for bad in (low - 2 * slack, high + 2 * slack):
         refused(service.set_positions, ["shoulder"], [bad])
         refused(service.trajectory, ["shoulder"], [0.5], [bad])
+        refused(service.trajectory, ["shoulder"], [0.5, 1.0], [low - 0.5 * slack, bad])  # the hair is not the end
     service.trajectory(["shoulder"], [0.5, 1.0], [high + 0.5 * slack, low - 0.5 * slack])
     world.run(1.5)
     assert service.state().targets[service.state().names.index("shoulder")] == low  # the last point, clamped
